@@ -1,0 +1,71 @@
+"""One blade at rest: stiffness along the blade and the shape gravity gives it (paper III.A, eqs 1-6).
+
+Joints are numbered from the root: joint ``i`` (0-based) is the bottom of segment ``i`` and lies
+at distance ``L = l_length * i`` from the root. Angles are in radians; ``tilt`` is a segment's
+angle from the vertical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GRAVITY = 9.81  # g of eq 2, m/s^2
+
+
+def joint_stiffness(root_stiffness: np.ndarray, segment_length: np.ndarray, segments: int,
+                    offset: float) -> np.ndarray:
+    """mu_i^base of every joint, shape (..., n).
+
+    Eq 5 (eq 1 at L = l_length * i): mu_i = mu_root / (l_length * i + x). The root is the
+    stiffest joint; stiffness falls towards the tip.
+    """
+    i = np.arange(segments, dtype=np.float64)
+    L = np.asarray(segment_length, dtype=np.float64)[..., None] * i
+    return (np.asarray(root_stiffness, dtype=np.float64)[..., None] / (L + offset)).astype(np.float32)
+
+
+def segment_weight(density: float, segment_length: np.ndarray) -> np.ndarray:
+    """f^G of eq 2: the weight of one segment, rho_grass * l_length * g (rho is a linear density)."""
+    return (density * np.asarray(segment_length, dtype=np.float64) * GRAVITY).astype(np.float32)
+
+
+def rest_angles(inclination: np.ndarray, segment_length: np.ndarray, stiffness: np.ndarray,
+                density: float, iterations: int = 40) -> np.ndarray:
+    """theta_i^base of eq 6 for every joint of every blade, shape (B, n), radians.
+
+    Eq 6 reads theta = M^G * mu; eq 21 divides a torque by the same mu to get an angle, and mu is
+    a stiffness (eq 1), so the physically sound reading, used here, is theta = M^G / mu.
+
+    Eq 4 takes the lever of the weight above joint i as (n-i)*l_length along T, the blade's
+    direction; with T upright the cross product vanishes, so the paper starts from a random
+    inclination alpha (Fig. 5). We use the exact lever of a segmented cantilever: the horizontal
+    distance from joint i to the centre of each segment above it (eqs 3-4 summed segment by
+    segment). As the lever depends on the bent shape, the statics are solved by under-relaxed
+    fixed-point iteration; a blade that droops past the horizontal loses lever, so it converges.
+
+    inclination: (B,) alpha, the random initial tilt of the blade's first segment.
+    segment_length: (B,) l_length. stiffness: (B, n) mu_i^base. density: rho_grass in kg/m.
+    """
+    alpha = np.asarray(inclination, dtype=np.float64)[:, None]
+    seg = np.asarray(segment_length, dtype=np.float64)[:, None]
+    mu = np.asarray(stiffness, dtype=np.float64)
+    n = mu.shape[1]
+    weight = segment_weight(density, seg).astype(np.float64)  # f^G, eq 2
+    theta = np.zeros_like(mu)
+    above = np.arange(n, 0, -1, dtype=np.float64)  # (n - i): segments at and above joint i (eq 3)
+    for _ in range(iterations):
+        tilt = alpha + np.cumsum(theta, axis=1)  # absolute tilt of every segment
+        dx = seg * np.sin(tilt)  # horizontal extent of every segment
+        joint_x = np.cumsum(dx, axis=1) - dx  # horizontal position of joint i
+        centre_x = joint_x + 0.5 * dx
+        # sum over segments j >= i of their centres, by a reversed cumulative sum
+        centre_sum = np.cumsum(centre_x[:, ::-1], axis=1)[:, ::-1]
+        torque = weight * (centre_sum - above * joint_x)  # M_i^G, eqs 3-4
+        target = torque / mu  # eq 6
+        theta = 0.5 * theta + 0.5 * target
+    return theta.astype(np.float32)
+
+
+def rest_tilt(inclination: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Absolute tilt from vertical of each segment at rest: alpha + sum of theta_base up to i."""
+    return (np.asarray(inclination, dtype=np.float32)[:, None] + np.cumsum(angles, axis=1)).astype(np.float32)

@@ -1,0 +1,570 @@
+"""The one parameter schema: defaults, ranges, units and help of every parameter.
+
+The Blender properties (``grass_addon/bridge/properties.py``), the TOML scene files and the
+command-line flags of ``headless/`` are all generated from ``PARAMS`` below. Add a parameter
+here and it appears everywhere; never list a parameter anywhere else.
+
+Values are stored in user units (metres, degrees, m/s, seconds). The engine converts degrees
+to radians where it uses them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+from .errors import ParameterError
+
+WIND_TYPES = ("calm", "gentle_breeze", "moderate_breeze", "blast", "whirlwind")
+
+# Nominal mean speed of each wind type in m/s (Beaufort scale: calm < 0.5, gentle breeze
+# 3.4-5.4, moderate breeze 5.5-7.9). A TOML file that names a type but no speed gets this.
+WIND_TYPE_SPEED = {
+    "calm": 0.3,
+    "gentle_breeze": 4.4,
+    "moderate_breeze": 6.7,
+    "blast": 3.0,
+    "whirlwind": 2.0,
+}
+
+# Above this the field would not fit in memory on an ordinary workstation.
+MAX_TOTAL_BLADES = 20_000_000
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter. ``kind`` is one of: int, float, bool, enum, vec (floats), table_list."""
+
+    section: str
+    key: str
+    kind: str
+    default: Any
+    help: str
+    unit: str = ""
+    minimum: float | None = None
+    maximum: float | None = None
+    soft_min: float | None = None
+    soft_max: float | None = None
+    choices: tuple[str, ...] = ()
+    size: int = 0  # for kind == "vec"
+    fields: tuple["Param", ...] = ()  # for kind == "table_list": the columns of each row
+    label: str = ""
+
+    @property
+    def name(self) -> str:
+        """Dotted name used in messages and TOML: ``wind.speed``."""
+        return f"{self.section}.{self.key}" if self.section else self.key
+
+    @property
+    def cli_flag(self) -> str:
+        """Command-line flag: ``--wind-speed``."""
+        return "--" + self.name.replace(".", "-").replace("_", "-")
+
+    @property
+    def ui_name(self) -> str:
+        return self.label or self.key.replace("_", " ").capitalize()
+
+    def range_text(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        if self.kind == "enum":
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.kind == "bool":
+            return "true or false"
+        if self.minimum is not None and self.maximum is not None:
+            return f"{_fmt(self.minimum)} to {_fmt(self.maximum)}{unit}"
+        if self.minimum is not None:
+            return f">= {_fmt(self.minimum)}{unit}"
+        return f"any number{unit}"
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def _p(section: str, key: str, kind: str, default: Any, help: str, **kw: Any) -> Param:
+    return Param(section=section, key=key, kind=kind, default=default, help=help, **kw)
+
+
+# Columns of one ``[[blade.species]]`` row.
+SPECIES_FIELDS: tuple[Param, ...] = (
+    _p("", "name", "str", "meadow grass", "Species name shown in the UI"),
+    _p("", "weight", "float", 1.0, "Relative share of blades of this species", minimum=0.0, maximum=1000.0),
+    _p("", "length", "float", 0.32, "Reference blade length l_base of this species", unit="m",
+       minimum=0.01, maximum=3.0, soft_max=1.5),
+    _p("", "length_variation", "float", 0.07,
+       "Spread lambda of the random length modifier: l = l_base + lambda*N(0,1)", unit="m",
+       minimum=0.0, maximum=1.0, soft_max=0.5),
+    _p("", "width", "float", 0.008, "Blade width at the root", unit="m", minimum=0.0005, maximum=0.1,
+       soft_max=0.03),
+    _p("", "stiffness", "float", 1.0, "Multiplier of the root stiffness mu_root (eq 1): >1 stiffer",
+       minimum=0.05, maximum=20.0, soft_max=5.0),
+    _p("", "color", "vec", (0.12, 0.32, 0.05), "Base colour of the blade tip (linear RGB)",
+       minimum=0.0, maximum=1.0, size=3),
+)
+
+# Columns of one ``[[wind.keys]]`` row: the mean wind changes over time between keys.
+WIND_KEY_FIELDS: tuple[Param, ...] = (
+    _p("", "time", "float", 0.0, "Time of the key in seconds from the simulation start", unit="s",
+       minimum=-1e6, maximum=1e6),
+    _p("", "speed", "float", 4.4, "Mean wind speed at this key", unit="m/s", minimum=0.0, maximum=60.0),
+    _p("", "direction", "float", 30.0, "Direction the wind blows towards, from +X, counter-clockwise",
+       unit="deg", minimum=-3600.0, maximum=3600.0),
+)
+
+PARAMS: tuple[Param, ...] = (
+    # --- [field] paper III: blocks (patches) of square cells -----------------------------------
+    _p("field", "blocks_x", "int", 32, "Number of blocks (patches) along X", minimum=1, maximum=256,
+       soft_max=64),
+    _p("field", "blocks_y", "int", 32, "Number of blocks (patches) along Y", minimum=1, maximum=256,
+       soft_max=64),
+    _p("field", "cells_per_block", "int", 16, "Cells along each side of a block", minimum=1, maximum=64,
+       soft_max=32),
+    _p("field", "cell_size", "float", 0.1, "Edge length of a square cell", unit="m", minimum=0.01,
+       maximum=10.0, soft_max=1.0),
+    _p("field", "blades_per_cell", "int", 2, "Blades per cell: 'num' of eq 9", minimum=0, maximum=64,
+       soft_max=16),
+    _p("field", "seed", "int", 0, "Random seed of the layout and of the turbulence", minimum=0,
+       maximum=2**31 - 1),
+    # --- [blade] paper III.A, eqs 1-6 and V.A, eqs 14-32 ----------------------------------------
+    _p("blade", "segments", "int", 5, "Rigid segments per blade: n", minimum=1, maximum=12),
+    _p("blade", "tip_width", "float", 0.15, "Blade width at the tip as a fraction of the root width",
+       minimum=0.0, maximum=1.0),
+    _p("blade", "inclination", "float", 18.0, "Largest random initial inclination alpha (paper III.A)",
+       unit="deg", minimum=0.0, maximum=80.0),
+    _p("blade", "root_stiffness", "float", 8.0e-4,
+       "mu_root of eq 1: stiffness mu = mu_root / (L + x) at distance L from the root",
+       unit="N*m^2/rad", minimum=1e-7, maximum=1.0, soft_max=0.01),
+    _p("blade", "stiffness_offset", "float", 0.05, "Compensation x of eq 1 (keeps root stiffness finite)",
+       unit="m", minimum=1e-4, maximum=1.0),
+    _p("blade", "density", "float", 0.003, "Linear density rho_grass of the blade (eq 2)", unit="kg/m",
+       minimum=1e-5, maximum=1.0, soft_max=0.05),
+    _p("blade", "nonlinear_stiffness", "float", 2.0e-3,
+       "k of eq 23: stiffness grows by k per radian of bend (nonlinear stiffening)", unit="N*m/rad^2",
+       minimum=0.0, maximum=1.0, soft_max=0.05),
+    _p("blade", "response_torque", "float", 2.0e-3,
+       "gamma of eq 26: torque at which a segment closes the gap to equilibrium at the reference rate",
+       unit="N*m", minimum=1e-7, maximum=10.0, soft_max=0.05),
+    _p("blade", "twist_stiffness", "float", 0.6, "Twist stiffness as a fraction of bending stiffness",
+       minimum=0.01, maximum=10.0),
+    _p("blade", "damping_mass", "float", 1.2, "alpha of eq 31: mass-proportional damping C = alpha*M + beta*K",
+       unit="1/s", minimum=0.0, maximum=100.0, soft_max=10.0),
+    _p("blade", "damping_stiffness", "float", 0.004, "beta of eq 31: stiffness-proportional damping",
+       unit="s", minimum=0.0, maximum=1.0, soft_max=0.05),
+    _p("blade", "boundary_k", "float", 0.05, "k of eq 28: deflection (rad) above which the free part grows",
+       minimum=0.0, maximum=3.0),
+    _p("blade", "boundary_lambda", "float", 8.0, "lambda of eq 28: how fast the free (oscillating) part grows",
+       minimum=0.0, maximum=100.0),
+    _p("blade", "species", "table_list", (), "Grass species mixed by weight; empty: one default species",
+       fields=SPECIES_FIELDS),
+    # --- [wind] paper IV, eqs 12-13 --------------------------------------------------------------
+    _p("wind", "type", "enum", "gentle_breeze", "Kind of wind (paper IV)", choices=WIND_TYPES),
+    _p("wind", "speed", "float", 4.4, "Mean wind speed (a type's preset sets it)", unit="m/s",
+       minimum=0.0, maximum=60.0, soft_max=20.0),
+    _p("wind", "direction", "float", 30.0, "Direction the wind blows towards, from +X, counter-clockwise",
+       unit="deg", minimum=-3600.0, maximum=3600.0, soft_min=-180.0, soft_max=360.0),
+    _p("wind", "turbulence", "float", 1.2, "Standard deviation of the turbulent wind v' (eq 12)",
+       unit="m/s", minimum=0.0, maximum=30.0, soft_max=8.0),
+    _p("wind", "turbulence_scale", "float", 0.8,
+       "Edge length a of a turbulence unit (eq 13); the paper uses one cell", unit="m", minimum=0.01,
+       maximum=100.0, soft_max=10.0),
+    _p("wind", "turbulence_period", "float", 1.5, "Seconds between independent turbulence samples",
+       unit="s", minimum=0.05, maximum=600.0, soft_max=10.0),
+    _p("wind", "gust_speed", "float", 9.0, "Blast: extra speed at the centre of the gust front",
+       unit="m/s", minimum=0.0, maximum=60.0, soft_max=25.0),
+    _p("wind", "gust_width", "float", 6.0, "Blast: width of the gust front", unit="m", minimum=0.1,
+       maximum=1000.0, soft_max=50.0),
+    _p("wind", "gust_interval", "float", 6.0, "Blast: seconds between gust fronts", unit="s", minimum=0.5,
+       maximum=3600.0, soft_max=60.0),
+    _p("wind", "vortex_radius", "float", 3.0, "Whirlwind: core radius of the vortex", unit="m",
+       minimum=0.1, maximum=1000.0, soft_max=30.0),
+    _p("wind", "vortex_speed", "float", 9.0, "Whirlwind: peak tangential speed at the core radius",
+       unit="m/s", minimum=0.0, maximum=60.0, soft_max=30.0),
+    _p("wind", "keys", "table_list", (), "Keys that change the mean speed and direction over time",
+       fields=WIND_KEY_FIELDS),
+    # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------
+    _p("lod", "enabled", "bool", True, "Use the three levels of detail; off: every blade is geometry"),
+    _p("lod", "blade_near", "float", 6.0, "d_g1 of eq 7: blades start giving way to cards", unit="m",
+       minimum=0.0, maximum=10000.0, soft_max=100.0),
+    _p("lod", "blade_far", "float", 12.0, "d_g2 of eq 7: no blades beyond", unit="m", minimum=0.0,
+       maximum=10000.0, soft_max=100.0),
+    _p("lod", "card_near", "float", 25.0, "d_s1 of eq 10: cards start giving way to the ground texture",
+       unit="m", minimum=0.0, maximum=10000.0, soft_max=300.0),
+    _p("lod", "card_far", "float", 40.0, "d_s2 of eq 10: no cards beyond", unit="m", minimum=0.0,
+       maximum=10000.0, soft_max=300.0),
+    _p("lod", "card_width", "float", 1.6, "Card width in cells (>1: cards overlap their neighbours)",
+       minimum=0.1, maximum=10.0),
+    _p("lod", "card_height", "float", 0.85, "Card height as a fraction of the mean blade length",
+       minimum=0.05, maximum=5.0),
+    # --- [camera] headless renders and LOD without a Blender camera ---------------------------------
+    _p("camera", "mode", "enum", "flythrough", "Fly over the field (the paper's tests) or a fixed view",
+       choices=("flythrough", "fixed")),
+    _p("camera", "height", "float", 1.6, "Eye height above the ground", unit="m", minimum=0.05,
+       maximum=10000.0, soft_max=50.0),
+    _p("camera", "fov", "float", 55.0, "Horizontal field of view", unit="deg", minimum=1.0, maximum=170.0),
+    _p("camera", "speed", "float", 1.2, "Flythrough: speed along the path", unit="m/s", minimum=0.0,
+       maximum=1000.0, soft_max=20.0),
+    _p("camera", "position", "vec", (0.0, -6.0, 1.6), "Fixed view: camera position (field centre is 0,0)",
+       unit="m", minimum=-1e5, maximum=1e5, size=3),
+    _p("camera", "target", "vec", (0.0, 4.0, 0.2), "Fixed view: point the camera looks at", unit="m",
+       minimum=-1e5, maximum=1e5, size=3),
+    # --- [render] ------------------------------------------------------------------------------
+    _p("render", "engine", "enum", "cycles", "Render engine", choices=("cycles", "eevee")),
+    _p("render", "samples", "int", 16, "Samples per pixel", minimum=1, maximum=65536, soft_max=512),
+    _p("render", "resolution_x", "int", 640, "Image width", unit="px", minimum=16, maximum=16384),
+    _p("render", "resolution_y", "int", 360, "Image height", unit="px", minimum=16, maximum=16384),
+    _p("render", "fps", "int", 24, "Frames per second of the animation and of the simulation",
+       minimum=1, maximum=240),
+    _p("render", "frame_start", "int", 1, "First frame", minimum=0, maximum=1_000_000),
+    _p("render", "frame_end", "int", 48, "Last frame", minimum=0, maximum=1_000_000),
+    _p("render", "sun_elevation", "float", 35.0, "Sun elevation above the horizon", unit="deg",
+       minimum=-10.0, maximum=90.0),
+    _p("render", "sun_azimuth", "float", 140.0, "Sun azimuth from +X, counter-clockwise", unit="deg",
+       minimum=-360.0, maximum=360.0),
+    # --- [simulation] --------------------------------------------------------------------------------
+    _p("simulation", "sub_steps", "int", 1, "Solver steps per frame at least (raised for stability)",
+       minimum=1, maximum=64),
+    _p("simulation", "preroll", "float", 2.0, "Seconds simulated before the first frame", unit="s",
+       minimum=0.0, maximum=600.0, soft_max=10.0),
+    _p("simulation", "checkpoint_interval", "int", 24,
+       "Frames between saved states, so seeking backwards is cheap", minimum=1, maximum=100000),
+)
+
+SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))
+BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
+
+
+def section_params(section: str) -> tuple[Param, ...]:
+    return tuple(p for p in PARAMS if p.section == section)
+
+
+# --------------------------------------------------------------------------------------------
+# Values
+
+
+class Section:
+    """Read-only view of one section: ``params.wind.speed``."""
+
+    __slots__ = ("_name", "_values")
+
+    def __init__(self, name: str, values: Mapping[str, Any]):
+        object.__setattr__(self, "_name", name)
+        object.__setattr__(self, "_values", dict(values))
+
+    def __getattr__(self, key: str) -> Any:
+        try:
+            return self._values[key]
+        except KeyError:
+            raise AttributeError(f"no parameter {self._name}.{key}") from None
+
+    def __setattr__(self, key: str, value: Any) -> None:
+        raise AttributeError("Params are read-only; use Params.replace()")
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self._values)
+
+
+class Params:
+    """A complete, validated parameter set. Immutable; ``replace`` returns a new one."""
+
+    def __init__(self, values: Mapping[str, Mapping[str, Any]]):
+        self._values = {s: dict(values[s]) for s in SECTIONS}
+        self._sections = {s: Section(s, self._values[s]) for s in SECTIONS}
+
+    def __getattr__(self, section: str) -> Section:
+        sections = self.__dict__.get("_sections")
+        if sections is None or section not in sections:
+            raise AttributeError(section)
+        return sections[section]
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Params) and self.to_dict() == other.to_dict()
+
+    def __hash__(self) -> int:
+        return hash(self.digest())
+
+    def __repr__(self) -> str:
+        return f"Params({self.digest()[:10]})"
+
+    def get(self, name: str) -> Any:
+        section, key = name.split(".", 1)
+        return self._values[section][key]
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain nested dict (lists for vectors and tables): TOML- and JSON-ready."""
+        return {s: {k: _plain(v) for k, v in vals.items()} for s, vals in self._values.items()}
+
+    def digest(self) -> str:
+        """Stable hash of every value: the key of caches (state is f(params, seed, frame))."""
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha1(text.encode()).hexdigest()
+
+    def replace(self, overrides: Mapping[str, Any] | None = None, **dotted: Any) -> "Params":
+        """New validated Params with ``{"wind.speed": 5.0}`` style overrides applied."""
+        data = self.to_dict()
+        for name, value in {**(overrides or {}), **{k.replace("__", "."): v for k, v in dotted.items()}}.items():
+            if "." not in name:
+                raise ParameterError(name, "expected a dotted name such as 'wind.speed'")
+            section, key = name.split(".", 1)
+            data.setdefault(section, {})[key] = value
+        return from_dict(data)
+
+    def species(self) -> tuple[dict[str, Any], ...]:
+        """The species table; one default species when the user gave none."""
+        rows = self.blade.species
+        if rows:
+            return rows
+        return (row_defaults(SPECIES_FIELDS),)
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return [_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    return v
+
+
+def row_defaults(fields: Iterable[Param]) -> dict[str, Any]:
+    return {f.key: f.default for f in fields}
+
+
+def defaults() -> Params:
+    return Params({s: {p.key: p.default for p in section_params(s)} for s in SECTIONS})
+
+
+# --------------------------------------------------------------------------------------------
+# Validation
+
+
+def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
+    """Return ``value`` converted to the parameter's type, or raise ParameterError."""
+    name = name or p.name
+    expect = f"valid: {p.range_text()}"
+    if p.kind == "bool":
+        if not isinstance(value, bool):
+            raise ParameterError(name, f"{value!r} is not true/false ({expect})")
+        return value
+    if p.kind == "str":
+        if not isinstance(value, str):
+            raise ParameterError(name, f"{value!r} is not a text string")
+        return value
+    if p.kind == "enum":
+        if not isinstance(value, str) or value not in p.choices:
+            raise ParameterError(name, f"unknown value {value!r} ({expect})")
+        return value
+    if p.kind == "vec":
+        if not isinstance(value, (list, tuple)) or len(value) != p.size:
+            raise ParameterError(name, f"{value!r} is not a list of {p.size} numbers (each {p.range_text()})")
+        return tuple(_check_number(p, v, f"{name}[{i}]", float) for i, v in enumerate(value))
+    if p.kind == "table_list":
+        if isinstance(value, dict):
+            value = [value]
+        if not isinstance(value, (list, tuple)):
+            raise ParameterError(name, f"{value!r} is not a list of tables ([[{name}]] in TOML)")
+        return tuple(_check_row(p, row, f"{name}[{i}]") for i, row in enumerate(value))
+    return _check_number(p, value, name, int if p.kind == "int" else float)
+
+
+def _check_number(p: Param, value: Any, name: str, kind: type) -> float | int:
+    expect = f"valid: {p.range_text()}"
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        what = "a whole number" if kind is int else "a number"
+        raise ParameterError(name, f"{value!r} is not {what} ({expect})")
+    if kind is int and isinstance(value, float):
+        if not math.isfinite(value) or value != int(value):
+            raise ParameterError(name, f"{value!r} is not a whole number ({expect})")
+        value = int(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ParameterError(name, f"{value!r} is not a finite number ({expect})")
+    if (p.minimum is not None and value < p.minimum) or (p.maximum is not None and value > p.maximum):
+        raise ParameterError(name, f"{value!r} is out of range ({expect})")
+    return kind(value)
+
+
+def _check_row(p: Param, row: Any, name: str) -> dict[str, Any]:
+    if not isinstance(row, Mapping):
+        raise ParameterError(name, f"{row!r} is not a table")
+    columns = {f.key: f for f in p.fields}
+    for key in row:
+        if key not in columns:
+            raise ParameterError(f"{name}.{key}", f"unknown key (valid keys: {', '.join(columns)})")
+    out = row_defaults(p.fields)
+    for key, value in row.items():
+        out[key] = _check_value(columns[key], value, f"{name}.{key}")
+    return out
+
+
+def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
+    """Validate a nested dict (as read from TOML) on top of ``base`` (defaults if None)."""
+    if not isinstance(data, Mapping):
+        raise ParameterError("", f"expected a table of sections, got {type(data).__name__}")
+    values = (base or defaults()).to_dict()
+    for section, entries in data.items():
+        if section not in SECTIONS:
+            raise ParameterError(section, f"unknown section [{section}] (valid: {', '.join(SECTIONS)})")
+        if not isinstance(entries, Mapping):
+            raise ParameterError(section, f"[{section}] must be a table of key = value lines")
+        known = {p.key: p for p in section_params(section)}
+        for key, value in entries.items():
+            if key not in known:
+                raise ParameterError(f"{section}.{key}",
+                                     f"unknown key in [{section}] (valid keys: {', '.join(known)})")
+            values[section][key] = _check_value(known[key], value)
+        if section == "wind" and "type" in entries and "speed" not in entries:
+            values["wind"]["speed"] = WIND_TYPE_SPEED[values["wind"]["type"]]
+    # Lists come back from to_dict() as lists; normalise every value through the checker once.
+    checked = {s: {p.key: _check_value(p, values[s][p.key]) for p in section_params(s)} for s in SECTIONS}
+    _check_relations(checked)
+    return Params(checked)
+
+
+def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
+    """Constraints between parameters, each reported with the parameter that breaks it."""
+    f, lod = v["field"], v["lod"]
+    cells = f["blocks_x"] * f["blocks_y"] * f["cells_per_block"] ** 2
+    total = cells * f["blades_per_cell"]
+    if total > MAX_TOTAL_BLADES:
+        raise ParameterError("field.blades_per_cell",
+                             f"the field would hold {total:,} blades; at most {MAX_TOTAL_BLADES:,} are allowed "
+                             "(lower field.blocks_x/blocks_y, field.cells_per_block or field.blades_per_cell)")
+    order = ("blade_near", "blade_far", "card_near", "card_far")
+    for a, b in zip(order, order[1:]):
+        if lod[b] < lod[a]:
+            raise ParameterError(f"lod.{b}", f"{lod[b]:g} m must be >= lod.{a} ({lod[a]:g} m): "
+                                 "valid: blade_near <= blade_far <= card_near <= card_far")
+    r = v["render"]
+    if r["frame_end"] < r["frame_start"]:
+        raise ParameterError("render.frame_end",
+                             f"{r['frame_end']} is before render.frame_start ({r['frame_start']})")
+    species = v["blade"]["species"]
+    if species and sum(s["weight"] for s in species) <= 0:
+        raise ParameterError("blade.species", "the species weights add up to 0; give one a weight > 0")
+    times = [k["time"] for k in v["wind"]["keys"]]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ParameterError("wind.keys", f"key times {times} must increase strictly")
+
+
+# --------------------------------------------------------------------------------------------
+# TOML and command line
+
+
+def load_toml(path: str | Path, base: Params | None = None) -> Params:
+    """Read a scene file; every problem is a ParameterError naming the file and the key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError("config", f"cannot read {path}: {exc.strerror or exc}") from None
+    return loads_toml(text, base, source=str(path))
+
+
+def loads_toml(text: str, base: Params | None = None, source: str = "<toml>") -> Params:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError("config", f"{source} is not valid TOML: {exc}") from None
+    try:
+        return from_dict(data, base)
+    except ParameterError as exc:
+        raise ParameterError(exc.key, f"{exc.message} (in {source})") from None
+
+
+def dumps_toml(params: Params) -> str:
+    """Write a complete scene file that ``loads_toml`` reads back to equal Params."""
+    lines: list[str] = []
+    tables: list[str] = []
+    for section in SECTIONS:
+        lines.append(f"[{section}]")
+        for p in section_params(section):
+            value = params.get(p.name)
+            if p.kind == "table_list":
+                for row in value:
+                    tables.append(f"\n[[{p.name}]]")
+                    tables.extend(f"{k} = {_toml_value(x)}" for k, x in row.items())
+                continue
+            lines.append(f"{p.key} = {_toml_value(value)}  # {p.help}" + (f" [{p.unit}]" if p.unit else ""))
+        lines.append("")
+    return "\n".join(lines + tables) + "\n"
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def cli_params() -> tuple[Param, ...]:
+    """Parameters that have a command-line flag (tables only come from TOML files)."""
+    return tuple(p for p in PARAMS if p.kind != "table_list")
+
+
+def add_cli_arguments(parser: Any) -> None:
+    """Add one ``--section-key`` flag per parameter to an ``argparse`` parser."""
+    for section in SECTIONS:
+        group = parser.add_argument_group(f"[{section}] parameters")
+        for p in section_params(section):
+            if p.kind == "table_list":
+                continue
+            unit = f" [{p.unit}]" if p.unit else ""
+            help_text = f"{p.help}{unit}; default {_toml_value(_plain(p.default))}; valid {p.range_text()}"
+            kw: dict[str, Any] = {"dest": p.name, "default": None, "help": help_text.replace("%", "%%")}
+            if p.kind == "bool":
+                kw["type"] = _parse_bool
+                kw["metavar"] = "BOOL"
+            elif p.kind == "enum":
+                kw["metavar"] = "{" + ",".join(p.choices) + "}"
+            elif p.kind == "vec":
+                kw["nargs"] = p.size
+                kw["metavar"] = "X"
+            else:
+                kw["metavar"] = "N" if p.kind == "int" else "X"
+            group.add_argument(p.cli_flag, **kw)
+
+
+def _parse_bool(text: str) -> bool:
+    low = text.lower()
+    if low in ("1", "true", "yes", "on"):
+        return True
+    if low in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(text)
+
+
+def cli_overrides(namespace: Any) -> dict[str, Any]:
+    """``{"wind.speed": 5.0}`` for every flag the user gave, parsed to the parameter's type.
+
+    Values arrive as strings from argparse; they are converted here so that the range check
+    in ``Params.replace`` names the flag's parameter.
+    """
+    out: dict[str, Any] = {}
+    for p in cli_params():
+        raw = getattr(namespace, p.name, None)
+        if raw is None:
+            continue
+        out[p.name] = _parse_cli_value(p, raw)
+    return out
+
+
+def _parse_cli_value(p: Param, raw: Any) -> Any:
+    if p.kind == "vec":
+        return [_parse_cli_value(Param("", p.name, "float", 0.0, ""), x) for x in raw]
+    if p.kind in ("bool", "enum", "str") or not isinstance(raw, str):
+        return raw
+    try:
+        number = float(raw)
+    except ValueError:
+        raise ParameterError(p.name, f"{raw!r} is not a number (flag {p.cli_flag}; valid: {p.range_text()})") from None
+    if p.kind == "int" and number.is_integer():
+        return int(number)
+    return number

@@ -1,0 +1,16 @@
+"""Test-wide setup: Blender must write its user files to a temp dir, set before ``import bpy``."""
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+_tmp = Path(tempfile.mkdtemp(prefix="windgrass-tests-"))
+if "bpy" not in sys.modules:
+    os.environ["BLENDER_USER_RESOURCES"] = str(_tmp / "blender-user")
+    os.environ["HOME"] = str(_tmp / "home")
+    (_tmp / "home").mkdir()
+for path in (REPO, REPO / "headless"):
+    if str(path) not in sys.path:
+        sys.path.insert(0, str(path))

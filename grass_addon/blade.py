@@ -46,24 +46,37 @@ def rest_angles(inclination: np.ndarray, segment_length: np.ndarray, stiffness: 
     inclination: (B,) alpha, the random initial tilt of the blade's first segment.
     segment_length: (B,) l_length. stiffness: (B, n) mu_i^base. density: rho_grass in kg/m.
     """
-    alpha = np.asarray(inclination, dtype=np.float64)[:, None]
-    seg = np.asarray(segment_length, dtype=np.float64)[:, None]
-    mu = np.asarray(stiffness, dtype=np.float64)
-    n = mu.shape[1]
-    weight = segment_weight(density, seg).astype(np.float64)  # f^G, eq 2
+    # Work transposed, (n, B): cumulative sums then run along the short axis over contiguous rows.
+    alpha = np.asarray(inclination, dtype=np.float32)[None, :]
+    seg = np.asarray(segment_length, dtype=np.float32)[None, :]
+    mu = np.asarray(stiffness, dtype=np.float32).T
+    n = mu.shape[0]
+    weight = segment_weight(density, seg)  # f^G, eq 2
     theta = np.zeros_like(mu)
-    above = np.arange(n, 0, -1, dtype=np.float64)  # (n - i): segments at and above joint i (eq 3)
+    above = np.arange(n, 0, -1, dtype=np.float32)[:, None]  # (n - i): segments at and above joint i (eq 3)
     for _ in range(iterations):
-        tilt = alpha + np.cumsum(theta, axis=1)  # absolute tilt of every segment
+        tilt = alpha + _cumsum_rows(theta)  # absolute tilt of every segment
         dx = seg * np.sin(tilt)  # horizontal extent of every segment
-        joint_x = np.cumsum(dx, axis=1) - dx  # horizontal position of joint i
+        joint_x = _cumsum_rows(dx) - dx  # horizontal position of joint i
         centre_x = joint_x + 0.5 * dx
         # sum over segments j >= i of their centres, by a reversed cumulative sum
-        centre_sum = np.cumsum(centre_x[:, ::-1], axis=1)[:, ::-1]
+        centre_sum = _cumsum_rows(centre_x[::-1])[::-1]
         torque = weight * (centre_sum - above * joint_x)  # M_i^G, eqs 3-4
         target = torque / mu  # eq 6
+        change = np.abs(target - theta).max(initial=0.0)
         theta = 0.5 * theta + 0.5 * target
-    return theta.astype(np.float32)
+        if change < 1e-5:  # radians; far below what a render can show
+            break
+    return np.ascontiguousarray(theta.T, dtype=np.float32)
+
+
+def _cumsum_rows(a: np.ndarray) -> np.ndarray:
+    """Cumulative sum down the (few) rows of an (n, B) array; much faster than np.cumsum(axis=0)."""
+    out = np.empty_like(a)
+    out[0] = a[0]
+    for i in range(1, a.shape[0]):
+        np.add(out[i - 1], a[i], out=out[i])
+    return out
 
 
 def rest_tilt(inclination: np.ndarray, angles: np.ndarray) -> np.ndarray:

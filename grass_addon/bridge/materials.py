@@ -1,0 +1,264 @@
+"""Materials of a grass field: blade strips, billboard cards and the ground (paper III.A-D).
+
+Node trees are built from node type ids and socket names that exist from Blender 4.2 to 5.x;
+sockets are looked up through ``_socket`` so a renamed socket fails with a clear message.
+All three materials work in EEVEE and in Cycles. Values that depend on the parameters (LOD
+distances, colours) live in named nodes and are refreshed by ``update_materials``.
+
+Attributes written by the runtime (``runtime.py``), point domain:
+  ``wg_color``   FLOAT_COLOR  species tip colour of the blade (blades)
+  ``wg_shade``   FLOAT        per-blade 0..1 variation of hue and value (blades)
+  ``wg_opacity`` FLOAT        K_b of eqs 7/11, the card's opacity (cards)
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import bpy
+
+ATTR_COLOR = "wg_color"
+ATTR_SHADE = "wg_shade"
+ATTR_OPACITY = "wg_opacity"
+
+# Node names that ``update_materials`` looks up.
+NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
+NODE_CARD_TINT = "wg_card_tint"  # RGB: mean species colour of the cards
+NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the ground
+
+# Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
+BLADE_BASE_COLOUR = (0.018, 0.03, 0.008, 1.0)
+SOIL_COLOUR_A = (0.030, 0.020, 0.010, 1.0)
+SOIL_COLOUR_B = (0.022, 0.035, 0.010, 1.0)
+TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
+# Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
+FAR_AWAY = 1.0e9
+
+
+def _socket(sockets, *names: str):
+    """First socket with one of ``names`` (identifier or display name)."""
+    for name in names:
+        for sock in sockets:
+            if sock.identifier == name:
+                return sock
+        sock = sockets.get(name)
+        if sock is not None:
+            return sock
+    raise KeyError(f"none of the sockets {names} exists on this Blender version")
+
+
+def _set(node, value, *names: str) -> None:
+    _socket(node.inputs, *names).default_value = value
+
+
+def _new_material(name: str, uid: str):
+    mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            mat.use_nodes = True  # removed in Blender 6, where every material has nodes
+    mat.node_tree.nodes.clear()
+    mat["wg_uid"] = uid
+    mat.use_backface_culling = False  # blades and cards are two-sided strips
+    return mat
+
+
+def _transparent(mat) -> None:
+    """Alpha that works in EEVEE (4.2+: dithered, older: hashed) and Cycles (Transparent BSDF)."""
+    if hasattr(mat, "surface_render_method"):
+        mat.surface_render_method = "DITHERED"
+    else:  # pragma: no cover - before Blender 4.2
+        mat.blend_method = "HASHED"
+    if hasattr(mat, "use_transparent_shadow"):
+        mat.use_transparent_shadow = True
+
+
+class _Tree:
+    """Small helper to add and link nodes left to right."""
+
+    def __init__(self, mat):
+        self.nodes = mat.node_tree.nodes
+        self.links = mat.node_tree.links
+
+    def add(self, kind: str, x: float, y: float, name: str | None = None, **props):
+        node = self.nodes.new(kind)
+        node.location = (x, y)
+        if name:
+            node.name = node.label = name
+        for key, value in props.items():
+            setattr(node, key, value)
+        return node
+
+    def link(self, out_node, out_name, in_node, in_name):
+        out = out_name if not isinstance(out_name, str) else _socket(out_node.outputs, *out_name.split("|"))
+        inp = in_name if not isinstance(in_name, str) else _socket(in_node.inputs, *in_name.split("|"))
+        self.links.new(out, inp)
+
+    def attribute(self, name: str, x: float, y: float):
+        return self.add("ShaderNodeAttribute", x, y, attribute_type="GEOMETRY", attribute_name=name)
+
+    def mix_rgb(self, x, y, blend="MIX", a=None, b=None, factor=1.0, name=None):
+        node = self.add("ShaderNodeMix", x, y, name=name, data_type="RGBA", blend_type=blend)
+        _set(node, factor, "Factor_Float")
+        if a is not None:
+            _set(node, a, "A_Color")
+        if b is not None:
+            _set(node, b, "B_Color")
+        return node
+
+    def foliage(self, colour_node, colour_out: str, x: float, y: float):
+        """Principled (reflection) + Translucent (light through the blade), mixed."""
+        bsdf = self.add("ShaderNodeBsdfPrincipled", x, y + 150)
+        _set(bsdf, 0.55, "Roughness")
+        _set(bsdf, 0.35, "Specular IOR Level", "Specular")
+        trans = self.add("ShaderNodeBsdfTranslucent", x, y - 250)
+        self.link(colour_node, colour_out, bsdf, "Base Color")
+        self.link(colour_node, colour_out, trans, "Color")
+        mix = self.add("ShaderNodeMixShader", x + 300, y)
+        _set(mix, TRANSLUCENCY, "Fac")
+        self.link(bsdf, "BSDF", mix, mix.inputs[1])
+        self.link(trans, "BSDF", mix, mix.inputs[2])
+        return mix
+
+
+def blade_material(name: str, uid: str):
+    """Blades: UV v gives a root-to-tip gradient from a dark base to the species colour
+    (``wg_color``); ``wg_shade`` varies hue and value per blade; partly translucent."""
+    mat = _new_material(name, uid)
+    t = _Tree(mat)
+    uv = t.add("ShaderNodeTexCoord", -1400, 200)
+    sep = t.add("ShaderNodeSeparateXYZ", -1200, 200)
+    t.link(uv, "UV", sep, "Vector")
+    # Smooth gradient: the lower 70 % of the blade darkens towards the root.
+    grad = t.add("ShaderNodeMapRange", -1000, 200, interpolation_type="SMOOTHSTEP")
+    _set(grad, 0.0, "From Min")
+    _set(grad, 0.7, "From Max")
+    t.link(sep, "Y", grad, "Value")
+    tip = t.attribute(ATTR_COLOR, -1000, -100)
+    mix = t.mix_rgb(-750, 100, a=BLADE_BASE_COLOUR)
+    t.link(grad, "Result", mix, "Factor_Float")
+    t.link(tip, "Color", mix, "B_Color")
+    shade = t.attribute(ATTR_SHADE, -1000, -400)
+    hue = t.add("ShaderNodeMapRange", -750, -300)  # shade 0..1 -> hue shift +-0.02
+    _set(hue, 0.48, "To Min")
+    _set(hue, 0.52, "To Max")
+    value = t.add("ShaderNodeMapRange", -750, -550)  # shade 0..1 -> value x0.7 .. x1.3
+    _set(value, 0.7, "To Min")
+    _set(value, 1.3, "To Max")
+    t.link(shade, "Fac", hue, "Value")
+    t.link(shade, "Fac", value, "Value")
+    hsv = t.add("ShaderNodeHueSaturation", -500, 0)
+    t.link(hue, "Result", hsv, "Hue")
+    t.link(value, "Result", hsv, "Value")
+    t.link(mix, "Result_Color", hsv, "Color")
+    shader = t.foliage(hsv, "Color", -250, 0)
+    out = t.add("ShaderNodeOutputMaterial", 350, 0)
+    t.link(shader, "Shader", out, "Surface")
+    return mat
+
+
+def card_material(name: str, uid: str, image):
+    """Cards (paper III.B): the grass-clump texture; its alpha times ``wg_opacity`` (K_b of
+    eqs 7 and 11) mixes the foliage shader with a Transparent BSDF."""
+    mat = _new_material(name, uid)
+    _transparent(mat)
+    t = _Tree(mat)
+    uv = t.add("ShaderNodeTexCoord", -1300, 100)
+    tex = t.add("ShaderNodeTexImage", -1100, 100, image=image, extension="CLIP")
+    t.link(uv, "UV", tex, "Vector")
+    tint = t.add("ShaderNodeRGB", -1100, -200, name=NODE_CARD_TINT)
+    tint.outputs[0].default_value = (1.0, 1.0, 1.0, 1.0)
+    colour = t.mix_rgb(-800, 0, blend="MULTIPLY")
+    t.link(tex, "Color", colour, "A_Color")
+    t.link(tint, "Color", colour, "B_Color")
+    opacity = t.attribute(ATTR_OPACITY, -1100, -400)
+    alpha = t.add("ShaderNodeMath", -800, -300, operation="MULTIPLY", use_clamp=True)
+    t.link(tex, "Alpha", alpha, alpha.inputs[0])
+    t.link(opacity, "Fac", alpha, alpha.inputs[1])
+    shader = t.foliage(colour, "Result_Color", -500, 0)
+    clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
+    cut = t.add("ShaderNodeMixShader", 150, 0)
+    t.link(alpha, "Value", cut, "Fac")
+    t.link(clear, "BSDF", cut, cut.inputs[1])
+    t.link(shader, "Shader", cut, cut.inputs[2])
+    out = t.add("ShaderNodeOutputMaterial", 400, 0)
+    t.link(cut, "Shader", out, "Surface")
+    return mat
+
+
+def ground_material(name: str, uid: str):
+    """Ground (paper III.C): soil under the near grass; a procedural grass texture whose weight
+    K_t (eq 10) = clamp((d - d_s1) / (d_s2 - d_s1)) is computed from the Camera Data node's
+    View Distance, so the texture appears where the cards fade (K'_b = 1 - K_t, eq 11)."""
+    mat = _new_material(name, uid)
+    t = _Tree(mat)
+    coord = t.add("ShaderNodeTexCoord", -1400, 0)
+    soil_noise = t.add("ShaderNodeTexNoise", -1150, 300)
+    _set(soil_noise, 6.0, "Scale")
+    _set(soil_noise, 8.0, "Detail")
+    t.link(coord, "Object", soil_noise, "Vector")
+    soil = t.mix_rgb(-900, 300, a=SOIL_COLOUR_A, b=SOIL_COLOUR_B)
+    t.link(soil_noise, "Fac", soil, "Factor_Float")
+    # Far grass: fine streaky noise between a dark and a light shade of the species colour.
+    grass_noise = t.add("ShaderNodeTexNoise", -1150, -50)
+    _set(grass_noise, 40.0, "Scale")
+    _set(grass_noise, 4.0, "Detail")
+    t.link(coord, "Object", grass_noise, "Vector")
+    grass_colour = t.add("ShaderNodeRGB", -1150, -350, name=NODE_GROUND_GRASS)
+    grass_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
+    grass = t.mix_rgb(-900, -150, blend="MULTIPLY")
+    t.link(grass_colour, "Color", grass, "A_Color")
+    ramp = t.add("ShaderNodeMapRange", -900, -400)  # noise 0..1 -> brightness 0.6 .. 1.2
+    _set(ramp, 0.6, "To Min")
+    _set(ramp, 1.2, "To Max")
+    t.link(grass_noise, "Fac", ramp, "Value")
+    bright = t.add("ShaderNodeCombineXYZ", -700, -400)
+    for axis in "XYZ":
+        t.link(ramp, "Result", bright, axis)
+    t.link(bright, "Vector", grass, "B_Color")
+    camera = t.add("ShaderNodeCameraData", -900, -650)
+    kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
+    t.link(camera, "View Distance", kt, "Value")
+    _set(kt, 0.0, "To Min")
+    _set(kt, 1.0, "To Max")
+    colour = t.mix_rgb(-450, 0)
+    t.link(kt, "Result", colour, "Factor_Float")
+    t.link(soil, "Result_Color", colour, "A_Color")
+    t.link(grass, "Result_Color", colour, "B_Color")
+    bsdf = t.add("ShaderNodeBsdfPrincipled", -200, 0)
+    _set(bsdf, 0.9, "Roughness")
+    _set(bsdf, 0.2, "Specular IOR Level", "Specular")
+    t.link(colour, "Result_Color", bsdf, "Base Color")
+    out = t.add("ShaderNodeOutputMaterial", 150, 0)
+    t.link(bsdf, "BSDF", out, "Surface")
+    return mat
+
+
+def mean_species_colour(params) -> tuple[float, float, float]:
+    """Weight-averaged tip colour of the species (linear RGB)."""
+    rows = params.species()
+    total = sum(r["weight"] for r in rows) or 1.0
+    return tuple(sum(r["weight"] * r["color"][i] for r in rows) / total for i in range(3))
+
+
+def update_materials(params, ground=None, cards=None, card_tip_colour=(0.16, 0.36, 0.07)) -> None:
+    """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the species colours."""
+    colour = mean_species_colour(params)
+    if ground is not None and ground.node_tree is not None:
+        kt = ground.node_tree.nodes.get(NODE_KT)
+        if kt is not None:
+            near, far = params.lod.card_near, params.lod.card_far
+            if not params.lod.enabled:
+                near, far = FAR_AWAY, 2.0 * FAR_AWAY  # LOD off: geometry everywhere, K_t = 0
+            far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
+            _set(kt, near, "From Min")
+            _set(kt, far, "From Max")
+        grass = ground.node_tree.nodes.get(NODE_GROUND_GRASS)
+        if grass is not None:
+            grass.outputs[0].default_value = (*[0.8 * c for c in colour], 1.0)
+    if cards is not None and cards.node_tree is not None:
+        tint = cards.node_tree.nodes.get(NODE_CARD_TINT)
+        if tint is not None:
+            # The texture is painted with ``card_tip_colour``; the tint turns it into the species'.
+            ratio = [min(c / max(t, 1e-4), 4.0) for c, t in zip(colour, card_tip_colour)]
+            tint.outputs[0].default_value = (*ratio, 1.0)

@@ -1,0 +1,367 @@
+"""Blender settings generated from ``schema.PARAMS`` (never list a parameter here by hand).
+
+One PropertyGroup per schema section (``item.wind.speed``), one row PropertyGroup per table
+parameter (``item.blade.species[i].length``), the field item ``WINDGRASS_PG_field`` and the root
+``Scene.windgrass``. Units follow the schema: 'm' -> DISTANCE, 'm/s' -> VELOCITY, 's' -> TIME,
+'deg' -> ANGLE stored in radians (converted from/to the schema's degrees here).
+
+Blender stores floats as float32; ``params_from_settings`` reads each float back as the shortest
+decimal that maps onto the same stored float32, so values typed by a user or written by
+``apply_params`` come back exactly (0.32 stays 0.32, not 0.3199999928).
+"""
+
+import math
+import re
+import sys
+from typing import Any
+
+import bpy
+import numpy as np
+
+from .. import schema
+from ..errors import ParameterError
+
+# The runtime samples the F-curves of these parameters (WindField keys: time, speed, direction);
+# keyframes on any other parameter would silently do nothing, so only these are animatable.
+ANIMATED = frozenset({"wind.speed", "wind.direction"})
+
+_RUNTIME = (__package__ or "") + ".runtime"
+_FIELD_PATH = re.compile(r"windgrass\.fields\[(\d+)\]")
+_PREFIX = "WINDGRASS_PG_"
+
+# --------------------------------------------------------------------------------------------
+# Units and conversion between schema values (user units) and Blender values
+
+
+def _float_subtype(p: schema.Param) -> dict[str, str]:
+    if p.unit == "deg":
+        return {"subtype": "ANGLE"}
+    if p.unit == "m":
+        return {"subtype": "DISTANCE"}
+    if p.unit == "m/s":
+        return {"unit": "VELOCITY"}
+    if p.unit == "s":
+        return {"subtype": "TIME_ABSOLUTE"}
+    if p.unit == "px":
+        return {"subtype": "PIXEL"}
+    return {}
+
+
+def _vector_subtype(p: schema.Param) -> dict[str, str]:
+    if p.key == "color" or p.key.endswith("_color"):
+        return {"subtype": "COLOR"}
+    if p.unit == "m":
+        return {"subtype": "TRANSLATION"}
+    return {}
+
+
+def to_blender(p: schema.Param, value: Any) -> Any:
+    """Schema value (user units) -> the value the Blender property stores."""
+    if p.kind == "float" and p.unit == "deg":
+        return math.radians(value)
+    if p.kind == "vec":
+        return tuple(math.radians(v) if p.unit == "deg" else float(v) for v in value)
+    return value
+
+
+def _float_from_blender(p: schema.Param, raw: float) -> float:
+    stored = np.float32(raw)
+    if not np.isfinite(stored):
+        return float(stored)
+    if p.unit != "deg":
+        return float(str(stored))  # numpy prints the shortest decimal that round-trips float32
+    exact = math.degrees(float(stored))
+    for digits in range(1, 10):  # shortest decimal degree value that stores as the same radians
+        candidate = float(f"{exact:.{digits}g}")
+        if np.float32(math.radians(candidate)) == stored:
+            return candidate
+    return exact
+
+
+def from_blender(p: schema.Param, raw: Any) -> Any:
+    """Blender property value -> schema value (user units); tables give lists of row dicts."""
+    if p.kind == "float":
+        return _float_from_blender(p, raw)
+    if p.kind == "vec":
+        return [_float_from_blender(p, v) for v in raw]
+    if p.kind == "int":
+        return int(raw)
+    if p.kind == "bool":
+        return bool(raw)
+    if p.kind in ("enum", "str"):
+        return str(raw)
+    if p.kind == "table_list":
+        return [{f.key: from_blender(f, getattr(row, f.key)) for f in p.fields} for row in raw]
+    raise TypeError(f"{p.name}: unknown parameter kind {p.kind!r}")
+
+
+def _precision(p: schema.Param) -> int:
+    """Decimals shown: enough for the default (or minimum) to show two significant digits."""
+    ref = p.default if p.kind == "float" else None
+    if not ref and p.minimum:
+        ref = p.minimum
+    if not ref or p.unit == "deg":
+        return 2 if p.unit != "deg" else 1
+    return int(min(6, max(2, 1 - math.floor(math.log10(abs(ref))))))
+
+
+def description(p: schema.Param) -> str:
+    """Tooltip: help, unit and valid range (the same text the CLI and TOML errors use)."""
+    unit = f" [{p.unit}]" if p.unit else ""
+    if p.kind in ("str", "table_list"):
+        return f"{p.help}{unit}"
+    return f"{p.help}{unit}. Valid: {p.range_text()}"
+
+
+def _on_update(self: bpy.types.PropertyGroup, context: Any) -> None:
+    """Tell the runtime that the field owning this setting changed (if the runtime is loaded)."""
+    runtime = sys.modules.get(_RUNTIME)
+    mark_dirty = getattr(runtime, "mark_dirty", None)
+    scene = self.id_data
+    if mark_dirty is None or not isinstance(scene, bpy.types.Scene):
+        return
+    match = _FIELD_PATH.match(self.path_from_id())
+    if match is None:
+        return
+    fields = scene.windgrass.fields
+    index = int(match.group(1))
+    if index < len(fields):
+        mark_dirty(scene, fields[index])
+
+
+def make_property(p: schema.Param, default: Any = None, update: Any = _on_update,
+                  animatable: bool | None = None) -> Any:
+    """The ``bpy.props`` definition of one schema parameter (used by operators too).
+
+    ``default`` overrides the schema default (in schema units). Table parameters need their
+    row class, so they are made by ``_section_class``.
+    """
+    value = p.default if default is None else default
+    kw: dict[str, Any] = {"name": p.ui_name, "description": description(p)}
+    if update is not None:
+        kw["update"] = update
+    if animatable is None:
+        animatable = p.name in ANIMATED
+    kw["options"] = {"ANIMATABLE"} if animatable else set()
+    limits = {}
+    for arg, limit in (("min", p.minimum), ("max", p.maximum),
+                       ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),
+                       ("soft_max", p.soft_max if p.soft_max is not None else p.maximum)):
+        if limit is not None:
+            limits[arg] = limit
+    if p.kind == "int":
+        return bpy.props.IntProperty(default=int(value), **{k: int(v) for k, v in limits.items()}, **kw)
+    if p.kind == "float":
+        unit_limits = {k: to_blender(p, float(v)) for k, v in limits.items()}
+        return bpy.props.FloatProperty(default=to_blender(p, float(value)), precision=_precision(p),
+                                       **unit_limits, **_float_subtype(p), **kw)
+    if p.kind == "vec":
+        unit_limits = {k: to_blender(schema.Param("", "", "float", 0.0, "", unit=p.unit), float(v))
+                       for k, v in limits.items()}
+        return bpy.props.FloatVectorProperty(size=p.size, default=to_blender(p, value), precision=3,
+                                             **unit_limits, **_vector_subtype(p), **kw)
+    if p.kind == "bool":
+        return bpy.props.BoolProperty(default=bool(value), **kw)
+    if p.kind == "enum":
+        items = [(c, c.replace("_", " ").capitalize(), f"{p.help}: {c}") for c in p.choices]
+        return bpy.props.EnumProperty(items=items, default=value, **kw)
+    if p.kind == "str":
+        kw.pop("options")
+        return bpy.props.StringProperty(default=str(value), **kw)
+    raise TypeError(f"{p.name}: parameter kind {p.kind!r} has no single Blender property")
+
+
+# --------------------------------------------------------------------------------------------
+# Generated classes
+
+ROW_CLASSES: dict[str, type] = {}      # "blade.species" -> row PropertyGroup
+SECTION_CLASSES: dict[str, type] = {}  # "wind" -> section PropertyGroup
+
+
+def index_name(p: schema.Param) -> str:
+    """Name of the UI list's active-row index of table parameter ``p`` (``species_index``)."""
+    return f"{p.key}_index"
+
+
+def _row_class(p: schema.Param) -> type:
+    annotations = {f.key: make_property(f) for f in p.fields}
+    name = f"{_PREFIX}row_{p.section}_{p.key}"
+    return type(name, (bpy.types.PropertyGroup,), {"__annotations__": annotations,
+                                                   "__doc__": f"One row of {p.name}: {p.help}"})
+
+
+def _section_class(section: str) -> type:
+    annotations: dict[str, Any] = {}
+    for p in schema.section_params(section):
+        if p.kind == "table_list":
+            row = ROW_CLASSES[p.name] = _row_class(p)
+            annotations[p.key] = bpy.props.CollectionProperty(type=row, name=p.ui_name,
+                                                              description=description(p))
+            index = index_name(p)
+            if any(q.key == index for q in schema.section_params(section)):
+                raise RuntimeError(f"{section}.{index} is a parameter; rename the UI index")
+            annotations[index] = bpy.props.IntProperty(name=f"Active {p.ui_name}", min=0,
+                                                       options=set())
+        else:
+            annotations[p.key] = make_property(p)
+    cls = type(f"{_PREFIX}section_{section}", (bpy.types.PropertyGroup,),
+               {"__annotations__": annotations, "__doc__": f"Windgrass [{section}] settings"})
+    SECTION_CLASSES[section] = cls
+    return cls
+
+
+def _mesh_poll(self: Any, obj: bpy.types.Object) -> bool:
+    return obj.type == "MESH"
+
+
+for _section in schema.SECTIONS:
+    _section_class(_section)
+
+WINDGRASS_PG_field = type(f"{_PREFIX}field", (bpy.types.PropertyGroup,), {
+    "__doc__": "Settings of one grass field",
+    "__annotations__": {
+        "name": bpy.props.StringProperty(name="Name", default="Grass", description="Name of the grass field"),
+        "uid": bpy.props.StringProperty(name="UID", options={"HIDDEN"},
+                                        description="Unique id of the field in its scene (keys the runtime)"),
+        "collection": bpy.props.PointerProperty(type=bpy.types.Collection, name="Collection",
+                                                description="Collection holding the field's objects"),
+        "terrain": bpy.props.PointerProperty(type=bpy.types.Object, name="Terrain", poll=_mesh_poll,
+                                             description="Mesh the blades are rooted on (empty: flat ground)"),
+        **{s: bpy.props.PointerProperty(type=SECTION_CLASSES[s], name=s.capitalize())
+           for s in schema.SECTIONS},
+    },
+})
+
+WINDGRASS_PG_scene = type(f"{_PREFIX}scene", (bpy.types.PropertyGroup,), {
+    "__doc__": "Windgrass settings of a scene: its grass fields",
+    "__annotations__": {
+        "fields": bpy.props.CollectionProperty(type=WINDGRASS_PG_field, name="Grass Fields"),
+        "active_index": bpy.props.IntProperty(name="Active Field", min=0, options=set()),
+        "next_uid": bpy.props.IntProperty(name="Next UID", min=0, options={"HIDDEN"}),
+    },
+})
+
+CLASSES: tuple[type, ...] = (*ROW_CLASSES.values(), *SECTION_CLASSES.values(), WINDGRASS_PG_field,
+                             WINDGRASS_PG_scene)
+
+# --------------------------------------------------------------------------------------------
+# Settings <-> Params
+
+
+def params_from_settings(item: Any) -> schema.Params:
+    """Validated Params of a field item; a bad value raises ParameterError naming its key."""
+    data = {s: {p.key: from_blender(p, getattr(getattr(item, s), p.key)) for p in schema.section_params(s)}
+            for s in schema.SECTIONS}
+    return schema.from_dict(data)
+
+
+def apply_params(item: Any, params: schema.Params) -> None:
+    """Write every value of ``params`` into the field item's properties."""
+    for section in schema.SECTIONS:
+        group = getattr(item, section)
+        for p in schema.section_params(section):
+            value = params.get(p.name)
+            if p.kind == "table_list":
+                write_rows(item, p, value)
+            else:
+                setattr(group, p.key, to_blender(p, value))
+
+
+TABLES: tuple[schema.Param, ...] = tuple(p for p in schema.PARAMS if p.kind == "table_list")
+
+
+def table_param(name: str) -> schema.Param:
+    """The table parameter called ``name`` ("blade.species"), or ParameterError."""
+    p = schema.BY_NAME.get(name)
+    if p is None or p.kind != "table_list":
+        raise ParameterError(name, f"not a table parameter (valid: {', '.join(t.name for t in TABLES)})")
+    return p
+
+
+def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
+    """Replace the rows of table ``p`` of a field item by ``rows`` (dicts of schema values)."""
+    collection = getattr(getattr(item, p.section), p.key)
+    collection.clear()
+    for values in rows:
+        row = collection.add()
+        for f in p.fields:
+            setattr(row, f.key, to_blender(f, values.get(f.key, f.default)))
+    setattr(getattr(item, p.section), index_name(p), 0)
+
+
+def settings(scene: bpy.types.Scene) -> Any:
+    """``scene.windgrass`` (the root settings)."""
+    return scene.windgrass
+
+
+def active_field(scene: bpy.types.Scene) -> Any | None:
+    """The field item selected in the UI list, or None when the scene has no field."""
+    root = getattr(scene, "windgrass", None)
+    if root is None or not len(root.fields):
+        return None
+    return root.fields[min(max(root.active_index, 0), len(root.fields) - 1)]
+
+
+def field_by_uid(scene: bpy.types.Scene, uid: str) -> Any | None:
+    for item in scene.windgrass.fields:
+        if item.uid == uid:
+            return item
+    return None
+
+
+def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name: str = "Grass") -> Any:
+    """Append a field item (unique name and uid) holding ``params`` and make it active."""
+    root = scene.windgrass
+    taken = {f.name for f in root.fields}
+    unique, n = name, 0
+    while unique in taken:
+        n += 1
+        unique = f"{name}.{n:03d}"
+    item = root.fields.add()
+    item.name = unique
+    item.uid = f"field-{root.next_uid}"
+    root.next_uid += 1
+    apply_params(item, params or schema.defaults())
+    root.active_index = len(root.fields) - 1
+    return item
+
+
+def remove_item(scene: bpy.types.Scene, item: Any) -> None:
+    """Remove the settings item (the objects are removed by ``bridge.scene.remove_field``)."""
+    root = scene.windgrass
+    for index, other in enumerate(root.fields):
+        if other.uid == item.uid:
+            root.fields.remove(index)
+            break
+    root.active_index = min(root.active_index, max(len(root.fields) - 1, 0))
+
+
+__all__ = ["ParameterError", "params_from_settings", "apply_params", "active_field", "add_field",
+           "remove_item", "field_by_uid", "make_property", "register", "unregister"]
+
+# --------------------------------------------------------------------------------------------
+# Registration
+
+_registered = False
+
+
+def register() -> None:
+    global _registered
+    if _registered:
+        return
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.windgrass = bpy.props.PointerProperty(type=WINDGRASS_PG_scene, name="Windgrass")
+    _registered = True
+
+
+def unregister() -> None:
+    global _registered
+    if not _registered:
+        return
+    if hasattr(bpy.types.Scene, "windgrass"):
+        del bpy.types.Scene.windgrass
+    for cls in reversed(CLASSES):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)
+    _registered = False

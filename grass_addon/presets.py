@@ -1,0 +1,71 @@
+"""Species presets: ready-made ``blade.species`` tables (numpy-free, no bpy).
+
+Each preset is a list of rows whose keys are columns of ``schema.SPECIES_FIELDS``; ``species_rows``
+validates a preset through the schema, so a preset can never hold a value the schema rejects.
+
+Numbers are chosen from what the grass looks like outdoors:
+- lawn: mown turf, 4-8 cm high (usual mowing heights), narrow dense blades;
+- meadow: unmown hay meadow, 30-60 cm, with some dry straw-coloured blades;
+- wild: tall rough grass and reeds, 0.6-1.2 m.
+
+Stiffness: the weight torque at the root grows with the square of the blade length (eqs 2-4,
+lever ~ L/2, weight ~ rho*g*L), while the root stiffness mu_root/x of eq 1 does not depend on
+the length. Tall species therefore get a stiffness multiplier of about (L / 0.32 m)^2 relative to
+the default 0.32 m species, so that they stand up at rest like the short ones do (tall grasses
+and reeds have thicker, stiffer stems in reality too).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from . import schema
+from .errors import ParameterError
+
+# Rows per preset; keys are schema.SPECIES_FIELDS columns (missing ones take the schema default).
+SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
+    "lawn": (
+        {"name": "ryegrass", "weight": 0.6, "length": 0.07, "length_variation": 0.008,
+         "width": 0.004, "stiffness": 1.0, "color": (0.07, 0.30, 0.04)},
+        {"name": "red fescue", "weight": 0.4, "length": 0.055, "length_variation": 0.006,
+         "width": 0.0018, "stiffness": 0.8, "color": (0.06, 0.24, 0.06)},
+    ),
+    "meadow": (
+        {"name": "meadow grass", "weight": 0.6, "length": 0.32, "length_variation": 0.07,
+         "width": 0.008, "stiffness": 1.0, "color": (0.12, 0.32, 0.05)},
+        {"name": "timothy", "weight": 0.3, "length": 0.5, "length_variation": 0.1,
+         "width": 0.007, "stiffness": 2.5, "color": (0.16, 0.34, 0.06)},
+        {"name": "dry grass", "weight": 0.1, "length": 0.4, "length_variation": 0.08,
+         "width": 0.006, "stiffness": 1.6, "color": (0.36, 0.30, 0.12)},
+    ),
+    "wild": (
+        {"name": "tall grass", "weight": 0.5, "length": 0.8, "length_variation": 0.15,
+         "width": 0.01, "stiffness": 6.0, "color": (0.13, 0.30, 0.05)},
+        {"name": "reed", "weight": 0.2, "length": 1.2, "length_variation": 0.15,
+         "width": 0.015, "stiffness": 14.0, "color": (0.18, 0.33, 0.08)},
+        {"name": "dry stalks", "weight": 0.3, "length": 0.6, "length_variation": 0.12,
+         "width": 0.006, "stiffness": 3.5, "color": (0.40, 0.33, 0.14)},
+    ),
+}
+
+PRESET_NAMES: tuple[str, ...] = tuple(SPECIES_PRESETS)
+
+PRESET_HELP: dict[str, str] = {
+    "lawn": "Mown lawn: short (4-8 cm) narrow blades",
+    "meadow": "Hay meadow: 30-60 cm grasses with some dry blades",
+    "wild": "Wild field: tall grass (0.6-1.2 m) and reeds",
+}
+
+
+def species_rows(name: str) -> tuple[dict[str, Any], ...]:
+    """The validated species table of preset ``name`` (every SPECIES_FIELDS column filled in)."""
+    if name not in SPECIES_PRESETS:
+        raise ParameterError(
+            "blade.species", f"unknown species preset {name!r} (valid: {', '.join(PRESET_NAMES)})")
+    params = schema.defaults().replace({"blade.species": [dict(r) for r in SPECIES_PRESETS[name]]})
+    return params.blade.species
+
+
+def apply_preset(params: schema.Params, name: str) -> schema.Params:
+    """``params`` with its species table replaced by preset ``name``."""
+    return params.replace({"blade.species": [dict(r) for r in species_rows(name)]})

@@ -1,0 +1,27 @@
+"""Operators, one per file, all in the ``windgrass.`` namespace (F3: search "Grass")."""
+
+import bpy
+
+from . import (field_add, field_rebuild, field_remove, simulation_reset, species_add, species_preset,
+               species_remove, wind_preset)
+
+_MODULES = (field_add, field_rebuild, field_remove, simulation_reset, wind_preset, species_preset,
+            species_add, species_remove)
+CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        if not cls.is_registered:
+            bpy.utils.register_class(cls)
+    for menu in field_add.MENUS:
+        getattr(bpy.types, menu).remove(field_add.menu_func)  # never twice in the menu
+        getattr(bpy.types, menu).append(field_add.menu_func)
+
+
+def unregister() -> None:
+    for menu in field_add.MENUS:
+        getattr(bpy.types, menu).remove(field_add.menu_func)
+    for cls in reversed(CLASSES):
+        if cls.is_registered:
+            bpy.utils.unregister_class(cls)

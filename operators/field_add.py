@@ -1,0 +1,86 @@
+"""windgrass.field_add: add a grass field (also in Add > Mesh and the Add menu)."""
+
+import bpy
+
+from ..grass_addon import schema
+from ..grass_addon.bridge import properties
+from ._common import bridge, refresh, reported
+
+# First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
+# (12.8 m square, 32,768 blades); every other value is the schema default.
+FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8}
+
+
+def _field_options() -> dict:
+    """One operator option per [field] parameter, generated from the schema."""
+    return {p.key: properties.make_property(p, default=FIRST_CLICK.get(p.key), update=None, animatable=False)
+            for p in schema.section_params("field")}
+
+
+class WINDGRASS_OT_field_add(bpy.types.Operator):
+    """Add a grass field swaying in the wind; a selected mesh becomes its terrain"""
+
+    bl_idname = "windgrass.field_add"
+    bl_label = "Add Grass Field"
+    bl_description = "Add a grass field with three levels of detail that sways in a physical wind"
+    bl_options = {"REGISTER", "UNDO"}
+
+    __annotations__ = {
+        **_field_options(),
+        "use_selected_mesh": bpy.props.BoolProperty(
+            name="Selected Mesh as Terrain", default=True,
+            description="Root the blades on the selected mesh (when terrain is supported)"),
+    }
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and hasattr(context.scene, "windgrass")
+
+    @reported
+    def execute(self, context):
+        scene = context.scene
+        params = schema.defaults().replace(
+            {f"field.{p.key}": getattr(self, p.key) for p in schema.section_params("field")})
+        scene_bridge = bridge("scene")  # before the item exists: a missing bridge leaves nothing behind
+        terrain = None
+        obj = context.active_object
+        if self.use_selected_mesh and obj is not None and obj.type == "MESH" and obj.select_get():
+            terrain = obj
+        item = properties.add_field(scene, params)
+        if terrain is not None:
+            if getattr(scene_bridge, "SUPPORTS_TERRAIN", False):
+                item.terrain = terrain
+            else:
+                self.report({"WARNING"}, f"Mesh '{terrain.name}' not used: terrain is not supported yet, "
+                                         "the grass grows on flat ground at the origin")
+        try:
+            collection = scene_bridge.build_field(scene, item)
+        except Exception:
+            _undo_add(scene, scene_bridge, item)
+            raise
+        if collection is not None and item.collection is None:
+            item.collection = collection
+        refresh(scene)
+        f = params.field
+        blades = f.blocks_x * f.blocks_y * f.cells_per_block ** 2 * f.blades_per_cell
+        size_x = f.blocks_x * f.cells_per_block * f.cell_size
+        size_y = f.blocks_y * f.cells_per_block * f.cell_size
+        self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m")
+        return {"FINISHED"}
+
+
+def _undo_add(scene, scene_bridge, item) -> None:
+    """A failed build leaves neither objects nor a settings item."""
+    try:
+        scene_bridge.remove_field(scene, item)
+    finally:
+        properties.remove_item(scene, item)
+
+
+def menu_func(self, context):
+    self.layout.operator(WINDGRASS_OT_field_add.bl_idname, text="Grass Field", icon="OUTLINER_OB_CURVES")
+
+
+# Add menu (Shift+A) of the 3D View, next to the other object types.
+MENUS = ("VIEW3D_MT_add",)
+CLASSES = (WINDGRASS_OT_field_add,)

@@ -1,0 +1,53 @@
+"""windgrass.species_add: add a row to the species list (or another table, e.g. wind keys)."""
+
+import bpy
+
+from ..grass_addon import schema
+from ..grass_addon.bridge import properties
+from ._common import has_active_field, reported
+
+# Rows of a table with a "time" column must have strictly increasing times (schema relation);
+# a new row goes this many seconds after the last one.
+TIME_STEP = 1.0
+
+
+class WINDGRASS_OT_species_add(bpy.types.Operator):
+    """Add a grass species to the active field (a copy of the selected one)"""
+
+    bl_idname = "windgrass.species_add"
+    bl_label = "Add Grass Species"
+    bl_description = "Add a grass species to the active field, copying the selected one"
+    bl_options = {"REGISTER", "UNDO"}
+
+    table: bpy.props.StringProperty(name="Table", default="blade.species", options={"HIDDEN", "SKIP_SAVE"},
+                                    description="Table parameter to add a row to (blade.species, wind.keys)")
+
+    @classmethod
+    def poll(cls, context):
+        return has_active_field(context)
+
+    @reported
+    def execute(self, context):
+        item = properties.active_field(context.scene)
+        p = properties.table_param(self.table)
+        group = getattr(item, p.section)
+        rows = getattr(group, p.key)
+        index_name = properties.index_name(p)
+        if len(rows):
+            source = rows[min(getattr(group, index_name), len(rows) - 1)]
+            values = {f.key: properties.from_blender(f, getattr(source, f.key)) for f in p.fields}
+            if "time" in values:  # after the last key, so times keep increasing
+                last = rows[len(rows) - 1]
+                time = next(f for f in p.fields if f.key == "time")
+                values["time"] = properties.from_blender(time, last.time) + TIME_STEP
+        else:
+            values = schema.row_defaults(p.fields)
+        row = rows.add()
+        for f in p.fields:
+            setattr(row, f.key, properties.to_blender(f, values[f.key]))
+        setattr(group, index_name, len(rows) - 1)
+        self.report({"INFO"}, f"Added row {len(rows)} to {p.name} of '{item.name}'")
+        return {"FINISHED"}
+
+
+CLASSES = (WINDGRASS_OT_species_add,)

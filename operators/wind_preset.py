@@ -1,0 +1,60 @@
+"""windgrass.wind_preset: set the wind type and its nominal speed (schema.WIND_TYPE_SPEED)."""
+
+import bpy
+
+from ..grass_addon import schema
+from ..grass_addon.bridge import properties
+from ._common import has_active_field, reported
+
+
+def _items():
+    return [(t, t.replace("_", " ").capitalize(), f"{t.replace('_', ' ').capitalize()}: "
+             f"mean speed {schema.WIND_TYPE_SPEED[t]:g} m/s") for t in schema.WIND_TYPES]
+
+
+def _animated(item, key: str) -> bool:
+    """True when ``item.wind.<key>`` has an F-curve (its keyframes override a set value)."""
+    anim = item.id_data.animation_data
+    if anim is None or anim.action is None:
+        return False
+    path = item.wind.path_from_id(key)
+    fcurves = getattr(anim.action, "fcurves", None)
+    if fcurves is None:  # Blender 5 layered actions
+        try:
+            from bpy_extras import anim_utils
+            channelbag = anim_utils.action_get_channelbag_for_slot(anim.action, anim.action_slot)
+        except (ImportError, AttributeError):
+            return False
+        fcurves = channelbag.fcurves if channelbag is not None else ()
+    return any(fc.data_path == path for fc in fcurves)
+
+
+class WINDGRASS_OT_wind_preset(bpy.types.Operator):
+    """Set the active field's wind type and its nominal mean speed"""
+
+    bl_idname = "windgrass.wind_preset"
+    bl_label = "Grass Wind Preset"
+    bl_description = "Set the wind type of the active grass field and the type's nominal mean speed"
+    bl_options = {"REGISTER", "UNDO"}
+    bl_property = "type"
+
+    type: bpy.props.EnumProperty(name="Wind Type", items=_items(), default=schema.BY_NAME["wind.type"].default)
+
+    @classmethod
+    def poll(cls, context):
+        return has_active_field(context)
+
+    @reported
+    def execute(self, context):
+        item = properties.active_field(context.scene)
+        speed = schema.WIND_TYPE_SPEED[self.type]
+        item.wind.type = self.type
+        item.wind.speed = properties.to_blender(schema.BY_NAME["wind.speed"], speed)
+        if _animated(item, "speed"):
+            self.report({"WARNING"}, f"Wind speed is keyframed: its keyframes override the preset {speed:g} m/s")
+        else:
+            self.report({"INFO"}, f"Wind of '{item.name}': {self.type.replace('_', ' ')}, {speed:g} m/s")
+        return {"FINISHED"}
+
+
+CLASSES = (WINDGRASS_OT_wind_preset,)

@@ -1,0 +1,70 @@
+"""The "Grass" tab of the 3D View sidebar: the list of fields and their main buttons."""
+
+import bpy
+
+from ..grass_addon.bridge import properties
+
+CATEGORY = "Grass"
+# Row PropertyGroup name -> its table parameter (the columns come from the schema).
+_ROW_TABLES = {cls.__name__: properties.table_param(name) for name, cls in properties.ROW_CLASSES.items()}
+
+
+class WINDGRASS_UL_fields(bpy.types.UIList):
+    """The scene's grass fields."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        row.prop(item, "name", text="", emboss=False, icon="OUTLINER_OB_CURVES")
+        if item.collection is not None:
+            row.label(text="", icon="OUTLINER_COLLECTION")
+        else:
+            row.label(text="", icon="ERROR")  # settings without objects: press Rebuild
+
+
+class WINDGRASS_UL_rows(bpy.types.UIList):
+    """Rows of a table parameter (species, wind keys): its first columns, colour as a swatch."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        table = _ROW_TABLES.get(item.bl_rna.identifier)
+        keys = [f.key for f in table.fields] if table is not None else []
+        if "color" in keys:
+            sub = row.row()
+            sub.ui_units_x = 1.2
+            sub.prop(item, "color", text="")
+        shown = [k for k in keys if k != "color"][:3]
+        for key in shown:
+            row.prop(item, key, text="", emboss=key != "name")
+
+
+class WINDGRASS_PT_main(bpy.types.Panel):
+    bl_label = "Windgrass"
+    bl_idname = "WINDGRASS_PT_main"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = CATEGORY
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and hasattr(context.scene, "windgrass")
+
+    def draw(self, context):
+        layout = self.layout
+        root = context.scene.windgrass
+        if not len(root.fields):
+            layout.operator("windgrass.field_add", icon="ADD")
+            return
+        row = layout.row()
+        row.template_list("WINDGRASS_UL_fields", "", root, "fields", root, "active_index", rows=3)
+        col = row.column(align=True)
+        col.operator("windgrass.field_add", text="", icon="ADD")
+        col.operator("windgrass.field_remove", text="", icon="REMOVE")
+        row = layout.row(align=True)
+        row.operator("windgrass.field_rebuild", text="Rebuild", icon="FILE_REFRESH")
+        row.operator("windgrass.simulation_reset", text="Reset", icon="LOOP_BACK")
+        item = properties.active_field(context.scene)
+        if item is not None:
+            layout.prop(item, "collection")
+
+
+CLASSES = (WINDGRASS_UL_fields, WINDGRASS_UL_rows, WINDGRASS_PT_main)

@@ -1,0 +1,110 @@
+"""One sidebar sub-panel per schema section, drawn from ``schema.section_params`` so that a new
+parameter shows up without touching this file."""
+
+import bpy
+
+from ..grass_addon import schema
+from ..grass_addon.bridge import properties
+from .main import CATEGORY, WINDGRASS_PT_main
+
+LABELS = {
+    "field": "Field",
+    "blade": "Blades & Species",
+    "wind": "Wind",
+    "lod": "Levels of Detail",
+    "camera": "Headless Camera",
+    "render": "Headless Render",
+    "simulation": "Simulation",
+}
+# Sections only used by headless renders (headless/render_field.py) start closed.
+HEADLESS = frozenset({"camera", "render"})
+# Preset operators drawn on top of a section: (operator, its enum property, button text).
+PRESETS = {
+    "blade": ("windgrass.species_preset", "preset", "Species Preset"),
+    "wind": ("windgrass.wind_preset", "type", "Wind Preset"),
+}
+ROW_WORD = {"blade.species": "Species", "wind.keys": "Key"}
+
+
+def _condition(p: schema.Param, section: tuple[schema.Param, ...]) -> tuple[str, str] | None:
+    """A parameter whose help starts with "<Choice>:" (e.g. "Blast: ...") only applies when an
+    enum of its section has that choice: returns (enum key, choice)."""
+    head, sep, _ = p.help.partition(":")
+    if not sep:
+        return None
+    words = head.strip().lower().split()
+    for candidate in ("_".join(words), words[0] if words else ""):
+        for q in section:
+            if q.kind == "enum" and candidate in q.choices:
+                return q.key, candidate
+    return None
+
+
+def draw_table(layout, group, p: schema.Param) -> None:
+    """UI list of a table parameter, add/remove buttons and the selected row's columns."""
+    box = layout.box()
+    box.label(text=p.ui_name)
+    row = box.row()
+    index = properties.index_name(p)
+    row.template_list("WINDGRASS_UL_rows", p.name, group, p.key, group, index, rows=3)
+    col = row.column(align=True)
+    word = ROW_WORD.get(p.name, "Row")
+    col.operator("windgrass.species_add", text="", icon="ADD").table = p.name
+    col.operator("windgrass.species_remove", text="", icon="REMOVE").table = p.name
+    rows = getattr(group, p.key)
+    if not len(rows):
+        box.label(text=f"No {word.lower()} rows: {p.help}", icon="INFO")
+        return
+    selected = rows[min(getattr(group, index), len(rows) - 1)]
+    col = box.column()
+    for f in p.fields:
+        col.prop(selected, f.key)
+
+
+def draw_section(layout, context, item, section: str) -> None:
+    group = getattr(item, section)
+    params = schema.section_params(section)
+    layout.use_property_split = True
+    layout.use_property_decorate = True  # keyframe dots on the animatable ones (wind speed, direction)
+    if section in PRESETS:
+        op, prop, text = PRESETS[section]
+        layout.operator_menu_enum(op, prop, text=text, icon="PRESET")
+    for p in params:
+        condition = _condition(p, params)
+        if condition is not None and getattr(group, condition[0]) != condition[1]:
+            continue
+        if p.kind == "table_list":
+            draw_table(layout, group, p)
+        else:
+            layout.prop(group, p.key)
+    if section == "simulation":
+        render = context.scene.render
+        fps = render.fps / render.fps_base
+        col = layout.column(align=True)
+        col.label(text=f"Steps at the scene's {fps:g} fps from frame {context.scene.frame_start}", icon="INFO")
+        col.label(text="(render.fps of the settings is for headless renders)")
+    if section in HEADLESS:
+        layout.label(text="Used by headless renders; Blender uses the scene's camera and render settings",
+                     icon="INFO")
+
+
+def _panel(section: str) -> type:
+    def draw(self, context):
+        item = properties.active_field(context.scene)
+        draw_section(self.layout, context, item, section)
+
+    return type(f"WINDGRASS_PT_{section}", (bpy.types.Panel,), {
+        "bl_label": LABELS.get(section, section.capitalize()),
+        "bl_idname": f"WINDGRASS_PT_{section}",
+        "bl_space_type": "VIEW_3D",
+        "bl_region_type": "UI",
+        "bl_category": CATEGORY,
+        "bl_parent_id": WINDGRASS_PT_main.bl_idname,
+        "bl_options": {"DEFAULT_CLOSED"} if section in HEADLESS else set(),
+        "poll": classmethod(lambda cls, context: context.scene is not None
+                            and properties.active_field(context.scene) is not None),
+        "draw": draw,
+    })
+
+
+CLASSES = tuple(_panel(s) for s in schema.SECTIONS)

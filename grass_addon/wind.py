@@ -143,15 +143,20 @@ class WindField:
     def _build_advection_table(self) -> None:
         """Fixed time grid for D(t) = integral_0^t v-bar dt' and S(t) = integral_0^t |v-bar| dt'.
 
-        STEPS_PER_SEGMENT points between consecutive keys; between grid points v-bar is taken
-        linear, so D is integrated exactly from the grid values (trapezoid) and is C1 in t.
+        Between grid points v-bar is taken linear, so D is integrated exactly from the grid
+        values (trapezoid) and is C1 in t. A segment between two keys with a constant direction
+        is exact with one step (speed is linear); a turning one gets one step per 1/256 turn
+        of half a circle (at most STEPS_PER_SEGMENT), keeping the relative error below 1e-4.
         """
         kt = self._key_t
         if len(kt) == 1:
             self._tab_t = None
             return
-        frac = np.linspace(0.0, 1.0, STEPS_PER_SEGMENT + 1)[:-1]
-        t = (kt[:-1, None] + np.diff(kt)[:, None] * frac[None, :]).ravel()
+        steps = np.clip(np.ceil(np.abs(np.diff(self._key_dir)) / (math.pi / 256)), 1, STEPS_PER_SEGMENT)
+        steps = steps.astype(np.intp)
+        seg = np.repeat(np.arange(len(steps)), steps)
+        j = np.arange(int(steps.sum())) - np.repeat(np.cumsum(steps) - steps, steps)
+        t = kt[seg] + (kt[seg + 1] - kt[seg]) * (j / steps[seg])
         t = np.append(t, kt[-1])
         speed = np.interp(t, kt, self._key_speed)
         direction = np.interp(t, kt, self._key_dir)

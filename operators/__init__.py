@@ -2,8 +2,16 @@
 
 import bpy
 
-from . import (field_add, field_rebuild, field_remove, simulation_reset, species_add, species_preset,
-               species_remove, wind_preset)
+from . import (
+    field_add,
+    field_rebuild,
+    field_remove,
+    simulation_reset,
+    species_add,
+    species_preset,
+    species_remove,
+    wind_preset,
+)
 
 _MODULES = (field_add, field_rebuild, field_remove, simulation_reset, wind_preset, species_preset,
             species_add, species_remove)

@@ -3,8 +3,9 @@
 import functools
 import importlib
 import importlib.util
+from collections.abc import Callable
 from types import ModuleType
-from typing import Any, Callable
+from typing import Any
 
 from ..grass_addon.bridge import properties
 from ..grass_addon.errors import WindgrassError

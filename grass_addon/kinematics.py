@@ -1,0 +1,344 @@
+"""Angles -> float32 vertex arrays of blade strips and cards (paper III.A-B, V.B).
+
+Blade strip of blade b in cell c (paper III.A, Fig. 3): segment j is rigid and tilted by the 2-D
+tilt vector
+
+    T_j = blade_rest_tilt[b, j] * d_b + sum_{k<=j} bend[c, k],    d_b = (cos facing_b, sin facing_b)
+
+whose magnitude is the angle from the vertical and whose direction is the way it leans; its
+direction is (sin|T| T/|T|, cos|T|). Joints: p_0 = root, p_{j+1} = p_j + (length/n) dir_j, so
+segment lengths never change. Twist (paper V.A) turns the strip about the blade: joint j's side
+vector is s = (-sin(facing + Phi), cos(facing + Phi), 0) with Phi the twist accumulated below
+the joint, Phi = sum_{k<j} twist[c, k]: the root edge stays as planted, the tip edge carries the
+total twist (the paper does not say which joint takes which twist; this keeps the root anchored).
+The width tapers linearly from blade_width at the root to blade.tip_width * blade_width at the tip.
+
+Every joint has two vertices [left = p - s w/2, right = p + s w/2]. That is a single quad strip:
+Blender draws both faces of a polygon, so the strip is two-sided (paper III.A) without duplicated
+vertices. Blades with slot >= blade_count[cell] (eq 9) collapse onto their root (zero area).
+
+Cards (paper III.B, V.B): one vertical quad per cell, centred on the cell centre, horizontal
+direction (cos card_facing, sin card_facing), width lod.card_width * cell_size (wider than a cell,
+so cards overlap their neighbours), bottom edge on the ground; the top edge is lifted by the card
+height, moved by the deformation vector M' of eq 34 (CellData.card_offset) and turned about the
+vertical axis by the cell's total twist.
+
+Every block has the same topology, so the output for blocks [b0, b1, ...] is the concatenation of
+per-block arrays. The work runs over chunks of blocks with preallocated scratch arrays sized to
+stay in cache, on a 2-thread pool (numpy releases the GIL); each output row is written by exactly
+one chunk, so results do not depend on the threading.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+CHUNK_BLADES = 8192  # blades per chunk: working arrays of ~200 kB each stay in cache
+THREADS = 2
+
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=THREADS, thread_name_prefix="windgrass-kin")
+        return _POOL
+
+
+# --------------------------------------------------------------------------------------------
+# Topology: faces and UVs of one block
+
+
+def blade_faces(layout) -> np.ndarray:
+    """(blades_per_block * n, 4) int32: quad of segment j = (left_j, right_j, right_j+1, left_j+1)."""
+    n = layout.segments
+    blade = np.arange(layout.blades_per_block, dtype=np.int32)[:, None] * (2 * (n + 1))
+    left = blade + 2 * np.arange(n, dtype=np.int32)[None, :]
+    faces = np.stack([left, left + 1, left + 3, left + 2], axis=-1)
+    return np.ascontiguousarray(faces.reshape(-1, 4), dtype=np.int32)
+
+
+def blade_uvs(layout) -> np.ndarray:
+    """(blades_per_block * n * 4, 2) float32 per face corner: u = 0 left .. 1 right, v = 0 root .. 1 tip."""
+    n = layout.segments
+    v0 = np.arange(n, dtype=np.float32) / n
+    v1 = np.arange(1, n + 1, dtype=np.float32) / n
+    one = np.stack([np.stack([np.zeros(n), v0], 1), np.stack([np.ones(n), v0], 1),
+                    np.stack([np.ones(n), v1], 1), np.stack([np.zeros(n), v1], 1)], axis=1)  # (n, 4, 2)
+    return np.ascontiguousarray(np.tile(one.reshape(-1, 2), (layout.blades_per_block, 1)), dtype=np.float32)
+
+
+def card_faces(layout) -> np.ndarray:
+    """(cells_per_block**2, 4) int32: (bottom-left, bottom-right, top-right, top-left) of each card."""
+    base = np.arange(layout.cells_per_block_total, dtype=np.int32)[:, None] * 4
+    return np.ascontiguousarray(base + np.arange(4, dtype=np.int32)[None, :], dtype=np.int32)
+
+
+def card_uvs(layout) -> np.ndarray:
+    """(cells_per_block**2 * 4, 2) float32 per face corner: u = 0 left .. 1 right, v = 0 ground .. 1 top."""
+    one = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
+    return np.ascontiguousarray(np.tile(one, (layout.cells_per_block_total, 1)))
+
+
+def blade_vertex_count(layout, n_blocks: int) -> int:
+    return n_blocks * layout.blades_per_block * (layout.segments + 1) * 2
+
+
+def card_vertex_count(layout, n_blocks: int) -> int:
+    return n_blocks * layout.cells_per_block_total * 4
+
+
+# --------------------------------------------------------------------------------------------
+# Per-layout constants in the kernel's layout: (block, joint/segment, slot, cell-in-block)
+
+
+class _Constants:
+    """Per-blade values that never change, arranged (n_blocks, rows, slot, cell) so that per-cell
+    values broadcast over the slot axis and the innermost axis (cells of a block) is contiguous."""
+
+    def __init__(self, layout):
+        n, num, P = layout.segments, layout.blades_per_cell, layout.cells_per_block_total
+        nb = layout.n_blocks
+        self.n, self.num, self.P, self.nb = n, num, P, nb
+        f32 = np.float32
+
+        def arrange(values: np.ndarray) -> np.ndarray:
+            """Blade-major (B, rows) -> (nb, rows, num, P)."""
+            rows = values.reshape(nb, P, num, -1)
+            return np.ascontiguousarray(rows.transpose(0, 3, 2, 1), dtype=f32)
+
+        facing = layout.blade_facing.astype(np.float64)
+        cos_f, sin_f = np.cos(facing), np.sin(facing)
+        tilt = layout.blade_rest_tilt.astype(np.float64)
+        self.rest_x = arrange(tilt * cos_f[:, None])  # rest tilt vector, x  (nb, n, num, P)
+        self.rest_y = arrange(tilt * sin_f[:, None])
+        self.cos_f = arrange(cos_f[:, None])  # (nb, 1, num, P)
+        self.sin_f = arrange(sin_f[:, None])
+        self.seg = arrange(layout.blade_length.astype(np.float64)[:, None] / n)
+        taper = 1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n
+        self.half_w = arrange(0.5 * layout.blade_width.astype(np.float64)[:, None] * taper[None, :])  # (nb, n+1, num, P)
+        root = layout.blade_root.astype(np.float64)
+        self.root = [arrange(root[:, i:i + 1]) for i in range(3)]  # x, y, z each (nb, 1, num, P)
+        self.slot = np.arange(num, dtype=np.int32)[None, :, None]  # (1, num, 1)
+        self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
+        self._scratch: list[dict[str, np.ndarray]] = []
+        self._lock = threading.Lock()
+
+    def scratch(self, index: int) -> dict[str, np.ndarray]:
+        """Working arrays of worker `index` for chunks of up to k_max blocks (allocated once)."""
+        with self._lock:
+            while len(self._scratch) <= index:
+                k, n, num, P = self.k_max, self.n, self.num, self.P
+                seg = (k, n, num, P)
+                joint = (k, n + 1, num, P)
+                cell_seg = (k, n, 1, P)
+                cell_joint = (k, n + 1, 1, P)
+                s = {name: np.empty(seg, np.float32) for name in ("tx", "ty", "a", "b", "c")}
+                s.update({name: np.empty(joint, np.float32) for name in ("px", "py", "pz", "hx", "hy", "w", "tmp")})
+                s.update({name: np.empty(cell_seg, np.float32) for name in ("cbx", "cby")})
+                s.update({name: np.empty(cell_joint, np.float32) for name in ("cphi", "sphi")})
+                s["mask"] = np.empty((k, 1, num, P), np.float32)
+                s["seg"] = np.empty((k, 1, num, P), np.float32)
+                self._scratch.append(s)
+            return self._scratch[index]
+
+
+def _constants(layout) -> _Constants:
+    c = _CACHE.get(layout)
+    if c is None:
+        c = _Constants(layout)
+        _CACHE[layout] = c
+    return c
+
+
+def _check_blocks(layout, blocks) -> np.ndarray:
+    blocks = np.asarray(blocks, dtype=np.int64).ravel()
+    if blocks.size and (blocks.min() < 0 or blocks.max() >= layout.n_blocks):
+        raise IndexError(f"block ids must be in 0..{layout.n_blocks - 1}")
+    return blocks
+
+
+def _output(out, rows: int) -> np.ndarray:
+    if out is None:
+        return np.empty((rows, 3), np.float32)
+    if (not isinstance(out, np.ndarray) or out.dtype != np.float32 or out.ndim != 2 or out.shape[1] != 3
+            or out.shape[0] < rows or not out.flags.c_contiguous):
+        raise ValueError(f"out must be a C-contiguous float32 array of at least ({rows}, 3)")
+    return out[:rows]
+
+
+def _chunks(blocks: np.ndarray, k_max: int) -> list[tuple[int, np.ndarray]]:
+    """(position in `blocks`, block ids) of each chunk."""
+    return [(i, blocks[i:i + k_max]) for i in range(0, len(blocks), k_max)]
+
+
+def _select(array: np.ndarray, ids: np.ndarray):
+    """array[ids] along axis 0, as a view when ids are consecutive."""
+    if ids[-1] - ids[0] + 1 == len(ids) and np.all(np.diff(ids) == 1):
+        return array[ids[0]:ids[-1] + 1]
+    return array[ids]
+
+
+# --------------------------------------------------------------------------------------------
+# Blade strips
+
+
+def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndarray:
+    """(len(blocks) * blades_per_block * (n + 1) * 2, 3) float32; see the module docstring.
+
+    cells: CellData (bend (C, n, 2), twist (C, n)); blade_count: (C,) int N of eq 9 or None (all).
+    """
+    blocks = _check_blocks(layout, blocks)
+    rows = blade_vertex_count(layout, len(blocks))
+    result = _output(out, rows)
+    if rows == 0:
+        return result
+    const = _constants(layout)
+    bend = np.asarray(cells.bend, dtype=np.float32)
+    twist = np.asarray(cells.twist, dtype=np.float32)
+    counts = None if blade_count is None else np.asarray(blade_count)
+    per_block = layout.blades_per_block * (layout.segments + 1) * 2
+    chunks = _chunks(blocks, const.k_max)
+    view = result.reshape(len(blocks), per_block, 3)
+
+    def work(worker: int, part: list[tuple[int, np.ndarray]]) -> None:
+        s = const.scratch(worker)
+        for start, ids in part:
+            _blade_chunk(layout, const, s, ids, bend, twist, counts, view[start:start + len(ids)])
+
+    if len(chunks) == 1 or THREADS < 2:
+        work(0, chunks)
+    else:
+        half = (len(chunks) + 1) // 2
+        future = _pool().submit(work, 1, chunks[half:])
+        work(0, chunks[:half])
+        future.result()
+    return result
+
+
+def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.ndarray, twist: np.ndarray,
+                 counts, out: np.ndarray) -> None:
+    """Vertices of the blades of blocks `ids` into `out` (k, blades_per_block * (n+1) * 2, 3)."""
+    k, n, num, P = len(ids), const.n, const.num, const.P
+    cell_ids = layout.block_cells[ids]  # (k, P)
+
+    # Per cell: cumulative bend sum_{k<=j} bend[c, k] (k, n, 1, P) and the twist accumulated
+    # below each joint, Phi_j = sum_{k<j} twist[c, k], as cos/sin (k, n+1, 1, P).
+    cb = bend[cell_ids]  # (k, P, n, 2)
+    tw = twist[cell_ids]  # (k, P, n)
+    cbx, cby = s["cbx"][:k, :, 0], s["cby"][:k, :, 0]  # (k, n, P)
+    cphi, sphi = s["cphi"][:k], s["sphi"][:k]
+    phi = cphi[:, :, 0]  # (k, n+1, P)
+    np.copyto(cbx[:, 0], cb[:, :, 0, 0])
+    np.copyto(cby[:, 0], cb[:, :, 0, 1])
+    phi[:, 0] = 0.0
+    for j in range(1, n):  # a few row adds beat np.cumsum along a short strided axis
+        np.add(cbx[:, j - 1], cb[:, :, j, 0], out=cbx[:, j])
+        np.add(cby[:, j - 1], cb[:, :, j, 1], out=cby[:, j])
+    for j in range(n):
+        np.add(phi[:, j], tw[:, :, j], out=phi[:, j + 1])
+    cbx, cby = s["cbx"][:k], s["cby"][:k]
+    np.sin(phi, out=sphi[:, :, 0, :])
+    np.cos(phi, out=phi)
+
+    rest_x, rest_y = _select(const.rest_x, ids), _select(const.rest_y, ids)
+    cos_f, sin_f = _select(const.cos_f, ids), _select(const.sin_f, ids)
+    seg, half_w = _select(const.seg, ids), _select(const.half_w, ids)
+    if counts is not None:  # eq 9: slots >= N collapse onto the root
+        mask = s["mask"][:k]
+        np.less(const.slot, counts[cell_ids][:, None, :], out=mask[:, 0])
+        seg = np.multiply(seg, mask, out=s["seg"][:k])
+        half_w = np.multiply(half_w, mask, out=s["w"][:k])
+
+    # Tilt vector T_j and segment direction (sin|T| T/|T|, cos|T|), scaled by the segment length.
+    tx, ty, a, b, c = (s[name][:k] for name in ("tx", "ty", "a", "b", "c"))
+    np.add(rest_x, cbx, out=tx)
+    np.add(rest_y, cby, out=ty)
+    np.multiply(tx, tx, out=a)
+    np.multiply(ty, ty, out=b)
+    np.add(a, b, out=a)
+    np.sqrt(a, out=a)  # |T|
+    np.cos(a, out=c)
+    np.multiply(c, seg, out=c)  # dz of each segment
+    np.sin(a, out=b)
+    np.maximum(a, np.float32(1e-30), out=a)  # |T| = 0: sin|T| = 0, so the horizontal step is 0
+    np.divide(b, a, out=b)
+    np.multiply(b, seg, out=b)  # l sin|T| / |T|
+    np.multiply(tx, b, out=tx)  # dx
+    np.multiply(ty, b, out=ty)  # dy
+
+    # Joints: p_0 = root, p_{j+1} = p_j + step_j.
+    px, py, pz = s["px"][:k], s["py"][:k], s["pz"][:k]
+    for p, step, root in ((px, tx, const.root[0]), (py, ty, const.root[1]), (pz, c, const.root[2])):
+        p[:, 0] = _select(root, ids)[:, 0]
+        for j in range(n):
+            np.add(p[:, j], step[:, j], out=p[:, j + 1])
+
+    # Half-width side offset: s * w/2 with s = (-sin(facing + Phi), cos(facing + Phi)).
+    hx, hy = s["hx"][:k], s["hy"][:k]
+    tmp = s["tmp"][:k]
+    np.multiply(sin_f, cphi, out=hx)
+    np.multiply(cos_f, sphi, out=tmp)
+    np.add(hx, tmp, out=hx)  # sin(f + Phi)
+    np.multiply(hx, half_w, out=hx)
+    np.multiply(cos_f, cphi, out=hy)
+    np.multiply(sin_f, sphi, out=tmp)
+    np.subtract(hy, tmp, out=hy)  # cos(f + Phi)
+    np.multiply(hy, half_w, out=hy)
+
+    # Write (k, P, num, n+1, 2, 3) through a transposed view matching the (k, n+1, num, P) arrays.
+    v = out.reshape(k, P, num, n + 1, 2, 3).transpose(0, 3, 2, 1, 4, 5)  # (k, n+1, num, P, 2, 3)
+    np.add(px, hx, out=v[..., 0, 0])  # left = p - s w/2: x + sin * w/2
+    np.subtract(py, hy, out=v[..., 0, 1])  # y - cos * w/2
+    np.subtract(px, hx, out=v[..., 1, 0])  # right = p + s w/2
+    np.add(py, hy, out=v[..., 1, 1])
+    np.copyto(v[..., 0, 2], pz)
+    np.copyto(v[..., 1, 2], pz)
+
+
+# --------------------------------------------------------------------------------------------
+# Cards
+
+
+def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
+    """(len(blocks) * cells_per_block**2 * 4, 3) float32: bottom-left, bottom-right, top-right,
+    top-left of each card (paper III.B), top moved by M' of eq 34 and turned by the total twist."""
+    blocks = _check_blocks(layout, blocks)
+    rows = card_vertex_count(layout, len(blocks))
+    result = _output(out, rows)
+    if rows == 0:
+        return result
+    cell_ids = layout.block_cells[blocks].ravel()
+    centre = layout.cell_center[cell_ids]  # (m, 2)
+    half = np.float32(0.5 * layout.params.lod.card_width * layout.cell_size)
+    facing = layout.card_facing[cell_ids]
+    total_twist = np.asarray(cells.twist, dtype=np.float32)[cell_ids].sum(axis=1)
+    offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
+    height = layout.card_height[cell_ids]
+    bx, by = np.cos(facing) * half, np.sin(facing) * half
+    top_facing = facing + total_twist
+    tx, ty = np.cos(top_facing) * half, np.sin(top_facing) * half
+    topx = centre[:, 0] + offset[:, 0]
+    topy = centre[:, 1] + offset[:, 1]
+    topz = height + offset[:, 2]
+    v = result.reshape(-1, 4, 3)
+    v[:, 0, 0] = centre[:, 0] - bx
+    v[:, 0, 1] = centre[:, 1] - by
+    v[:, 1, 0] = centre[:, 0] + bx
+    v[:, 1, 1] = centre[:, 1] + by
+    v[:, 0:2, 2] = 0.0
+    v[:, 2, 0] = topx + tx
+    v[:, 2, 1] = topy + ty
+    v[:, 3, 0] = topx - tx
+    v[:, 3, 1] = topy - ty
+    v[:, 2, 2] = topz
+    v[:, 3, 2] = topz
+    return result

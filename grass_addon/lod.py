@@ -1,0 +1,177 @@
+"""Levels of detail (paper III.D, eqs 7-11) and block frustum culling.
+
+Per cell, ``d`` is the distance from the viewpoint to the cell centre on the ground (z = 0):
+
+* first transition region (blades -> cards), eqs 7-9:
+  ``K_b = (d - d_g1) / (d_g2 - d_g1)``, ``K_g = 1 - K_b``, ``N = floor(num * K_g)``;
+* second transition region (cards -> ground texture), eqs 10-11:
+  ``K_t = (d - d_s1) / (d_s2 - d_s1)``, ``K'_b = 1 - K_t``.
+
+All weights are clamped to [0, 1]. The card opacity is K_b in the first region, 1 between the
+regions and K'_b in the second, i.e. ``min(K_b, K'_b)`` (the schema guarantees d_g2 <= d_s1).
+When a region has zero width (d_g1 == d_g2) the weight is a step at that distance.
+
+Blocks are culled against the camera frustum (side planes and the plane through the eye):
+a block's box is its ground rectangle widened by how far a blade or card can reach sideways,
+extruded from the ground to the tallest blade or card, so culling is conservative.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ParameterError
+
+
+@dataclass
+class Camera:
+    """A pinhole camera in world space (Blender's camera looks down its local -Z, up is local +Y).
+
+    position, forward, up: (3,) arrays (forward and up need not be unit length or orthogonal);
+    fov_x: horizontal field of view in radians; aspect: image width / height.
+    """
+
+    position: np.ndarray
+    forward: np.ndarray
+    up: np.ndarray
+    fov_x: float
+    aspect: float
+
+    @classmethod
+    def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0)) -> "Camera":
+        """Camera at ``position`` looking at ``target`` (headless scripts and tests)."""
+        position = np.asarray(position, dtype=np.float64)
+        return cls(position, np.asarray(target, dtype=np.float64) - position,
+                   np.asarray(up, dtype=np.float64), float(fov_x), float(aspect))
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Orthonormal (forward, right, up) of the view."""
+        f = np.asarray(self.forward, dtype=np.float64)
+        norm = np.linalg.norm(f)
+        if not np.isfinite(norm) or norm == 0.0:
+            raise ParameterError("camera", "the camera's forward direction is zero or not finite")
+        f = f / norm
+        right = np.cross(f, np.asarray(self.up, dtype=np.float64))
+        if np.linalg.norm(right) < 1e-9:  # looking straight along `up`: any perpendicular will do
+            right = np.cross(f, [0.0, 1.0, 0.0] if abs(f[1]) < 0.9 else [1.0, 0.0, 0.0])
+        right /= np.linalg.norm(right)
+        return f, right, np.cross(right, f)
+
+    def planes(self) -> np.ndarray:
+        """(5, 3) inward normals of the frustum's side planes and of the plane through the eye.
+
+        A point p relative to the eye, with view coordinates x (right), y (up), z (forward), is
+        inside when |x| <= z tan(fov_x/2) and |y| <= z tan(fov_x/2) / aspect, i.e. n . p >= 0 for
+        n = tan*forward -+ right and tan_y*forward -+ up; and z >= 0.
+        """
+        if not (0.0 < self.fov_x < math.pi):
+            raise ParameterError("camera.fov", f"{math.degrees(self.fov_x):g} deg is out of range (0 to 180 deg)")
+        if not self.aspect > 0.0:
+            raise ParameterError("camera", f"aspect ratio {self.aspect!r} must be > 0")
+        f, r, u = self.basis()
+        tx = math.tan(0.5 * self.fov_x)
+        ty = tx / self.aspect
+        return np.stack([tx * f - r, tx * f + r, ty * f - u, ty * f + u, f])
+
+
+@dataclass
+class LodWeights:
+    """Per-cell weights of eqs 7-11 and per-block visibility; see the module docstring."""
+
+    k_geometry: np.ndarray  # (n_cells,) float32: K_g, eq 8
+    k_billboard: np.ndarray  # (n_cells,) float32: card opacity min(K_b, K'_b), eqs 7, 11
+    k_texture: np.ndarray  # (n_cells,) float32: K_t, eq 10
+    blade_count: np.ndarray  # (n_cells,) int32: N, eq 9
+    block_visible: np.ndarray  # (n_blocks,) bool: the block's box meets the view frustum
+    block_distance: np.ndarray  # (n_blocks,) float32: eye to the nearest point of the block's ground rectangle
+
+
+def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:
+    """(d - near) / (far - near) clamped to [0, 1]; a step at `near` when far == near."""
+    if far > near:
+        w = (d - np.float32(near)) * np.float32(1.0 / (far - near))
+        return np.clip(w, 0.0, 1.0, out=w)
+    return (d >= np.float32(near)).astype(np.float32)
+
+
+def block_reach(layout) -> tuple[float, float]:
+    """(sideways reach, height) of anything standing in a block: blades bend up to their length
+    in any direction and cards stick out half their width plus their height past the cell."""
+    tallest_blade = float(layout.blade_length.max()) if layout.n_blades else 0.0
+    tallest_card = float(layout.card_height.max()) if layout.n_cells else 0.0
+    card_half = 0.5 * layout.params.lod.card_width * layout.cell_size
+    height = max(tallest_blade, tallest_card)
+    return max(tallest_blade, card_half + tallest_card), height
+
+
+def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
+    """Eqs 7-11 for every cell and frustum culling of every block (vectorised).
+
+    camera None or ``lod.enabled`` false: every blade is geometry (K_g = 1, N = num, K_b = K_t = 0)
+    and every block is visible.
+    """
+    params = params if params is not None else layout.params
+    lod = params.lod
+    num = layout.blades_per_cell
+    n_cells, n_blocks = layout.n_cells, layout.n_blocks
+    if camera is None or not lod.enabled:
+        distance = (np.zeros(n_blocks, np.float32) if camera is None
+                    else _block_distance(layout, np.asarray(camera.position, dtype=np.float64)))
+        return LodWeights(
+            k_geometry=np.ones(n_cells, np.float32), k_billboard=np.zeros(n_cells, np.float32),
+            k_texture=np.zeros(n_cells, np.float32), blade_count=np.full(n_cells, num, np.int32),
+            block_visible=np.ones(n_blocks, bool), block_distance=distance)
+
+    eye = np.asarray(camera.position, dtype=np.float64)
+    if eye.shape != (3,) or not np.all(np.isfinite(eye)):
+        raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
+    # d: eye to cell centre on the ground. The cells form a regular grid, so the squared distance
+    # is a column term + a row term (+ the eye height), combined by broadcasting.
+    xs = layout.cell_center[: layout.cells_x, 0]
+    ys = layout.cell_center[:: layout.cells_x, 1]
+    dx2 = np.square(xs - np.float32(eye[0]))
+    dy2 = np.square(ys - np.float32(eye[1])) + np.float32(eye[2] ** 2)
+    d = np.sqrt(dy2[:, None] + dx2[None, :]).ravel()
+
+    k_b = _ramp(d, lod.blade_near, lod.blade_far)  # eq 7
+    k_g = 1.0 - k_b  # eq 8
+    # eq 9; the tiny epsilon keeps floor(num * 1.0) == num under float32 rounding
+    blade_count = np.floor(num * k_g + np.float32(1e-5)).astype(np.int32)
+    k_t = _ramp(d, lod.card_near, lod.card_far)  # eq 10
+    k_b2 = 1.0 - k_t  # eq 11
+    k_card = np.minimum(k_b, k_b2)
+    return LodWeights(k_geometry=k_g.astype(np.float32, copy=False), k_billboard=k_card,
+                      k_texture=k_t, blade_count=blade_count,
+                      block_visible=_block_visible(layout, camera), block_distance=_block_distance(layout, eye))
+
+
+def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
+    """Distance from the eye to the nearest point of each block's ground rectangle (z = 0).
+
+    It is <= the distance to any cell centre of the block, so a block with
+    block_distance > lod.card_far holds nothing but ground texture.
+    """
+    b = layout.block_bounds.astype(np.float64)
+    nx = np.clip(eye[0], b[:, 0], b[:, 2]) - eye[0]
+    ny = np.clip(eye[1], b[:, 1], b[:, 3]) - eye[1]
+    return np.sqrt(nx * nx + ny * ny + eye[2] ** 2).astype(np.float32)
+
+
+def _block_visible(layout, camera: Camera) -> np.ndarray:
+    """Box-vs-frustum test: a box is out when all 8 corners lie outside one plane.
+
+    For a plane normal n the corner farthest inside is centre + |n| . half (the "positive
+    vertex"), so that single test is exact for the 8 corners.
+    """
+    reach, height = block_reach(layout)
+    b = layout.block_bounds.astype(np.float64)
+    centre = np.stack([(b[:, 0] + b[:, 2]) * 0.5, (b[:, 1] + b[:, 3]) * 0.5,
+                       np.full(len(b), 0.5 * height)], axis=1) - np.asarray(camera.position, dtype=np.float64)
+    half = np.stack([(b[:, 2] - b[:, 0]) * 0.5 + reach, (b[:, 3] - b[:, 1]) * 0.5 + reach,
+                     np.full(len(b), 0.5 * height)], axis=1)
+    planes = camera.planes()  # (5, 3)
+    best = centre @ planes.T + half @ np.abs(planes).T  # (n_blocks, 5)
+    return np.all(best >= 0.0, axis=1)

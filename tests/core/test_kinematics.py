@@ -1,0 +1,226 @@
+"""Blade strips and cards from cell angles (paper III.A-B, V.B): geometry checked by hand."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from grass_addon import kinematics, schema
+from grass_addon.layout import build_layout
+
+
+def small_layout(**overrides):
+    values = {"field.blocks_x": 2, "field.blocks_y": 3, "field.cells_per_block": 2, "field.blades_per_cell": 3,
+              "blade.segments": 4, "field.cell_size": 0.2}
+    values.update(overrides)
+    return build_layout(schema.defaults().replace(values))
+
+
+def cells_of(layout, bend=None, twist=None, card_offset=None):
+    """CellData-like arrays (celldata.CellData has these fields)."""
+    C, n = layout.n_cells, layout.segments
+    return SimpleNamespace(
+        bend=np.zeros((C, n, 2), np.float32) if bend is None else np.asarray(bend, np.float32),
+        twist=np.zeros((C, n), np.float32) if twist is None else np.asarray(twist, np.float32),
+        wind=np.zeros((C, 2), np.float32),
+        card_offset=np.zeros((C, 3), np.float32) if card_offset is None else np.asarray(card_offset, np.float32))
+
+
+def strips(layout, cells, blade_count=None):
+    blocks = np.arange(layout.n_blocks)
+    v = kinematics.blade_vertices(layout, cells, blocks, blade_count)
+    return v.reshape(layout.n_blades, layout.segments + 1, 2, 3)
+
+
+def random_cells(layout, seed=1, scale=0.4):
+    rng = np.random.default_rng(seed)
+    C, n = layout.n_cells, layout.segments
+    return cells_of(layout, rng.normal(0, scale, (C, n, 2)), rng.normal(0, scale, (C, n)),
+                    rng.normal(0, 0.05, (C, 3)))
+
+
+def test_zero_bend_follows_rest_tilt():
+    """No wind: each segment keeps its rest tilt; the tip height is sum (l/n) cos(tilt_j)."""
+    layout = small_layout()
+    v = strips(layout, cells_of(layout))
+    mid = v.mean(axis=2)  # joint centres
+    seg = layout.blade_length / layout.segments
+    tilt = layout.blade_rest_tilt.astype(np.float64)
+    np.testing.assert_allclose(mid[:, 0], layout.blade_root, atol=1e-6)
+    np.testing.assert_allclose(mid[:, -1, 2], seg * np.cos(tilt).sum(axis=1), rtol=1e-5, atol=1e-6)
+    # ... and leans towards its facing direction by sum (l/n) sin(tilt_j)
+    reach = seg * np.sin(tilt).sum(axis=1)
+    lean = mid[:, -1, :2] - layout.blade_root[:, :2]
+    facing = np.stack([np.cos(layout.blade_facing), np.sin(layout.blade_facing)], axis=1)
+    np.testing.assert_allclose(lean, facing * reach[:, None], atol=2e-6)
+
+
+def test_segment_lengths_preserved_under_any_bend():
+    """Segments are rigid (paper III.A): joint-to-joint distance stays l/n for any bend and twist."""
+    layout = small_layout()
+    mid = strips(layout, random_cells(layout, scale=0.8)).mean(axis=2)
+    lengths = np.linalg.norm(np.diff(mid, axis=1), axis=2)
+    np.testing.assert_allclose(lengths, np.repeat(layout.blade_length[:, None] / layout.segments,
+                                                  layout.segments, axis=1), rtol=1e-5)
+
+
+def test_bend_along_x_moves_tips_along_x():
+    """Upright blades (alpha = 0, so no gravity lean) under a bend of b per joint along +X:
+    segment j tilts by (j+1) b towards +X, so the tip sits at sum l/n (sin((j+1)b), 0, cos((j+1)b))."""
+    layout = small_layout(**{"blade.inclination": 0.0})
+    n, b = layout.segments, 0.2
+    bend = np.zeros((layout.n_cells, n, 2))
+    bend[:, :, 0] = b
+    tip = strips(layout, cells_of(layout, bend)).mean(axis=2)[:, -1]
+    seg = layout.blade_length / n
+    angles = b * np.arange(1, n + 1)
+    np.testing.assert_allclose(tip[:, 0] - layout.blade_root[:, 0], seg * np.sin(angles).sum(), rtol=1e-5)
+    np.testing.assert_allclose(tip[:, 1], layout.blade_root[:, 1], atol=1e-6)
+    np.testing.assert_allclose(tip[:, 2], seg * np.cos(angles).sum(), rtol=1e-5)
+    assert np.all(tip[:, 0] > layout.blade_root[:, 0])
+
+
+def test_twist_rotates_strip_width():
+    """A quarter turn of twist at the root joint turns every joint above it by 90 degrees: the width
+    vector (right - left), perpendicular to the facing at rest, becomes antiparallel to the facing."""
+    layout = small_layout(**{"blade.inclination": 0.0})
+    n = layout.segments
+    twist = np.zeros((layout.n_cells, n))
+    twist[:, 0] = np.pi / 2
+    v = strips(layout, cells_of(layout, twist=twist))
+    width_vec = v[:, :, 1] - v[:, :, 0]  # (B, n+1, 3)
+    f = layout.blade_facing
+    taper = 1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n
+    w = layout.blade_width[:, None] * taper[None, :]
+    side = np.stack([-np.sin(f), np.cos(f)], axis=1)
+    facing = np.stack([np.cos(f), np.sin(f)], axis=1)
+    np.testing.assert_allclose(width_vec[:, 0, :2], side * w[:, :1], atol=1e-6)  # root: as planted
+    np.testing.assert_allclose(width_vec[:, 1:, :2], -facing[:, None, :] * w[:, 1:, None], atol=1e-6)
+    assert np.all(width_vec[..., 2] == 0.0)
+    # the tip is narrower than the root by blade.tip_width (linear taper)
+    np.testing.assert_allclose(np.linalg.norm(width_vec[:, -1], axis=1),
+                               layout.params.blade.tip_width * layout.blade_width, rtol=1e-5, atol=1e-7)
+
+
+def test_hidden_blades_collapse_onto_their_root():
+    """Eq 9: only slots < N of a cell are drawn; the others shrink to their root point."""
+    layout = small_layout()
+    count = np.ones(layout.n_cells, np.int32)
+    count[::2] = 2
+    v = strips(layout, random_cells(layout), count)
+    hidden = layout.blade_slot >= count[layout.blade_cell]
+    assert hidden.any() and (~hidden).any()
+    np.testing.assert_array_equal(v[hidden], np.broadcast_to(layout.blade_root[hidden][:, None, None, :],
+                                                             v[hidden].shape))
+    shown_height = v[~hidden][:, -1, :, 2]
+    assert np.all(shown_height > 0.0)
+
+
+def test_matches_per_blade_formula_and_block_concatenation():
+    """Vectorised, chunked and threaded kernel == the per-blade formula of the module docstring;
+    blocks come out in the order asked, each with the same topology."""
+    layout = small_layout(**{"field.blocks_x": 3})
+    cells = random_cells(layout, seed=7)
+    n = layout.segments
+    blocks = np.array([4, 0, 5, 1])
+    old = kinematics.CHUNK_BLADES
+    try:
+        kinematics.CHUNK_BLADES = layout.blades_per_block  # one block per chunk: exercises the pool
+        kinematics._CACHE.clear()
+        got = kinematics.blade_vertices(layout, cells, blocks)
+    finally:
+        kinematics.CHUNK_BLADES = old
+        kinematics._CACHE.clear()
+    got = got.reshape(len(blocks), layout.blades_per_block, n + 1, 2, 3)
+    tip_w = layout.params.blade.tip_width
+    for i, block in enumerate(blocks):
+        for local, b in enumerate(range(block * layout.blades_per_block, (block + 1) * layout.blades_per_block)):
+            c = layout.blade_cell[b]
+            f = float(layout.blade_facing[b])
+            p = layout.blade_root[b].astype(np.float64)
+            T_bend = np.zeros(2)
+            phi = 0.0
+            expect = []
+            for j in range(n + 1):
+                s = np.array([-np.sin(f + phi), np.cos(f + phi), 0.0])
+                w = layout.blade_width[b] * (1 + (tip_w - 1) * j / n)
+                expect.append([p - s * w / 2, p + s * w / 2])
+                if j == n:
+                    break
+                T_bend += cells.bend[c, j]
+                T = layout.blade_rest_tilt[b, j] * np.array([np.cos(f), np.sin(f)]) + T_bend
+                a = np.linalg.norm(T)
+                hor = np.sin(a) * T / a if a > 0 else np.zeros(2)
+                p = p + layout.blade_length[b] / n * np.array([hor[0], hor[1], np.cos(a)])
+                phi += cells.twist[c, j]
+            np.testing.assert_allclose(got[i, local], np.array(expect), atol=2e-6)
+
+
+def test_threads_and_out_give_identical_results():
+    layout = small_layout(**{"field.blocks_x": 4})
+    cells = random_cells(layout, seed=3)
+    blocks = np.arange(layout.n_blocks)
+    old = kinematics.THREADS, kinematics.CHUNK_BLADES
+    try:
+        kinematics.CHUNK_BLADES = 2 * layout.blades_per_block
+        kinematics._CACHE.clear()
+        kinematics.THREADS = 1
+        one = kinematics.blade_vertices(layout, cells, blocks)
+        kinematics.THREADS = 2
+        out = np.full((kinematics.blade_vertex_count(layout, len(blocks)) + 5, 3), np.nan, np.float32)
+        two = kinematics.blade_vertices(layout, cells, blocks, out=out)
+    finally:
+        kinematics.THREADS, kinematics.CHUNK_BLADES = old
+        kinematics._CACHE.clear()
+    assert np.shares_memory(two, out)
+    np.testing.assert_array_equal(one, two)
+    assert one.dtype == np.float32 and one.flags.c_contiguous
+    with pytest.raises(ValueError, match="float32"):
+        kinematics.blade_vertices(layout, cells, blocks, out=np.empty((3, 3), np.float32))
+
+
+def test_faces_and_uvs_describe_the_strips():
+    layout = small_layout()
+    n, bpb = layout.segments, layout.blades_per_block
+    faces = kinematics.blade_faces(layout)
+    uvs = kinematics.blade_uvs(layout).reshape(-1, 4, 2)
+    assert faces.shape == (bpb * n, 4) and faces.dtype == np.int32
+    assert faces.min() == 0 and faces.max() == bpb * (n + 1) * 2 - 1
+    # every vertex of the block is used, the first quad is (root left, root right, j1 right, j1 left)
+    assert len(np.unique(faces)) == bpb * (n + 1) * 2
+    np.testing.assert_array_equal(faces[0], [0, 1, 3, 2])
+    # uv: u = 0 on left vertices (even ids), 1 on right; v = joint / n (0 at the root, 1 at the tip)
+    np.testing.assert_array_equal(uvs[..., 0], faces % 2)
+    np.testing.assert_allclose(uvs[..., 1], (faces % (2 * (n + 1))) // 2 / n, atol=1e-7)
+    cf, cu = kinematics.card_faces(layout), kinematics.card_uvs(layout)
+    assert cf.shape == (layout.cells_per_block_total, 4) and cu.shape == (layout.cells_per_block_total * 4, 2)
+
+
+def test_card_top_moves_by_eq34_offset_and_turns_with_twist():
+    """Paper V.B: the card's top edge is lifted by its height and moved by M' (eq 34); the bottom
+    stays on the ground; its width is lod.card_width cells; twist turns the top edge."""
+    layout = small_layout()
+    C, n = layout.n_cells, layout.segments
+    # eq 34 for a bend sum omega = 0.5 rad under wind along +Y: M' = (0, L sin w, L cos w - L)
+    L, omega = layout.card_height[:, None], 0.5
+    offset = np.concatenate([np.zeros((C, 1)), L * np.sin(omega), L * np.cos(omega) - L], axis=1)
+    twist = np.zeros((C, n))
+    twist[:, -1] = 0.3
+    cells = cells_of(layout, twist=twist, card_offset=offset)
+    blocks = np.arange(layout.n_blocks)
+    v = kinematics.card_vertices(layout, cells, blocks).reshape(-1, 4, 3)
+    order = layout.block_cells[blocks].ravel()
+    centre = layout.cell_center[order]
+    bottom_mid, top_mid = v[:, :2].mean(axis=1), v[:, 2:].mean(axis=1)
+    np.testing.assert_allclose(bottom_mid[:, :2], centre, atol=1e-6)
+    assert np.all(v[:, :2, 2] == 0.0)
+    lift = top_mid - bottom_mid
+    np.testing.assert_allclose(lift, offset[order] + np.array([0, 0, 1.0]) * layout.card_height[order, None],
+                               atol=1e-6)
+    width = layout.params.lod.card_width * layout.cell_size
+    bottom_dir = v[:, 1] - v[:, 0]
+    top_dir = v[:, 2] - v[:, 3]
+    np.testing.assert_allclose(np.linalg.norm(bottom_dir, axis=1), width, rtol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(top_dir, axis=1), width, rtol=1e-5)
+    turn = np.arctan2(top_dir[:, 1], top_dir[:, 0]) - np.arctan2(bottom_dir[:, 1], bottom_dir[:, 0])
+    np.testing.assert_allclose(np.remainder(turn + np.pi, 2 * np.pi) - np.pi, 0.3, atol=1e-5)

@@ -110,8 +110,9 @@ class WindField:
         a = float(w.turbulence_scale)
         n = [max(3, math.ceil(s / a - 1e-9)) for s in self.size]
         while n[0] * n[1] > MAX_LATTICE_UNITS:
-            # Physically sound limit: units finer than memory allows are made coarser (the
-            # field then shows the finest turbulence it can hold).
+            # Memory limit (eq 13 needs one unit per a x a square): on a field too large for
+            # that many units, the units are made coarser; the field then shows the finest
+            # turbulence it can hold, with the same std.
             a *= math.sqrt(n[0] * n[1] / MAX_LATTICE_UNITS) * 1.001
             n = [max(3, math.ceil(s / a - 1e-9)) for s in self.size]
         self.unit = a
@@ -339,7 +340,8 @@ class WindField:
         """Blast: extra speed gust_speed * exp(-(s / gust_width)^2) along the wind direction.
 
         s is the cell's downwind coordinate minus a front's position. The fronts' profile is
-        tabulated along s (width / 16 spacing) and interpolated to the cells.
+        tabulated along s (width / 16 spacing; each front only within 4 widths, where
+        exp(-16) ~ 1e-7 of its peak is left) and interpolated to the cells.
         """
         fronts = self.gust_fronts(t)
         if fronts.size == 0:
@@ -351,11 +353,16 @@ class WindField:
         half = 0.5 * (self.size[0] * abs(c) + self.size[1] * abs(s))
         n = int(min(65536, max(2, math.ceil(2.0 * half / (width / 16.0)) + 1)))
         grid = np.linspace(-half, half, n)
-        profile = np.zeros(n)
-        for chunk in np.array_split(fronts, max(1, fronts.size // 16)):
-            profile += np.exp(-(((grid[:, None] - chunk[None, :]) / width) ** 2)).sum(axis=1)
-        profile *= g
         scale = (n - 1) / (2.0 * half)
+        reach = int(math.ceil(4.0 * width * scale))
+        centre = np.rint((fronts + half) * scale)
+        lo = np.clip(centre - reach, 0, n).astype(np.intp)
+        hi = np.clip(centre + reach + 1, 0, n).astype(np.intp)
+        near = lo[:, None] + np.arange(int(np.max(hi - lo)))  # at most 2 * 64 + 1 points each
+        inside = near < hi[:, None]
+        near = near[inside]
+        bumps = np.exp(-(((grid[near] - np.broadcast_to(fronts[:, None], inside.shape)[inside]) / width) ** 2))
+        profile = g * np.bincount(near, weights=bumps, minlength=n)
         row = ((self._row_y * s + half) * scale).astype(np.float32)
         col = (self._col_x * c * scale).astype(np.float32)
         pos = row[:, None] + col[None, :]

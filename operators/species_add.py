@@ -42,10 +42,11 @@ class WINDGRASS_OT_species_add(bpy.types.Operator):
                 values["time"] = properties.from_blender(time, last.time) + TIME_STEP
         else:
             values = schema.row_defaults(p.fields)
-        row = rows.add()
-        for f in p.fields:
-            setattr(row, f.key, properties.to_blender(f, values[f.key]))
-        setattr(group, index_name, len(rows) - 1)
+        with properties.batch(item):  # one runtime update for the whole row
+            row = rows.add()
+            for f in p.fields:
+                setattr(row, f.key, properties.to_blender(f, values[f.key]))
+            setattr(group, index_name, len(rows) - 1)
         self.report({"INFO"}, f"Added row {len(rows)} to {p.name} of '{item.name}'")
         return {"FINISHED"}
 

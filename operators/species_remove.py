@@ -32,8 +32,9 @@ class WINDGRASS_OT_species_remove(bpy.types.Operator):
             return {"CANCELLED"}
         index_name = properties.index_name(p)
         index = min(getattr(group, index_name), len(rows) - 1)
-        rows.remove(index)
-        setattr(group, index_name, max(0, min(index, len(rows) - 1)))
+        with properties.batch(item):  # removing a row fires no update callback: notify at the end
+            rows.remove(index)
+            setattr(group, index_name, max(0, min(index, len(rows) - 1)))
         self.report({"INFO"}, f"Removed row {index + 1} of {p.name} of '{item.name}'")
         return {"FINISHED"}
 

@@ -4,7 +4,7 @@ import bpy
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties
-from ._common import has_active_field, reported
+from ._common import has_active_field, optional_bridge, reported
 
 
 def _items():
@@ -12,21 +12,11 @@ def _items():
              f"mean speed {schema.WIND_TYPE_SPEED[t]:g} m/s") for t in schema.WIND_TYPES]
 
 
-def _animated(item, key: str) -> bool:
-    """True when ``item.wind.<key>`` has an F-curve (its keyframes override a set value)."""
-    anim = item.id_data.animation_data
-    if anim is None or anim.action is None:
-        return False
-    path = item.wind.path_from_id(key)
-    fcurves = getattr(anim.action, "fcurves", None)
-    if fcurves is None:  # Blender 5 layered actions
-        try:
-            from bpy_extras import anim_utils
-            channelbag = anim_utils.action_get_channelbag_for_slot(anim.action, anim.action_slot)
-        except (ImportError, AttributeError):
-            return False
-        fcurves = channelbag.fcurves if channelbag is not None else ()
-    return any(fc.data_path == path for fc in fcurves)
+def _animated(scene, item, key: str) -> bool:
+    """True when ``item.wind.<key>`` has an F-curve (its keyframes override a value set here)."""
+    runtime = optional_bridge("runtime")
+    wind_fcurves = getattr(runtime, "wind_fcurves", None)
+    return wind_fcurves is not None and key in wind_fcurves(scene, item)
 
 
 class WINDGRASS_OT_wind_preset(bpy.types.Operator):
@@ -48,9 +38,10 @@ class WINDGRASS_OT_wind_preset(bpy.types.Operator):
     def execute(self, context):
         item = properties.active_field(context.scene)
         speed = schema.WIND_TYPE_SPEED[self.type]
-        item.wind.type = self.type
-        item.wind.speed = properties.to_blender(schema.BY_NAME["wind.speed"], speed)
-        if _animated(item, "speed"):
+        with properties.batch(item):
+            item.wind.type = self.type
+            item.wind.speed = properties.to_blender(schema.BY_NAME["wind.speed"], speed)
+        if _animated(context.scene, item, "speed"):
             self.report({"WARNING"}, f"Wind speed is keyframed: its keyframes override the preset {speed:g} m/s")
         else:
             self.report({"INFO"}, f"Wind of '{item.name}': {self.type.replace('_', ' ')}, {speed:g} m/s")

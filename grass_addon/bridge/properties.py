@@ -10,9 +10,11 @@ decimal that maps onto the same stored float32, so values typed by a user or wri
 ``apply_params`` come back exactly (0.32 stays 0.32, not 0.3199999928).
 """
 
+import contextlib
 import math
 import re
 import sys
+from collections.abc import Iterator
 from typing import Any
 
 import bpy
@@ -113,20 +115,42 @@ def description(p: schema.Param) -> str:
     return f"{p.help}{unit}. Valid: {p.range_text()}"
 
 
+_batch_depth = 0  # > 0 while ``batch`` writes many settings: one runtime update at the end
+
+
+def notify(item: Any) -> None:
+    """Tell the runtime that the settings of field ``item`` changed (if the runtime is loaded)."""
+    mark_dirty = getattr(sys.modules.get(_RUNTIME), "mark_dirty", None)
+    scene = item.id_data
+    if mark_dirty is not None and isinstance(scene, bpy.types.Scene):
+        mark_dirty(scene, item)
+
+
+@contextlib.contextmanager
+def batch(item: Any) -> Iterator[None]:
+    """Write many settings of ``item`` with a single runtime update at the end (the runtime
+    rebuilds on each update; intermediate states may also break relations such as lod order)."""
+    global _batch_depth
+    _batch_depth += 1
+    try:
+        yield
+    finally:
+        _batch_depth -= 1
+    if _batch_depth == 0:
+        notify(item)
+
+
 def _on_update(self: bpy.types.PropertyGroup, context: Any) -> None:
-    """Tell the runtime that the field owning this setting changed (if the runtime is loaded)."""
-    runtime = sys.modules.get(_RUNTIME)
-    mark_dirty = getattr(runtime, "mark_dirty", None)
-    scene = self.id_data
-    if mark_dirty is None or not isinstance(scene, bpy.types.Scene):
+    """Update callback of every generated property: the owning field is dirty."""
+    if _batch_depth or not isinstance(self.id_data, bpy.types.Scene):
         return
     match = _FIELD_PATH.match(self.path_from_id())
     if match is None:
         return
-    fields = scene.windgrass.fields
+    fields = self.id_data.windgrass.fields
     index = int(match.group(1))
     if index < len(fields):
-        mark_dirty(scene, fields[index])
+        notify(fields[index])
 
 
 def make_property(p: schema.Param, default: Any = None, update: Any = _on_update,
@@ -256,15 +280,16 @@ def params_from_settings(item: Any) -> schema.Params:
 
 
 def apply_params(item: Any, params: schema.Params) -> None:
-    """Write every value of ``params`` into the field item's properties."""
-    for section in schema.SECTIONS:
-        group = getattr(item, section)
-        for p in schema.section_params(section):
-            value = params.get(p.name)
-            if p.kind == "table_list":
-                write_rows(item, p, value)
-            else:
-                setattr(group, p.key, to_blender(p, value))
+    """Write every value of ``params`` into the field item's properties (one runtime update)."""
+    with batch(item):
+        for section in schema.SECTIONS:
+            group = getattr(item, section)
+            for p in schema.section_params(section):
+                value = params.get(p.name)
+                if p.kind == "table_list":
+                    write_rows(item, p, value)
+                else:
+                    setattr(group, p.key, to_blender(p, value))
 
 
 TABLES: tuple[schema.Param, ...] = tuple(p for p in schema.PARAMS if p.kind == "table_list")
@@ -281,12 +306,13 @@ def table_param(name: str) -> schema.Param:
 def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
     """Replace the rows of table ``p`` of a field item by ``rows`` (dicts of schema values)."""
     collection = getattr(getattr(item, p.section), p.key)
-    collection.clear()
-    for values in rows:
-        row = collection.add()
-        for f in p.fields:
-            setattr(row, f.key, to_blender(f, values.get(f.key, f.default)))
-    setattr(getattr(item, p.section), index_name(p), 0)
+    with batch(item):
+        collection.clear()
+        for values in rows:
+            row = collection.add()
+            for f in p.fields:
+                setattr(row, f.key, to_blender(f, values.get(f.key, f.default)))
+        setattr(getattr(item, p.section), index_name(p), 0)
 
 
 def settings(scene: bpy.types.Scene) -> Any:
@@ -337,7 +363,8 @@ def remove_item(scene: bpy.types.Scene, item: Any) -> None:
 
 
 __all__ = ["ParameterError", "params_from_settings", "apply_params", "active_field", "add_field",
-           "remove_item", "field_by_uid", "make_property", "register", "unregister"]
+           "remove_item", "field_by_uid", "make_property", "write_rows", "table_param", "batch", "notify",
+           "register", "unregister"]
 
 # --------------------------------------------------------------------------------------------
 # Registration

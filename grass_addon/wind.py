@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -54,14 +54,19 @@ def _wrap_angle(a: float) -> float:
 
 
 def _parse_keys(keys: Sequence[Any] | None, params) -> np.ndarray:
-    """(m, 3) float64 rows time, speed, direction (degrees, unwrapped along the shorter arc)."""
+    """(m, 3) float64 rows time, speed, direction (degrees, unwrapped along the shorter arc).
+
+    ``keys``: None (use params.wind.keys, or the constant wind.speed / wind.direction when there
+    are none) or rows (time_s, speed_m_s, direction_deg), or dicts like params.wind.keys.
+    """
     w = params.wind
     if keys is None:
         rows = [(k["time"], k["speed"], k["direction"]) for k in w.keys]
     else:
         try:
-            rows = [tuple(float(x) for x in row) for row in keys]
-        except (TypeError, ValueError):
+            rows = [(row["time"], row["speed"], row["direction"]) if isinstance(row, Mapping)
+                    else tuple(float(x) for x in row) for row in keys]
+        except (TypeError, ValueError, KeyError):
             raise ParameterError("wind.keys", f"{keys!r} is not a sequence of (time_s, speed_m_s, "
                                  "direction_deg) rows") from None
     if not rows:

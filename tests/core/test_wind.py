@@ -77,6 +77,8 @@ def test_params_keys_are_used_and_keys_argument_overrides_them():
     assert wind.mean(2.0)[0] == pytest.approx(3.0)
     _, wind = make(wind_keys=[(0.0, 8.0, 0.0)], keys=params_keys)
     assert wind.mean(2.0)[0] == pytest.approx(8.0)  # a single key: constant
+    _, wind = make(wind_keys=params_keys)  # rows may also be dicts, as in params.wind.keys
+    assert wind.mean(1.0)[0] == pytest.approx(2.0)
 
 
 def test_direction_turns_along_the_short_arc():

@@ -1,0 +1,100 @@
+"""LOD weights (paper III.D, eqs 7-11) at hand-picked distances, and block frustum culling."""
+
+import math
+
+import numpy as np
+import pytest
+
+from grass_addon import schema
+from grass_addon.layout import build_layout
+from grass_addon.lod import Camera, lod_weights
+
+
+def row_layout(**lod):
+    """16 x 16 cells of 1 m in 4 x 4 blocks; blade counts num = 4; bands 2-4 m and 6-10 m."""
+    values = {"field.blocks_x": 4, "field.blocks_y": 4, "field.cells_per_block": 4, "field.cell_size": 1.0,
+              "field.blades_per_cell": 4, "lod.blade_near": 2.0, "lod.blade_far": 4.0,
+              "lod.card_near": 6.0, "lod.card_far": 10.0}
+    values.update({f"lod.{k}": v for k, v in lod.items()})
+    return build_layout(schema.defaults().replace(values))
+
+
+def eye_over_cell0(layout, height=3.0):
+    x, y = layout.cell_center[0]
+    return Camera.look_at((x, y, height), (x + 10.0, y, 0.0), math.radians(60.0), 1.5)
+
+
+def test_weights_follow_eqs_7_to_11_at_chosen_distances():
+    layout = row_layout()
+    w = lod_weights(layout, eye_over_cell0(layout), layout.params)
+    # Cells 0, 4, 8, 12 lie 0, 4, 8, 12 m along +X from the eye's ground point; the eye is 3 m up,
+    # so d = 3, 5, sqrt(73) = 8.544, sqrt(153) = 12.369 m.
+    cells = [0, 4, 8, 12]
+    # eq 7, K_b = (d - 2) / 2 clamped: 0.5, 1, 1, 1; eq 8, K_g = 1 - K_b.
+    np.testing.assert_allclose(w.k_geometry[cells], [0.5, 0.0, 0.0, 0.0], atol=1e-6)
+    # eq 9, N = floor(4 K_g): 2, 0, 0, 0
+    np.testing.assert_array_equal(w.blade_count[cells], [2, 0, 0, 0])
+    # eq 10, K_t = (d - 6) / 4 clamped: 0, 0, 0.636, 1
+    np.testing.assert_allclose(w.k_texture[cells], [0.0, 0.0, (math.sqrt(73) - 6) / 4, 1.0], atol=1e-6)
+    # card opacity: K_b in the first band, 1 between bands, K'_b = 1 - K_t (eq 11) in the second
+    np.testing.assert_allclose(w.k_billboard[cells], [0.5, 1.0, 1.0 - (math.sqrt(73) - 6) / 4, 0.0], atol=1e-6)
+    # a cell at d = sqrt(1 + 9) = 3.162 m: K_g = 1 - 0.581 = 0.419, N = floor(1.675) = 1
+    assert w.blade_count[1] == 1
+    np.testing.assert_allclose(w.k_geometry[1], 1 - (math.sqrt(10) - 2) / 2, atol=1e-6)
+    assert w.k_geometry.dtype == np.float32 and w.blade_count.dtype == np.int32
+    assert w.k_geometry.shape == (layout.n_cells,)
+
+
+def test_blades_near_the_eye_are_all_geometry():
+    layout = row_layout()
+    w = lod_weights(layout, eye_over_cell0(layout, height=1.0), layout.params)
+    assert w.blade_count[0] == 4 and w.k_geometry[0] == 1.0 and w.k_billboard[0] == 0.0  # d = 1 < d_g1
+
+
+def test_zero_width_band_is_a_step():
+    layout = row_layout(blade_near=3.5, blade_far=3.5)
+    w = lod_weights(layout, eye_over_cell0(layout), layout.params)
+    np.testing.assert_array_equal(w.blade_count[[0, 4]], [4, 0])  # d = 3 before the step, 5 after
+    np.testing.assert_array_equal(w.k_billboard[[0, 4]], [0.0, 1.0])
+
+
+def test_no_camera_or_lod_off_means_all_geometry():
+    layout = row_layout()
+    off = layout.params.replace({"lod.enabled": False})
+    for w in (lod_weights(layout, None, layout.params), lod_weights(layout, eye_over_cell0(layout), off)):
+        assert np.all(w.k_geometry == 1.0) and np.all(w.k_billboard == 0.0) and np.all(w.k_texture == 0.0)
+        assert np.all(w.blade_count == 4) and w.block_visible.all()
+
+
+def test_frustum_culling_drops_blocks_behind_the_camera():
+    """Eye at the field centre, 1.5 m up, looking along +X with a 60 degree view: blocks whose
+    whole box lies at x < 0 (behind the eye) are culled; blocks ahead within the view are kept."""
+    layout = row_layout()
+    cam = Camera.look_at((0.0, 0.0, 1.5), (10.0, 0.0, 1.5), math.radians(60.0), 1.5)
+    w = lod_weights(layout, cam, layout.params)
+    b = layout.block_bounds  # blocks are 4 m wide: x in [-8, -4], [-4, 0], [0, 4], [4, 8]
+    behind = b[:, 2] <= -1.0  # more than a blade (or card) reach behind the eye: the x in [-8, -4] column
+    ahead = (b[:, 0] >= 0.0) & (np.abs(b[:, 1] + b[:, 3]) / 2 < 4.0)
+    assert behind.sum() == 4 and not w.block_visible[behind].any()
+    assert ahead.sum() == 4 and w.block_visible[ahead].all()
+    # Looking the other way swaps them.
+    back = lod_weights(layout, Camera.look_at((0, 0, 1.5), (-10, 0, 1.5), math.radians(60.0), 1.5), layout.params)
+    assert back.block_visible[behind & (np.abs(b[:, 1] + b[:, 3]) / 2 < 4.0)].all()
+    assert not back.block_visible[b[:, 0] >= 1.0].any()
+
+
+def test_block_distance_is_to_the_nearest_point():
+    layout = row_layout()
+    cam = Camera.look_at((0.5, 0.5, 2.0), (10.0, 0.5, 0.0), math.radians(60.0), 1.5)
+    w = lod_weights(layout, cam, layout.params)
+    b = layout.block_bounds
+    inside = (b[:, 0] <= 0.5) & (b[:, 2] >= 0.5) & (b[:, 1] <= 0.5) & (b[:, 3] >= 0.5)
+    np.testing.assert_allclose(w.block_distance[inside], 2.0)  # straight down
+    far = np.argmax((b[:, 0] == 4.0) & (b[:, 1] == 0.0))  # block x in [4, 8], y in [0, 4]
+    np.testing.assert_allclose(w.block_distance[far], math.sqrt(3.5 ** 2 + 2.0 ** 2), rtol=1e-6)
+
+
+def test_bad_camera_names_the_problem():
+    layout = row_layout()
+    with pytest.raises(schema.ParameterError, match="camera"):
+        lod_weights(layout, Camera.look_at((0, 0, 1), (0, 0, 1), 1.0), layout.params)

@@ -32,7 +32,7 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
         rows = presets.species_rows(self.preset)  # validated by the schema
         properties.write_rows(item, properties.table_param("blade.species"), rows)
         names = ", ".join(r["name"] for r in rows)
-        self.report({"INFO"}, f"Species of '{item.name}': {names} (Rebuild to see them)")
+        self.report({"INFO"}, f"Species of '{item.name}': {names}")
         return {"FINISHED"}
 
 

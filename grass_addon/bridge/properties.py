@@ -343,10 +343,16 @@ def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name:
     while unique in taken:
         n += 1
         unique = f"{name}.{n:03d}"
+    # The uid tags the field's objects and data-blocks, which live in bpy.data across scenes:
+    # keep it unique in the whole file, not only in this scene.
+    used = {f.uid for s in bpy.data.scenes if hasattr(s, "windgrass") for f in s.windgrass.fields}
+    number = root.next_uid
+    while f"field-{number}" in used:
+        number += 1
     item = root.fields.add()
     item.name = unique
-    item.uid = f"field-{root.next_uid}"
-    root.next_uid += 1
+    item.uid = f"field-{number}"
+    root.next_uid = number + 1
     apply_params(item, params or schema.defaults())
     root.active_index = len(root.fields) - 1
     return item

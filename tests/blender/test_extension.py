@@ -267,6 +267,9 @@ def test_new_field_reads_back_as_the_schema_defaults(scene):
     second = properties.add_field(scene)
     assert second.uid != item.uid and second.name == "Grass.001"
     assert scene.windgrass.active_index == 1 and properties.active_field(scene).uid == second.uid
+    # uids tag data-blocks shared by all scenes of the file: unique across scenes too
+    other = bpy.data.scenes.new("Other")
+    assert properties.add_field(other).uid not in (item.uid, second.uid)
 
 
 def test_params_round_trip_through_the_settings(scene):

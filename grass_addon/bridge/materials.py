@@ -28,8 +28,9 @@ NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the grou
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008, 1.0)
-SOIL_COLOUR_A = (0.030, 0.020, 0.010, 1.0)
-SOIL_COLOUR_B = (0.022, 0.035, 0.010, 1.0)
+# Ground under near grass: dark olive thatch and shaded soil (the sward's floor, not bare earth).
+SOIL_COLOUR_A = (0.026, 0.030, 0.012, 1.0)
+SOIL_COLOUR_B = (0.020, 0.034, 0.010, 1.0)
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9

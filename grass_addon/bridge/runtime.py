@@ -1,0 +1,501 @@
+"""Per-frame driver: the one runtime registry and the ``frame_change_pre`` handler.
+
+``RUNTIMES`` maps ``(scene name, field uid)`` to a ``FieldRuntime`` holding the numpy engine
+(``GrassField``) built from the field's parameters, the digest it was built from and reusable
+float32 buffers. Nothing in Blender's file refers to it: it is dropped on file load and rebuilt
+from the stored parameters (the state at frame N is a function of params, seed and N).
+
+Each frame ``update_scene`` seeks every field of the scene to ``scene.frame_current``, computes
+the LOD weights of eqs 7-11 from the scene camera, gives the nearest visible blocks that need
+blades (K_g > 0, eq 8) to the blade slots and those that need cards (K_b > 0, eqs 7/11) to the
+card slots, and writes vertex positions and the per-vertex attributes with ``foreach_set``.
+No ``bpy.ops``, no per-blade Python loops; the only Python loop runs over slots.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field as dc_field
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+
+from . import materials
+from . import scene as field_scene
+
+# Slot state: which block a slot shows. UNKNOWN forces a full write (new runtime, reopened file).
+FREE = -1
+UNKNOWN = -2
+
+# Samples per frame when turning animated wind F-curves into keys (one per frame is what the
+# solver sees: the wind is read once per frame, paper IV).
+_EXTEND_FRAMES = 240  # past frame_end the key range grows in steps of this many frames
+
+RUNTIMES: dict[tuple[str, str], "FieldRuntime"] = {}
+_WARNED: set[str] = set()
+
+
+def _warn_once(text: str) -> None:
+    """Report a problem in the console once; a frame handler must never raise into Blender."""
+    if text not in _WARNED:
+        _WARNED.add(text)
+        print(f"Windgrass: {text}")
+
+
+@dataclass
+class FieldRuntime:
+    field: object  # GrassField
+    params: object  # Params the field was built from
+    digest: str
+    wind_fingerprint: str = ""
+    wind_keys: tuple | None = None
+    blade_slot_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    card_slot_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    blade_buffer: np.ndarray | None = None
+    card_buffer: np.ndarray | None = None
+    # Last written frame, for tests and panels: blocks shown by slots, the LOD weights.
+    frame: int | None = None
+    blade_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    card_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    lod: object = None
+    camera_signature: tuple | None = None
+
+
+def runtime_key(scene, item) -> tuple[str, str]:
+    return scene.name, str(item.uid)
+
+
+def get_runtime(scene, item) -> FieldRuntime | None:
+    return RUNTIMES.get(runtime_key(scene, item))
+
+
+# --------------------------------------------------------------------------------------------
+# Parameters and animated wind
+
+
+def _action_fcurves(anim_data):
+    """F-curves of the animation data's action; Blender 4.4+ layered actions use channelbags
+    (``action.fcurves`` is gone in 5.0)."""
+    action = anim_data.action if anim_data is not None else None
+    if action is None:
+        return ()
+    slot = getattr(anim_data, "action_slot", None)
+    try:
+        from bpy_extras import anim_utils
+        get_bag = getattr(anim_utils, "action_get_channelbag_for_slot", None)
+    except ImportError:  # pragma: no cover
+        get_bag = None
+    if get_bag is not None and slot is not None:
+        bag = get_bag(action, slot)
+        return tuple(bag.fcurves) if bag is not None else ()
+    return tuple(getattr(action, "fcurves", ()))
+
+
+def wind_fcurves(scene, item) -> dict[str, object]:
+    """{'speed': fcurve, 'direction': fcurve} of this field's animated wind, if any."""
+    base = item.path_from_id("wind")
+    wanted = {f"{base}.speed": "speed", f"{base}.direction": "direction"}
+    out = {}
+    for fc in _action_fcurves(scene.animation_data):
+        role = wanted.get(fc.data_path)
+        if role is not None and not fc.mute:
+            out[role] = fc
+    return out
+
+
+def _fcurve_fingerprint(fc) -> bytes:
+    n = len(fc.keyframe_points)
+    data = np.empty(n * 6, dtype=np.float32)
+    if n:
+        fc.keyframe_points.foreach_get("co", data[: 2 * n])
+        fc.keyframe_points.foreach_get("handle_left", data[2 * n: 4 * n])
+        fc.keyframe_points.foreach_get("handle_right", data[4 * n:])
+    extra = f"{fc.extrapolation}|{len(fc.modifiers)}|" + ",".join(k.interpolation for k in fc.keyframe_points)
+    return data.tobytes() + extra.encode()
+
+
+def sample_range(scene, params) -> tuple[int, int]:
+    """Frames from the simulation start (t = -preroll) to frame_end, extended in steps when the
+    current frame lies beyond it, so the range (and the cache key) rarely changes."""
+    r = params.render
+    first = r.frame_start - int(math.ceil(params.simulation.preroll * r.fps))
+    last = r.frame_end
+    if scene.frame_current > last:
+        last += int(math.ceil((scene.frame_current - last) / _EXTEND_FRAMES)) * _EXTEND_FRAMES
+    return first, last
+
+
+def sample_wind_keys(fcurves: dict, params, frames: tuple[int, int]) -> tuple:
+    """(time_s, speed_m_s, direction_deg) per frame from the F-curves (one sample a frame).
+
+    Time follows the engine's clock t = (frame - frame_start) / fps; direction F-curves hold
+    radians (Blender's angle unit) and become degrees (the schema's unit).
+    """
+    r = params.render
+    frame_list = range(frames[0], frames[1] + 1)
+    speed_fc, dir_fc = fcurves.get("speed"), fcurves.get("direction")
+    speeds = [max(0.0, speed_fc.evaluate(f)) if speed_fc else params.wind.speed for f in frame_list]
+    dirs = [math.degrees(dir_fc.evaluate(f)) if dir_fc else params.wind.direction for f in frame_list]
+    return tuple(((f - r.frame_start) / r.fps, float(s), float(d)) for f, s, d in zip(frame_list, speeds, dirs))
+
+
+def field_params(scene, item, previous: FieldRuntime | None = None):
+    """(params, wind_keys, wind_fingerprint, digest) of the field now."""
+    from . import properties
+
+    params = properties.params_from_settings(item)
+    fcurves = wind_fcurves(scene, item) if scene.animation_data is not None else {}
+    if not fcurves:
+        return params, None, "", params.digest()
+    # The animated values change every frame; the keys carry them, so the digest must not.
+    from .. import schema
+
+    stable = {f"wind.{role}": schema.BY_NAME[f"wind.{role}"].default for role in fcurves}
+    stable_params = params.replace(stable)
+    frames = sample_range(scene, params)
+    h = hashlib.sha1(repr(frames).encode())
+    for role in sorted(fcurves):
+        h.update(role.encode())
+        h.update(_fcurve_fingerprint(fcurves[role]))
+    fingerprint = h.hexdigest()
+    if previous is not None and previous.wind_fingerprint == fingerprint and previous.wind_keys is not None:
+        keys = previous.wind_keys
+    else:
+        keys = sample_wind_keys(fcurves, params, frames)
+    digest = hashlib.sha1((stable_params.digest() + fingerprint).encode()).hexdigest()
+    return stable_params, keys, fingerprint, digest
+
+
+def ensure_runtime(scene, item) -> FieldRuntime:
+    """The field's runtime, rebuilt when its parameters (or animated wind) changed."""
+    from ..field import GrassField
+
+    key = runtime_key(scene, item)
+    rt = RUNTIMES.get(key)
+    params, keys, fingerprint, digest = field_params(scene, item, rt)
+    if rt is not None and rt.digest == digest:
+        return rt
+    rt = FieldRuntime(field=GrassField(params, wind_keys=keys), params=params, digest=digest,
+                      wind_fingerprint=fingerprint, wind_keys=keys)
+    RUNTIMES[key] = rt
+    if item.collection is not None:
+        field_scene.update_field_materials(field_scene.owner_tag(scene, item), params)
+    return rt
+
+
+# --------------------------------------------------------------------------------------------
+# Camera
+
+
+def blender_camera(scene, to_field=None, depsgraph=None):
+    """``lod.Camera`` of the scene camera in the field's frame, or None without a camera.
+
+    With ``depsgraph`` the evaluated camera is used (its animation at this frame)."""
+    from ..lod import Camera
+
+    cam = scene.camera
+    if cam is None or cam.type != "CAMERA":
+        return None
+    if depsgraph is not None:
+        cam = cam.evaluated_get(depsgraph)
+    matrix = cam.matrix_world
+    if to_field is not None:
+        matrix = to_field @ matrix
+    rot = np.array(matrix.to_3x3(), dtype=np.float64)
+    position = np.array(matrix.translation, dtype=np.float64)
+    forward = -rot[:, 2]  # a Blender camera looks down its local -Z
+    up = rot[:, 1]
+    forward /= max(np.linalg.norm(forward), 1e-12)
+    up /= max(np.linalg.norm(up), 1e-12)
+    r = scene.render
+    aspect = (r.resolution_x * r.pixel_aspect_x) / max(r.resolution_y * r.pixel_aspect_y, 1e-9)
+    data = cam.data
+    if data.type == "ORTHO":
+        # No perspective: take the angle that shows the ortho width from the camera's distance
+        # to the field centre (LOD distances still come from the camera position).
+        dist = max(float(np.linalg.norm(position)), 1e-3)
+        fov_x = 2.0 * math.atan(0.5 * data.ortho_scale / dist)
+    else:
+        fit = data.sensor_fit
+        if fit == "AUTO":
+            # The sensor width spans the larger image side.
+            fov_x = data.angle_x if aspect >= 1.0 else 2.0 * math.atan(math.tan(0.5 * data.angle_x) * aspect)
+        elif fit == "HORIZONTAL":
+            fov_x = data.angle_x
+        else:
+            fov_x = 2.0 * math.atan(math.tan(0.5 * data.angle_y) * aspect)
+    fov_x = min(max(fov_x, 1e-3), math.radians(179.0))
+    return Camera(position=position.astype(np.float32), forward=forward.astype(np.float32),
+                  up=up.astype(np.float32), fov_x=float(fov_x), aspect=float(aspect))
+
+
+# --------------------------------------------------------------------------------------------
+# Slot assignment and writes
+
+
+def assign_slots(slot_block: np.ndarray, chosen: np.ndarray) -> np.ndarray:
+    """New block of every slot: blocks already shown keep their slot (their colours need no
+    rewrite), new blocks take free slots in order. ``len(chosen) <= len(slot_block)``."""
+    keep = np.isin(slot_block, chosen)
+    new = chosen[~np.isin(chosen, slot_block)]
+    out = np.where(keep, slot_block, FREE).astype(np.int32)
+    free = np.flatnonzero(~keep)
+    out[free[: len(new)]] = new
+    return out
+
+
+def nearest_blocks(candidates: np.ndarray, distance: np.ndarray, count: int) -> np.ndarray:
+    """Up to ``count`` candidate blocks, nearest first (stable for equal distances)."""
+    idx = np.flatnonzero(candidates)
+    order = np.argsort(distance[idx], kind="stable")
+    return idx[order[:count]].astype(np.int32)
+
+
+def _resize_state(state: np.ndarray, n: int) -> np.ndarray:
+    if len(state) == n:
+        return state
+    return np.full(n, UNKNOWN, dtype=np.int32)
+
+
+def _write_position(mesh, verts: np.ndarray) -> None:
+    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
+
+
+def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
+    layout = rt.field.layout
+    slots = field_scene.slot_objects(item, field_scene.ROLE_BLADES)
+    n_slots = field_scene.pool_sizes(layout, rt.params)[0]
+    rt.blade_slot_block = _resize_state(rt.blade_slot_block, n_slots)
+    if n_slots == 0:
+        rt.blade_blocks = np.zeros(0, np.int32)
+        return
+    # A block needs blades where some cell has N > 0 (eq 9).
+    needs = (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
+    chosen = nearest_blocks(needs, block_distance, n_slots)
+    previous = rt.blade_slot_block
+    current = assign_slots(np.where(previous >= 0, previous, FREE), chosen)
+    rt.blade_slot_block = current
+    rt.blade_blocks = np.sort(chosen)
+    verts_per_block = field_scene.blade_vertex_count(layout)
+    active = np.flatnonzero(current >= 0)
+    total = len(active) * verts_per_block
+    if rt.blade_buffer is None or len(rt.blade_buffer) < max(total, verts_per_block):
+        rt.blade_buffer = np.zeros((max(total, verts_per_block), 3), dtype=np.float32)
+    verts = None
+    if len(active):
+        verts = rt.field.blade_vertices(current[active], lod=lod, out=rt.blade_buffer[:total])
+        verts = verts.reshape(len(active), verts_per_block, 3)
+    per_blade = (layout.segments + 1) * 2
+    collapsed = np.zeros((verts_per_block, 3), dtype=np.float32)
+    row = {int(s): j for j, s in enumerate(active)}
+    for slot in range(n_slots):  # loop over slots, each write is one foreach_set
+        block, before = int(current[slot]), int(previous[slot])
+        if block < 0 and before == FREE:
+            continue  # stays collapsed
+        obj = slots.get(slot)
+        if obj is None:
+            _warn_once(f"blade slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
+                       "(rebuild the field to restore it)")
+            continue
+        mesh = obj.data
+        if block < 0:
+            _write_position(mesh, collapsed)  # unused slot: zero area, nothing drawn
+        else:
+            _write_position(mesh, verts[row[slot]])
+            if block != before:  # this slot now shows another block: its blades' colours
+                blades = layout.block_blades(block)
+                rgba = np.ones((layout.blades_per_block, 4), dtype=np.float32)
+                rgba[:, :3] = layout.species_color[layout.blade_species[blades]]
+                mesh.attributes[materials.ATTR_COLOR].data.foreach_set(
+                    "color", np.repeat(rgba, per_blade, axis=0).ravel())
+                mesh.attributes[materials.ATTR_SHADE].data.foreach_set(
+                    "value", np.repeat(layout.blade_shade[blades].astype(np.float32), per_blade))
+        mesh.update()
+
+
+def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
+    layout = rt.field.layout
+    slots = field_scene.slot_objects(item, field_scene.ROLE_CARDS)
+    n_slots = field_scene.pool_sizes(layout, rt.params)[1]
+    rt.card_slot_block = _resize_state(rt.card_slot_block, n_slots)
+    if n_slots == 0:
+        rt.card_blocks = np.zeros(0, np.int32)
+        return
+    k_b = lod.k_billboard  # opacity of the cards, K_b of eq 7 / K'_b of eq 11
+    needs = (k_b[layout.block_cells] > 0).any(axis=1) & lod.block_visible
+    chosen = nearest_blocks(needs, block_distance, n_slots)
+    previous = rt.card_slot_block
+    current = assign_slots(np.where(previous >= 0, previous, FREE), chosen)
+    rt.card_slot_block = current
+    rt.card_blocks = np.sort(chosen)
+    verts_per_block = field_scene.card_vertex_count(layout)
+    active = np.flatnonzero(current >= 0)
+    total = len(active) * verts_per_block
+    if rt.card_buffer is None or len(rt.card_buffer) < max(total, verts_per_block):
+        rt.card_buffer = np.zeros((max(total, verts_per_block), 3), dtype=np.float32)
+    verts = opacity = None
+    if len(active):
+        verts = rt.field.card_vertices(current[active], out=rt.card_buffer[:total])
+        verts = verts.reshape(len(active), verts_per_block, 3)
+        # one card per cell, 4 vertices each, cells in block order
+        opacity = np.repeat(k_b[layout.block_cells[current[active]]].astype(np.float32), 4, axis=1)
+    collapsed = np.zeros((verts_per_block, 3), dtype=np.float32)
+    row = {int(s): j for j, s in enumerate(active)}
+    for slot in range(n_slots):
+        block, before = int(current[slot]), int(previous[slot])
+        if block < 0 and before == FREE:
+            continue
+        obj = slots.get(slot)
+        if obj is None:
+            _warn_once(f"card slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
+                       "(rebuild the field to restore it)")
+            continue
+        mesh = obj.data
+        if block < 0:
+            _write_position(mesh, collapsed)
+        else:
+            _write_position(mesh, verts[row[slot]])
+            mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.ascontiguousarray(opacity[row[slot]]))
+        mesh.update()
+
+
+def _camera_signature(camera) -> tuple | None:
+    if camera is None:
+        return None
+    return (tuple(np.round(camera.position, 6)), tuple(np.round(camera.forward, 6)),
+            tuple(np.round(camera.up, 6)), round(camera.fov_x, 6), round(camera.aspect, 6))
+
+
+def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
+    """Write the field ``item`` of ``scene`` for ``scene.frame_current``. Returns its runtime, or
+    None when the field has no collection (not built, or deleted by hand).
+
+    ``camera_moved_only``: skip the write when this frame was written with the same camera
+    (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
+    rt = ensure_runtime(scene, item)
+    coll = item.collection
+    if coll is None:
+        _warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
+        return None
+    layout = rt.field.layout
+    if coll.get("wg_topology") != field_scene.topology_key(layout, rt.params):
+        field_scene.build_slots(scene, item, layout, rt.params)
+        rt.blade_slot_block = np.zeros(0, np.int32)
+        rt.card_slot_block = np.zeros(0, np.int32)
+    frame = scene.frame_current
+    ground = field_scene.ground_object(item)
+    if ground is not None and depsgraph is not None:
+        ground = ground.evaluated_get(depsgraph)
+    to_field = ground.matrix_world.inverted_safe() if ground is not None else None
+    camera = blender_camera(scene, to_field, depsgraph)
+    signature = _camera_signature(camera)
+    if camera_moved_only and rt.frame == frame and rt.camera_signature == signature:
+        return rt
+    rt.field.seek(frame)
+    lod = rt.field.lod(camera)
+    if camera is None:
+        # No camera: every block is geometry (lod_weights(None)); the pool takes the blocks
+        # nearest the field centre.
+        centre = 0.5 * (layout.block_bounds[:, :2] + layout.block_bounds[:, 2:])
+        block_distance = np.hypot(centre[:, 0], centre[:, 1]).astype(np.float32)
+    else:
+        block_distance = np.asarray(lod.block_distance, dtype=np.float32)
+    _write_blades(rt, item, lod, block_distance)
+    _write_cards(rt, item, lod, block_distance)
+    rt.frame = frame
+    rt.lod = lod
+    rt.camera_signature = signature
+    return rt
+
+
+def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None:
+    """Write every field of ``scene`` for its current frame; never raises into Blender."""
+    settings = getattr(scene, "windgrass", None)
+    if settings is None:
+        return
+    for item in settings.fields:
+        try:
+            update_field(scene, item, depsgraph, camera_moved_only)
+        except Exception as exc:  # a handler must not break playback or rendering
+            _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
+
+
+def mark_dirty(scene, item) -> None:
+    """Parameters of ``item`` changed: rewrite it now (the digest decides what is rebuilt)."""
+    try:
+        if item.collection is not None:
+            update_field(scene, item)
+    except Exception as exc:
+        _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
+
+
+def reset_field(scene, item) -> None:
+    """Forget the runtime of ``item`` so it is re-simulated from its parameters."""
+    RUNTIMES.pop(runtime_key(scene, item), None)
+
+
+drop_runtime = reset_field
+
+
+# --------------------------------------------------------------------------------------------
+# Handlers
+
+
+@persistent
+def on_frame_change_pre(scene, depsgraph=None):
+    """Simulate and write the new frame (the contract's handler)."""
+    update_scene(scene)
+
+
+@persistent
+def on_frame_change_post(scene, depsgraph=None):
+    """Before evaluation (``_pre``) an animated or just-moved camera still has its old matrix.
+    After evaluation the camera is where it is at this frame: redo the LOD (eqs 7-11) and the
+    writes if it moved; Blender then evaluates the edited meshes in a second pass."""
+    update_scene(scene, depsgraph, camera_moved_only=True)
+
+
+@persistent
+def on_load_post(*_args):
+    RUNTIMES.clear()
+    _WARNED.clear()
+
+
+@persistent
+def on_undo_redo_post(*_args):
+    """Undo and redo bring back older mesh data: forget what the slots show, so the next
+    update rewrites every slot (positions and colours) instead of trusting stale state."""
+    for rt in RUNTIMES.values():
+        rt.blade_slot_block = np.zeros(0, np.int32)
+        rt.card_slot_block = np.zeros(0, np.int32)
+
+
+_HANDLERS = (
+    (bpy.app.handlers.frame_change_pre, on_frame_change_pre),
+    (bpy.app.handlers.frame_change_post, on_frame_change_post),
+    (bpy.app.handlers.load_post, on_load_post),
+    (bpy.app.handlers.undo_post, on_undo_redo_post),
+    (bpy.app.handlers.redo_post, on_undo_redo_post),
+)
+
+
+def _same(a, b) -> bool:
+    return getattr(a, "__name__", None) == b.__name__ and getattr(a, "__module__", None) == b.__module__
+
+
+def register() -> None:
+    """Add the handlers exactly once (also after a reload of the add-on)."""
+    for handlers, func in _HANDLERS:
+        for existing in [h for h in handlers if _same(h, func)]:
+            handlers.remove(existing)
+        handlers.append(func)
+
+
+def unregister() -> None:
+    for handlers, func in _HANDLERS:
+        for existing in [h for h in handlers if _same(h, func)]:
+            handlers.remove(existing)
+    RUNTIMES.clear()
+    _WARNED.clear()

@@ -1,0 +1,329 @@
+"""Build and remove a grass field in the Blender scene.
+
+One collection per field holds:
+  * a ground plane the size of the field (far LOD, paper III.C); every other object of the
+    field is parented to it, so moving the ground moves the field;
+  * a pool of blade "slots": meshes with the topology of ONE block of blades (every block has
+    the same topology). Each frame ``runtime.py`` gives the nearest visible blocks that need
+    blades to slots and writes their vertices; an unused slot collapses to a point;
+  * a pool of card slots, one block of cards (paper III.B) each, handled the same way.
+
+Pools are sized from the LOD distances (d_g2 for blades, d_s2 for cards), not from the field
+size, so memory and per-frame cost follow what is near the camera.
+
+Every datablock the field makes carries the custom property ``wg_uid`` (the field's uid) and
+``wg_role``, which is how ``remove_field`` finds all of it again (also after save and reopen).
+Slot meshes are modifier-free; a later "bake to PC2 + Mesh Cache modifier" can replace the
+per-frame writes on the same objects.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import bpy
+import numpy as np
+
+from . import materials, textures
+
+# Roles stored in ``wg_role`` of the datablocks of a field.
+ROLE_COLLECTION = "collection"
+ROLE_GROUND = "ground"
+ROLE_BLADES = "blades"
+ROLE_CARDS = "cards"
+ROLE_BLADE_MATERIAL = "blade_material"
+ROLE_CARD_MATERIAL = "card_material"
+ROLE_GROUND_MATERIAL = "ground_material"
+ROLE_CARD_IMAGE = "card_image"
+
+CARD_TEXTURE_SIZE = 256
+
+
+def owner_tag(scene, item) -> str:
+    """The ``wg_uid`` value on the field's datablocks.
+
+    Field uids are unique per scene only, so the tag is ``"<scene name>/<uid>"`` at creation and
+    is read back from the field's collection afterwards (a renamed scene keeps its fields).
+    """
+    coll = item.collection
+    if coll is not None and coll.get("wg_uid"):
+        return coll["wg_uid"]
+    return f"{scene.name}/{item.uid}"
+
+
+def _unused_tag(base: str) -> str:
+    taken = {d.get("wg_uid") for coll in (bpy.data.collections, bpy.data.objects, bpy.data.materials)
+             for d in coll}
+    tag, n = base, 0
+    while tag in taken:
+        n += 1
+        tag = f"{base}#{n}"
+    return tag
+
+
+def _tag(idblock, uid: str, role: str, index: int | None = None) -> None:
+    idblock["wg_uid"] = uid
+    idblock["wg_role"] = role
+    if index is not None:
+        idblock["wg_slot"] = index
+
+
+def _owned(collection, uid: str, role: str | None = None) -> list:
+    """Datablocks of ``collection`` (a bpy.data collection) made by the field ``uid``."""
+    return [d for d in collection if d.get("wg_uid") == uid and (role is None or d.get("wg_role") == role)]
+
+
+# --------------------------------------------------------------------------------------------
+# Pool sizes
+
+
+def slot_count(layout, distance: float, lod_enabled: bool) -> int:
+    """Blocks whose nearest point can lie within ``distance`` of a camera, capped at n_blocks.
+
+    A block (edge s) with a point within d of the camera has its centre within d + s/sqrt(2);
+    every such block lies inside the disc of radius d + s*sqrt(2) (d + block diagonal), so
+    their number is at most that disc's area over the block's area. LOD off: every block.
+    """
+    if not lod_enabled:
+        return layout.n_blocks
+    edge = layout.cells_per_block * layout.cell_size
+    radius = distance + edge * math.sqrt(2.0)
+    return int(min(layout.n_blocks, math.ceil(math.pi * radius * radius / (edge * edge))))
+
+
+def pool_sizes(layout, params) -> tuple[int, int]:
+    """(blade slots, card slots). Blades need d < d_g2 (eq 7), cards d < d_s2 (eq 10);
+    with the LOD off every block is geometry and no card is ever drawn."""
+    lod = params.lod
+    blades = slot_count(layout, lod.blade_far, lod.enabled)
+    cards = slot_count(layout, lod.card_far, True) if lod.enabled else 0
+    if layout.blades_per_block == 0:
+        blades = 0
+    return blades, cards
+
+
+def blade_vertex_count(layout) -> int:
+    """Vertices of one block of blades: per blade n + 1 joints, each [left, right]."""
+    return layout.blades_per_block * (layout.segments + 1) * 2
+
+
+def card_vertex_count(layout) -> int:
+    """Vertices of one block of cards: one quad per cell."""
+    return layout.cells_per_block_total * 4
+
+
+def topology_key(layout, params) -> str:
+    """What the slot meshes depend on; the runtime rebuilds them when it changes."""
+    blades, cards = pool_sizes(layout, params)
+    return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block,
+                       blades, cards, [round(float(v), 6) for v in layout.size]])
+
+
+# --------------------------------------------------------------------------------------------
+# Meshes
+
+
+def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, material,
+              attributes: dict[str, str]) -> bpy.types.Mesh:
+    """A mesh of quads from topology arrays: faces (F, 4) local vertex ids, uvs (F*4, 2) per
+    corner, every vertex at the origin (collapsed) until the runtime writes positions."""
+    faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 4)
+    mesh = bpy.data.meshes.new(name)
+    n_faces = len(faces)
+    mesh.vertices.add(n_verts)
+    mesh.loops.add(n_faces * 4)
+    mesh.polygons.add(n_faces)
+    mesh.loops.foreach_set("vertex_index", faces.ravel())
+    mesh.polygons.foreach_set("loop_start", np.arange(0, n_faces * 4, 4, dtype=np.int32))
+    mesh.polygons.foreach_set("use_smooth", np.ones(n_faces, dtype=bool))
+    uv = mesh.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.ascontiguousarray(uvs, dtype=np.float32).ravel())
+    for attr_name, attr_type in attributes.items():
+        mesh.attributes.new(attr_name, attr_type, "POINT")
+    mesh.update(calc_edges=True)
+    mesh.materials.append(material)
+    return mesh
+
+
+def ground_mesh(name: str, size: tuple[float, float]) -> bpy.types.Mesh:
+    """A plane covering the field, centred on the origin."""
+    hx, hy = 0.5 * size[0], 0.5 * size[1]
+    verts = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
+    uvs = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
+    mesh = quad_mesh(name, 4, np.array([[0, 1, 2, 3]]), uvs, None, {})
+    mesh.materials.clear()
+    mesh.polygons.foreach_set("use_smooth", np.zeros(1, dtype=bool))
+    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
+    mesh.update()
+    return mesh
+
+
+# --------------------------------------------------------------------------------------------
+# Building
+
+
+def ensure_collection(scene, item) -> bpy.types.Collection:
+    """The field's collection, linked under the scene collection (created if needed)."""
+    coll = item.collection
+    if coll is None or not coll.get("wg_uid"):
+        coll = bpy.data.collections.new(item.name or "Grass field")
+        _tag(coll, _unused_tag(f"{scene.name}/{item.uid}"), ROLE_COLLECTION)
+        item.collection = coll
+    if coll.name not in scene.collection.children:
+        scene.collection.children.link(coll)
+    return coll
+
+
+def _material(uid: str, role: str, make):
+    found = _owned(bpy.data.materials, uid, role)
+    if found:
+        return found[0]
+    mat = make()
+    mat["wg_role"] = role
+    return mat
+
+
+def field_materials(uid: str, base_name: str):
+    """(blade, card, ground) materials of the field, created once."""
+    images = _owned(bpy.data.images, uid, ROLE_CARD_IMAGE)
+    if images:
+        image = images[0]
+    else:
+        image = textures.ensure_card_image(f"{base_name} card texture", size=CARD_TEXTURE_SIZE)
+        _tag(image, uid, ROLE_CARD_IMAGE)
+    blade = _material(uid, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
+    card = _material(uid, ROLE_CARD_MATERIAL, lambda: materials.card_material(f"{base_name} cards", uid, image))
+    ground = _material(uid, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
+    return blade, card, ground
+
+
+def update_field_materials(uid: str, params) -> None:
+    """Refresh the parameter-dependent values (eq 10 distances, colours) of the materials."""
+    ground = _owned(bpy.data.materials, uid, ROLE_GROUND_MATERIAL)
+    cards = _owned(bpy.data.materials, uid, ROLE_CARD_MATERIAL)
+    materials.update_materials(params, ground[0] if ground else None, cards[0] if cards else None,
+                               tuple(float(c) for c in textures.TIP_COLOUR))
+
+
+def _link(coll, obj, parent) -> None:
+    coll.objects.link(obj)
+    if parent is not None:
+        obj.parent = parent
+
+
+def _remove_objects(objects) -> None:
+    meshes = [o.data for o in objects if o.type == "MESH"]
+    for obj in objects:
+        bpy.data.objects.remove(obj, do_unlink=True)
+    for mesh in meshes:
+        if mesh.users == 0:
+            bpy.data.meshes.remove(mesh)
+
+
+def build_slots(scene, item, layout, params) -> bpy.types.Collection:
+    """(Re)create the ground and the blade/card slot objects for ``layout``; idempotent.
+
+    Called by ``build_field`` and by the runtime when the topology (segments, blades per block,
+    pool sizes, field size) changed.
+    """
+    from .. import kinematics as kin  # numpy topology of one block
+
+    coll = ensure_collection(scene, item)
+    uid = coll["wg_uid"]
+    base = coll.name
+    blade_mat, card_mat, ground_mat = field_materials(uid, base)
+    _remove_objects(_owned(bpy.data.objects, uid, ROLE_BLADES) + _owned(bpy.data.objects, uid, ROLE_CARDS)
+                    + _owned(bpy.data.objects, uid, ROLE_GROUND))
+
+    ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size))
+    ground.data.materials.append(ground_mat)
+    _tag(ground, uid, ROLE_GROUND)
+    _tag(ground.data, uid, ROLE_GROUND)
+    _link(coll, ground, None)
+
+    n_blade_slots, n_card_slots = pool_sizes(layout, params)
+    blade_verts = blade_vertex_count(layout)
+    if n_blade_slots:
+        faces, uvs = kin.blade_faces(layout), kin.blade_uvs(layout)
+        for i in range(n_blade_slots):  # once per build, not per frame
+            mesh = quad_mesh(f"{base} blades {i:03d}", blade_verts, faces, uvs, blade_mat,
+                             {materials.ATTR_COLOR: "FLOAT_COLOR", materials.ATTR_SHADE: "FLOAT"})
+            obj = bpy.data.objects.new(mesh.name, mesh)
+            _tag(obj, uid, ROLE_BLADES, i)
+            _tag(mesh, uid, ROLE_BLADES, i)
+            _link(coll, obj, ground)
+    if n_card_slots:
+        faces, uvs = kin.card_faces(layout), kin.card_uvs(layout)
+        card_verts = card_vertex_count(layout)
+        for i in range(n_card_slots):
+            mesh = quad_mesh(f"{base} cards {i:03d}", card_verts, faces, uvs, card_mat,
+                             {materials.ATTR_OPACITY: "FLOAT"})
+            obj = bpy.data.objects.new(mesh.name, mesh)
+            obj.visible_shadow = True
+            _tag(obj, uid, ROLE_CARDS, i)
+            _tag(mesh, uid, ROLE_CARDS, i)
+            _link(coll, obj, ground)
+    coll["wg_topology"] = topology_key(layout, params)
+    update_field_materials(uid, params)
+    return coll
+
+
+def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
+    """{slot index: object} of the field's slots that still exist (the user may delete some)."""
+    coll = item.collection
+    if coll is None:
+        return {}
+    uid = coll.get("wg_uid")
+    out = {}
+    for obj in coll.objects:
+        if obj.get("wg_uid") == uid and obj.get("wg_role") == role and obj.type == "MESH":
+            out[int(obj.get("wg_slot", -1))] = obj
+    return out
+
+
+def ground_object(item):
+    coll = item.collection
+    if coll is None:
+        return None
+    uid = coll.get("wg_uid")
+    for obj in coll.objects:
+        if obj.get("wg_uid") == uid and obj.get("wg_role") == ROLE_GROUND:
+            return obj
+    return None
+
+
+def build_field(scene, item) -> bpy.types.Collection:
+    """Create (or rebuild) the field's collection, ground, slot pools and materials, then write
+    the current frame. Returns the collection (also stored in ``item.collection``)."""
+    from . import runtime
+
+    runtime.reset_field(scene, item)
+    rt = runtime.ensure_runtime(scene, item)
+    coll = build_slots(scene, item, rt.field.layout, rt.params)
+    # The frame handler edits meshes while a render runs: keep the interface locked then.
+    scene.render.use_lock_interface = True
+    runtime.update_field(scene, item)
+    return coll
+
+
+def remove_field(scene, item) -> None:
+    """Delete every object, mesh, material, image and the collection the field made, and its
+    runtime; no orphan data is left behind."""
+    from . import runtime
+
+    uid = owner_tag(scene, item)
+    runtime.drop_runtime(scene, item)
+    _remove_objects(_owned(bpy.data.objects, uid))
+    for mesh in _owned(bpy.data.meshes, uid):
+        bpy.data.meshes.remove(mesh)
+    for mat in _owned(bpy.data.materials, uid):
+        bpy.data.materials.remove(mat)
+    for image in _owned(bpy.data.images, uid):
+        bpy.data.images.remove(image)
+    for coll in _owned(bpy.data.collections, uid):
+        bpy.data.collections.remove(coll)
+    try:
+        item.collection = None
+    except (AttributeError, TypeError):  # the item may already be gone
+        pass

@@ -335,6 +335,17 @@ def test_wind_preset_sets_type_and_nominal_speed(scene):
         assert params.wind.speed == schema.WIND_TYPE_SPEED[wind_type]
 
 
+def test_wind_preset_warns_when_the_speed_is_keyframed(scene, with_bridge, capfd):
+    """Keyframes win over a value set by the preset; the artist is told so (a WARNING report)."""
+    from windgrass.grass_addon.bridge import properties
+
+    item = properties.add_field(scene)
+    item.wind.keyframe_insert("speed", frame=1)
+    capfd.readouterr()
+    assert bpy.ops.windgrass.wind_preset(type="calm") == {"FINISHED"}
+    assert "Warning: Wind speed is keyframed" in capfd.readouterr().out
+
+
 def test_species_preset_add_and_remove(scene):
     from windgrass.grass_addon import presets
     from windgrass.grass_addon.bridge import properties
@@ -397,12 +408,19 @@ def test_field_add_builds_a_light_field_and_remove_deletes_it(scene, with_bridge
     assert after == before
 
 
-def test_field_add_with_a_selected_mesh(scene, with_bridge):
+def test_field_add_with_a_selected_mesh(scene, with_bridge, capfd):
     from windgrass.grass_addon.bridge import properties
 
     bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plane = bpy.context.active_object
+    capfd.readouterr()
     assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=3) == {"FINISHED"}
     item = properties.active_field(scene)
     params = properties.params_from_settings(item)
     assert (params.field.blocks_x, params.field.blocks_y) == (2, 3)
     assert item.collection is not None
+    if getattr(with_bridge.grass_addon.bridge.scene, "SUPPORTS_TERRAIN", False):
+        assert item.terrain == plane
+    else:  # flat ground, and the artist is told why the mesh was not used
+        assert item.terrain is None
+        assert f"Mesh '{plane.name}' not used" in capfd.readouterr().out

@@ -22,15 +22,26 @@ from .errors import ParameterError
 
 WIND_TYPES = ("calm", "gentle_breeze", "moderate_breeze", "blast", "whirlwind")
 
-# Nominal mean speed of each wind type in m/s (Beaufort scale: calm < 0.5, gentle breeze
-# 3.4-5.4, moderate breeze 5.5-7.9). A TOML file that names a type but no speed gets this.
-WIND_TYPE_SPEED = {
-    "calm": 0.3,
-    "gentle_breeze": 4.4,
-    "moderate_breeze": 6.7,
-    "blast": 3.0,
-    "whirlwind": 2.0,
+# What choosing a wind type sets (paper IV's four types plus calm). Mean speeds follow the Beaufort
+# scale: calm < 0.5 m/s, gentle breeze 3.4-5.4, moderate breeze 5.5-7.9; the turbulence (std of v',
+# eq 12) grows with the mean, about a quarter of it as in the atmospheric surface layer. A TOML file
+# that names a type but not these keys gets them from here.
+WIND_TYPE_PRESETS = {
+    "calm": {"speed": 0.3, "turbulence": 0.15},
+    "gentle_breeze": {"speed": 4.4, "turbulence": 1.2},
+    "moderate_breeze": {"speed": 6.7, "turbulence": 1.8},
+    "blast": {"speed": 3.0, "turbulence": 0.8},
+    "whirlwind": {"speed": 2.0, "turbulence": 0.6},
 }
+WIND_TYPE_SPEED = {kind: preset["speed"] for kind, preset in WIND_TYPE_PRESETS.items()}
+
+
+def wind_preset(kind: str) -> dict[str, Any]:
+    """Dotted overrides that a wind-type preset applies: ``{"wind.type": ..., "wind.speed": ...}``."""
+    if kind not in WIND_TYPE_PRESETS:
+        raise ParameterError("wind.type", f"unknown value {kind!r} (valid: one of {', '.join(WIND_TYPES)})")
+    return {"wind.type": kind, **{f"wind.{k}": v for k, v in WIND_TYPE_PRESETS[kind].items()}}
+
 
 # Above this the field would not fit in memory on an ordinary workstation.
 MAX_TOTAL_BLADES = 20_000_000
@@ -415,8 +426,10 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
                 raise ParameterError(f"{section}.{key}",
                                      f"unknown key in [{section}] (valid keys: {', '.join(known)})")
             values[section][key] = _check_value(known[key], value)
-        if section == "wind" and "type" in entries and "speed" not in entries:
-            values["wind"]["speed"] = WIND_TYPE_SPEED[values["wind"]["type"]]
+        if section == "wind" and "type" in entries:
+            for key, value in WIND_TYPE_PRESETS[values["wind"]["type"]].items():
+                if key not in entries:
+                    values["wind"][key] = value
     # Lists come back from to_dict() as lists; normalise every value through the checker once.
     checked = {s: {p.key: _check_value(p, values[s][p.key]) for p in section_params(s)} for s in SECTIONS}
     _check_relations(checked)

@@ -1,0 +1,114 @@
+"""The parameter schema: defaults, TOML files, CLI flags and the errors bad input gets."""
+
+import argparse
+import math
+
+import pytest
+
+from grass_addon import schema
+from grass_addon.errors import ParameterError
+
+
+def test_defaults_are_the_papers_test_scene():
+    p = schema.defaults()
+    # paper VI: 32x32 patches of 16x16 cells with two blades each = 524,288 blades
+    assert (p.field.blocks_x, p.field.blocks_y, p.field.cells_per_block, p.field.blades_per_cell) == (32, 32, 16, 2)
+    assert p.field.blocks_x * p.field.blocks_y * p.field.cells_per_block**2 * p.field.blades_per_cell == 524_288
+    assert p.blade.segments == 5  # the paper finds 4-6 segments sufficient
+
+
+def test_every_default_lies_in_its_range():
+    for param in schema.PARAMS:
+        if param.kind in ("int", "float"):
+            assert param.minimum <= param.default <= param.maximum, param.name
+        assert param.help, param.name
+
+
+def test_toml_round_trip_keeps_every_value():
+    p = schema.defaults().replace({
+        "wind.speed": 6.0, "blade.species": [{"name": "tall", "length": 0.6, "weight": 2.0},
+                                             {"name": "short", "length": 0.1}],
+        "wind.keys": [{"time": 0.0, "speed": 2.0, "direction": 10.0}, {"time": 5.0, "speed": 8.0, "direction": 90.0}],
+    })
+    assert schema.loads_toml(schema.dumps_toml(p)) == p
+
+
+def test_wind_type_brings_its_beaufort_speed_unless_given():
+    assert schema.loads_toml('[wind]\ntype = "moderate_breeze"').wind.speed == pytest.approx(6.7)
+    assert 5.5 <= schema.WIND_TYPE_SPEED["moderate_breeze"] <= 7.9
+    assert 3.4 <= schema.WIND_TYPE_SPEED["gentle_breeze"] <= 5.4
+    assert schema.WIND_TYPE_SPEED["calm"] < 0.5
+    assert schema.loads_toml('[wind]\ntype = "calm"\nspeed = 2.0').wind.speed == 2.0
+
+
+@pytest.mark.parametrize("text, key, words", [
+    ("[wind]\nspeed = nan", "wind.speed", ["finite", "0 to 60 m/s"]),
+    ("[wind]\nspeed = inf", "wind.speed", ["finite", "0 to 60 m/s"]),
+    ("[wind]\nspeed = -3.0", "wind.speed", ["out of range", "0 to 60 m/s"]),
+    ("[wind]\nspeed = \"fast\"", "wind.speed", ["not a number"]),
+    ("[wind]\ntype = \"tornado\"", "wind.type", ["unknown value", "gentle_breeze", "whirlwind"]),
+    ("[wind]\nsped = 3.0", "wind.sped", ["unknown key", "speed"]),
+    ("[weather]\nrain = 1", "weather", ["unknown section", "wind"]),
+    ("[field]\nblocks_x = -2", "field.blocks_x", ["out of range", "1 to 256"]),
+    ("[field]\nblocks_x = 2.5", "field.blocks_x", ["whole number"]),
+    ("[field]\nblocks_x = 1e12", "field.blocks_x", ["out of range"]),
+    ("[field]\nblades_per_cell = 64\nblocks_x = 256\nblocks_y = 256", "field.blades_per_cell", ["20,000,000"]),
+    ("[lod]\nenabled = 1", "lod.enabled", ["true/false"]),
+    ("[lod]\nblade_near = 10.0\nblade_far = 5.0", "lod.blade_far", [">= lod.blade_near"]),
+    ("[camera]\nposition = [1, 2]", "camera.position", ["3 numbers"]),
+    ("[render]\nframe_start = 10\nframe_end = 5", "render.frame_end", ["before"]),
+    ("[[blade.species]]\nname = \"a\"\nheight = 3", "blade.species[0].height", ["unknown key", "length"]),
+    ("[[blade.species]]\nweight = 0.0", "blade.species", ["weights add up to 0"]),
+    ("[[wind.keys]]\ntime = 1.0\n[[wind.keys]]\ntime = 0.5", "wind.keys", ["increase"]),
+    ("[[wind.keys]]\ntime = 0.0\nspeed = -1.0", "wind.keys[0].speed", ["out of range"]),
+    ("wind = 3", "wind", ["must be a table"]),
+    ("[wind\nspeed = 3", "config", ["not valid TOML"]),
+])
+def test_bad_toml_names_the_key_and_the_valid_range(text, key, words):
+    with pytest.raises(ParameterError) as info:
+        schema.loads_toml(text, source="scene.toml")
+    assert info.value.key == key
+    message = str(info.value)
+    assert message.startswith(key)
+    assert "scene.toml" in message
+    for word in words:
+        assert word in message
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(ParameterError, match="cannot read"):
+        schema.load_toml(tmp_path / "nope.toml")
+
+
+def test_cli_flags_are_generated_from_the_schema():
+    parser = argparse.ArgumentParser()
+    schema.add_cli_arguments(parser)
+    flags = {a for action in parser._actions for a in action.option_strings}
+    for param in schema.cli_params():
+        assert param.cli_flag in flags
+    args = parser.parse_args(["--wind-speed", "7.5", "--field-blocks-x", "4", "--lod-enabled", "false",
+                              "--camera-position", "1", "2", "3"])
+    p = schema.defaults().replace(schema.cli_overrides(args))
+    assert (p.wind.speed, p.field.blocks_x, p.lod.enabled, p.camera.position) == (7.5, 4, False, (1.0, 2.0, 3.0))
+
+
+@pytest.mark.parametrize("argv, key", [
+    (["--wind-speed", "nan"], "wind.speed"),
+    (["--field-blocks-x", "-1"], "field.blocks_x"),
+    (["--wind-speed", "fast"], "wind.speed"),
+])
+def test_bad_cli_values_name_the_parameter(argv, key):
+    parser = argparse.ArgumentParser()
+    schema.add_cli_arguments(parser)
+    with pytest.raises(ParameterError) as info:
+        schema.defaults().replace(schema.cli_overrides(parser.parse_args(argv)))
+    assert info.value.key == key
+
+
+def test_params_are_immutable_and_hash_by_value():
+    a, b = schema.defaults(), schema.defaults()
+    assert a == b and a.digest() == b.digest()
+    with pytest.raises(AttributeError):
+        a.wind.speed = 3.0
+    assert a.replace({"field.seed": 1}).digest() != a.digest()
+    assert not math.isnan(a.wind.speed)

@@ -1,4 +1,5 @@
-"""windgrass.wind_preset: set the wind type and its nominal speed (schema.WIND_TYPE_SPEED)."""
+"""windgrass.wind_preset: set the wind type and what the type implies (schema.wind_preset:
+mean speed, turbulence)."""
 
 import bpy
 
@@ -8,8 +9,12 @@ from ._common import has_active_field, optional_bridge, reported
 
 
 def _items():
-    return [(t, t.replace("_", " ").capitalize(), f"{t.replace('_', ' ').capitalize()}: "
-             f"mean speed {schema.WIND_TYPE_SPEED[t]:g} m/s") for t in schema.WIND_TYPES]
+    def text(kind):
+        values = ", ".join(f"{name.split('.')[1]} {value:g} {schema.BY_NAME[name].unit}".rstrip()
+                           for name, value in schema.wind_preset(kind).items() if name != "wind.type")
+        return f"{kind.replace('_', ' ').capitalize()}: {values}"
+
+    return [(t, t.replace("_", " ").capitalize(), text(t)) for t in schema.WIND_TYPES]
 
 
 def _animated(scene, item, key: str) -> bool:
@@ -20,11 +25,11 @@ def _animated(scene, item, key: str) -> bool:
 
 
 class WINDGRASS_OT_wind_preset(bpy.types.Operator):
-    """Set the active field's wind type and its nominal mean speed"""
+    """Set the active field's wind type with its nominal mean speed and turbulence"""
 
     bl_idname = "windgrass.wind_preset"
     bl_label = "Grass Wind Preset"
-    bl_description = "Set the wind type of the active grass field and the type's nominal mean speed"
+    bl_description = "Set the wind type of the active grass field with its nominal speed and turbulence"
     bl_options = {"REGISTER", "UNDO"}
     bl_property = "type"
 
@@ -37,10 +42,12 @@ class WINDGRASS_OT_wind_preset(bpy.types.Operator):
     @reported
     def execute(self, context):
         item = properties.active_field(context.scene)
-        speed = schema.WIND_TYPE_SPEED[self.type]
+        overrides = schema.wind_preset(self.type)  # {"wind.type": ..., "wind.speed": ..., ...}
         with properties.batch(item):
-            item.wind.type = self.type
-            item.wind.speed = properties.to_blender(schema.BY_NAME["wind.speed"], speed)
+            for name, value in overrides.items():
+                p = schema.BY_NAME[name]
+                setattr(getattr(item, p.section), p.key, properties.to_blender(p, value))
+        speed = overrides["wind.speed"]
         if _animated(context.scene, item, "speed"):
             self.report({"WARNING"}, f"Wind speed is keyframed: its keyframes override the preset {speed:g} m/s")
         else:

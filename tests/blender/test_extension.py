@@ -333,6 +333,8 @@ def test_wind_preset_sets_type_and_nominal_speed(scene):
         params = properties.params_from_settings(properties.active_field(scene))
         assert params.wind.type == wind_type
         assert params.wind.speed == schema.WIND_TYPE_SPEED[wind_type]
+        for name, value in schema.wind_preset(wind_type).items():  # turbulence too
+            assert params.get(name) == value, name
 
 
 def test_wind_preset_warns_when_the_speed_is_keyframed(scene, with_bridge, capfd):

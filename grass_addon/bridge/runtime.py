@@ -374,6 +374,10 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
 
     ``camera_moved_only``: skip the write when this frame was written with the same camera
     (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
+    if camera_moved_only:
+        rt = get_runtime(scene, item)
+        if rt is None or rt.frame != scene.frame_current:
+            return rt  # not written at this frame yet: the frame handlers will do it
     rt = ensure_runtime(scene, item)
     coll = item.collection
     if coll is None:
@@ -393,7 +397,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
     signature = _camera_signature(camera)
     if camera_moved_only and rt.frame == frame and rt.camera_signature == signature:
         return rt
-    rt.field.seek(frame)
+    if rt.frame != frame or getattr(rt.field, "cells", None) is None:
+        rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
     lod = rt.field.lod(camera)
     if camera is None:
         # No camera: every block is geometry (lod_weights(None)); the pool takes the blocks
@@ -458,6 +463,16 @@ def on_frame_change_post(scene, depsgraph=None):
 
 
 @persistent
+def on_depsgraph_update_post(scene, depsgraph=None):
+    """The camera was moved in the viewport (no frame change): follow it with the LOD. Only
+    fields already written at this frame are touched, and only when the camera moved, so the
+    mesh edits made here (which trigger another update) end the chain at once."""
+    if not RUNTIMES or bpy.app.is_job_running("RENDER"):
+        return
+    update_scene(scene, depsgraph, camera_moved_only=True)
+
+
+@persistent
 def on_load_post(*_args):
     RUNTIMES.clear()
     _WARNED.clear()
@@ -475,6 +490,7 @@ def on_undo_redo_post(*_args):
 _HANDLERS = (
     (bpy.app.handlers.frame_change_pre, on_frame_change_pre),
     (bpy.app.handlers.frame_change_post, on_frame_change_post),
+    (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update_post),
     (bpy.app.handlers.load_post, on_load_post),
     (bpy.app.handlers.undo_post, on_undo_redo_post),
     (bpy.app.handlers.redo_post, on_undo_redo_post),

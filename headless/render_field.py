@@ -1,0 +1,371 @@
+#!/usr/bin/env python3
+"""Render a grass field swaying in the wind to numbered PNGs (paper VI: a fly-through).
+
+    python headless/render_field.py [options]                 # bpy module (the .venv)
+    blender -b -P headless/render_field.py -- [options]       # a Blender 4.2+ install
+
+With no --config the scene is scenes/default.toml. Every schema parameter has a flag
+(--wind-speed 6 ...); precedence: schema defaults < --config file < flags. Frames go to
+OUT/frame_NNNN.png (each written under a temporary name and renamed when complete).
+
+The state of frame N is a function of (parameters, seed, N) and the camera path is a pure
+function of N, so any sub-range (--frames 10-20) renders exactly the images of the full run:
+split a long animation across machines freely.
+
+Exit codes: 0 done, 2 bad input (the message names the option), 1 a failure inside Blender.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+HEADLESS = Path(__file__).resolve().parent
+REPO = HEADLESS.parent
+DEFAULT_CONFIG = REPO / "scenes" / "default.toml"
+DEFAULT_OUT = REPO / "renders"
+if str(HEADLESS) not in sys.path:
+    sys.path.insert(0, str(HEADLESS))
+
+import addon_loader  # noqa: E402
+
+# The add-on package without registering it (no bpy yet): one copy of the schema, so the
+# ParameterError raised inside the add-on is the one caught here.
+_PACKAGE = addon_loader.load_addon(register=False)
+schema = __import__(f"{_PACKAGE.__name__}.grass_addon.schema", fromlist=["schema"])
+ParameterError = schema.ParameterError
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+FRAME_NAME = "frame_{:04d}.png"
+PARTIAL_SUFFIX = ".partial.png"  # temporary name of a frame being written
+
+
+class BadInput(Exception):
+    """Bad command-line input; the message names the option."""
+
+
+# --------------------------------------------------------------------------------------------
+# Arguments (no bpy here: bad input is reported at once)
+
+
+def script_argv(argv: list[str]) -> list[str]:
+    """Our arguments: after '--' when run by a Blender binary (``blender -b -P script -- ...``),
+    else everything after the script name (``python render_field.py ...``)."""
+    if argv and Path(argv[0]).resolve() == Path(__file__).resolve():
+        return argv[1:]
+    if "--" in argv:
+        return argv[argv.index("--") + 1:]
+    return []
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="render_field.py",
+        description="Render a grass field swaying in the wind (Windgrass) to numbered PNGs. "
+                    "Precedence: schema defaults < --config < flags.",
+        epilog="Run inside Blender: blender -b -P headless/render_field.py -- [options]. "
+               "Exit codes: 0 done, 2 bad input, 1 failure inside Blender.")
+    job = parser.add_argument_group("render job")
+    job.add_argument("--config", metavar="SCENE.toml", type=Path,
+                     help=f"scene file (TOML, see scenes/); default {DEFAULT_CONFIG.relative_to(REPO)}")
+    job.add_argument("--frames", metavar="A-B",
+                     help="frames to render, 'A-B' or one frame 'N', within render.frame_start.."
+                          "render.frame_end (default: all of them); any sub-range renders the same "
+                          "images as the full run")
+    job.add_argument("--out", metavar="DIR", type=Path,
+                     help=f"output folder (created); default {DEFAULT_OUT.relative_to(REPO)}/")
+    job.add_argument("--engine", metavar="{cycles,eevee}", help="render engine (render.engine)")
+    job.add_argument("--samples", metavar="N", help="samples per pixel (render.samples)")
+    job.add_argument("--resolution", metavar="WxH",
+                     help="image size in pixels, e.g. 640x360 (render.resolution_x/_y)")
+    job.add_argument("--seed", metavar="N", help="random seed of layout and turbulence (field.seed)")
+    job.add_argument("--variants", metavar="K", type=int, default=1,
+                     help="render K scenes with seeds seed+i and wind types cycling through "
+                          f"{', '.join(schema.WIND_TYPES)}, each in OUT/variant_XX/")
+    job.add_argument("--save-blend", action="store_true", help="also save the scene as OUT/scene.blend")
+    job.add_argument("--video", action="store_true",
+                     help="also encode the frames as OUT/animation.mp4 (Blender's FFmpeg)")
+    schema.add_cli_arguments(parser)
+    return parser
+
+
+# Dedicated options that map onto a schema parameter (they win over its --section-key flag).
+_ALIASES = {"engine": "render.engine", "samples": "render.samples", "seed": "field.seed"}
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    parts = text.lower().replace("×", "x").split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise BadInput(f"--resolution: {text!r} is not WIDTHxHEIGHT in pixels, e.g. 640x360") from None
+    for p, value in (("render.resolution_x", w), ("render.resolution_y", h)):
+        param = schema.BY_NAME[p]
+        if not param.minimum <= value <= param.maximum:
+            raise BadInput(f"--resolution: {value} px is out of range ({p}: valid {param.range_text()})")
+    return w, h
+
+
+def parse_frames(text: str, params) -> tuple[int, int]:
+    """``'A-B'`` or ``'N'`` -> (first, last), inside the scene's render.frame_start..frame_end."""
+    start, end = params.render.frame_start, params.render.frame_end
+    parts = text.split("-")
+    try:
+        if len(parts) == 1:
+            first = last = int(parts[0])
+        elif len(parts) == 2:
+            first, last = int(parts[0]), int(parts[1])
+        else:
+            raise ValueError
+    except ValueError:
+        raise BadInput(f"--frames: {text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)") from None
+    if last < first:
+        raise BadInput(f"--frames: {text!r} ends before it starts")
+    if first < start or last > end:
+        raise BadInput(f"--frames: {text!r} is outside the scene's frames {start}-{end} "
+                       "(render.frame_start/frame_end; set them with --render-frame-start/-end)")
+    return first, last
+
+
+def resolve(args: argparse.Namespace):
+    """Params (defaults < config < flags) and the frame range; BadInput/ParameterError on bad input."""
+    config = args.config if args.config is not None else DEFAULT_CONFIG
+    if args.config is not None and not config.is_file():
+        raise BadInput(f"--config: {config} does not exist or is not a file")
+    try:
+        params = schema.load_toml(config)
+    except ParameterError as exc:
+        raise BadInput(f"--config: {exc}") from None
+    overrides = schema.cli_overrides(args)
+    flags = {name: schema.BY_NAME[name].cli_flag for name in overrides}
+    for option, name in _ALIASES.items():
+        value = getattr(args, option)
+        if value is not None:
+            flag = "--" + option
+            try:
+                overrides[name] = schema.cli_overrides(argparse.Namespace(**{name: value}))[name]
+            except ParameterError as exc:
+                raise BadInput(f"{flag}: {exc}") from None
+            flags[name] = flag
+    if args.resolution is not None:
+        overrides["render.resolution_x"], overrides["render.resolution_y"] = parse_resolution(args.resolution)
+    try:
+        params = params.replace(overrides)
+    except ParameterError as exc:
+        flag = flags.get(exc.key)
+        raise (BadInput(f"{flag}: {exc}") if flag else exc) from None
+    if args.variants < 1:
+        raise BadInput(f"--variants: {args.variants} must be >= 1")
+    last_seed = params.field.seed + args.variants - 1
+    if last_seed > schema.BY_NAME["field.seed"].maximum:
+        raise BadInput(f"--variants: seeds up to {last_seed} exceed field.seed's range "
+                       f"({schema.BY_NAME['field.seed'].range_text()})")
+    if params.camera.mode == "fixed" and params.camera.position == params.camera.target:
+        raise ParameterError("camera.target", "equals camera.position; the camera needs a point to look at")
+    frames = parse_frames(args.frames, params) if args.frames else (params.render.frame_start,
+                                                                      params.render.frame_end)
+    return params, frames, config
+
+
+def variant_params(params, index: int, keep_speed: bool):
+    """Variant ``index``: seed + index, wind type cycling through schema.WIND_TYPES (each with its
+    nominal speed unless the user set --wind-speed)."""
+    wind_type = schema.WIND_TYPES[index % len(schema.WIND_TYPES)]
+    changes = {"field.seed": params.field.seed + index, "wind.type": wind_type}
+    if not keep_speed:
+        changes["wind.speed"] = schema.WIND_TYPE_SPEED[wind_type]
+    return params.replace(changes)
+
+
+# --------------------------------------------------------------------------------------------
+# Blender
+
+
+def fresh_scene():
+    """An empty factory scene with the add-on loaded from this repository (an installed copy of
+    the extension is switched off by the factory settings, so the two never run together)."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_loader.load_addon()
+    return bpy.context.scene
+
+
+def build_scene(params):
+    """Stage (render settings, sun, sky, camera) and the grass field of ``params``."""
+    from windgrass.grass_addon.bridge import properties, stage
+    from windgrass.grass_addon.bridge import scene as field_scene
+
+    scene = fresh_scene()
+    stage.setup_stage(scene, params)
+    item = properties.add_field(scene, params, name="Grass")
+    collection = field_scene.build_field(scene, item)
+    if collection is not None and item.collection is None:
+        item.collection = collection
+    return scene
+
+
+def _fmt_seconds(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    return f"{seconds // 60}:{seconds % 60:02d}"
+
+
+def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Path]:
+    """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame."""
+    import bpy
+
+    from windgrass.grass_addon.bridge import stage
+
+    first, last = frames
+    total = last - first + 1
+    written: list[Path] = []
+    scene.render.use_file_extension = False
+    began = time.perf_counter()
+    for i, frame in enumerate(range(first, last + 1), start=1):
+        t0 = time.perf_counter()
+        # The camera first: the frame handler (grass LOD, eqs 7-11) reads it in frame_change_pre.
+        stage.pose_camera(scene, params, frame)
+        scene.frame_set(frame)
+        final = out / FRAME_NAME.format(frame)
+        partial = final.with_name("." + final.stem + PARTIAL_SUFFIX)
+        scene.render.filepath = str(partial)
+        try:
+            result = bpy.ops.render.render(write_still=True, scene=scene.name)
+            if "FINISHED" not in result or not partial.is_file():
+                raise RuntimeError(f"Blender did not write frame {frame} ({result})")
+            os.replace(partial, final)
+        finally:
+            if partial.exists():
+                partial.unlink()
+        written.append(final)
+        spent = time.perf_counter() - t0
+        eta = (time.perf_counter() - began) / i * (total - i)
+        print(f"frame {i}/{total} (#{frame}) {spent:.2f} s, ETA {_fmt_seconds(eta)} -> {final.name}",
+              flush=True)
+    return written
+
+
+def encode_video(frames: list[Path], fps: int, target: Path) -> Path | None:
+    """Encode the PNGs as an H.264 mp4 with Blender's FFmpeg (an image strip in the sequencer);
+    None with a note when this Blender has no FFmpeg."""
+    import bpy
+
+    if not getattr(bpy.app.build_options, "codec_ffmpeg", False):
+        print("note: this Blender is built without FFmpeg; --video skipped (the PNGs are complete)",
+              flush=True)
+        return None
+    first = bpy.data.images.load(str(frames[0]), check_existing=False)
+    width, height = first.size
+    bpy.data.images.remove(first)
+    scene = bpy.data.scenes.new("Windgrass Video")
+    render = scene.render
+    render.resolution_x, render.resolution_y = width - width % 2, height - height % 2  # yuv420p
+    render.resolution_percentage = 100
+    render.fps, render.fps_base = fps, 1.0
+    scene.frame_start, scene.frame_end = 1, len(frames)
+    scene.view_settings.view_transform = "Standard"  # the PNGs are display-referred already
+    editor = scene.sequence_editor_create()
+    strips = getattr(editor, "strips", None) or editor.sequences
+    strip = strips.new_image("frames", str(frames[0]), 1, 1)
+    for path in frames[1:]:
+        strip.elements.append(path.name)
+    settings = render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = "VIDEO"
+    settings.file_format = "FFMPEG"
+    render.ffmpeg.format = "MPEG4"
+    render.ffmpeg.codec = "H264"
+    render.ffmpeg.constant_rate_factor = "HIGH"
+    render.ffmpeg.audio_codec = "NONE"
+    render.use_file_extension = False
+    partial = target.with_name("." + target.stem + ".partial.mp4")
+    render.filepath = str(partial)
+    try:
+        bpy.ops.render.render(animation=True, scene=scene.name)
+        if not partial.is_file():
+            raise RuntimeError(f"FFmpeg wrote no video at {partial}")
+        os.replace(partial, target)
+    finally:
+        if partial.exists():
+            partial.unlink()
+        bpy.data.scenes.remove(scene)
+    return target
+
+
+def run_variant(params, frames, out: Path, args) -> dict:
+    """Build one scene, render its frames (and optional .blend and video) into ``out``."""
+    import bpy
+
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    scene = build_scene(params)
+    f = params.field
+    blades = f.blocks_x * f.blocks_y * f.cells_per_block ** 2 * f.blades_per_cell
+    print(f"scene ready in {time.perf_counter() - t0:.1f} s: {blades:,} blades, wind {params.wind.type} "
+          f"{params.wind.speed:g} m/s, seed {f.seed}, {params.render.engine} {params.render.samples} spp "
+          f"{params.render.resolution_x}x{params.render.resolution_y}, camera {params.camera.mode}",
+          flush=True)
+    if args.save_blend:
+        blend = out / "scene.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
+        print(f"saved {blend}", flush=True)
+    t1 = time.perf_counter()
+    written = render_frames(scene, params, frames, out)
+    seconds = time.perf_counter() - t1
+    video = encode_video(written, params.render.fps, out / "animation.mp4") if args.video else None
+    if video is not None:
+        print(f"video {video}", flush=True)
+    return {"out": out, "frames": written, "seconds": seconds, "video": video}
+
+
+def main(argv: list[str]) -> int:
+    parser = build_parser()
+    args = parser.parse_args(script_argv(argv))  # argparse exits with 2 on unknown options
+    try:
+        params, frames, config = resolve(args)
+        variants = [variant_params(params, i, "wind.speed" in schema.cli_overrides(args))
+                    for i in range(args.variants)] if args.variants > 1 else [params]
+    except (BadInput, ParameterError) as exc:
+        parser.print_usage(sys.stderr)
+        print(f"render_field.py: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = (args.out if args.out is not None else DEFAULT_OUT).resolve()
+    print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
+    results = []
+    try:
+        import bpy  # noqa: F401  (the module, or the running Blender)
+
+        for index, variant in enumerate(variants):
+            target = out / f"variant_{index:02d}" if len(variants) > 1 else out
+            results.append(run_variant(variant, frames, target, args))
+    except (BadInput, ParameterError) as exc:
+        print(f"render_field.py: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # a failure inside Blender
+        import traceback
+
+        traceback.print_exc()
+        print(f"render_field.py: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    count = sum(len(r["frames"]) for r in results)
+    seconds = sum(r["seconds"] for r in results)
+    per = seconds / max(count, 1)
+    print(f"done: {count} frame(s) in {seconds:.1f} s ({per:.2f} s per frame)", flush=True)
+    for r in results:
+        names = r["frames"]
+        span = f"{names[0].name} .. {names[-1].name}" if len(names) > 1 else names[0].name
+        print(f"  {r['out']}/  {span}" + (f"  + {r['video'].name}" if r["video"] else ""), flush=True)
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    code = main(sys.argv)
+    sys.stdout.flush()
+    if "bpy" in sys.modules and not Path(sys.argv[0]).resolve() == Path(__file__).resolve():
+        # Inside a Blender binary the script's return value is ignored: leave with our code.
+        os._exit(code)
+    sys.exit(code)

@@ -289,7 +289,7 @@ def setup_world(scene, params) -> bpy.types.World:
     colour below it (the field ends; the world beyond it reads as distant land)."""
     world = _tagged(bpy.data.worlds.new("Windgrass Sky"))
     scene.world = world
-    if hasattr(world, "use_nodes") and not world.use_nodes:
+    if bpy.app.version < (5, 0, 0):  # from 5.0 worlds always use nodes (the flag is deprecated)
         world.use_nodes = True
     tree = world.node_tree
     nodes, links = tree.nodes, tree.links

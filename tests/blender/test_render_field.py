@@ -1,0 +1,354 @@
+"""Batch renders: headless/render_field.py as a subprocess, and the stage's camera path.
+
+Renders are tiny (64x36 px, 2 samples, a 3.2 m field) so the whole file stays within a few
+minutes on two cores. PNGs are decoded with a small zlib-based reader below and compared
+pixel for pixel.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+SCRIPT = REPO / "headless" / "render_field.py"
+
+# A small field the camera flies over at knee height: every frame shows grass below the horizon.
+TINY_SCENE = """
+[field]
+blocks_x = 4
+blocks_y = 4
+cells_per_block = 8
+cell_size = 0.1
+blades_per_cell = 4
+seed = 3
+
+[wind]
+type = "gentle_breeze"
+speed = 5.0
+
+[lod]
+blade_near = 1.5
+blade_far = 2.5
+card_near = 3.0
+card_far = 4.0
+
+[camera]
+mode = "flythrough"
+height = 0.5
+speed = 1.5
+
+[render]
+samples = 2
+resolution_x = 64
+resolution_y = 36
+frame_start = 1
+frame_end = 6
+
+[simulation]
+preroll = 0.5
+"""
+
+
+# --------------------------------------------------------------------------------------------
+# Helpers
+
+
+def read_png(path: Path) -> tuple[int, int, int, list[bytes]]:
+    """Decode an 8-bit RGB/RGBA PNG: (width, height, channels, rows of raw bytes)."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    pos, idat, header = 8, b"", None
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        pos += 12 + length
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat += body
+        elif kind == b"IEND":
+            break
+    width, height, depth, colour, _, _, interlace = header
+    assert depth == 8 and colour in (2, 6) and interlace == 0, f"unsupported PNG {header}"
+    channels = 3 if colour == 2 else 4
+    raw = zlib.decompress(idat)
+    stride = width * channels
+    rows, prev = [], bytearray(stride)
+    for y in range(height):
+        kind = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - channels] if i >= channels else 0
+            b = prev[i]
+            c = prev[i - channels] if i >= channels else 0
+            if kind == 1:
+                line[i] = (line[i] + a) & 255
+            elif kind == 2:
+                line[i] = (line[i] + b) & 255
+            elif kind == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif kind == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(line))
+        prev = line
+    return width, height, channels, rows
+
+
+def pixels(path: Path) -> list[tuple[int, int, int]]:
+    """Row-major RGB pixels, top row first."""
+    width, height, channels, rows = read_png(path)
+    return [tuple(row[x * channels:x * channels + 3]) for row in rows for x in range(width)]
+
+
+def lower_green_share(path: Path) -> float:
+    """Share of the pixels of the lower third that are green-dominant (G above R and B)."""
+    width, height, _, _ = read_png(path)
+    px = pixels(path)[(2 * height // 3) * width:]
+    return sum(1 for r, g, b in px if g > r and g > b) / len(px)
+
+
+def mean_abs_difference(a: Path, b: Path) -> float:
+    pa, pb = pixels(a), pixels(b)
+    return sum(abs(x - y) for p, q in zip(pa, pb) for x, y in zip(p, q)) / (3 * len(pa))
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    """Blender's user files in a temp dir for the subprocesses."""
+    base = tmp_path_factory.mktemp("render-env")
+    (base / "home").mkdir()
+    return dict(os.environ, BLENDER_USER_RESOURCES=str(base / "user"), HOME=str(base / "home"),
+                PYTHONUNBUFFERED="1")
+
+
+@pytest.fixture(scope="module")
+def tiny_config(tmp_path_factory):
+    path = tmp_path_factory.mktemp("config") / "tiny.toml"
+    path.write_text(TINY_SCENE)
+    return path
+
+
+def render(env, *args, timeout=300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], env=env, cwd=REPO,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def frames_in(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.glob("*.png"))
+
+
+# --------------------------------------------------------------------------------------------
+# Renders
+
+
+@pytest.fixture(scope="module")
+def cycles_run(env, tiny_config, tmp_path_factory):
+    """Frames 1-4 with Cycles, with the .blend and the video."""
+    out = tmp_path_factory.mktemp("cycles")
+    proc = render(env, "--config", tiny_config, "--engine", "cycles", "--frames", "1-4", "--out", out,
+                  "--save-blend", "--video")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return out, proc
+
+
+def test_cycles_frames_show_grass_in_wind(cycles_run):
+    out, proc = cycles_run
+    names = frames_in(out)
+    assert names == [f"frame_{i:04d}.png" for i in range(1, 5)]
+    for name in names:
+        width, height, _, _ = read_png(out / name)
+        assert (width, height) == (64, 36)
+        # Grass fills the lower image: the camera is 0.5 m above a field 2.7 m deep ahead of it.
+        assert lower_green_share(out / name) > 0.6, name
+    # Camera and blades move between frames: consecutive images are not the same.
+    for a, b in zip(names, names[1:]):
+        assert mean_abs_difference(out / a, out / b) > 0.2, (a, b)
+    # One progress line per frame and a summary naming the output folder.
+    progress = [line for line in proc.stdout.splitlines() if line.startswith("frame ")]
+    assert len(progress) == 4 and progress[0].startswith("frame 1/4") and "ETA" in progress[0]
+    assert "done: 4 frame(s)" in proc.stdout and str(out) in proc.stdout
+    assert not list(out.glob(".*")), "temporary files left behind"
+
+
+def test_save_blend_and_video(cycles_run):
+    out, proc = cycles_run
+    blend = out / "scene.blend"
+    assert blend.is_file() and blend.stat().st_size > 10_000
+    video = out / "animation.mp4"
+    assert video.is_file(), proc.stdout[-2000:]
+    head = video.read_bytes()[:64]
+    assert b"ftyp" in head  # an ISO media (mp4) container
+
+
+def test_sub_range_renders_the_same_pixels(cycles_run, env, tiny_config, tmp_path):
+    """Render-farm contract: frames 3-4 alone equal frames 3-4 of the 1-4 run, pixel for pixel."""
+    full, _ = cycles_run
+    proc = render(env, "--config", tiny_config, "--engine", "cycles", "--frames", "3-4", "--out", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert frames_in(tmp_path) == ["frame_0003.png", "frame_0004.png"]
+    for name in frames_in(tmp_path):
+        assert pixels(tmp_path / name) == pixels(full / name), name
+
+
+def test_eevee_frames_show_grass(env, tiny_config, tmp_path):
+    proc = render(env, "--config", tiny_config, "--engine", "eevee", "--samples", "1", "--frames", "1-3",
+                  "--out", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    names = frames_in(tmp_path)
+    assert names == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    for name in names:
+        assert lower_green_share(tmp_path / name) > 0.6, name
+    for a, b in zip(names, names[1:]):
+        assert mean_abs_difference(tmp_path / a, tmp_path / b) > 0.2, (a, b)
+
+
+def test_variants_get_own_folders_seeds_and_wind(env, tiny_config, tmp_path):
+    proc = render(env, "--config", tiny_config, "--frames", "2", "--variants", "2", "--out", tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    a, b = tmp_path / "variant_00" / "frame_0002.png", tmp_path / "variant_01" / "frame_0002.png"
+    assert a.is_file() and b.is_file()
+    assert "seed 3" in proc.stdout and "seed 4" in proc.stdout
+    assert "wind calm" in proc.stdout and "wind gentle_breeze" in proc.stdout
+    # Another seed grows other blades: the images differ.
+    assert mean_abs_difference(a, b) > 0.2
+
+
+# --------------------------------------------------------------------------------------------
+# Bad input: exit code 2, a message naming the option, no PNG written
+
+
+def _bad_toml(tmp_path: Path) -> Path:
+    path = tmp_path / "broken.toml"
+    path.write_text("[field\nblocks_x = 4\n")
+    return path
+
+
+BAD_INPUTS = [
+    (["--wind-type", "tornado"], "wind.type"),
+    (["--field-blades-per-cell", "-1"], "field.blades_per_cell"),
+    (["--wind-speed", "nan"], "wind.speed"),
+    (["--samples", "0"], "--samples"),
+    (["--seed", "-5"], "--seed"),
+    ([lambda tmp: ["--config", _bad_toml(tmp)]], "--config"),
+    (["--config", "no/such/scene.toml"], "--config"),
+    (["--frames", "4-2"], "--frames"),
+    (["--frames", "one-two"], "--frames"),
+    (["--frames", "1-999"], "--frames"),
+    (["--resolution", "64by36"], "--resolution"),
+    (["--resolution", "8x8"], "--resolution"),
+    (["--variants", "0"], "--variants"),
+    (["--no-such-option", "3"], "--no-such-option"),
+]
+
+
+@pytest.mark.parametrize("args, named", BAD_INPUTS, ids=[f"{n}:{a[-1] if isinstance(a[-1], str) else 'broken-toml'}" for a, n in BAD_INPUTS])
+def test_bad_input_exits_2_naming_the_option(env, tiny_config, tmp_path, args, named):
+    out = tmp_path / "out"
+    expanded = []
+    for a in args:
+        expanded.extend(a(tmp_path) if callable(a) else [a])
+    if "--config" not in expanded:
+        expanded = ["--config", tiny_config, *expanded]
+    proc = render(env, *expanded, "--out", out, timeout=60)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert named in proc.stderr, proc.stderr
+    assert not (out.exists() and list(out.rglob("*.png")))
+
+
+def test_help_documents_every_option(env):
+    proc = render(env, "--help", timeout=60)
+    assert proc.returncode == 0
+    for option in ("--config", "--frames", "--out", "--engine", "--samples", "--resolution", "--seed",
+                   "--variants", "--save-blend", "--video", "--wind-speed", "--camera-mode",
+                   "--field-blades-per-cell"):
+        assert option in proc.stdout, option
+
+
+# --------------------------------------------------------------------------------------------
+# The flythrough path (in process): a pure, smooth function of the frame inside the field
+
+
+@pytest.fixture
+def stage(addon):
+    from importlib import import_module
+
+    return import_module(f"{addon.__name__}.grass_addon.bridge.stage")
+
+
+@pytest.fixture
+def tiny_params(addon, tiny_config):
+    from importlib import import_module
+
+    return import_module(f"{addon.__name__}.grass_addon.schema").load_toml(tiny_config)
+
+
+def test_flythrough_stays_over_the_field_and_looks_where_it_goes(stage, tiny_params):
+    p = tiny_params.replace({"render.frame_end": 2000})
+    ex, ey = stage.field_extent(p)
+    step = p.camera.speed / p.render.fps  # metres per frame
+    turn_radius = 0.5 * stage.FLY_WIDTH_SHARE * ex
+    previous = None
+    for frame in range(1, 2001):  # several laps of the racetrack
+        (x, y, z), yaw, pitch = stage.flythrough_pose(p, frame)
+        assert abs(x) < ex / 2 and abs(y) < ey / 2 and z == p.camera.height
+        assert pitch < 0  # looks slightly down at the grass ahead
+        if previous is not None:
+            (px, py, _), pyaw = previous
+            moved = math.hypot(x - px, y - py)
+            # camera.speed along the path: chords of the turns are a little shorter than arcs;
+            # the sway of the straights (amplitude <= 0.1 of their length, slope <= 0.1 pi)
+            # lengthens them by at most sqrt(1 + (0.1 pi)^2) = 1.048.
+            assert 0.9 * step < moved <= 1.048 * step
+            # The camera looks where it goes: heading of the chord within a few degrees of yaw.
+            chord = math.atan2(y - py, x - px)
+            assert abs(math.remainder(chord - 0.5 * (yaw + pyaw), 2 * math.pi)) < math.radians(3)
+            # The heading turns smoothly (unwrapped: no 2 pi jumps), no faster than along the
+            # tightest curve: the half circles of radius w (the sway's curvature is smaller).
+            assert abs(yaw - pyaw) <= 1.05 * step / turn_radius
+        previous = ((x, y, z), yaw)
+
+
+def test_camera_pose_is_a_pure_function_of_the_frame(stage, tiny_params, scene):
+    camera = stage.setup_stage(scene, tiny_params)
+    assert scene.camera == camera and scene.render.fps == tiny_params.render.fps
+    forward = []
+    for frame in (5, 2, 5):
+        stage.pose_camera(scene, tiny_params, frame)
+        scene.frame_set(frame)
+        # The keyframes agree with the pose function: the evaluated camera is where it should be.
+        location, rotation = stage.camera_pose(tiny_params, frame)
+        assert tuple(camera.matrix_world.translation) == pytest.approx(location, abs=1e-5)
+        forward.append(tuple(-camera.matrix_world.col[2].to_3d()))
+    assert forward[0] == pytest.approx(forward[2], abs=1e-6)
+    # Fixed mode looks from camera.position at camera.target.
+    fixed = tiny_params.replace({"camera.mode": "fixed", "camera.position": [0, -3, 1],
+                                 "camera.target": [0, 1, 1]})
+    (pos, rot) = stage.camera_pose(fixed, 1)
+    from mathutils import Euler, Vector
+
+    direction = Euler(rot, "XYZ").to_matrix() @ Vector((0, 0, -1))
+    assert tuple(direction) == pytest.approx((0, 1, 0), abs=1e-6) and pos == (0, -3, 1)
+
+
+def test_sun_and_sky_follow_the_render_parameters(stage, tiny_params, scene):
+    p = tiny_params.replace({"render.sun_elevation": 30.0, "render.sun_azimuth": 90.0})
+    stage.setup_stage(scene, p)
+    suns = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+    assert len(suns) == 1
+    # A sun light shines down its local -Z: from elevation 30 deg, azimuth 90 deg (+Y) the light
+    # travels towards -Y and down.
+    travel = suns[0].matrix_world.to_3x3().col[2] * -1
+    assert tuple(travel) == pytest.approx((0.0, -math.cos(math.radians(30)), -0.5), abs=1e-5)
+    assert scene.world is not None and scene.world.node_tree is not None
+    assert scene.view_settings.view_transform in ("AgX", "Filmic")
+    assert scene.cycles.device == "CPU" and not scene.cycles.use_animated_seed

@@ -18,7 +18,7 @@ Exit codes: 0 done, 2 bad input (the message names the option), 1 a failure insi
 from __future__ import annotations
 
 import argparse
-import math
+import importlib
 import os
 import sys
 import time
@@ -36,7 +36,14 @@ import addon_loader  # noqa: E402
 # The add-on package without registering it (no bpy yet): one copy of the schema, so the
 # ParameterError raised inside the add-on is the one caught here.
 _PACKAGE = addon_loader.load_addon(register=False)
-schema = __import__(f"{_PACKAGE.__name__}.grass_addon.schema", fromlist=["schema"])
+
+
+def addon_module(name: str):
+    """A module of the loaded add-on package: ``addon_module("grass_addon.bridge.stage")``."""
+    return importlib.import_module(f"{_PACKAGE.__name__}.{name}")
+
+
+schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -44,7 +51,7 @@ FRAME_NAME = "frame_{:04d}.png"
 PARTIAL_SUFFIX = ".partial.png"  # temporary name of a frame being written
 
 
-class BadInput(Exception):
+class BadInputError(Exception):
     """Bad command-line input; the message names the option."""
 
 
@@ -102,11 +109,11 @@ def parse_resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(p) for p in parts)
     except ValueError:
-        raise BadInput(f"--resolution: {text!r} is not WIDTHxHEIGHT in pixels, e.g. 640x360") from None
+        raise BadInputError(f"--resolution: {text!r} is not WIDTHxHEIGHT in pixels, e.g. 640x360") from None
     for p, value in (("render.resolution_x", w), ("render.resolution_y", h)):
         param = schema.BY_NAME[p]
         if not param.minimum <= value <= param.maximum:
-            raise BadInput(f"--resolution: {value} px is out of range ({p}: valid {param.range_text()})")
+            raise BadInputError(f"--resolution: {value} px is out of range ({p}: valid {param.range_text()})")
     return w, h
 
 
@@ -122,24 +129,24 @@ def parse_frames(text: str, params) -> tuple[int, int]:
         else:
             raise ValueError
     except ValueError:
-        raise BadInput(f"--frames: {text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)") from None
+        raise BadInputError(f"--frames: {text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)") from None
     if last < first:
-        raise BadInput(f"--frames: {text!r} ends before it starts")
+        raise BadInputError(f"--frames: {text!r} ends before it starts")
     if first < start or last > end:
-        raise BadInput(f"--frames: {text!r} is outside the scene's frames {start}-{end} "
+        raise BadInputError(f"--frames: {text!r} is outside the scene's frames {start}-{end} "
                        "(render.frame_start/frame_end; set them with --render-frame-start/-end)")
     return first, last
 
 
 def resolve(args: argparse.Namespace):
-    """Params (defaults < config < flags) and the frame range; BadInput/ParameterError on bad input."""
+    """Params (defaults < config < flags) and the frame range; BadInputError/ParameterError on bad input."""
     config = args.config if args.config is not None else DEFAULT_CONFIG
     if args.config is not None and not config.is_file():
-        raise BadInput(f"--config: {config} does not exist or is not a file")
+        raise BadInputError(f"--config: {config} does not exist or is not a file")
     try:
         params = schema.load_toml(config)
     except ParameterError as exc:
-        raise BadInput(f"--config: {exc}") from None
+        raise BadInputError(f"--config: {exc}") from None
     overrides = schema.cli_overrides(args)
     flags = {name: schema.BY_NAME[name].cli_flag for name in overrides}
     for option, name in _ALIASES.items():
@@ -149,7 +156,7 @@ def resolve(args: argparse.Namespace):
             try:
                 overrides[name] = schema.cli_overrides(argparse.Namespace(**{name: value}))[name]
             except ParameterError as exc:
-                raise BadInput(f"{flag}: {exc}") from None
+                raise BadInputError(f"{flag}: {exc}") from None
             flags[name] = flag
     if args.resolution is not None:
         overrides["render.resolution_x"], overrides["render.resolution_y"] = parse_resolution(args.resolution)
@@ -157,12 +164,12 @@ def resolve(args: argparse.Namespace):
         params = params.replace(overrides)
     except ParameterError as exc:
         flag = flags.get(exc.key)
-        raise (BadInput(f"{flag}: {exc}") if flag else exc) from None
+        raise (BadInputError(f"{flag}: {exc}") if flag else exc) from None
     if args.variants < 1:
-        raise BadInput(f"--variants: {args.variants} must be >= 1")
+        raise BadInputError(f"--variants: {args.variants} must be >= 1")
     last_seed = params.field.seed + args.variants - 1
     if last_seed > schema.BY_NAME["field.seed"].maximum:
-        raise BadInput(f"--variants: seeds up to {last_seed} exceed field.seed's range "
+        raise BadInputError(f"--variants: seeds up to {last_seed} exceed field.seed's range "
                        f"({schema.BY_NAME['field.seed'].range_text()})")
     if params.camera.mode == "fixed" and params.camera.position == params.camera.target:
         raise ParameterError("camera.target", "equals camera.position; the camera needs a point to look at")
@@ -197,9 +204,9 @@ def fresh_scene():
 
 def build_scene(params):
     """Stage (render settings, sun, sky, camera) and the grass field of ``params``."""
-    from windgrass.grass_addon.bridge import properties, stage
-    from windgrass.grass_addon.bridge import scene as field_scene
-
+    properties = addon_module("grass_addon.bridge.properties")
+    stage = addon_module("grass_addon.bridge.stage")
+    field_scene = addon_module("grass_addon.bridge.scene")
     scene = fresh_scene()
     stage.setup_stage(scene, params)
     item = properties.add_field(scene, params, name="Grass")
@@ -218,8 +225,7 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Pat
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame."""
     import bpy
 
-    from windgrass.grass_addon.bridge import stage
-
+    stage = addon_module("grass_addon.bridge.stage")
     first, last = frames
     total = last - first + 1
     written: list[Path] = []
@@ -269,7 +275,7 @@ def encode_video(frames: list[Path], fps: int, target: Path) -> Path | None:
     scene.frame_start, scene.frame_end = 1, len(frames)
     scene.view_settings.view_transform = "Standard"  # the PNGs are display-referred already
     editor = scene.sequence_editor_create()
-    strips = getattr(editor, "strips", None) or editor.sequences
+    strips = editor.strips if hasattr(editor, "strips") else editor.sequences  # 5.0 renamed it
     strip = strips.new_image("frames", str(frames[0]), 1, 1)
     for path in frames[1:]:
         strip.elements.append(path.name)
@@ -329,7 +335,7 @@ def main(argv: list[str]) -> int:
         params, frames, config = resolve(args)
         variants = [variant_params(params, i, "wind.speed" in schema.cli_overrides(args))
                     for i in range(args.variants)] if args.variants > 1 else [params]
-    except (BadInput, ParameterError) as exc:
+    except (BadInputError, ParameterError) as exc:
         parser.print_usage(sys.stderr)
         print(f"render_field.py: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -342,7 +348,7 @@ def main(argv: list[str]) -> int:
         for index, variant in enumerate(variants):
             target = out / f"variant_{index:02d}" if len(variants) > 1 else out
             results.append(run_variant(variant, frames, target, args))
-    except (BadInput, ParameterError) as exc:
+    except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except Exception as exc:  # a failure inside Blender

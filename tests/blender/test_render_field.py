@@ -251,7 +251,10 @@ BAD_INPUTS = [
 ]
 
 
-@pytest.mark.parametrize("args, named", BAD_INPUTS, ids=[f"{n}:{a[-1] if isinstance(a[-1], str) else 'broken-toml'}" for a, n in BAD_INPUTS])
+BAD_IDS = [f"{n}:{a[-1] if isinstance(a[-1], str) else 'broken-toml'}" for a, n in BAD_INPUTS]
+
+
+@pytest.mark.parametrize("args, named", BAD_INPUTS, ids=BAD_IDS)
 def test_bad_input_exits_2_naming_the_option(env, tiny_config, tmp_path, args, named):
     out = tmp_path / "out"
     expanded = []

@@ -8,9 +8,10 @@ tilt vector
 whose magnitude is the angle from the vertical and whose direction is the way it leans; its
 direction is (sin|T| T/|T|, cos|T|). Joints: p_0 = root, p_{j+1} = p_j + (length/n) dir_j, so
 segment lengths never change. Twist (paper V.A) turns the strip about the blade: joint j's side
-vector is s = (-sin(facing + Phi), cos(facing + Phi), 0) with Phi the twist accumulated below
-the joint, Phi = sum_{k<j} twist[c, k]: the root edge stays as planted, the tip edge carries the
-total twist (the paper does not say which joint takes which twist; this keeps the root anchored).
+vector is s_j = (-sin(facing + Phi_j), cos(facing + Phi_j), 0) with the cumulative twist
+Phi_j = sum_{k<=j} twist[c, k]. Joint j is the bottom edge of segment j, so every segment's bottom
+edge faces the way the solver turns that segment (solver.py: azimuth facing + sum_{k<=j} twist);
+the tip joint n, the top edge of the last segment, takes Phi_{n-1}.
 The width tapers linearly from blade_width at the root to blade.tip_width * blade_width at the tip.
 
 Every joint has two vertices [left = p - s w/2, right = p + s w/2]. That is a single quad strip:
@@ -233,8 +234,8 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     k, n, num, P = len(ids), const.n, const.num, const.P
     cell_ids = layout.block_cells[ids]  # (k, P)
 
-    # Per cell: cumulative bend sum_{k<=j} bend[c, k] and the twist accumulated below each joint,
-    # Phi_j = sum_{k<j} twist[c, k], as cos/sin. A few row adds beat np.cumsum on a short axis.
+    # Per cell: cumulative bend sum_{k<=j} bend[c, k] and cumulative twist Phi_j = sum_{k<=j}
+    # twist[c, k] (Phi_n = Phi_{n-1}), as cos/sin. A few row adds beat np.cumsum on a short axis.
     raw = bend[cell_ids].transpose(0, 3, 2, 1)  # (k, 2, n, P)
     cb = s["cb"][:k, :, :, 0]  # (k, 2, n, P)
     np.copyto(cb[:, :, 0], raw[:, :, 0])
@@ -242,9 +243,10 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
         np.add(cb[:, :, j - 1], raw[:, :, j], out=cb[:, :, j])
     tw = twist[cell_ids]  # (k, P, n)
     phi = s["phi"][:k, 0, :, 0]  # (k, n+1, P)
-    phi[:, 0] = 0.0
-    for j in range(n):
-        np.add(phi[:, j], tw[:, :, j], out=phi[:, j + 1])
+    np.copyto(phi[:, 0], tw[:, :, 0])
+    for j in range(1, n):
+        np.add(phi[:, j - 1], tw[:, :, j], out=phi[:, j])
+    np.copyto(phi[:, n], phi[:, n - 1])  # the tip edge belongs to the top segment
     sphi, cphi = s["sphi"][:k], s["phi"][:k]
     np.sin(phi, out=sphi[:, 0, :, 0])
     np.cos(phi, out=phi)

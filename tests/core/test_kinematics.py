@@ -81,22 +81,30 @@ def test_bend_along_x_moves_tips_along_x():
 
 
 def test_twist_rotates_strip_width():
-    """A quarter turn of twist at the root joint turns every joint above it by 90 degrees: the width
-    vector (right - left), perpendicular to the facing at rest, becomes antiparallel to the facing."""
+    """A quarter turn of twist at the root joint turns the whole blade by 90 degrees (the joints
+    above carry it, the twist is cumulative): the width vector (right - left), perpendicular to the
+    facing at rest, becomes antiparallel to the facing. A twist at the last joint turns only the
+    last segment (its bottom edge and the tip edge)."""
     layout = small_layout(**{"blade.inclination": 0.0})
     n = layout.segments
-    twist = np.zeros((layout.n_cells, n))
-    twist[:, 0] = np.pi / 2
-    v = strips(layout, cells_of(layout, twist=twist))
-    width_vec = v[:, :, 1] - v[:, :, 0]  # (B, n+1, 3)
     f = layout.blade_facing
     taper = 1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n
     w = layout.blade_width[:, None] * taper[None, :]
     side = np.stack([-np.sin(f), np.cos(f)], axis=1)
     facing = np.stack([np.cos(f), np.sin(f)], axis=1)
-    np.testing.assert_allclose(width_vec[:, 0, :2], side * w[:, :1], atol=1e-6)  # root: as planted
-    np.testing.assert_allclose(width_vec[:, 1:, :2], -facing[:, None, :] * w[:, 1:, None], atol=1e-6)
+
+    twist = np.zeros((layout.n_cells, n))
+    twist[:, 0] = np.pi / 2
+    v = strips(layout, cells_of(layout, twist=twist))
+    width_vec = v[:, :, 1] - v[:, :, 0]  # (B, n+1, 3)
+    np.testing.assert_allclose(width_vec[:, :, :2], -facing[:, None, :] * w[:, :, None], atol=1e-6)
     assert np.all(width_vec[..., 2] == 0.0)
+
+    twist = np.zeros((layout.n_cells, n))
+    twist[:, -1] = np.pi / 2
+    width_vec = np.diff(strips(layout, cells_of(layout, twist=twist)), axis=2)[:, :, 0]
+    np.testing.assert_allclose(width_vec[:, : n - 1, :2], side[:, None, :] * w[:, : n - 1, None], atol=1e-6)
+    np.testing.assert_allclose(width_vec[:, n - 1:, :2], -facing[:, None, :] * w[:, n - 1:, None], atol=1e-6)
     # the tip is narrower than the root by blade.tip_width (linear taper)
     np.testing.assert_allclose(np.linalg.norm(width_vec[:, -1], axis=1),
                                layout.params.blade.tip_width * layout.blade_width, rtol=1e-5, atol=1e-7)
@@ -139,10 +147,10 @@ def test_matches_per_blade_formula_and_block_concatenation():
             f = float(layout.blade_facing[b])
             p = layout.blade_root[b].astype(np.float64)
             T_bend = np.zeros(2)
-            phi = 0.0
+            phi = np.cumsum(cells.twist[c])  # Phi_j = sum_{k<=j} twist; the tip joint takes Phi_{n-1}
             expect = []
             for j in range(n + 1):
-                s = np.array([-np.sin(f + phi), np.cos(f + phi), 0.0])
+                s = np.array([-np.sin(f + phi[min(j, n - 1)]), np.cos(f + phi[min(j, n - 1)]), 0.0])
                 w = layout.blade_width[b] * (1 + (tip_w - 1) * j / n)
                 expect.append([p - s * w / 2, p + s * w / 2])
                 if j == n:
@@ -152,7 +160,6 @@ def test_matches_per_blade_formula_and_block_concatenation():
                 a = np.linalg.norm(T)
                 hor = np.sin(a) * T / a if a > 0 else np.zeros(2)
                 p = p + layout.blade_length[b] / n * np.array([hor[0], hor[1], np.cos(a)])
-                phi += cells.twist[c, j]
             np.testing.assert_allclose(got[i, local], np.array(expect), atol=2e-6)
 
 

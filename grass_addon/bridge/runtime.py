@@ -368,16 +368,29 @@ def _camera_signature(camera) -> tuple | None:
             tuple(np.round(camera.up, 6)), round(camera.fov_x, 6), round(camera.aspect, 6))
 
 
+def _field_camera(scene, item, depsgraph=None):
+    """The scene camera in the field's frame (the ground object's inverse world matrix)."""
+    ground = field_scene.ground_object(item)
+    if ground is not None and depsgraph is not None:
+        ground = ground.evaluated_get(depsgraph)
+    to_field = ground.matrix_world.inverted_safe() if ground is not None else None
+    return blender_camera(scene, to_field, depsgraph)
+
+
 def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
     """Write the field ``item`` of ``scene`` for ``scene.frame_current``. Returns its runtime, or
     None when the field has no collection (not built, or deleted by hand).
 
     ``camera_moved_only``: skip the write when this frame was written with the same camera
     (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
+    frame = scene.frame_current
     if camera_moved_only:
         rt = get_runtime(scene, item)
-        if rt is None or rt.frame != scene.frame_current:
+        if rt is None or rt.frame != frame or item.collection is None:
             return rt  # not written at this frame yet: the frame handlers will do it
+        camera = _field_camera(scene, item, depsgraph)
+        if rt.camera_signature == _camera_signature(camera):
+            return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
     rt = ensure_runtime(scene, item)
     coll = item.collection
     if coll is None:
@@ -388,15 +401,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         field_scene.build_slots(scene, item, layout, rt.params)
         rt.blade_slot_block = np.zeros(0, np.int32)
         rt.card_slot_block = np.zeros(0, np.int32)
-    frame = scene.frame_current
-    ground = field_scene.ground_object(item)
-    if ground is not None and depsgraph is not None:
-        ground = ground.evaluated_get(depsgraph)
-    to_field = ground.matrix_world.inverted_safe() if ground is not None else None
-    camera = blender_camera(scene, to_field, depsgraph)
+    camera = _field_camera(scene, item, depsgraph)
     signature = _camera_signature(camera)
-    if camera_moved_only and rt.frame == frame and rt.camera_signature == signature:
-        return rt
     if rt.frame != frame or getattr(rt.field, "cells", None) is None:
         rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
     lod = rt.field.lod(camera)

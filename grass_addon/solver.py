@@ -1,0 +1,626 @@
+"""Per-cell bending, twisting and recovery of grass in wind (paper V.A, eqs 14-32).
+
+The solver is per cell (paper V.B: every blade of a cell shares the cell's bend and twist). The
+representative blade of cell ``c`` is ``layout.cell_length/cell_width/cell_root_stiffness/
+cell_rest_tilt/cell_facing``, split into ``n`` rigid segments; joint ``i`` (0-based) is the bottom
+of segment ``i``.
+
+State (rest = all zeros), angles in radians, relative to the rest shape of eqs 1-6:
+
+* ``bend`` (n_cells, n, 2): each joint's bend as a tilt vector in the ground plane (X, Y): the
+  direction the segment above the joint is pushed, magnitude = bend angle. Segment ``j``'s
+  absolute tilt vector is ``T_j = cell_rest_tilt[c, j] * d_c + sum_{k<=j} bend[c, k]`` with
+  ``d_c = (cos cell_facing, sin cell_facing)``; its axis is ``(sin|T| T/|T|, cos|T|)``.
+* ``twist`` (n_cells, n): each joint's twist about the blade axis, cumulative like the bend:
+  segment ``j``'s face normal points to azimuth ``cell_facing + sum_{k<=j} twist[c, k]``.
+* ``bend_vel``, ``twist_vel``: their rates in rad/s.
+
+One solver step (``step``) samples the forcing once (the wind is sampled once per frame) and then:
+eqs 16-20 give the wind torques of the current shape, eqs 21-24 the equilibrium, eq 28 splits
+the blade into a lower part that follows the smooth three-step update (eqs 25-27) and an upper
+part that oscillates (eqs 29-32, integrated with ``substeps`` symplectic Euler sub-steps).
+
+Performance: the work runs on joint-major arrays (component, joint, cell) so every numpy call
+covers a long contiguous row of cells; loops only run over the n segments, never over cells. The
+cells are cut into chunks processed by two threads (numpy releases the GIL); every operation is
+element-wise per cell, so the result is bitwise identical however the cells are chunked.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from . import blade
+
+RHO_AIR = 1.225  # rho_wind of eqs 15-17, kg/m^3 (air at sea level, 15 C)
+REFERENCE_DT = 1.0 / 24.0  # dt_ref: the paper's frame (24 fps) in which eq 26's rate M/gamma is given
+BEND_LIMIT = 0.5 * math.pi  # physical bound of each component of a joint's bend (rad)
+STIFFEN_LIMIT = 1.0  # |bend| (rad) beyond which eq 23's nonlinear stiffening stops growing
+TWIST_LIMIT = 0.5 * math.pi - 0.05  # |twist| < pi/2: a face cannot turn past edge-on to its rest
+AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its own
+EPS = 1.0e-12
+
+F32 = np.float32
+
+
+class SolverState:
+    """The solver's state. Public arrays (cell-major, C-contiguous float32):
+
+    ``bend`` (n_cells, n, 2), ``bend_vel`` (n_cells, n, 2), ``twist`` (n_cells, n), ``twist_vel``.
+    Internally the state is joint-major (``*_t`` arrays: (n, 2, n_cells) and (n, n_cells)); the
+    public arrays are transposed copies made on first access after a change.
+    """
+
+    def __init__(self, n_cells: int, segments: int):
+        self.bend_t = np.zeros((segments, 2, n_cells), dtype=F32)
+        self.bend_vel_t = np.zeros((segments, 2, n_cells), dtype=F32)
+        self.twist_t = np.zeros((segments, n_cells), dtype=F32)
+        self.twist_vel_t = np.zeros((segments, n_cells), dtype=F32)
+        self._views: dict[str, np.ndarray] = {}
+        self._lock = threading.Lock()
+
+    @property
+    def n_cells(self) -> int:
+        return self.twist_t.shape[1]
+
+    @property
+    def segments(self) -> int:
+        return self.twist_t.shape[0]
+
+    def changed(self) -> None:
+        """Forget the public copies (call after writing the ``*_t`` arrays)."""
+        self._views = {}
+
+    def _public(self, name: str) -> np.ndarray:
+        view = self._views.get(name)
+        if view is None:
+            with self._lock:
+                view = self._views.get(name)
+                if view is None:
+                    src = getattr(self, name + "_t")
+                    rows = src.reshape(-1, src.shape[-1])  # (n * 2, C) or (n, C)
+                    flat = np.empty(rows.shape[::-1], dtype=F32)
+                    np.copyto(flat, rows.T)  # one 2-D transpose: (C, n * 2) is (C, n, 2)
+                    view = flat.reshape((src.shape[-1],) + src.shape[:-1])
+                    self._views[name] = view
+        return view
+
+    @property
+    def bend(self) -> np.ndarray:
+        return self._public("bend")
+
+    @property
+    def bend_vel(self) -> np.ndarray:
+        return self._public("bend_vel")
+
+    @property
+    def twist(self) -> np.ndarray:
+        return self._public("twist")
+
+    @property
+    def twist_vel(self) -> np.ndarray:
+        return self._public("twist_vel")
+
+    def copy(self) -> "SolverState":
+        out = SolverState(self.n_cells, self.segments)
+        out.assign(self)
+        return out
+
+    def assign(self, other: "SolverState") -> None:
+        """Copy ``other``'s values into this state (bitwise)."""
+        for name in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"):
+            np.copyto(getattr(self, name), getattr(other, name))
+        self.changed()
+
+    def reset(self) -> None:
+        for name in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"):
+            getattr(self, name).fill(0.0)
+        self.changed()
+
+    def equals(self, other: "SolverState") -> bool:
+        """Bitwise equality of every array."""
+        return all(np.array_equal(getattr(self, k).view(np.uint32), getattr(other, k).view(np.uint32))
+                   for k in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"))
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, k).nbytes for k in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"))
+
+
+class _Scratch:
+    """Preallocated float32/bool buffers of one worker lane; ``get`` hands out contiguous views."""
+
+    def __init__(self):
+        self._bufs: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, shape: tuple[int, ...], dtype=F32) -> np.ndarray:
+        size = int(np.prod(shape))
+        buf = self._bufs.get(name)
+        if buf is None or buf.size < size or buf.dtype != dtype:
+            buf = np.empty(size, dtype=dtype)
+            self._bufs[name] = buf
+        return buf[:size].reshape(shape)
+
+
+def _row(S: _Scratch, name: str, value: float, m: int) -> np.ndarray:
+    """A (m,) row filled with value: min/max against a row run on numpy's fast array-array
+    loops (against a scalar they are several times slower)."""
+    row = S.get(name, (m,))
+    row.fill(value)
+    return row
+
+
+def _clip(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    np.minimum(x, hi, out=x)
+    np.maximum(x, lo, out=x)
+
+
+def _blend(dst: np.ndarray, src: np.ndarray, sel: np.ndarray, keep: np.ndarray) -> None:
+    """dst = dst * keep + src * sel in place (sel 0/1, keep = 1 - sel): an exact masked copy
+    (x * 1 + y * 0 == x bitwise for finite values), much faster than copyto(where=)."""
+    dst *= keep
+    src *= sel
+    dst += src
+
+
+class BladeSolver:
+    """Bending/twisting of every cell's representative blade (paper V.A). See the module doc."""
+
+    def __init__(self, layout, params, chunk_cells: int = 32768, threads: int = 2):
+        b = params.blade
+        n = int(layout.segments)
+        C = int(layout.n_cells)
+        self.layout = layout
+        self.params = params
+        self.n, self.n_cells = n, C
+        self.chunk_cells = max(1, int(chunk_cells))
+        self.threads = max(1, int(threads))
+        self.k = float(b.nonlinear_stiffness)  # k of eq 23
+        self.gamma = float(b.response_torque)  # gamma of eq 26
+        self.twist_ratio = float(b.twist_stiffness)  # twist stiffness = ratio * mu
+        self.alpha = float(b.damping_mass)  # alpha of eq 31
+        self.beta = float(b.damping_stiffness)  # beta of eq 31
+        self.boundary_k = float(b.boundary_k)  # k of eq 28
+        self.boundary_lambda = float(b.boundary_lambda)  # lambda of eq 28
+        self.min_substeps = int(params.simulation.sub_steps)
+
+        seg = np.asarray(layout.cell_length, dtype=np.float64) / n  # l_length
+        self._seg = seg.astype(F32)
+        # mu_i^base of eqs 1 and 5, joint-major (n, C)
+        self._mu_base = np.ascontiguousarray(
+            blade.joint_stiffness(layout.cell_root_stiffness, seg, n, b.stiffness_offset).T)
+        # Segment width: the strip tapers linearly from the root width to tip_width * width (the
+        # width of eq 16 is taken at the segment's middle).
+        j = np.arange(n, dtype=np.float64)[:, None]
+        width = np.asarray(layout.cell_width, dtype=np.float64)[None, :] * (
+            1.0 - (1.0 - b.tip_width) * (j + 0.5) / n)
+        self._area = (RHO_AIR * seg[None, :] * width).astype(F32)  # rho_wind * l_length * l_width
+        # Moment of inertia about joint i of the part above it, used for M_grass of eqs 29-32.
+        # The paper's M_grass is a mass, but K = mu_i is a torque per radian, so the consistent
+        # quantity is a moment of inertia. We lump the mass of the (n - i) segments above joint i,
+        # (n - i) rho_grass l_length, at the lever (n - i) l_length, exactly as eqs 3-4 place the
+        # weight of that part: I_i = rho_grass ((n - i) l_length)^3. (A uniform rod would give a
+        # third of this; the lumped value also stands for the drag of the joints above, which
+        # must follow joint i's motion, and gives the 1-3 Hz sway of real blades.)
+        above = (n - j) * seg[None, :]
+        inertia = b.density * above ** 3
+        self._inertia = inertia.astype(F32)
+        self._inv_inertia = (1.0 / inertia).astype(F32)
+        facing = np.asarray(layout.cell_facing, dtype=np.float64)
+        self._facing = facing.astype(F32)
+        rest = np.asarray(layout.cell_rest_tilt, dtype=np.float64).T  # (n, C)
+        self._rest = np.stack([rest * np.cos(facing), rest * np.sin(facing)], axis=1).astype(F32)  # (n, 2, C)
+        self._level = np.arange(1, n + 1, dtype=F32)[:, None]  # 1-based joint index of eq 28
+
+        self.state = SolverState(C, n)
+        self._chunks = [(a, min(a + self.chunk_cells, C)) for a in range(0, C, self.chunk_cells)]
+        lanes = min(self.threads, len(self._chunks))
+        self._lanes = [self._chunks[i::lanes] for i in range(lanes)]
+        self._scratch = [_Scratch() for _ in range(lanes)]
+        self._pool = ThreadPoolExecutor(max_workers=lanes) if lanes > 1 else None
+        self._allowed_cache: dict[float, np.ndarray] = {}
+        # Stiffest joint: eq 22-23 with the nonlinear part at its bound (the bend is clamped).
+        k_max = self._mu_base + F32(self.k * STIFFEN_LIMIT)
+        ratio = max(1.0, self.twist_ratio)  # twist uses ratio * K with the same inertia
+        self._omega2 = (k_max.astype(np.float64) * self._inv_inertia * ratio)  # K/I, (n, C)
+        self._damp = self.alpha + self.beta * self._omega2  # C/I of eq 31
+
+    # ---------------------------------------------------------------------------- public API
+
+    def reset(self) -> None:
+        self.state.reset()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+            self._pool = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def stable_substeps(self, frame_dt: float) -> int:
+        """Sub-steps per frame that keep eq 32 stable (>= simulation.sub_steps).
+
+        Symplectic Euler on theta'' + c theta' + w^2 theta = 0 is stable for h c < 2 and
+        h^2 w^2 + 2 h c < 4. We ask for half of each bound (h c <= 1, h^2 w^2 + 2 h c <= 2) at
+        the stiffest, lightest oscillating joint, with eq 23's stiffening at its bound. A joint
+        whose natural period is shorter than four frames cannot show a sway at this frame rate
+        (it would flicker or alias); such a joint (the short tip segment,
+        typically) follows the smooth update of eqs 25-27 instead of eq 32, which is
+        its quasi-static limit, and does not raise the sub-step count.
+        """
+        frame_dt = float(frame_dt)
+        if not (frame_dt > 0.0 and math.isfinite(frame_dt)):
+            raise ValueError(f"frame_dt must be a positive number of seconds, got {frame_dt!r}")
+        visible = self._omega2 <= self._visible_omega2(frame_dt)
+        need = 1
+        if visible.any():
+            w2 = float(self._omega2[visible].max())
+            c = float(self._damp[visible].max())
+            # positive root of w2 h^2 + 2 c h - 2 = 0 (grows with w2 and c: the worst joint rules)
+            h = (-c + math.sqrt(c * c + 2.0 * w2)) / w2 if w2 > 0 else math.inf
+            if c > 0:
+                h = min(h, 1.0 / c)
+            need = max(1, math.ceil(frame_dt / h - 1e-9))
+        return max(self.min_substeps, min(need, AUTO_MAX_SUBSTEPS))
+
+    def equilibrium_bend(self, wind: np.ndarray) -> np.ndarray:
+        """Plain Hooke's-law equilibrium |M_i^bend| / mu_i^base (eqs 6/21, no smoothing), (n_cells, n).
+
+        The torques are those of the current shape (eqs 16-18), as in ``step``.
+        """
+        wind = self._check_wind(wind)
+        scratch = _Scratch()
+        out = np.empty((self.n, self.n_cells), dtype=F32)
+        for a, b in self._chunks:
+            forcing = self._forcing(a, b, wind, scratch)
+            np.divide(forcing["Mb"], self._mu_base[:, a:b], out=out[:, a:b])
+        return np.ascontiguousarray(out.T)
+
+    def step(self, wind: np.ndarray, dt: float, substeps: int = 1) -> None:
+        """Advance the state by ``dt`` seconds under ``wind`` ((n_cells, 2) m/s).
+
+        The forcing (eqs 16-24) and eq 28 are evaluated once; the smooth update (eqs 25-27) is
+        exact for any dt; the oscillating joints take ``substeps`` sub-steps of eq 32. The
+        Simulation calls ``step(wind, frame_dt, stable_substeps(frame_dt))`` once per frame.
+        """
+        wind = self._check_wind(wind)
+        dt = float(dt)
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        substeps = max(1, int(substeps))
+        h = dt / substeps
+        allowed = self._oscillator_allowed(dt, h)
+        if self._pool is None:
+            for lane, chunks in enumerate(self._lanes):
+                for a, b in chunks:
+                    self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
+        else:
+            def run(lane: int) -> None:
+                for a, b in self._lanes[lane]:
+                    self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
+            for result in self._pool.map(run, range(len(self._lanes))):
+                pass
+        self.state.changed()
+
+    # ---------------------------------------------------------------------------- internals
+
+    def _check_wind(self, wind: np.ndarray) -> np.ndarray:
+        wind = np.asarray(wind, dtype=F32)
+        if wind.shape != (self.n_cells, 2):
+            raise ValueError(f"wind must have shape ({self.n_cells}, 2) (one 2-D vector per cell), "
+                             f"got {wind.shape}")
+        return wind
+
+    @staticmethod
+    def _visible_omega2(frame_dt: float) -> float:
+        """w^2 of the fastest sway a frame rate shows as a sway: four frames per period."""
+        return (2.0 * math.pi / (4.0 * frame_dt)) ** 2
+
+    def _oscillator_allowed(self, dt: float, h: float) -> np.ndarray:
+        """(n, C) bool: joints that use eq 32 in a step of dt with sub-step h: visible at this
+        rate (w <= pi / dt) and stable (h c <= 1, h^2 w^2 + 2 h c <= 2); see stable_substeps."""
+        key = (dt, h)
+        allowed = self._allowed_cache.get(key)
+        if allowed is None:
+            hc = h * self._damp
+            allowed = ((hc <= 1.0) & (h * h * self._omega2 + 2.0 * hc <= 2.0)
+                       & (self._omega2 <= self._visible_omega2(dt)))
+            self._allowed_cache = {key: allowed}
+        return allowed
+
+    def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch) -> dict[str, np.ndarray]:
+        """Wind torques on cells [a, b) for the current shape (eqs 16-20), joint-major (n, m)."""
+        n, m = self.n, b - a
+        bend = self.state.bend_t[:, :, a:b]
+        twist = self.state.twist_t[:, a:b]
+        rest = self._rest[:, :, a:b]
+        area = self._area[:, a:b]
+
+        W = S.get("W", (2, m))
+        np.copyto(W, wind[a:b].T)
+        v2 = S.get("v2", (m,))
+        tmp = S.get("tmp", (m,))
+        np.multiply(W[0], W[0], out=v2)
+        np.multiply(W[1], W[1], out=tmp)
+        v2 += tmp
+        speed = S.get("speed", (m,))
+        np.sqrt(v2, out=speed)
+        np.maximum(speed, _row(S, "tiny_speed", 1e-6, m), out=speed)
+        w_hat = S.get("w_hat", (2, m))  # horizontal unit wind direction w (zero without wind)
+        np.divide(W, speed, out=w_hat)
+        # 2 delta0: twice the angle from the rest face normal to the wind (twist, eqs 19-20)
+        two_delta = S.get("two_delta", (m,))
+        np.arctan2(W[1], W[0], out=two_delta)
+        two_delta -= self._facing[a:b]
+        two_delta *= F32(2.0)
+        Av = S.get("Av", (n, m))  # v^2 rho_wind l_length l_width
+        np.multiply(area, v2, out=Av)
+
+        B = S.get("B", (2, m))  # running sum of the bends up to joint j
+        T = S.get("T", (2, m))
+        TT = S.get("TT", (2, m))
+        tilt = S.get("tilt", (m,))
+        sin_tilt = S.get("sin_tilt", (m,))
+        proj = S.get("proj", (m,))
+        cos_phi = S.get("cos_phi", (m,))
+        sin_phi = S.get("sin_phi", (m,))
+        cum_twist = S.get("cum_twist", (m,))
+        F = S.get("F", (n, m))  # F_i^bend, eq 17
+        G = S.get("G", (n, m))  # per-segment twist torque / l_length, eq 20
+        CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
+
+        eps_row = _row(S, "eps", EPS, m)
+        zero_row = _row(S, "zero", 0.0, m)
+        for j in range(n):
+            if j == 0:
+                np.copyto(B, bend[0])
+                np.copyto(cum_twist, twist[0])
+            else:
+                B += bend[j]
+                cum_twist += twist[j]
+            np.add(rest[j], B, out=T)  # absolute tilt vector T_j
+            np.multiply(T, T, out=TT)
+            np.add(TT[0], TT[1], out=tilt)
+            np.sqrt(tilt, out=tilt)  # |T_j|
+            np.sin(tilt, out=sin_tilt)
+            np.cos(tilt, out=CT[j])
+            # eq 16: cos(phi) = a_j . w with the axis a_j = (sin|T| T/|T|, cos|T|), w horizontal
+            np.multiply(T, w_hat, out=TT)
+            np.add(TT[0], TT[1], out=proj)
+            np.maximum(tilt, eps_row, out=tilt)
+            np.divide(proj, tilt, out=proj)
+            np.multiply(proj, sin_tilt, out=cos_phi)
+            np.multiply(cos_phi, cos_phi, out=sin_phi)
+            np.subtract(F32(1.0), sin_phi, out=sin_phi)
+            np.maximum(sin_phi, zero_row, out=sin_phi)
+            np.sqrt(sin_phi, out=sin_phi)
+            # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
+            # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
+            np.multiply(Av[j], sin_phi, out=F[j])
+            # eqs 19-20: F_twist = v^2 rho l l_w cos(phi), lever l sin(theta + theta_base) with
+            # theta + theta_base = the segment's absolute tilt |T_j|. The paper gives no sign:
+            # the torque turns the face towards broadside to the wind and vanishes there, so we
+            # weight it by sin(2 delta), delta = angle from the face normal (facing + twist) to
+            # the wind (self-limiting: zero broadside, changes sign past it).
+            np.multiply(cum_twist, F32(-2.0), out=tmp)
+            tmp += two_delta
+            np.sin(tmp, out=tmp)
+            np.abs(cos_phi, out=cos_phi)
+            cos_phi *= Av[j]
+            cos_phi *= sin_tilt
+            np.multiply(cos_phi, tmp, out=G[j])
+
+        # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
+        # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),
+        # directed along w. Recursively, with z_i = l cos|T_i| and S_{i+1} = sum_{j>i} F_j:
+        # M_i = M_{i+1} + z_i (S_{i+1} + F_i / 2). The factor l_length is applied at the end.
+        Mb = S.get("Mb", (n, m))
+        Mt = S.get("Mt", (n, m))
+        Fs = S.get("Fs", (n, m))  # S_i = sum_{j>=i} F_j
+        last = n - 1
+        np.multiply(F[last], F32(0.5), out=tmp)
+        np.multiply(tmp, CT[last], out=Mb[last])
+        np.copyto(Fs[last], F[last])
+        np.copyto(Mt[last], G[last])
+        for i in range(n - 2, -1, -1):
+            np.multiply(F[i], F32(0.5), out=tmp)
+            tmp += Fs[i + 1]
+            tmp *= CT[i]
+            np.add(Mb[i + 1], tmp, out=Mb[i])
+            np.add(Fs[i + 1], F[i], out=Fs[i])
+            np.add(Mt[i + 1], G[i], out=Mt[i])  # twisting joint i turns every segment above
+        seg = self._seg[a:b]
+        Mb *= seg
+        Mt *= seg
+        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Fs": Fs, "speed": speed}
+
+    def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
+                    allowed: np.ndarray, S: _Scratch) -> None:
+        n, m = self.n, b - a
+        st = self.state
+        bend, vel = st.bend_t[:, :, a:b], st.bend_vel_t[:, :, a:b]
+        twist, twist_vel = st.twist_t[:, a:b], st.twist_vel_t[:, a:b]
+        forcing = self._forcing(a, b, wind, S)
+        Mb, Mt, w_hat = forcing["Mb"], forcing["Mt"], forcing["w_hat"]
+        Fs, speed = forcing["Fs"], forcing["speed"]
+
+        # eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)
+        BB = S.get("BB", (n, 2, m))
+        mag = S.get("mag", (n, m))
+        np.multiply(bend, bend, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=mag)
+        np.sqrt(mag, out=mag)
+        np.minimum(mag, _row(S, "stiffen", STIFFEN_LIMIT, m), out=mag)
+        mu = S.get("mu", (n, m))
+        np.multiply(mag, F32(self.k), out=mu)
+        mu += self._mu_base[:, a:b]
+        # eq 21/24: equilibrium bend vector = M_i^bend / mu_i(t), along the wind
+        e = S.get("e", (n, m))
+        np.divide(Mb, mu, out=e)
+        bend_lo, bend_hi = _row(S, "bend_lo", -BEND_LIMIT, m), _row(S, "bend_hi", BEND_LIMIT, m)
+        twist_lo, twist_hi = _row(S, "twist_lo", -TWIST_LIMIT, m), _row(S, "twist_hi", TWIST_LIMIT, m)
+        _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of EQ stays in bounds
+        EQ = S.get("EQ", (n, 2, m))
+        np.multiply(e[:, None, :], w_hat[None, :, :], out=EQ)
+        # twisting: the same process with stiffness twist_stiffness * mu_i(t)
+        Kt = S.get("Kt", (n, m))
+        np.multiply(mu, F32(self.twist_ratio), out=Kt)
+        EQt = S.get("EQt", (n, m))
+        np.divide(Mt, Kt, out=EQt)
+        _clip(EQt, twist_lo, twist_hi)
+
+        # Deviation from the current equilibrium: the angles "relative to the equilibrium
+        # position" of eq 28. A joint swinging through its equilibrium is not at equilibrium, so
+        # we take its swing amplitude, sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to
+        # |dtheta| for a joint at rest); otherwise eq 28 would stop a swing at every crossing.
+        # (The twist, a small effect, counts with |dphi| alone.)
+        DEV = S.get("DEV", (n, 2, m))
+        np.subtract(EQ, bend, out=DEV)
+        dev = S.get("dev", (n, m))  # |theta_eq - theta|: drives the smooth update (eq 26)
+        np.multiply(DEV, DEV, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=dev)
+        amp = S.get("amp", (n, m))  # squared swing amplitude
+        inv_w2 = S.get("inv_w2", (n, m))  # I / K = 1 / w^2
+        np.divide(self._inertia[:, a:b], mu, out=inv_w2)
+        np.multiply(vel, vel, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=amp)
+        amp *= inv_w2
+        amp += dev
+        np.sqrt(amp, out=amp)
+        np.sqrt(dev, out=dev)
+        DEVt = S.get("DEVt", (n, m))
+        np.subtract(EQt, twist, out=DEVt)
+        devt = S.get("devt", (n, m))
+        np.abs(DEVt, out=devt)
+
+        # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
+        np.add(amp, devt, out=e)
+        nb = S.get("nb", (m,))
+        np.add.reduce(e, axis=0, out=nb)
+        nb *= F32(0.5 / n)
+        nb -= F32(self.boundary_k)
+        nb *= F32(-self.boundary_lambda)
+        np.minimum(nb, F32(math.log(n) + 1.0), out=nb)  # beyond this n_boundary > n anyway
+        np.exp(nb, out=nb)
+        nb *= F32(n)
+        np.minimum(nb, F32(n), out=nb)
+        osc = S.get("osc", (n, m), dtype=np.bool_)  # joints above n_boundary oscillate (eq 29)
+        np.greater(self._level, nb, out=osc)
+        np.logical_and(osc, allowed[:, a:b], out=osc)
+
+        # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f. Eq 26 makes
+        # the fraction per frame M/gamma, which overshoots once M > gamma; the sound reading is
+        # a rate: d(theta)/dt = (theta_eq - theta) * M / (gamma dt_ref), integrated exactly over
+        # dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate independent. M is the
+        # unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|: it equals M_bend when
+        # starting from rest and stays non-zero when the wind stops, so the lower part recovers.
+        rate = F32(-dt / (self.gamma * REFERENCE_DT))
+        x = S.get("x", (n, m))
+        NEW = S.get("NEW", (n, 2, m))
+        np.multiply(mu, dev, out=x)
+        x *= rate
+        np.expm1(x, out=x)  # -f
+        np.multiply(DEV, x[:, None, :], out=NEW)
+        np.subtract(bend, NEW, out=NEW)
+        NEWt = S.get("NEWt", (n, m))
+        np.multiply(Kt, devt, out=x)
+        x *= rate
+        np.expm1(x, out=x)
+        np.multiply(DEVt, x, out=NEWt)
+        np.subtract(twist, NEWt, out=NEWt)
+
+        # eqs 29-32 for the joints above n_boundary (osc joints are the top ones of each cell)
+        rows = osc.any(axis=1)
+        j0 = int(np.argmax(rows)) if rows.any() else n
+        if j0 < n:
+            js = slice(j0, n)
+            nj = n - j0
+            sel = S.get("sel", (nj, m))  # 1 where the joint oscillates
+            np.copyto(sel, osc[js])
+            keep = S.get("keep", (nj, m))
+            np.subtract(F32(1.0), sel, out=keep)
+            h = dt / substeps
+            # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
+            # (eq 31). With the wind gone theta_eq = 0 and this is eq 29 exactly. theta_eq is held
+            # for the frame, so we integrate x = theta - theta_eq. Eq 32 (symplectic Euler):
+            # acceleration, then velocity v += h a, then angle x += h v; here v = p v - q x with
+            # q = h K/I and p = 1 - h C/I.
+            kI = S.get("kI", (nj, m))
+            np.multiply(mu[js], self._inv_inertia[js, a:b], out=kI)
+            q = S.get("q", (nj, m))
+            p = S.get("p", (nj, m))
+            X = S.get("X", (nj, 2, m))
+            V = S.get("V", (nj, 2, m))
+            TMP = S.get("TMP", (nj, 2, m))
+            tmpn = S.get("tmpn", (nj, m))
+            selb, keepb = sel[:, None, :], keep[:, None, :]
+            np.multiply(kI, F32(h), out=q)
+            np.multiply(kI, F32(-h * self.beta), out=p)
+            p += F32(1.0 - h * self.alpha)
+            # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
+            # the relative speed (v - u) of a segment moving at u = theta' h_ij, and linearising
+            # F = rho (v - u)^2 A sin(phi) gives the damping torque (2 / v) sum_j F_j h_ij^2
+            # theta', which we bound from below by 2 M_i^2 / (S_i v) (Cauchy-Schwarz, S_i =
+            # sum_{j>=i} F_j). It makes a blade in strong wind follow gusts smoothly while it
+            # sways freely once the wind stops. It is integrated implicitly (stable for any v):
+            # v_new = (p v - q x) / (1 + h c_aero / I).
+            ca = S.get("ca", (nj, m))
+            np.multiply(Mb[js], Mb[js], out=ca)
+            np.maximum(Fs[js], _row(S, "tiny_force", 1e-20, m), out=tmpn)
+            ca /= tmpn
+            ca *= self._inv_inertia[js, a:b]
+            ca /= speed
+            ca *= F32(2.0 * h)
+            ca += F32(1.0)
+            q /= ca
+            p /= ca
+            np.negative(DEV[js], out=X)
+            np.copyto(V, vel[js])
+            qb, pb = q[:, None, :], p[:, None, :]
+            for _ in range(substeps):
+                np.multiply(X, qb, out=TMP)
+                V *= pb
+                V -= TMP
+                np.multiply(V, F32(h), out=TMP)
+                X += TMP
+            X += EQ[js]
+            _blend(NEW[js], X, selb, keepb)
+            # twisting (eq 30): the same with K = twist_stiffness * mu_i(t)
+            np.multiply(kI, F32(h * self.twist_ratio), out=q)
+            np.multiply(kI, F32(-h * self.beta * self.twist_ratio), out=p)
+            p += F32(1.0 - h * self.alpha)
+            Xt, Vt, TMPt = S.get("Xt", (nj, m)), S.get("Vt", (nj, m)), S.get("TMPt", (nj, m))
+            np.negative(DEVt[js], out=Xt)
+            np.copyto(Vt, twist_vel[js])
+            for _ in range(substeps):
+                np.multiply(Xt, q, out=TMPt)
+                Vt *= p
+                Vt -= TMPt
+                np.multiply(Vt, F32(h), out=TMPt)
+                Xt += TMPt
+            Xt += EQt[js]
+            _blend(NEWt[js], Xt, sel, keep)
+
+        # Physical bounds (nothing can blow up), then velocities: the smooth joints' rate is
+        # (new - old) / dt (bounded as the angles are), the oscillating joints keep their own
+        # (bounded: eq 32 only runs where it is stable).
+        _clip(NEW, bend_lo, bend_hi)
+        _clip(NEWt, twist_lo, twist_hi)
+        inv_dt = F32(1.0 / dt)
+        np.subtract(NEW, bend, out=vel)
+        vel *= inv_dt
+        np.subtract(NEWt, twist, out=twist_vel)
+        twist_vel *= inv_dt
+        if j0 < n:
+            _blend(vel[js], V, selb, keepb)
+            _blend(twist_vel[js], Vt, sel, keep)
+        np.copyto(bend, NEW)
+        np.copyto(twist, NEWt)

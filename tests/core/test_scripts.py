@@ -1,0 +1,127 @@
+"""headless/simulate.py and headless/bench.py run as scripts on tiny fields (numpy only)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grass_addon import schema
+
+REPO = Path(__file__).resolve().parents[2]
+TINY = ["--field-blocks-x", "2", "--field-blocks-y", "1", "--field-cells-per-block", "4",
+        "--field-blades-per-cell", "3", "--blade-segments", "4"]
+
+
+def run(script, *args, timeout=300):
+    return subprocess.run([sys.executable, str(REPO / "headless" / script), *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout, cwd=REPO)
+
+
+@pytest.fixture(scope="module")
+def trace(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sim") / "trace.npz"
+    proc = run("simulate.py", *TINY, "--frames", 6, "--fps", 12, "--wind-speed", 8.0, "--trace", path)
+    assert proc.returncode == 0, proc.stderr
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}, proc.stdout
+
+
+def test_trace_has_documented_keys_shapes_and_units(trace):
+    tr, _ = trace
+    F, Ny, Nx, n, B = 6, 4, 8, 4, 4 * 8 * 3
+    documented = (REPO / "docs" / "simulate.md").read_text()
+    for key in tr:
+        assert f"`{key}`" in documented, f"trace key {key} is not documented in docs/simulate.md"
+    shapes = {"frame": (F,), "time": (F,), "wind_speed": (F,), "wind_direction": (F,),
+              "cell_wind": (F, Ny, Nx, 2), "cell_bend": (F, Ny, Nx, n), "cell_bend_vector": (F, Ny, Nx, n, 2),
+              "cell_twist": (F, Ny, Nx, n), "card_offset": (F, Ny, Nx, 3), "cell_x": (Nx,), "cell_y": (Ny,),
+              "blade_tip": (F, B, 3), "blade_root": (B, 3), "blade_rest_tip": (B, 3),
+              "tip_displacement_mean": (F,), "tip_displacement_max": (F,)}
+    for key, shape in shapes.items():
+        assert tr[key].shape == shape, key
+    # time in seconds at 12 fps from the first frame
+    np.testing.assert_allclose(tr["time"], np.arange(F) / 12.0)
+    np.testing.assert_array_equal(tr["frame"], np.arange(1, F + 1))
+    # cells are 0.1 m apart, centred on the origin
+    np.testing.assert_allclose(np.diff(tr["cell_x"]), 0.1, rtol=1e-5)
+    np.testing.assert_allclose(tr["cell_x"].mean(), 0.0, atol=1e-6)
+    # mean wind: 8 m/s (the flag) towards 30 degrees (the default), in radians
+    np.testing.assert_allclose(tr["wind_speed"], 8.0, rtol=1e-5)
+    np.testing.assert_allclose(tr["wind_direction"], np.radians(30.0), rtol=1e-5)
+    # the params round-trip, with the flags applied
+    params = schema.loads_toml(str(tr["params_toml"]))
+    assert params.wind.speed == 8.0 and params.render.fps == 12 and params.field.blocks_x == 2
+
+
+def test_trace_physics_is_consistent(trace):
+    tr, _ = trace
+    d = tr["wind_direction"][:, None, None, None]
+    v = tr["cell_bend_vector"]
+    np.testing.assert_allclose(tr["cell_bend"], v[..., 0] * np.cos(d) + v[..., 1] * np.sin(d), atol=1e-6)
+    # an 8 m/s wind bends the grass downwind on average
+    assert tr["cell_bend"].sum(axis=3).mean() > 0.0
+    # the mean cell wind is close to the mean wind vector (turbulence averages out over cells)
+    mean_wind = tr["cell_wind"].mean(axis=(0, 1, 2))
+    np.testing.assert_allclose(np.linalg.norm(mean_wind), 8.0, rtol=0.35)
+    # rigid segments: no tip is farther from its root than its blade is long, tips stay above ground
+    lay_len = np.linalg.norm(tr["blade_rest_tip"] - tr["blade_root"], axis=1)
+    reach = np.linalg.norm(tr["blade_tip"] - tr["blade_root"][None], axis=2)
+    assert np.all(reach <= 1.5 * 0.32 * 3)  # generous: lengths are l_base + 0.07 N(0,1)
+    assert np.all(lay_len > 0.0)
+    disp = np.linalg.norm(tr["blade_tip"] - tr["blade_rest_tip"][None], axis=2)
+    np.testing.assert_allclose(tr["tip_displacement_max"], disp.max(axis=1), rtol=1e-5)
+
+
+def test_summary_names_the_field_and_the_numbers(trace):
+    _, out = trace
+    for word in ("blades", "96", "gentle_breeze", "8 m/s", "frames", "ms per frame", "bend", "tips"):
+        assert word in out, word
+    assert len(out.splitlines()) <= 24  # one screen
+
+
+def test_config_file_is_read(tmp_path):
+    cfg = tmp_path / "scene.toml"
+    cfg.write_text("[field]\nblocks_x = 1\nblocks_y = 1\ncells_per_block = 2\n[wind]\nspeed = 1.5\n")
+    proc = run("simulate.py", "--config", cfg, "--frames", 2)
+    assert proc.returncode == 0, proc.stderr
+    assert "1.5 m/s" in proc.stdout and "4 cells" in proc.stdout
+
+
+@pytest.mark.parametrize("args, name", [
+    (["--wind-speed", "-1"], "wind.speed"),
+    (["--frames", "0"], "frames"),
+    (["--config", "/nonexistent/scene.toml"], "config"),
+    (["--field-blocks-x", "2.5"], "field.blocks_x"),
+    (["--lod-blade-far", "1", "--lod-blade-near", "3"], "lod.blade_far"),
+])
+def test_bad_input_exits_2_naming_the_parameter(args, name):
+    proc = run("simulate.py", *TINY, "--frames", 1, *args)
+    assert proc.returncode == 2
+    assert name in proc.stderr
+
+
+def test_bench_prints_one_json_object():
+    proc = run("bench.py", "--blades", 1024, "--segments", 3, "--frames", 2, "--json")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert result["blades"] == 1024 and result["segments"] == 3 and result["cells"] == 512
+    assert set(result["phases_ms"]) == {"wind", "solver", "lod", "kinematics"}
+    assert all(v >= 0 for v in result["phases_ms"].values())
+    np.testing.assert_allclose(result["frame_update_ms"], sum(result["phases_ms"].values()), atol=0.01)
+    assert result["floor_copy_ms"] > 0
+    np.testing.assert_allclose(result["ratio_to_floor"], result["frame_update_ms"] / result["floor_copy_ms"],
+                               rtol=0.02)
+    # the state copied by the floor is every SolverState array: bend, bend_vel (2 floats per joint),
+    # twist, twist_vel (1 each): 6 float32 per joint per cell
+    assert result["floor_copy_bytes"] == 512 * 3 * 6 * 4
+    for key in ("build_ms", "machine"):
+        assert key in result
+    assert "peers" not in result
+
+
+def test_bench_rejects_bad_counts():
+    proc = run("bench.py", "--blades", 0)
+    assert proc.returncode == 2 and "blades" in proc.stderr

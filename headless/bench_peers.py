@@ -167,6 +167,33 @@ def _time_frames(scene, frames: int, check: Callable[[], int]) -> dict[str, Any]
     return out
 
 
+def _motion(scene, frames: int, sample: Callable[[], Any]) -> float:
+    """Untimed proof that the peer animates: the largest displacement (m) of sampled evaluated
+    points between the two frames after the timed ones."""
+    import numpy as np
+
+    scene.frame_set(frames + 2)
+    a = np.asarray(sample(), dtype=np.float64)
+    scene.frame_set(frames + 3)
+    b = np.asarray(sample(), dtype=np.float64)
+    return round(float(np.abs(b - a).max()), 5) if a.size and a.shape == b.shape else 0.0
+
+
+def _mesh_sample(objects, limit: int = 6144) -> Callable[[], Any]:
+    """The first ``limit`` evaluated vertex positions of the first object."""
+    import bpy
+    import numpy as np
+
+    def sample():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        mesh = objects[0].evaluated_get(depsgraph).data
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        return co.reshape(-1, 3)[:limit]
+
+    return sample
+
+
 def _evaluated_vertex_count(obj) -> Callable[[], int]:
     import bpy
 
@@ -335,6 +362,7 @@ def bench_geometry_nodes(plan: dict[str, Any], frames: int, per_vertex: bool = F
     mod = obj.modifiers.new("GrassWind", "NODES")
     mod.node_group = build_geometry_nodes_tree(plan, per_vertex=per_vertex)
     result = _time_frames(scene, frames, _evaluated_vertex_count(obj))
+    result["motion_m"] = _motion(scene, frames, _mesh_sample([obj]))
     expected = plan["blades"] * 2 * (plan["segments"] + 1)
     if result["evaluated_vertices"] != expected:
         raise RuntimeError(f"GN peer evaluated {result['evaluated_vertices']} vertices, expected {expected}")
@@ -363,7 +391,7 @@ def bench_hair_dynamics(plan: dict[str, Any], frames: int) -> dict[str, Any]:
     psys.use_hair_dynamics = True  # cloth solver with default quality / stiffness
     cache = psys.point_cache
     cache.frame_start = 1
-    cache.frame_end = frames + 10
+    cache.frame_end = frames + 10  # covers the timed frames and the two motion frames
 
     # Wind force field blowing along the field's wind direction (a wind field pushes along its +Z)
     d = math.radians(plan["wind_direction_deg"])
@@ -377,7 +405,19 @@ def bench_hair_dynamics(plan: dict[str, Any], frames: int) -> dict[str, Any]:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         return len(obj.evaluated_get(depsgraph).particle_systems[0].particles)
 
+    def tips():  # evaluated tip keys of some strands (world space)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        ev = obj.evaluated_get(depsgraph)
+        ps, mod = ev.particle_systems[0], ev.modifiers[0]
+        step = max(1, len(ps.particles) // 64)
+        return [tuple(ps.particles[i].hair_keys[-1].co_object(ev, mod, ps.particles[i]))
+                for i in range(0, len(ps.particles), step)]
+
     result = _time_frames(scene, frames, check)
+    result["motion_m"] = _motion(scene, frames, tips)
+    cloth = psys.cloth.settings
+    result["cloth"] = {"quality": cloth.quality, "mass": cloth.mass,
+                       "bending_stiffness": cloth.bending_stiffness, "air_damping": cloth.air_damping}
     if result["evaluated_vertices"] != plan["blades"]:
         raise RuntimeError(f"hair peer evaluated {result['evaluated_vertices']} strands, "
                            f"expected {plan['blades']}")
@@ -417,6 +457,7 @@ def bench_ours(plan: dict[str, Any], frames: int) -> dict[str, Any]:
         return sum(len(o.evaluated_get(depsgraph).data.vertices) for o in blades)
 
     result = _time_frames(scene, frames, check)
+    result["motion_m"] = _motion(scene, frames, _mesh_sample(blades))
     expected = plan["blades"] * 2 * (plan["segments"] + 1)
     if result["evaluated_vertices"] != expected:
         raise RuntimeError(f"our field evaluated {result['evaluated_vertices']} blade vertices, "

@@ -47,6 +47,9 @@ EPS = 1.0e-12
 F32 = np.float32
 
 
+_STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t", "twist_eq_t")
+
+
 class SolverState:
     """The solver's state. Public arrays (cell-major, C-contiguous float32):
 
@@ -60,6 +63,10 @@ class SolverState:
         self.bend_vel_t = np.zeros((segments, 2, n_cells), dtype=F32)
         self.twist_t = np.zeros((segments, n_cells), dtype=F32)
         self.twist_vel_t = np.zeros((segments, n_cells), dtype=F32)
+        # The equilibrium estimate E (bend and twist) whose shape the wind loads act on (see
+        # BladeSolver._step_chunk); part of the state so that every path to a frame agrees.
+        self.bend_eq_t = np.zeros((segments, 2, n_cells), dtype=F32)
+        self.twist_eq_t = np.zeros((segments, n_cells), dtype=F32)
         self._views: dict[str, np.ndarray] = {}
         self._lock = threading.Lock()
 
@@ -112,23 +119,23 @@ class SolverState:
 
     def assign(self, other: "SolverState") -> None:
         """Copy ``other``'s values into this state (bitwise)."""
-        for name in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"):
+        for name in _STATE_ARRAYS:
             np.copyto(getattr(self, name), getattr(other, name))
         self.changed()
 
     def reset(self) -> None:
-        for name in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"):
+        for name in _STATE_ARRAYS:
             getattr(self, name).fill(0.0)
         self.changed()
 
     def equals(self, other: "SolverState") -> bool:
         """Bitwise equality of every array."""
         return all(np.array_equal(getattr(self, k).view(np.uint32), getattr(other, k).view(np.uint32))
-                   for k in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"))
+                   for k in _STATE_ARRAYS)
 
     @property
     def nbytes(self) -> int:
-        return sum(getattr(self, k).nbytes for k in ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t"))
+        return sum(getattr(self, k).nbytes for k in _STATE_ARRAYS)
 
 
 class _Scratch:
@@ -217,6 +224,9 @@ class BladeSolver:
         self._level = np.arange(1, n + 1, dtype=F32)[:, None]  # 1-based joint index of eq 28
 
         self.state = SolverState(C, n)
+        # n_boundary of eq 28 of the last step, per cell (joints with 1-based index above it
+        # oscillate); n everywhere at rest.
+        self.n_boundary = np.full(C, n, dtype=F32)
         self._chunks = [(a, min(a + self.chunk_cells, C)) for a in range(0, C, self.chunk_cells)]
         lanes = min(self.threads, len(self._chunks))
         self._lanes = [self._chunks[i::lanes] for i in range(lanes)]
@@ -233,6 +243,7 @@ class BladeSolver:
 
     def reset(self) -> None:
         self.state.reset()
+        self.n_boundary.fill(self.n)
 
     def close(self) -> None:
         if self._pool is not None:
@@ -339,8 +350,9 @@ class BladeSolver:
     def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch) -> dict[str, np.ndarray]:
         """Wind torques on cells [a, b) for the current shape (eqs 16-20), joint-major (n, m)."""
         n, m = self.n, b - a
-        bend = self.state.bend_t[:, :, a:b]
-        twist = self.state.twist_t[:, a:b]
+        # the loads act on the shape of the equilibrium estimate E, not on the swinging blade
+        bend = self.state.bend_eq_t[:, :, a:b]
+        twist = self.state.twist_eq_t[:, a:b]
         rest = self._rest[:, :, a:b]
         area = self._area[:, a:b]
 
@@ -477,34 +489,58 @@ class BladeSolver:
         np.divide(Mt, Kt, out=EQt)
         _clip(EQt, twist_lo, twist_hi)
 
-        # Deviation from the current equilibrium: the angles "relative to the equilibrium
-        # position" of eq 28. A joint swinging through its equilibrium is not at equilibrium, so
-        # we take its swing amplitude, sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to
-        # |dtheta| for a joint at rest); otherwise eq 28 would stop a swing at every crossing.
-        # (The twist, a small effect, counts with |dphi| alone.)
+        # Deviation from the equilibrium: the angles "relative to the equilibrium position" of
+        # eq 28, against the equilibrium of the current wind. A joint swinging through its
+        # equilibrium is not at equilibrium, so we take its swing amplitude,
+        # sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to |dtheta| for a joint at rest);
+        # otherwise eq 28 would stop a swing at every crossing. (The twist, a small effect,
+        # counts with |dphi| alone.)
         DEV = S.get("DEV", (n, 2, m))
         np.subtract(EQ, bend, out=DEV)
-        dev = S.get("dev", (n, m))  # |theta_eq - theta|: drives the smooth update (eq 26)
+        amp = S.get("amp", (n, m))  # swing amplitude
         np.multiply(DEV, DEV, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=dev)
-        amp = S.get("amp", (n, m))  # squared swing amplitude
+        np.add(BB[:, 0], BB[:, 1], out=amp)
         inv_w2 = S.get("inv_w2", (n, m))  # I / K = 1 / w^2
         np.divide(self._inertia[:, a:b], mu, out=inv_w2)
         np.multiply(vel, vel, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=amp)
-        amp *= inv_w2
+        dev = S.get("dev", (n, m))
+        np.add(BB[:, 0], BB[:, 1], out=dev)
+        dev *= inv_w2
         amp += dev
         np.sqrt(amp, out=amp)
-        np.sqrt(dev, out=dev)
         DEVt = S.get("DEVt", (n, m))
         np.subtract(EQt, twist, out=DEVt)
         devt = S.get("devt", (n, m))
         np.abs(DEVt, out=devt)
+        np.add(amp, devt, out=amp)  # |dtheta_i| + |dphi_i| of eq 28
+
+        # Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
+        # a bent segment catches less wind, on a shorter lever). Evaluated on the swinging blade
+        # of the previous frame, that feedback flutters (the target jumps frame to frame). As
+        # blade.rest_angles does for gravity, we solve the statics by under-relaxed fixed-point
+        # iteration, one iteration per step, on a persistent estimate E whose shape the loads
+        # act on: E += (eq(E) - E) r, r = 1/2 per reference frame (never more than 1/2, the
+        # iteration's stable factor). E is the target of the smooth update (eqs 25-27) and the
+        # position the upper joints vibrate about (eq 29).
+        r = F32(min(0.5, -math.expm1(-math.log(2.0) * dt / REFERENCE_DT)))
+        E, Et = st.bend_eq_t[:, :, a:b], st.twist_eq_t[:, a:b]
+        np.subtract(EQ, E, out=BB)
+        BB *= r
+        E += BB
+        np.subtract(EQt, Et, out=dev)
+        dev *= r
+        Et += dev
+        EQ, EQt = E, Et
+        np.subtract(EQ, bend, out=DEV)
+        np.multiply(DEV, DEV, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=dev)  # |E - theta|: drives the smooth update (eq 26)
+        np.sqrt(dev, out=dev)
+        np.subtract(EQt, twist, out=DEVt)
+        np.abs(DEVt, out=devt)
 
         # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
-        np.add(amp, devt, out=e)
         nb = S.get("nb", (m,))
-        np.add.reduce(e, axis=0, out=nb)
+        np.add.reduce(amp, axis=0, out=nb)
         nb *= F32(0.5 / n)
         nb -= F32(self.boundary_k)
         nb *= F32(-self.boundary_lambda)
@@ -512,6 +548,7 @@ class BladeSolver:
         np.exp(nb, out=nb)
         nb *= F32(n)
         np.minimum(nb, F32(n), out=nb)
+        np.copyto(self.n_boundary[a:b], nb)
         osc = S.get("osc", (n, m), dtype=np.bool_)  # joints above n_boundary oscillate (eq 29)
         np.greater(self._level, nb, out=osc)
         np.logical_and(osc, allowed[:, a:b], out=osc)

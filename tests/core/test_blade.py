@@ -1,0 +1,69 @@
+"""Rest shape of a blade (paper III.A, eqs 1-6): stiffness along the blade and gravity droop."""
+
+import numpy as np
+import pytest
+
+from grass_addon import blade
+
+N = 5
+OFFSET = 0.05  # x of eq 1 (schema default)
+DENSITY = 0.003  # rho_grass, kg/m (schema default)
+MU_ROOT = 8.0e-4  # mu_root of eq 1 (schema default)
+
+
+def rest(length, mu_root=MU_ROOT, inclination=np.radians(10.0), density=DENSITY):
+    """Absolute rest tilt of each segment of one blade, and its joint angles."""
+    seg = np.array([length / N])
+    mu = blade.joint_stiffness(np.array([mu_root]), seg, N, OFFSET)
+    theta = blade.rest_angles(np.array([inclination]), seg, mu, density, iterations=200)
+    return blade.rest_tilt(np.array([inclination]), theta)[0], theta[0], mu[0]
+
+
+def test_root_is_stiffer_than_tip_eq1():
+    mu = blade.joint_stiffness(np.array([MU_ROOT]), np.array([0.064]), N, OFFSET)[0]
+    # eq 1: mu(L) = mu_root / (L + x), falling with the distance from the root
+    assert np.all(np.diff(mu) < 0)
+    assert mu[0] == pytest.approx(MU_ROOT / OFFSET, rel=1e-5)
+    assert mu[3] == pytest.approx(MU_ROOT / (3 * 0.064 + OFFSET), rel=1e-5)
+
+
+def test_zero_inclination_stays_upright():
+    # Fig. 5: an upright blade has no lever for its weight, so gravity cannot bend it
+    tilt, theta, _ = rest(0.32, inclination=0.0)
+    assert np.allclose(theta, 0.0) and np.allclose(tilt, 0.0)
+
+
+def test_longer_blades_droop_more():
+    tips = [rest(length)[0][-1] for length in (0.15, 0.32, 0.6)]
+    assert tips[0] < tips[1] < tips[2]
+
+
+def test_softer_blades_droop_more():
+    tips = [rest(0.32, mu_root=mu)[0][-1] for mu in (3.2e-3, 8.0e-4, 3.0e-4)]
+    assert tips[0] < tips[1] < tips[2]
+
+
+def test_droop_grows_towards_the_tip():
+    # each joint only adds bend in the direction of the lean: the tilt increases root -> tip
+    tilt, theta, _ = rest(0.32)
+    assert np.all(theta >= 0) and np.all(np.diff(tilt) > 0)
+
+
+def test_default_blade_has_a_natural_droop():
+    # the schema defaults are chosen for a natural look: a 0.32 m blade's tip near 25 degrees
+    tilt, _, _ = rest(0.32, inclination=np.radians(9.0))  # the mean of the random alpha in [0, 18]
+    assert 12.0 < np.degrees(tilt[-1]) < 40.0
+
+
+def test_converged_statics_is_a_torque_balance():
+    # eqs 3-4 and 6: at rest mu_i theta_i equals the torque of the weight above joint i, with
+    # the exact lever (horizontal distance from joint i to each segment's centre)
+    length = 0.4
+    tilt, theta, mu = rest(length)
+    seg = length / N
+    weight = DENSITY * seg * blade.GRAVITY  # eq 2
+    dx = seg * np.sin(tilt)
+    joint_x = np.concatenate([[0.0], np.cumsum(dx)[:-1]])
+    centre_x = joint_x + 0.5 * dx
+    torque = np.array([weight * np.sum(centre_x[i:] - joint_x[i]) for i in range(N)])
+    assert np.allclose(mu * theta, torque, rtol=2e-3, atol=1e-9)

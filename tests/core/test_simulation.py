@@ -1,0 +1,152 @@
+"""Deterministic time (seek, preroll, checkpoints) and the shared cell data of eqs 33-34."""
+
+import math
+
+import numpy as np
+import pytest
+
+from grass_addon import schema
+from grass_addon.celldata import card_offset, cell_data
+from grass_addon.layout import build_layout
+from grass_addon.simulation import Simulation
+from grass_addon.wind import WindField
+
+BASE = {"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4, "render.fps": 24,
+        "render.frame_start": 1, "simulation.preroll": 0.5, "simulation.checkpoint_interval": 6}
+
+
+class GustyWind:
+    """A small stand-in wind (anything with sample(t) drives a Simulation): a smooth, varying
+    gust along +X, different in every cell."""
+
+    def __init__(self, n_cells):
+        self.phase = np.linspace(0.0, 3.0, n_cells)
+
+    def sample(self, t):
+        speed = 5.0 + 3.0 * np.sin(2.0 * t + self.phase)
+        out = np.zeros((self.phase.size, 2), dtype=np.float32)
+        out[:, 0] = speed
+        out[:, 1] = 0.5 * np.cos(3.0 * t + self.phase)
+        return out
+
+
+def make(overrides=None, wind="field", **kw):
+    params = schema.defaults().replace({**BASE, **(overrides or {})})
+    layout = build_layout(params)
+    field = WindField(layout, params) if wind == "field" else GustyWind(layout.n_cells)
+    return layout, params, Simulation(layout, params, field, **kw)
+
+
+def test_time_and_preroll_start():
+    _, params, sim = make({"render.frame_start": 10, "render.fps": 25, "simulation.preroll": 2.0})
+    assert sim.time(10) == 0.0 and sim.time(35) == pytest.approx(1.0) and sim.time(5) == pytest.approx(-0.2)
+    assert sim.start_frame == 10 - 50
+    assert sim.time(sim.start_frame) == pytest.approx(-2.0)  # starts from rest at t = -preroll
+
+
+def test_frames_before_the_start_show_the_initial_state():
+    _, _, sim = make(wind="gusty")
+    sim.seek(30)
+    assert sim.state.bend.any()
+    for frame in (sim.start_frame, sim.start_frame - 100):
+        sim.seek(frame)
+        assert sim.frame == frame
+        assert not sim.state.bend.any() and not sim.state.twist.any()
+    sim.seek(sim.start_frame + 1)
+    assert sim.state.bend.any()
+
+
+def test_preroll_bends_the_grass_before_the_first_frame():
+    _, params, sim = make({"simulation.preroll": 2.0}, wind="gusty")
+    sim.seek(params.render.frame_start)
+    assert np.degrees(np.linalg.norm(sim.state.bend.sum(axis=1), axis=1)).mean() > 10.0
+
+
+@pytest.mark.parametrize("wind", ["field", "gusty"])
+def test_state_is_the_same_whichever_path_reaches_a_frame(wind):
+    _, _, stepped = make(wind=wind)
+    target = 40
+    for frame in range(stepped.start_frame, target + 1):
+        stepped.seek(frame)
+    reference = stepped.state.copy()
+    reference_wind = stepped.cell_wind.copy()
+
+    _, _, direct = make(wind=wind)
+    direct.seek(target)
+    assert direct.state.equals(reference)
+    assert np.array_equal(direct.cell_wind, reference_wind)
+
+    # backwards (restores a checkpoint and steps on), to before the start, and forwards again
+    for frame in (target + 17, 13, target, -500, 5, target):
+        stepped.seek(frame)
+    assert stepped.frame == target
+    assert stepped.state.equals(reference)
+    assert np.array_equal(stepped.state.bend, reference.bend)  # the public arrays too
+
+
+def test_seeking_back_uses_checkpoints():
+    _, _, sim = make(wind="gusty")
+    sim.seek(60)
+    saved = sim.checkpoint_frames
+    interval = 6
+    assert saved and all((f - sim.start_frame) % interval == 0 for f in saved)
+    steps = []
+    original = sim.solver.step
+    sim.solver.step = lambda *a, **k: (steps.append(1), original(*a, **k))
+    sim.seek(45)
+    nearest = max(f for f in saved if f <= 45)
+    assert len(steps) == 45 - nearest  # stepped from the nearest checkpoint, not from the start
+
+
+def test_checkpoint_memory_is_capped_by_thinning():
+    _, _, free = make(wind="gusty")
+    free.seek(100)
+    size = free.state.nbytes
+    _, _, capped = make(wind="gusty", max_checkpoint_bytes=4 * size)
+    capped.seek(100)
+    assert len(capped.checkpoint_frames) * size <= 4 * size
+    assert len(capped.checkpoint_frames) >= 2
+    assert capped.state.equals(free.state)
+    capped.seek(37)
+    free.seek(37)
+    assert capped.state.equals(free.state)
+
+
+def test_cell_wind_is_the_wind_of_the_current_frame():
+    layout, params, sim = make()
+    other = WindField(layout, params)
+    for frame in (12, 3, 30, sim.start_frame - 5):
+        sim.seek(frame)
+        assert np.array_equal(sim.cell_wind, other.sample(sim.time(frame)))
+        assert sim.cell_wind.shape == (layout.n_cells, 2) and sim.cell_wind.dtype == np.float32
+
+
+def test_card_offset_follows_eq_34():
+    layout, _, sim = make(wind="gusty")
+    sim.seek(20)
+    data = cell_data(layout, sim)
+    assert data.bend is sim.state.bend and data.twist is sim.state.twist  # shared, not copied
+    assert data.wind is sim.cell_wind
+    L = layout.card_height
+    total = sim.state.bend.sum(axis=1)  # (n_cells, 2) the sum of the bends
+    omega = np.linalg.norm(total, axis=1)
+    off = data.card_offset
+    assert off.shape == (layout.n_cells, 3) and off.dtype == np.float32
+    # |horizontal| = L sin(omega), vertical = L cos(omega) - L (eq 34, Z up)
+    assert np.allclose(np.linalg.norm(off[:, :2], axis=1), L * np.sin(omega), atol=1e-5)
+    assert np.allclose(off[:, 2], L * np.cos(omega) - L, atol=1e-5)
+    # horizontal direction = Normal(V): the summed bend's direction, i.e. along the wind
+    direction = off[:, :2] / np.linalg.norm(off[:, :2], axis=1, keepdims=True)
+    assert np.allclose(direction, total / omega[:, None], atol=1e-4)
+    # the card's top stays on a circle of radius L around its bottom edge: a rotation, no stretch
+    top = off + np.stack([np.zeros_like(L), np.zeros_like(L), L], axis=1)
+    assert np.allclose(np.linalg.norm(top, axis=1), L, atol=1e-5)
+
+
+def test_card_offset_at_rest_and_at_a_right_angle():
+    L = np.array([0.3, 0.5], dtype=np.float32)
+    at_rest = card_offset(L, np.zeros((2, 2), dtype=np.float32))
+    assert np.array_equal(at_rest, np.zeros((2, 3), dtype=np.float32))
+    flat = card_offset(L, np.array([[0.0, math.pi / 2], [math.pi / 2, 0.0]], dtype=np.float32))
+    # omega = 90 degrees: the top moves L sideways (first cell along +Y, second along +X) and L down
+    assert np.allclose(flat, [[0.0, 0.3, -0.3], [0.5, 0.0, -0.5]], atol=1e-6)

@@ -41,7 +41,7 @@ class Camera:
     aspect: float
 
     @classmethod
-    def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0)) -> "Camera":
+    def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0)) -> Camera:
         """Camera at ``position`` looking at ``target`` (headless scripts and tests)."""
         position = np.asarray(position, dtype=np.float64)
         return cls(position, np.asarray(target, dtype=np.float64) - position,

@@ -155,7 +155,8 @@ def print_summary(params, frames: int, summary: dict, trace_path: str | None, la
     lines = [
         "Windgrass simulate",
         f"  field      {f.blocks_x} x {f.blocks_y} blocks of {f.cells_per_block} x {f.cells_per_block} cells "
-        f"({layout_info['cells']:,} cells of {f.cell_size:g} m, {layout_info['size_x']:g} x {layout_info['size_y']:g} m)",
+        f"({layout_info['cells']:,} cells of {f.cell_size:g} m, "
+        f"{layout_info['size_x']:g} x {layout_info['size_y']:g} m)",
         f"  blades     {layout_info['blades']:,} ({f.blades_per_cell} per cell, {params.blade.segments} segments)",
         f"  wind       {w.type}, {w.speed:g} m/s towards {w.direction:g} deg, turbulence {w.turbulence:g} m/s",
         f"  frames     {frames} from frame {params.render.frame_start} at {params.render.fps} fps "

@@ -132,6 +132,7 @@ class _Constants:
         self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
         self._scratch: list[dict[str, np.ndarray]] = []
         self._lock = threading.Lock()
+        self.call_lock = threading.Lock()
 
     def scratch(self, index: int) -> dict[str, np.ndarray]:
         """Working arrays of worker `index` for chunks of up to k_max blocks (allocated once)."""
@@ -220,13 +221,14 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
         for start, ids in part:
             _blade_chunk(layout, const, s, ids, bend, twist, counts, view[start:start + len(ids)])
 
-    if len(chunks) == 1 or THREADS < 2:
-        work(0, chunks)
-    else:
-        half = (len(chunks) + 1) // 2
-        future = _pool().submit(work, 1, chunks[half:])
-        work(0, chunks[:half])
-        future.result()
+    with const.call_lock:  # the scratch arrays serve one call at a time
+        if len(chunks) == 1 or THREADS < 2:
+            work(0, chunks)
+        else:
+            half = (len(chunks) + 1) // 2
+            future = _pool().submit(work, 1, chunks[half:])
+            work(0, chunks[:half])
+            future.result()
     return result
 
 

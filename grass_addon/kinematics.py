@@ -123,10 +123,11 @@ class _Constants:
         # rest tilt vector blade_rest_tilt * d_b, (nb, 2, n, num, P)
         self.rest = arrange(np.stack([tilt * cos_f, tilt * sin_f], axis=1))
         self.seg = arrange(layout.blade_length.astype(np.float64)[:, None, None] / n)[:, 0]  # (nb, 1, num, P)
-        taper = 1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n
-        half_w = 0.5 * layout.blade_width.astype(np.float64)[:, None] * taper[None, :]  # (B, n+1)
-        # (w/2 sin f, w/2 cos f) per joint: the side offset is built from these and the twist
-        self.hw_sc = arrange(np.stack([half_w * sin_f, half_w * cos_f], axis=1))  # (nb, 2, n+1, num, P)
+        # linear taper of the width along the blade, per joint (multiplies the per-cell cos/sin Phi)
+        self.taper = (1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n).astype(np.float32)
+        half_w = 0.5 * layout.blade_width.astype(np.float64)[:, None]  # (B, 1)
+        # (w/2 sin f, w/2 cos f) at the root: the side offset is built from these and the twist
+        self.w_sc = arrange(np.stack([half_w * sin_f, half_w * cos_f], axis=1))  # (nb, 2, 1, num, P)
         self.root = arrange(layout.blade_root.astype(np.float64)[:, :, None])  # (nb, 3, 1, num, P)
         self.slot = np.arange(num, dtype=np.int32)[None, :, None]  # (1, num, 1)
         self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
@@ -254,9 +255,12 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     sphi, cphi = s["sphi"][:k], s["phi"][:k]
     np.sin(phi, out=sphi[:, 0, :, 0])
     np.cos(phi, out=phi)
+    taper = const.taper[None, :, None]  # width taper folded into the per-cell factors
+    np.multiply(sphi[:, 0, :, 0], taper, out=sphi[:, 0, :, 0])
+    np.multiply(phi, taper, out=phi)
 
     rest, seg = _select(const.rest, ids), _select(const.seg, ids)
-    hw_sc, root = _select(const.hw_sc, ids), _select(const.root, ids)
+    w_sc, root = _select(const.w_sc, ids), _select(const.root, ids)
     if counts is not None:  # eq 9: slots >= N collapse onto the root
         mask = s["mask"][:k]
         np.less(const.slot, counts[cell_ids][:, None, :], out=mask[:, 0])
@@ -287,8 +291,8 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     # Side offset h = -s w/2 = (w/2 sin(f + Phi), -w/2 cos(f + Phi)) by the angle-sum formulas:
     # sin(f+Phi) = sin f cos Phi + cos f sin Phi, cos(f+Phi) = cos f cos Phi - sin f sin Phi.
     h, g = s["h"][:k], s["g"][:k]
-    np.multiply(hw_sc, cphi, out=h)  # (w/2 sin f cos Phi, w/2 cos f cos Phi)
-    np.multiply(hw_sc[:, ::-1], sphi, out=g)  # (w/2 cos f sin Phi, w/2 sin f sin Phi)
+    np.multiply(w_sc, cphi, out=h)  # (w/2 sin f cos Phi, w/2 cos f cos Phi), tapered
+    np.multiply(w_sc[:, ::-1], sphi, out=g)  # (w/2 cos f sin Phi, w/2 sin f sin Phi), tapered
     np.add(h[:, 0], g[:, 0], out=h[:, 0])
     np.subtract(g[:, 1], h[:, 1], out=h[:, 1])
     if counts is not None:

@@ -43,6 +43,7 @@ STIFFEN_LIMIT = 1.0  # |bend| (rad) beyond which eq 23's nonlinear stiffening st
 TWIST_LIMIT = 0.5 * math.pi - 0.05  # |twist| < pi/2: a face cannot turn past edge-on to its rest
 AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its own
 EPS = 1.0e-12
+RELAX_GAIN = 3.0  # slope of the reconfigured equilibrium per radian of it (see _step_chunk)
 
 F32 = np.float32
 
@@ -352,7 +353,6 @@ class BladeSolver:
         n, m = self.n, b - a
         # the loads act on the shape of the equilibrium estimate E, not on the swinging blade
         bend = self.state.bend_eq_t[:, :, a:b]
-        twist = self.state.twist_eq_t[:, a:b]
         rest = self._rest[:, :, a:b]
         area = self._area[:, a:b]
 
@@ -368,11 +368,14 @@ class BladeSolver:
         np.maximum(speed, _row(S, "tiny_speed", 1e-6, m), out=speed)
         w_hat = S.get("w_hat", (2, m))  # horizontal unit wind direction w (zero without wind)
         np.divide(W, speed, out=w_hat)
-        # 2 delta0: twice the angle from the rest face normal to the wind (twist, eqs 19-20)
-        two_delta = S.get("two_delta", (m,))
-        np.arctan2(W[1], W[0], out=two_delta)
-        two_delta -= self._facing[a:b]
-        two_delta *= F32(2.0)
+        # delta0: angle from the rest face normal (a line: both sides face) to the wind line,
+        # in [-pi/2, pi/2) (twist, eqs 19-20)
+        delta0 = S.get("delta0", (m,))
+        np.arctan2(W[1], W[0], out=delta0)
+        delta0 -= self._facing[a:b]
+        delta0 += F32(0.5 * math.pi)
+        np.mod(delta0, F32(math.pi), out=delta0)
+        delta0 -= F32(0.5 * math.pi)
         Av = S.get("Av", (n, m))  # v^2 rho_wind l_length l_width
         np.multiply(area, v2, out=Av)
 
@@ -384,7 +387,6 @@ class BladeSolver:
         proj = S.get("proj", (m,))
         cos_phi = S.get("cos_phi", (m,))
         sin_phi = S.get("sin_phi", (m,))
-        cum_twist = S.get("cum_twist", (m,))
         F = S.get("F", (n, m))  # F_i^bend, eq 17
         G = S.get("G", (n, m))  # per-segment twist torque / l_length, eq 20
         CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
@@ -394,10 +396,8 @@ class BladeSolver:
         for j in range(n):
             if j == 0:
                 np.copyto(B, bend[0])
-                np.copyto(cum_twist, twist[0])
             else:
                 B += bend[j]
-                cum_twist += twist[j]
             np.add(rest[j], B, out=T)  # absolute tilt vector T_j
             np.multiply(T, T, out=TT)
             np.add(TT[0], TT[1], out=tilt)
@@ -417,18 +417,12 @@ class BladeSolver:
             # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
             # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
             np.multiply(Av[j], sin_phi, out=F[j])
-            # eqs 19-20: F_twist = v^2 rho l l_w cos(phi), lever l sin(theta + theta_base) with
-            # theta + theta_base = the segment's absolute tilt |T_j|. The paper gives no sign:
-            # the torque turns the face towards broadside to the wind and vanishes there, so we
-            # weight it by sin(2 delta), delta = angle from the face normal (facing + twist) to
-            # the wind (self-limiting: zero broadside, changes sign past it).
-            np.multiply(cum_twist, F32(-2.0), out=tmp)
-            tmp += two_delta
-            np.sin(tmp, out=tmp)
+            # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
+            # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is
+            # set in _step_chunk).
             np.abs(cos_phi, out=cos_phi)
             cos_phi *= Av[j]
-            cos_phi *= sin_tilt
-            np.multiply(cos_phi, tmp, out=G[j])
+            np.multiply(cos_phi, sin_tilt, out=G[j])
 
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),
@@ -452,7 +446,7 @@ class BladeSolver:
         seg = self._seg[a:b]
         Mb *= seg
         Mt *= seg
-        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Fs": Fs, "speed": speed}
+        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Fs": Fs, "speed": speed, "delta0": delta0}
 
     def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
                     allowed: np.ndarray, S: _Scratch) -> None:
@@ -482,11 +476,27 @@ class BladeSolver:
         _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of EQ stays in bounds
         EQ = S.get("EQ", (n, 2, m))
         np.multiply(e[:, None, :], w_hat[None, :, :], out=EQ)
-        # twisting: the same process with stiffness twist_stiffness * mu_i(t)
+        # Twisting: the same process with stiffness K_t = twist_stiffness * mu_i(t). The paper
+        # gives the twisting torque's size (eq 20) but not its direction: it turns the face
+        # towards broadside to the wind and vanishes there, like M_t sin(2 (delta - phi)) with
+        # delta the angle from the face normal to the wind. Linearised, joint i's equilibrium
+        # turns the face by the fraction s_i = 2 M_t / (K_t + 2 M_t) of the angle still left
+        # by the joints below: phi_eq_i = s_i (delta0 - sum_{k<i} phi_eq_k). Self-limiting (the
+        # face never turns past broadside) and independent of the current twist, so it needs
+        # no fixed-point iteration (a twist-dependent torque on cumulative joints flutters).
         Kt = S.get("Kt", (n, m))
         np.multiply(mu, F32(self.twist_ratio), out=Kt)
         EQt = S.get("EQt", (n, m))
-        np.divide(Mt, Kt, out=EQt)
+        left = S.get("left", (m,))
+        np.copyto(left, forcing["delta0"])
+        Mt *= F32(2.0)
+        for i in range(n):
+            s_i = EQt[i]
+            np.add(Kt[i], Mt[i], out=s_i)
+            np.maximum(s_i, _row(S, "tiny_k", 1e-20, m), out=s_i)
+            np.divide(Mt[i], s_i, out=s_i)
+            s_i *= left
+            left -= s_i
         _clip(EQt, twist_lo, twist_hi)
 
         # Deviation from the equilibrium: the angles "relative to the equilibrium position" of
@@ -519,16 +529,22 @@ class BladeSolver:
         # of the previous frame, that feedback flutters (the target jumps frame to frame). As
         # blade.rest_angles does for gravity, we solve the statics by under-relaxed fixed-point
         # iteration, one iteration per step, on a persistent estimate E whose shape the loads
-        # act on: E += (eq(E) - E) r, r = 1/2 per reference frame (never more than 1/2, the
-        # iteration's stable factor). E is the target of the smooth update (eqs 25-27) and the
-        # position the upper joints vibrate about (eq 29).
-        r = F32(min(0.5, -math.expm1(-math.log(2.0) * dt / REFERENCE_DT)))
+        # act on: E += (eq(E) - E) r. The iteration is stable while d(eq)/dE > 1 - 2 / r, and
+        # that slope is about -RELAX_GAIN |eq| (the load, hence its loss by reconfiguration,
+        # grows with the bend it causes), so r = 1 / (1 + RELAX_GAIN |eq|) per reference frame
+        # (scaled by dt / dt_ref for shorter steps): a full step when the wind drops (eq = 0,
+        # the blade is released at once and swings back), short steps in a storm.
+        relax = S.get("relax", (n, m))
+        np.abs(e, out=relax)
+        relax *= F32(RELAX_GAIN)
+        relax += F32(1.0)
+        np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
         E, Et = st.bend_eq_t[:, :, a:b], st.twist_eq_t[:, a:b]
         np.subtract(EQ, E, out=BB)
-        BB *= r
+        BB *= relax[:, None, :]
         E += BB
         np.subtract(EQt, Et, out=dev)
-        dev *= r
+        dev *= relax
         Et += dev
         EQ, EQt = E, Et
         np.subtract(EQ, bend, out=DEV)

@@ -180,8 +180,10 @@ def test_frame_change_sways_tips_and_keeps_roots(bridge):
     before = _positions(_owned(item, "blades")[0]).reshape(-1, n + 1, 2, 3)
     scene.frame_set(30)
     after = _positions(_owned(item, "blades")[0]).reshape(-1, n + 1, 2, 3)
-    # Roots are planted: joint 0 does not move.
-    np.testing.assert_allclose(after[:, 0], before[:, 0], atol=1e-6)
+    # Roots are planted: the centre of joint 0 stays on the ground where it was (the root edge
+    # may turn about it with the blade's twist, so its two corners can move).
+    np.testing.assert_allclose(after[:, 0].mean(axis=1), before[:, 0].mean(axis=1), atol=1e-5)
+    assert np.abs(after[:, 0, :, 2]).max() < 1e-6
     # Tips move in a 4.4 m/s breeze with 1.2 m/s turbulence over 1.2 s: by millimetres at least.
     tip_motion = np.linalg.norm(after[:, -1] - before[:, -1], axis=-1)
     assert tip_motion.max() > 1e-3
@@ -291,15 +293,17 @@ def test_renders_show_swaying_grass(bridge, engine, tmp_path):
     # The camera looks down at the field: the lower third of the image is field, the top rows sky.
     field, sky = first[: RES_Y // 3], first[-6:]
     green = (field[..., 1] > field[..., 0]) & (field[..., 1] > field[..., 2])
-    print(f"{engine}: green share {green.mean():.3f}")
     assert green.mean() > 0.5, "the field should read as green grass"
     sky_green = (sky[..., 1] > sky[..., 0]) & (sky[..., 1] > sky[..., 2])
     assert sky_green.mean() < 0.1, "the world is grey-blue, not grass"
-    # The grass sways between frames 1 and 40; the sky does not change.
-    field_change = np.abs(second[: RES_Y // 3] - field).mean()
-    sky_change = np.abs(second[-6:] - sky).mean()
-    print(f"{engine}: change field {field_change:.4f} sky {sky_change:.4f}")
-    assert field_change > 0.005 and field_change > 3 * sky_change
+    # The grass sways between frames 1 and 40 (1.6 s of a 4.4 m/s breeze): thin blades cross
+    # pixels, so a clear share of the field's pixels changes; the sky does not change (Cycles'
+    # noise pattern is seeded the same in both frames).
+    diff = np.abs(second - first).max(axis=-1)
+    changed = (diff[: RES_Y // 3] > 0.02).mean()
+    print(f"{engine}: changed share of field pixels {changed:.3f}, sky {diff[-6:].mean():.4f}")
+    assert changed > 0.03
+    assert diff[: RES_Y // 3].mean() > 5.0 * diff[-6:].mean()
 
 
 # --------------------------------------------------------------------------------------------

@@ -420,9 +420,10 @@ class BladeSolver:
             # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
             # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is
             # set in _step_chunk).
-            np.abs(cos_phi, out=cos_phi)
-            cos_phi *= Av[j]
+            # |cos(phi) sin|T||: a lever is a distance (|T| can pass pi only in absurd storms)
             np.multiply(cos_phi, sin_tilt, out=G[j])
+            np.abs(G[j], out=G[j])
+            G[j] *= Av[j]
 
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),

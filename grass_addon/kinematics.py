@@ -212,6 +212,10 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
     const = _constants(layout)
     bend = np.asarray(cells.bend, dtype=np.float32)
     twist = np.asarray(cells.twist, dtype=np.float32)
+    shape = (layout.n_cells, layout.segments)
+    if bend.shape != shape + (2,) or twist.shape != shape:
+        raise ValueError(f"cell data must have bend {shape + (2,)} and twist {shape}, "
+                         f"got {bend.shape} and {twist.shape}")
     counts = None if blade_count is None else np.asarray(blade_count)
     per_block = layout.blades_per_block * (layout.segments + 1) * 2
     chunks = _chunks(blocks, const.k_max)

@@ -56,7 +56,8 @@ class SolverState:
 
     ``bend`` (n_cells, n, 2), ``bend_vel`` (n_cells, n, 2), ``twist`` (n_cells, n), ``twist_vel``.
     Internally the state is joint-major (``*_t`` arrays: (n, 2, n_cells) and (n, n_cells)); the
-    public arrays are transposed copies made on first access after a change.
+    public arrays are transposed copies, refreshed in place on first access after a change
+    (copy them to keep a frame's values).
     """
 
     def __init__(self, n_cells: int, segments: int):
@@ -69,6 +70,7 @@ class SolverState:
         self.bend_eq_t = np.zeros((segments, 2, n_cells), dtype=F32)
         self.twist_eq_t = np.zeros((segments, n_cells), dtype=F32)
         self._views: dict[str, np.ndarray] = {}
+        self._fresh: set[str] = set()
         self._lock = threading.Lock()
 
     @property
@@ -80,22 +82,23 @@ class SolverState:
         return self.twist_t.shape[0]
 
     def changed(self) -> None:
-        """Forget the public copies (call after writing the ``*_t`` arrays)."""
-        self._views = {}
+        """Mark the public copies stale (call after writing the ``*_t`` arrays)."""
+        self._fresh = set()
 
     def _public(self, name: str) -> np.ndarray:
-        view = self._views.get(name)
-        if view is None:
+        if name not in self._fresh:
             with self._lock:
-                view = self._views.get(name)
-                if view is None:
+                if name not in self._fresh:
                     src = getattr(self, name + "_t")
+                    view = self._views.get(name)
+                    if view is None:  # allocated once, refreshed in place after each change
+                        view = np.empty((src.shape[-1],) + src.shape[:-1], dtype=F32)
+                        self._views[name] = view
                     rows = src.reshape(-1, src.shape[-1])  # (n * 2, C) or (n, C)
-                    flat = np.empty(rows.shape[::-1], dtype=F32)
-                    np.copyto(flat, rows.T)  # one 2-D transpose: (C, n * 2) is (C, n, 2)
-                    view = flat.reshape((src.shape[-1],) + src.shape[:-1])
-                    self._views[name] = view
-        return view
+                    flat = view.reshape(src.shape[-1], -1)  # (C, n * 2): the same memory
+                    np.copyto(flat, rows.T)
+                    self._fresh.add(name)
+        return self._views[name]
 
     @property
     def bend(self) -> np.ndarray:
@@ -457,7 +460,6 @@ class BladeSolver:
         twist, twist_vel = st.twist_t[:, a:b], st.twist_vel_t[:, a:b]
         forcing = self._forcing(a, b, wind, S)
         Mb, Mt, w_hat = forcing["Mb"], forcing["Mt"], forcing["w_hat"]
-        Fs, speed = forcing["Fs"], forcing["speed"]
 
         # eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)
         BB = S.get("BB", (n, 2, m))
@@ -614,28 +616,10 @@ class BladeSolver:
             X = S.get("X", (nj, 2, m))
             V = S.get("V", (nj, 2, m))
             TMP = S.get("TMP", (nj, 2, m))
-            tmpn = S.get("tmpn", (nj, m))
             selb, keepb = sel[:, None, :], keep[:, None, :]
             np.multiply(kI, F32(h), out=q)
             np.multiply(kI, F32(-h * self.beta), out=p)
             p += F32(1.0 - h * self.alpha)
-            # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
-            # the relative speed (v - u) of a segment moving at u = theta' h_ij, and linearising
-            # F = rho (v - u)^2 A sin(phi) gives the damping torque (2 / v) sum_j F_j h_ij^2
-            # theta', which we bound from below by 2 M_i^2 / (S_i v) (Cauchy-Schwarz, S_i =
-            # sum_{j>=i} F_j). It makes a blade in strong wind follow gusts smoothly while it
-            # sways freely once the wind stops. It is integrated implicitly (stable for any v):
-            # v_new = (p v - q x) / (1 + h c_aero / I).
-            ca = S.get("ca", (nj, m))
-            np.multiply(Mb[js], Mb[js], out=ca)
-            np.maximum(Fs[js], _row(S, "tiny_force", 1e-20, m), out=tmpn)
-            ca /= tmpn
-            ca *= self._inv_inertia[js, a:b]
-            ca /= speed
-            ca *= F32(2.0 * h)
-            ca += F32(1.0)
-            q /= ca
-            p /= ca
             np.negative(DEV[js], out=X)
             np.copyto(V, vel[js])
             qb, pb = q[:, None, :], p[:, None, :]

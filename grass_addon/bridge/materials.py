@@ -256,7 +256,8 @@ def update_materials(params, ground=None, cards=None, card_tip_colour=(0.16, 0.3
             _set(kt, far, "From Max")
         grass = ground.node_tree.nodes.get(NODE_GROUND_GRASS)
         if grass is not None:
-            grass.outputs[0].default_value = (*[0.8 * c for c in colour], 1.0)
+            # Seen from afar a sward is darker than one sunlit blade (self-shadowing): 0.6 x.
+            grass.outputs[0].default_value = (*[0.6 * c for c in colour], 1.0)
     if cards is not None and cards.node_tree is not None:
         tint = cards.node_tree.nodes.get(NODE_CARD_TINT)
         if tint is not None:

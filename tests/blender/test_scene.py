@@ -171,6 +171,22 @@ def test_field_add_builds_collection_ground_and_slot_pools(bridge):
     assert all(not m.use_backface_culling for m in (blades[0].active_material, card_mat))
 
 
+def test_ground_material_follows_the_lod_distances(bridge):
+    """K_t of eq 10 is computed in the ground shader from the view distance: its Map Range goes
+    from d_s1 to d_s2 and follows the settings; with the LOD off the ground texture never shows."""
+    from windgrass.grass_addon.bridge import materials
+
+    scene, item = _add_field()
+    ground = [m for m in bpy.data.materials if m.get("wg_role") == "ground_material"][0]
+    kt = ground.node_tree.nodes[materials.NODE_KT]
+    assert kt.clamp
+    assert (kt.inputs["From Min"].default_value, kt.inputs["From Max"].default_value) == (25.0, 40.0)
+    item.lod.card_near = 30.0  # the property update rewrites the field and its materials
+    assert kt.inputs["From Min"].default_value == pytest.approx(30.0)
+    item.lod.enabled = False
+    assert kt.inputs["From Min"].default_value >= materials.FAR_AWAY
+
+
 def test_frame_change_sways_tips_and_keeps_roots(bridge):
     _, runtime = bridge
     scene, item = _add_field()

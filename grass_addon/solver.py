@@ -48,7 +48,7 @@ RELAX_GAIN = 3.0  # slope of the reconfigured equilibrium per radian of it (see 
 F32 = np.float32
 
 
-_STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t", "twist_eq_t")
+_STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t")
 
 
 class SolverState:
@@ -65,10 +65,9 @@ class SolverState:
         self.bend_vel_t = np.zeros((segments, 2, n_cells), dtype=F32)
         self.twist_t = np.zeros((segments, n_cells), dtype=F32)
         self.twist_vel_t = np.zeros((segments, n_cells), dtype=F32)
-        # The equilibrium estimate E (bend and twist) whose shape the wind loads act on (see
+        # The equilibrium estimate E whose shape the wind loads act on (see
         # BladeSolver._step_chunk); part of the state so that every path to a frame agrees.
         self.bend_eq_t = np.zeros((segments, 2, n_cells), dtype=F32)
-        self.twist_eq_t = np.zeros((segments, n_cells), dtype=F32)
         self._views: dict[str, np.ndarray] = {}
         self._fresh: set[str] = set()
         self._lock = threading.Lock()
@@ -222,7 +221,7 @@ class BladeSolver:
         self._inertia = inertia.astype(F32)
         self._inv_inertia = (1.0 / inertia).astype(F32)
         facing = np.asarray(layout.cell_facing, dtype=np.float64)
-        self._facing = facing.astype(F32)
+        self._face = np.stack([np.cos(facing), np.sin(facing)]).astype(F32)  # rest face normal
         rest = np.asarray(layout.cell_rest_tilt, dtype=np.float64).T  # (n, C)
         self._rest = np.stack([rest * np.cos(facing), rest * np.sin(facing)], axis=1).astype(F32)  # (n, 2, C)
         self._level = np.arange(1, n + 1, dtype=F32)[:, None]  # 1-based joint index of eq 28
@@ -373,12 +372,19 @@ class BladeSolver:
         np.divide(W, speed, out=w_hat)
         # delta0: angle from the rest face normal (a line: both sides face) to the wind line,
         # in [-pi/2, pi/2) (twist, eqs 19-20)
+        # = arctan2(cross * dot, dot^2) of the rest face normal f and the wind w (0 without wind)
         delta0 = S.get("delta0", (m,))
-        np.arctan2(W[1], W[0], out=delta0)
-        delta0 -= self._facing[a:b]
-        delta0 += F32(0.5 * math.pi)
-        np.mod(delta0, F32(math.pi), out=delta0)
-        delta0 -= F32(0.5 * math.pi)
+        dot, cross = S.get("dot", (m,)), S.get("cross", (m,))
+        face = self._face[:, a:b]
+        np.multiply(face[0], W[0], out=dot)
+        np.multiply(face[1], W[1], out=tmp)
+        dot += tmp
+        np.multiply(face[0], W[1], out=cross)
+        np.multiply(face[1], W[0], out=tmp)
+        cross -= tmp
+        cross *= dot
+        dot *= dot
+        np.arctan2(cross, dot, out=delta0)
         Av = S.get("Av", (n, m))  # v^2 rho_wind l_length l_width
         np.multiply(area, v2, out=Av)
 
@@ -542,20 +548,16 @@ class BladeSolver:
         relax *= F32(RELAX_GAIN)
         relax += F32(1.0)
         np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
-        E, Et = st.bend_eq_t[:, :, a:b], st.twist_eq_t[:, a:b]
+        # (The twist's equilibrium below does not depend on the twist: no iteration needed.)
+        E = st.bend_eq_t[:, :, a:b]
         np.subtract(EQ, E, out=BB)
         BB *= relax[:, None, :]
         E += BB
-        np.subtract(EQt, Et, out=dev)
-        dev *= relax
-        Et += dev
-        EQ, EQt = E, Et
+        EQ = E
         np.subtract(EQ, bend, out=DEV)
         np.multiply(DEV, DEV, out=BB)
         np.add(BB[:, 0], BB[:, 1], out=dev)  # |E - theta|: drives the smooth update (eq 26)
         np.sqrt(dev, out=dev)
-        np.subtract(EQt, twist, out=DEVt)
-        np.abs(DEVt, out=devt)
 
         # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
         nb = S.get("nb", (m,))

@@ -29,9 +29,10 @@ from . import scene as field_scene
 FREE = -1
 UNKNOWN = -2
 
-# Samples per frame when turning animated wind F-curves into keys (one per frame is what the
-# solver sees: the wind is read once per frame, paper IV).
-_EXTEND_FRAMES = 240  # past frame_end the key range grows in steps of this many frames
+# Animated wind F-curves become one key per frame (the solver reads the wind once per frame,
+# paper IV) from the simulation start to frame_end; past frame_end the range grows in steps of
+# this many frames, so the sampled keys (and the cache key) rarely change.
+_EXTEND_FRAMES = 240
 
 RUNTIMES: dict[tuple[str, str], "FieldRuntime"] = {}
 _WARNED: set[str] = set()

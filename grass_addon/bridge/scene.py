@@ -233,14 +233,19 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     uid = coll["wg_uid"]
     base = coll.name
     blade_mat, card_mat, ground_mat = field_materials(uid, base)
+    # Where the user placed the field (the ground carries it) survives the rebuild.
+    old_ground = _owned(bpy.data.objects, uid, ROLE_GROUND)
+    placement = (old_ground[0].matrix_basis.copy(), old_ground[0].parent) if old_ground else None
     _remove_objects(_owned(bpy.data.objects, uid, ROLE_BLADES) + _owned(bpy.data.objects, uid, ROLE_CARDS)
-                    + _owned(bpy.data.objects, uid, ROLE_GROUND))
+                    + old_ground)
 
     ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size))
     ground.data.materials.append(ground_mat)
     _tag(ground, uid, ROLE_GROUND)
     _tag(ground.data, uid, ROLE_GROUND)
     _link(coll, ground, None)
+    if placement is not None:
+        ground.matrix_basis, ground.parent = placement
 
     n_blade_slots, n_card_slots = pool_sizes(layout, params)
     blade_verts = blade_vertex_count(layout)

@@ -187,6 +187,24 @@ def test_ground_material_follows_the_lod_distances(bridge):
     assert kt.inputs["From Min"].default_value >= materials.FAR_AWAY
 
 
+def test_resizing_the_field_rebuilds_slots_where_the_user_placed_it(bridge):
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    field_scene.ground_object(item).location = (5.0, 0.0, 0.0)
+    item.field.blocks_x = 3  # the property update rebuilds: 3 x 2 blocks now
+    ground = field_scene.ground_object(item)
+    assert tuple(ground.location) == pytest.approx((5.0, 0.0, 0.0))
+    assert ground.dimensions.x == pytest.approx(2.4, abs=1e-5)
+    assert len(_owned(item, "blades")) == 6
+    assert len([m for m in bpy.data.meshes if m.users == 0]) == 0  # old slot meshes are gone
+    # Blades follow the ground: every blade root lies on the moved plane.
+    scene.frame_set(4)
+    world = np.array(_owned(item, "blades")[0].matrix_world)
+    roots = _positions(_owned(item, "blades")[0])[:: 2 * (runtime.get_runtime(scene, item).field.layout.segments + 1)]
+    roots_world = roots @ world[:3, :3].T + world[:3, 3]
+    assert roots_world[:, 0].min() >= 5.0 - 1.2 - 1e-4 and roots_world[:, 0].max() <= 5.0 + 1.2 + 1e-4
+
+
 def test_frame_change_sways_tips_and_keeps_roots(bridge):
     _, runtime = bridge
     scene, item = _add_field()

@@ -42,6 +42,7 @@ BEND_LIMIT = 0.5 * math.pi  # physical bound of each component of a joint's bend
 STIFFEN_LIMIT = 1.0  # |bend| (rad) beyond which eq 23's nonlinear stiffening stops growing
 TWIST_LIMIT = 0.5 * math.pi - 0.05  # |twist| < pi/2: a face cannot turn past edge-on to its rest
 AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its own
+FRAMES_PER_SWAY = 5.0  # a joint swinging faster than one period per this many frames flickers
 EPS = 1.0e-12
 RELAX_GAIN = 3.0  # slope of the reconfigured equilibrium per radian of it (see _step_chunk)
 
@@ -265,7 +266,7 @@ class BladeSolver:
         Symplectic Euler on theta'' + c theta' + w^2 theta = 0 is stable for h c < 2 and
         h^2 w^2 + 2 h c < 4. We ask for half of each bound (h c <= 1, h^2 w^2 + 2 h c <= 2) at
         the stiffest, lightest oscillating joint, with eq 23's stiffening at its bound. A joint
-        whose natural period is shorter than four frames cannot show a sway at this frame rate
+        whose natural period is shorter than FRAMES_PER_SWAY frames cannot show a sway at this rate
         (it would flicker or alias); such a joint (the short tip segment,
         typically) follows the smooth update of eqs 25-27 instead of eq 32, which is
         its quasi-static limit, and does not raise the sub-step count.
@@ -335,8 +336,8 @@ class BladeSolver:
 
     @staticmethod
     def _visible_omega2(frame_dt: float) -> float:
-        """w^2 of the fastest sway a frame rate shows as a sway: four frames per period."""
-        return (2.0 * math.pi / (4.0 * frame_dt)) ** 2
+        """w^2 of the fastest sway a frame rate shows as a sway: FRAMES_PER_SWAY frames per period."""
+        return (2.0 * math.pi / (FRAMES_PER_SWAY * frame_dt)) ** 2
 
     def _oscillator_allowed(self, dt: float, h: float) -> np.ndarray:
         """(n, C) bool: joints that use eq 32 in a step of dt with sub-step h: visible at this
@@ -388,51 +389,48 @@ class BladeSolver:
         Av = S.get("Av", (n, m))  # v^2 rho_wind l_length l_width
         np.multiply(area, v2, out=Av)
 
-        B = S.get("B", (2, m))  # running sum of the bends up to joint j
-        T = S.get("T", (2, m))
-        TT = S.get("TT", (2, m))
-        tilt = S.get("tilt", (m,))
-        sin_tilt = S.get("sin_tilt", (m,))
-        proj = S.get("proj", (m,))
-        cos_phi = S.get("cos_phi", (m,))
-        sin_phi = S.get("sin_phi", (m,))
+        # Absolute tilt vectors T_j = rest_j + sum_{k<=j} bend_k of every segment (n, 2, m); the
+        # running sum is the only loop over joints, the rest runs on all joints at once.
+        T = S.get("T", (n, 2, m))
+        np.copyto(T[0], bend[0])
+        for j in range(1, n):
+            np.add(T[j - 1], bend[j], out=T[j])
+        T += rest
+        TT = S.get("TT", (n, 2, m))
+        tilt = S.get("tilt", (n, m))
+        sin_tilt = S.get("sin_tilt", (n, m))
+        proj = S.get("proj", (n, m))
+        cos_phi = S.get("cos_phi", (n, m))
+        sin_phi = S.get("sin_phi", (n, m))
         F = S.get("F", (n, m))  # F_i^bend, eq 17
         G = S.get("G", (n, m))  # per-segment twist torque / l_length, eq 20
         CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
 
-        eps_row = _row(S, "eps", EPS, m)
-        zero_row = _row(S, "zero", 0.0, m)
-        for j in range(n):
-            if j == 0:
-                np.copyto(B, bend[0])
-            else:
-                B += bend[j]
-            np.add(rest[j], B, out=T)  # absolute tilt vector T_j
-            np.multiply(T, T, out=TT)
-            np.add(TT[0], TT[1], out=tilt)
-            np.sqrt(tilt, out=tilt)  # |T_j|
-            np.sin(tilt, out=sin_tilt)
-            np.cos(tilt, out=CT[j])
-            # eq 16: cos(phi) = a_j . w with the axis a_j = (sin|T| T/|T|, cos|T|), w horizontal
-            np.multiply(T, w_hat, out=TT)
-            np.add(TT[0], TT[1], out=proj)
-            np.maximum(tilt, eps_row, out=tilt)
-            np.divide(proj, tilt, out=proj)
-            np.multiply(proj, sin_tilt, out=cos_phi)
-            np.multiply(cos_phi, cos_phi, out=sin_phi)
-            np.subtract(F32(1.0), sin_phi, out=sin_phi)
-            np.maximum(sin_phi, zero_row, out=sin_phi)
-            np.sqrt(sin_phi, out=sin_phi)
-            # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
-            # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
-            np.multiply(Av[j], sin_phi, out=F[j])
-            # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
-            # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is
-            # set in _step_chunk).
-            # |cos(phi) sin|T||: a lever is a distance (|T| can pass pi only in absurd storms)
-            np.multiply(cos_phi, sin_tilt, out=G[j])
-            np.abs(G[j], out=G[j])
-            G[j] *= Av[j]
+        np.multiply(T, T, out=TT)
+        np.add(TT[:, 0], TT[:, 1], out=tilt)
+        np.sqrt(tilt, out=tilt)  # |T_j|
+        np.sin(tilt, out=sin_tilt)
+        np.cos(tilt, out=CT)
+        # eq 16: cos(phi) = a_j . w with the axis a_j = (sin|T| T/|T|, cos|T|), w horizontal
+        np.multiply(T, w_hat[None, :, :], out=TT)
+        np.add(TT[:, 0], TT[:, 1], out=proj)
+        np.maximum(tilt, _row(S, "eps", EPS, m), out=tilt)
+        np.divide(proj, tilt, out=proj)
+        np.multiply(proj, sin_tilt, out=cos_phi)
+        np.multiply(cos_phi, cos_phi, out=sin_phi)
+        np.subtract(F32(1.0), sin_phi, out=sin_phi)
+        np.maximum(sin_phi, _row(S, "zero", 0.0, m), out=sin_phi)
+        np.sqrt(sin_phi, out=sin_phi)
+        # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
+        # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
+        np.multiply(Av, sin_phi, out=F)
+        # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
+        # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is set
+        # in _step_chunk). |cos(phi) sin|T||: a lever is a distance (|T| passes pi only in
+        # absurd storms).
+        np.multiply(cos_phi, sin_tilt, out=G)
+        np.abs(G, out=G)
+        G *= Av
 
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),

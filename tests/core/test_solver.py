@@ -217,8 +217,10 @@ def test_twist_turns_the_face_towards_broadside(default):
 
 def test_stable_substeps_respects_the_minimum_and_the_frame_rate():
     layout, sol = make()
-    assert sol.stable_substeps(1.0 / 240) >= 1
-    assert sol.stable_substeps(1.0 / 24) >= sol.stable_substeps(1.0 / 240)
+    for fps in (1, 24, 240):
+        assert 1 <= sol.stable_substeps(1.0 / fps) <= solver_mod.AUTO_MAX_SUBSTEPS
+    # defaults at the paper's 24 fps stay cheap (performance budget of the per-frame solver)
+    assert sol.stable_substeps(1.0 / 24) <= 2
     _, sol8 = make({"simulation.sub_steps": 8})
     assert sol8.stable_substeps(1.0 / 24) >= 8
     with pytest.raises(ValueError):

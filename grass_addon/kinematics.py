@@ -59,7 +59,10 @@ def _pool() -> ThreadPoolExecutor:
 
 
 def blade_faces(layout) -> np.ndarray:
-    """(blades_per_block * n, 4) int32: quad of segment j = (left_j, right_j, right_j+1, left_j+1)."""
+    """(blades_per_block * n, 4) int32: quad of segment j = (left_j, right_j, right_j+1, left_j+1).
+
+    Counter-clockwise seen from the facing side: the quad's normal (right - left) x up points to
+    the blade's facing azimuth, the way it leans at rest."""
     n = layout.segments
     blade = np.arange(layout.blades_per_block, dtype=np.int32)[:, None] * (2 * (n + 1))
     left = blade + 2 * np.arange(n, dtype=np.int32)[None, :]

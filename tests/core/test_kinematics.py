@@ -231,3 +231,17 @@ def test_card_top_moves_by_eq34_offset_and_turns_with_twist():
     np.testing.assert_allclose(np.linalg.norm(top_dir, axis=1), width, rtol=1e-5)
     turn = np.arctan2(top_dir[:, 1], top_dir[:, 0]) - np.arctan2(bottom_dir[:, 1], bottom_dir[:, 0])
     np.testing.assert_allclose(np.remainder(turn + np.pi, 2 * np.pi) - np.pi, 0.3, atol=1e-5)
+
+
+def test_quads_face_the_way_the_blade_leans():
+    """Face normals ((v1 - v0) x (v3 - v0), counter-clockwise) point to the blade's facing
+    azimuth, the direction it leans at rest (layout.blade_facing)."""
+    layout = small_layout()
+    v = kinematics.blade_vertices(layout, cells_of(layout), np.arange(layout.n_blocks))
+    faces = kinematics.blade_faces(layout)
+    per_block = layout.blades_per_block * (layout.segments + 1) * 2
+    quads = v.reshape(layout.n_blocks, per_block, 3)[:, faces]  # (blocks, faces, 4, 3)
+    normal = np.cross(quads[..., 1, :] - quads[..., 0, :], quads[..., 3, :] - quads[..., 0, :])
+    normal = normal.reshape(layout.n_blades, layout.segments, 3)
+    facing = np.stack([np.cos(layout.blade_facing), np.sin(layout.blade_facing)], axis=1)
+    assert np.all(np.einsum("bjk,bk->bj", normal[..., :2], facing) > 0.0)

@@ -5,8 +5,7 @@ textures.py). Small fields (2 x 2 blocks of 8 x 8 cells) and tiny renders keep t
 
 from __future__ import annotations
 
-import math
-import sys
+import warnings
 
 import bpy
 import numpy as np
@@ -75,6 +74,12 @@ def _stage(scene):
     scene.collection.objects.link(sun)
     world = bpy.data.worlds.new("World")
     world.color = (0.35, 0.4, 0.5)
+    if world.node_tree is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            world.use_nodes = True  # Blender < 5 (5.0 gives every world a node tree)
+    background = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    background.inputs["Color"].default_value = (0.35, 0.4, 0.5, 1.0)
     scene.world = world
     scene.render.resolution_x, scene.render.resolution_y = RES_X, RES_Y
     scene.render.resolution_percentage = 100
@@ -332,12 +337,12 @@ def test_renders_show_swaying_grass(bridge, engine, tmp_path):
     assert sky_green.mean() < 0.1, "the world is grey-blue, not grass"
     # The grass sways between frames 1 and 40 (1.6 s of a 4.4 m/s breeze): thin blades cross
     # pixels, so a clear share of the field's pixels changes; the sky does not change (Cycles'
-    # noise pattern is seeded the same in both frames).
-    diff = np.abs(second - first).max(axis=-1)
-    changed = (diff[: RES_Y // 3] > 0.02).mean()
-    print(f"{engine}: changed share of field pixels {changed:.3f}, sky {diff[-6:].mean():.4f}")
-    assert changed > 0.03
-    assert diff[: RES_Y // 3].mean() > 5.0 * diff[-6:].mean()
+    # noise is seeded the same in both frames: at most a level of 8-bit rounding differs).
+    changed = np.abs(second - first).max(axis=-1) > 0.02  # 5 levels of 8-bit, beyond noise
+    print(f"{engine}: changed share of field pixels {changed[: RES_Y // 3].mean():.3f}, "
+          f"of sky pixels {changed[-6:].mean():.3f}")
+    assert changed[: RES_Y // 3].mean() > 0.03
+    assert changed[-6:].mean() < 0.01
 
 
 # --------------------------------------------------------------------------------------------

@@ -15,10 +15,17 @@ State (rest = all zeros), angles in radians, relative to the rest shape of eqs 1
   segment ``j``'s face normal points to azimuth ``cell_facing + sum_{k<=j} twist[c, k]``.
 * ``bend_vel``, ``twist_vel``: their rates in rad/s.
 
-One solver step (``step``) samples the forcing once (the wind is sampled once per frame) and then:
-eqs 16-20 give the wind torques of the current shape, eqs 21-24 the equilibrium, eq 28 splits
-the blade into a lower part that follows the smooth three-step update (eqs 25-27) and an upper
-part that oscillates (eqs 29-32, integrated with ``substeps`` symplectic Euler sub-steps).
+One solver step (``step``, once per frame; the wind is sampled once per frame):
+
+1. eqs 16-20: wind torques of the shape of the equilibrium estimate E (a state array, relaxed
+   towards the reconfigured statics by one fixed-point iteration per step);
+2. eqs 21-24: the equilibrium bend M / mu(t) along the wind, and E moves towards it;
+3. eq 28: n_boundary from the blade's swing amplitude about the equilibrium;
+4. joints at or below n_boundary: the smooth three-step update towards E (eqs 25-27);
+   joints above it: the oscillator about E (eqs 29-32, ``substeps`` symplectic Euler steps).
+   Joints too stiff to show a sway at the frame rate always take the smooth update.
+The twist follows the same split with a self-limiting equilibrium (the face turns towards
+broadside to the wind, never past it; see ``_step_chunk``).
 
 Performance: the work runs on joint-major arrays (component, joint, cell) so every numpy call
 covers a long contiguous row of cells; loops only run over the n segments, never over cells. The
@@ -630,6 +637,7 @@ class BladeSolver:
                 np.multiply(V, F32(h), out=TMP)
                 X += TMP
             X += EQ[js]
+            _clip(X, bend_lo, bend_hi)  # physical bound: a forced swing can overshoot its target
             _blend(NEW[js], X, selb, keepb)
             # twisting (eq 30): the same with K = twist_stiffness * mu_i(t)
             np.multiply(kI, F32(h * self.twist_ratio), out=q)
@@ -645,13 +653,12 @@ class BladeSolver:
                 np.multiply(Vt, F32(h), out=TMPt)
                 Xt += TMPt
             Xt += EQt[js]
+            _clip(Xt, twist_lo, twist_hi)
             _blend(NEWt[js], Xt, sel, keep)
 
-        # Physical bounds (nothing can blow up), then velocities: the smooth joints' rate is
-        # (new - old) / dt (bounded as the angles are), the oscillating joints keep their own
-        # (bounded: eq 32 only runs where it is stable).
-        _clip(NEW, bend_lo, bend_hi)
-        _clip(NEWt, twist_lo, twist_hi)
+        # Velocities: the smooth joints' rate is (new - old) / dt, the oscillating joints keep
+        # their own (eq 32 only runs where it is stable). The smooth update stays within bounds
+        # by itself (it moves between two bounded angles), so only the swings were clipped.
         inv_dt = F32(1.0 / dt)
         np.subtract(NEW, bend, out=vel)
         vel *= inv_dt

@@ -579,12 +579,13 @@ class BladeSolver:
         np.greater(self._level, nb, out=osc)
         np.logical_and(osc, allowed[:, a:b], out=osc)
 
-        # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f. Eq 26 makes
-        # the fraction per frame M/gamma, which overshoots once M > gamma; the sound reading is
-        # a rate: d(theta)/dt = (theta_eq - theta) * M / (gamma dt_ref), integrated exactly over
-        # dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate independent. M is the
-        # unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|: it equals M_bend when
-        # starting from rest and stays non-zero when the wind stops, so the lower part recovers.
+        # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f, theta_eq = E.
+        # Eq 26 makes the fraction per frame M/gamma, which overshoots once M > gamma; the sound
+        # reading is a rate: d(theta)/dt = (theta_eq - theta) * M / (gamma dt_ref), integrated
+        # exactly over dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate
+        # independent. M is the unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|:
+        # it equals M_bend when starting from rest and stays non-zero when the wind stops, so
+        # the lower part recovers too.
         rate = F32(-dt / (self.gamma * REFERENCE_DT))
         x = S.get("x", (n, m))
         NEW = S.get("NEW", (n, 2, m))
@@ -612,7 +613,7 @@ class BladeSolver:
             np.subtract(F32(1.0), sel, out=keep)
             h = dt / substeps
             # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
-            # (eq 31). With the wind gone theta_eq = 0 and this is eq 29 exactly. theta_eq is held
+            # (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held
             # for the frame, so we integrate x = theta - theta_eq. Eq 32 (symplectic Euler):
             # acceleration, then velocity v += h a, then angle x += h v; here v = p v - q x with
             # q = h K/I and p = 1 - h C/I.

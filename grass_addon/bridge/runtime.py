@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import bpy
 import numpy as np
@@ -34,7 +35,7 @@ UNKNOWN = -2
 # this many frames, so the sampled keys (and the cache key) rarely change.
 _EXTEND_FRAMES = 240
 
-RUNTIMES: dict[tuple[str, str], "FieldRuntime"] = {}
+RUNTIMES: dict[tuple[str, str], FieldRuntime] = {}
 _WARNED: set[str] = set()
 
 

@@ -21,7 +21,8 @@ RES_X, RES_Y = 96, 54
 @pytest.fixture
 def bridge(with_bridge):
     """(scene module, runtime module); ``with_bridge`` skips while the engine is incomplete."""
-    from windgrass.grass_addon.bridge import runtime, scene as field_scene
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge import scene as field_scene
 
     return field_scene, runtime
 
@@ -114,7 +115,8 @@ def test_pool_size_bounds_every_camera_position(bridge):
     """The slot pool must hold every block whose nearest point is within blade_far of the camera,
     wherever the camera stands; check against brute force over many camera positions."""
     field_scene, _ = bridge
-    from windgrass.grass_addon import layout as layout_mod, schema
+    from windgrass.grass_addon import layout as layout_mod
+    from windgrass.grass_addon import schema
 
     params = schema.defaults().replace({"field.blocks_x": 40, "field.blocks_y": 40, "field.cells_per_block": 4,
                                         "field.blades_per_cell": 1, "lod.blade_near": 2.0, "lod.blade_far": 3.0})

@@ -49,7 +49,7 @@ BEND_LIMIT = 0.5 * math.pi  # physical bound of each component of a joint's bend
 STIFFEN_LIMIT = 1.0  # |bend| (rad) beyond which eq 23's nonlinear stiffening stops growing
 TWIST_LIMIT = 0.5 * math.pi - 0.05  # |twist| < pi/2: a face cannot turn past edge-on to its rest
 AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its own
-FRAMES_PER_SWAY = 5.0  # a joint swinging faster than one period per this many frames flickers
+FRAMES_PER_SWAY = 5.5  # a joint swinging faster than one period per this many frames flickers
 EPS = 1.0e-12
 RELAX_GAIN = 3.0  # slope of the reconfigured equilibrium per radian of it (see _step_chunk)
 

@@ -51,7 +51,8 @@ TWIST_LIMIT = 0.5 * math.pi - 0.05  # |twist| < pi/2: a face cannot turn past ed
 AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its own
 FRAMES_PER_SWAY = 5.5  # a joint swinging faster than one period per this many frames flickers
 EPS = 1.0e-12
-RELAX_GAIN = 3.0  # slope of the reconfigured equilibrium per radian of it (see _step_chunk)
+SMOOTH_MIN_ANGLE = 0.1  # rad: below this gap the smooth update's rate stops falling (eq 26)
+RELAX_GAIN = 1.0  # slope of the reconfigured equilibrium per radian of the blade's bend (_step_chunk)
 
 F32 = np.float32
 
@@ -244,6 +245,7 @@ class BladeSolver:
         self._scratch = [_Scratch() for _ in range(lanes)]
         self._pool = ThreadPoolExecutor(max_workers=lanes) if lanes > 1 else None
         self._allowed_cache: dict[float, np.ndarray] = {}
+        self._quasi_cache: tuple[float | None, np.ndarray | None] = (None, None)
         # Stiffest joint: eq 22-23 with the nonlinear part at its bound (the bend is clamped).
         k_max = self._mu_base + F32(self.k * STIFFEN_LIMIT)
         ratio = max(1.0, self.twist_ratio)  # twist uses ratio * K with the same inertia
@@ -320,6 +322,11 @@ class BladeSolver:
         substeps = max(1, int(substeps))
         h = dt / substeps
         allowed = self._oscillator_allowed(dt, h)
+        self._quasi_static = self._quasi_cache[1] if self._quasi_cache[0] == dt else None
+        if self._quasi_static is None:
+            fast = self._omega2 > self._visible_omega2(dt)
+            self._quasi_static = np.where(fast, F32(1e4), F32(0.0)).astype(F32)
+            self._quasi_cache = (dt, self._quasi_static)
         if self._pool is None:
             for lane, chunks in enumerate(self._lanes):
                 for a, b in chunks:
@@ -544,19 +551,23 @@ class BladeSolver:
         # blade.rest_angles does for gravity, we solve the statics by under-relaxed fixed-point
         # iteration, one iteration per step, on a persistent estimate E whose shape the loads
         # act on: E += (eq(E) - E) r. The iteration is stable while d(eq)/dE > 1 - 2 / r, and
-        # that slope is about -RELAX_GAIN |eq| (the load, hence its loss by reconfiguration,
-        # grows with the bend it causes), so r = 1 / (1 + RELAX_GAIN |eq|) per reference frame
-        # (scaled by dt / dt_ref for shorter steps): a full step when the wind drops (eq = 0,
-        # the blade is released at once and swings back), short steps in a storm.
-        relax = S.get("relax", (n, m))
-        np.abs(e, out=relax)
+        # that slope is about -RELAX_GAIN sum_j |eq_j| (the load, hence its loss by
+        # reconfiguration, grows with the bend it causes; the joints couple through the
+        # cumulative tilt, so the whole blade's bend counts), so the cell's
+        # r = 1 / (1 + RELAX_GAIN sum_j |eq_j|) per reference frame (scaled by dt / dt_ref for
+        # shorter steps): a full step when the wind drops (eq = 0, the blade is released at once
+        # and swings back), short steps in a storm.
+        relax = S.get("relax", (m,))
+        e_abs = S.get("e_abs", (n, m))
+        np.abs(e, out=e_abs)
+        np.add.reduce(e_abs, axis=0, out=relax)
         relax *= F32(RELAX_GAIN)
         relax += F32(1.0)
         np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
         # (The twist's equilibrium below does not depend on the twist: no iteration needed.)
         E = st.bend_eq_t[:, :, a:b]
         np.subtract(EQ, E, out=BB)
-        BB *= relax[:, None, :]
+        BB *= relax
         E += BB
         EQ = E
         np.subtract(EQ, bend, out=DEV)
@@ -585,18 +596,29 @@ class BladeSolver:
         # exactly over dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate
         # independent. M is the unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|:
         # it equals M_bend when starting from rest and stays non-zero when the wind stops, so
-        # the lower part recovers too.
+        # the lower part recovers too. As the gap closes M -> 0 and the return would crawl
+        # (hyperbolically: a blade that looks frozen a few degrees off); a linear spring returns
+        # at a rate independent of the gap, so below SMOOTH_MIN_ANGLE the rate is held at its
+        # value there: M = mu max(|theta_eq - theta|, SMOOTH_MIN_ANGLE).
         rate = F32(-dt / (self.gamma * REFERENCE_DT))
         x = S.get("x", (n, m))
         NEW = S.get("NEW", (n, 2, m))
-        np.multiply(mu, dev, out=x)
+        # Joints too stiff to show a sway at this frame rate (see stable_substeps) are in their
+        # quasi-static limit: they follow theta_eq within the step (f = 1, via exp(-huge)).
+        quasi = self._quasi_static[:, a:b]
+        floor = _row(S, "smooth_min", SMOOTH_MIN_ANGLE, m)
+        np.maximum(dev, floor, out=x)
+        x *= mu
         x *= rate
+        x -= quasi
         np.expm1(x, out=x)  # -f
         np.multiply(DEV, x[:, None, :], out=NEW)
         np.subtract(bend, NEW, out=NEW)
         NEWt = S.get("NEWt", (n, m))
-        np.multiply(Kt, devt, out=x)
+        np.maximum(devt, floor, out=x)
+        x *= Kt
         x *= rate
+        x -= quasi
         np.expm1(x, out=x)
         np.multiply(DEVt, x, out=NEWt)
         np.subtract(twist, NEWt, out=NEWt)

@@ -458,17 +458,33 @@ class BladeSolver:
         np.multiply(tmp, CT[last], out=Mb[last])
         np.copyto(Fs[last], F[last])
         np.copyto(Mt[last], G[last])
+        # Q_i = sum_{j>=i} F_j h_ij^2 (for the aerodynamic damping in _step_chunk):
+        # Q_i = Q_{i+1} + z_i (2 M_{i+1} + z_i (S_{i+1} + F_i / 4)), in units of l_length^2.
+        Q = S.get("Q", (n, m))
+        np.multiply(CT[last], CT[last], out=Q[last])
+        Q[last] *= F[last]
+        Q[last] *= F32(0.25)
+        tq = S.get("tq", (m,))
         for i in range(n - 2, -1, -1):
             np.multiply(F[i], F32(0.5), out=tmp)
             tmp += Fs[i + 1]
             tmp *= CT[i]
             np.add(Mb[i + 1], tmp, out=Mb[i])
+            np.multiply(F[i], F32(0.25), out=tq)
+            tq += Fs[i + 1]
+            tq *= CT[i]
+            tq += Mb[i + 1]
+            tq += Mb[i + 1]
+            tq *= CT[i]
+            np.add(Q[i + 1], tq, out=Q[i])
             np.add(Fs[i + 1], F[i], out=Fs[i])
             np.add(Mt[i + 1], G[i], out=Mt[i])  # twisting joint i turns every segment above
         seg = self._seg[a:b]
         Mb *= seg
         Mt *= seg
-        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Fs": Fs, "speed": speed, "delta0": delta0}
+        Q *= seg
+        Q *= seg
+        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Q": Q, "speed": speed, "delta0": delta0}
 
     def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
                     allowed: np.ndarray, S: _Scratch) -> None:
@@ -650,6 +666,19 @@ class BladeSolver:
             np.multiply(kI, F32(h), out=q)
             np.multiply(kI, F32(-h * self.beta), out=p)
             p += F32(1.0 - h * self.alpha)
+            # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
+            # the speed of the wind relative to the segment, v - u with u = theta' h_ij, and
+            # linearising F = rho (v - u)^2 A sin(phi) in u gives the damping torque
+            # (2 / v) sum_j F_j h_ij^2 theta' = (2 Q_i / v) theta'. It is what keeps real grass
+            # from resonating with gusts, while it sways freely once the wind stops (v = 0). It
+            # is integrated implicitly, v_new = (p v - q x) / (1 + h c_aero / I): stable at any v.
+            ca = S.get("ca", (nj, m))
+            np.multiply(forcing["Q"][js], self._inv_inertia[js, a:b], out=ca)
+            ca /= forcing["speed"]
+            ca *= F32(2.0 * h)
+            ca += F32(1.0)
+            q /= ca
+            p /= ca
             np.negative(DEV[js], out=X)
             np.copyto(V, vel[js])
             qb, pb = q[:, None, :], p[:, None, :]

@@ -128,3 +128,12 @@ def test_bench_prints_one_json_object():
 def test_bench_rejects_bad_counts():
     proc = run("bench.py", "--blades", 0)
     assert proc.returncode == 2 and "blades" in proc.stderr
+
+
+def test_bench_peers_missing_module_is_reported(monkeypatch):
+    """--peers merges bench_peers.run_peers() under "peers"; without that module the JSON says so."""
+    import bench
+
+    monkeypatch.setitem(sys.modules, "bench_peers", None)  # import of a None entry raises ImportError
+    result = bench.run_peers_json()
+    assert "error" in result and "bench_peers" in result["error"]

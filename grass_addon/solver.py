@@ -536,31 +536,6 @@ class BladeSolver:
             left -= s_i
         _clip(EQt, twist_lo, twist_hi)
 
-        # Deviation from the equilibrium: the angles "relative to the equilibrium position" of
-        # eq 28, against the equilibrium of the current wind. A joint swinging through its
-        # equilibrium is not at equilibrium, so we take its swing amplitude,
-        # sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to |dtheta| for a joint at rest);
-        # otherwise eq 28 would stop a swing at every crossing. (The twist, a small effect,
-        # counts with |dphi| alone.)
-        DEV = S.get("DEV", (n, 2, m))
-        np.subtract(EQ, bend, out=DEV)
-        amp = S.get("amp", (n, m))  # swing amplitude
-        np.multiply(DEV, DEV, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=amp)
-        inv_w2 = S.get("inv_w2", (n, m))  # I / K = 1 / w^2
-        np.divide(self._inertia[:, a:b], mu, out=inv_w2)
-        np.multiply(vel, vel, out=BB)
-        dev = S.get("dev", (n, m))
-        np.add(BB[:, 0], BB[:, 1], out=dev)
-        dev *= inv_w2
-        amp += dev
-        np.sqrt(amp, out=amp)
-        DEVt = S.get("DEVt", (n, m))
-        np.subtract(EQt, twist, out=DEVt)
-        devt = S.get("devt", (n, m))
-        np.abs(DEVt, out=devt)
-        np.add(amp, devt, out=amp)  # |dtheta_i| + |dphi_i| of eq 28
-
         # Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
         # a bent segment catches less wind, on a shorter lever). Evaluated on the swinging blade
         # of the previous frame, that feedback flutters (the target jumps frame to frame). As
@@ -580,16 +555,37 @@ class BladeSolver:
         relax *= F32(RELAX_GAIN)
         relax += F32(1.0)
         np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
-        # (The twist's equilibrium below does not depend on the twist: no iteration needed.)
+        # (The twist's equilibrium does not depend on the twist: no iteration needed.)
         E = st.bend_eq_t[:, :, a:b]
         np.subtract(EQ, E, out=BB)
         BB *= relax
         E += BB
         EQ = E
+
+        # Deviation from the equilibrium position E: the angles "relative to the equilibrium
+        # position" of eq 28. A joint swinging through its equilibrium is not at equilibrium, so
+        # we take its swing amplitude, sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to
+        # |dtheta| for a joint at rest); otherwise eq 28 would stop a swing at every crossing.
+        # (The twist, a small effect, counts with |dphi| alone.)
+        DEV = S.get("DEV", (n, 2, m))
         np.subtract(EQ, bend, out=DEV)
+        dev = S.get("dev", (n, m))  # |E - theta|: also drives the smooth update (eq 26)
         np.multiply(DEV, DEV, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=dev)  # |E - theta|: drives the smooth update (eq 26)
+        np.add(BB[:, 0], BB[:, 1], out=dev)
+        amp = S.get("amp", (n, m))  # swing amplitude
+        inv_w2 = S.get("inv_w2", (n, m))  # I / K = 1 / w^2
+        np.divide(self._inertia[:, a:b], mu, out=inv_w2)
+        np.multiply(vel, vel, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=amp)
+        amp *= inv_w2
+        amp += dev
+        np.sqrt(amp, out=amp)
         np.sqrt(dev, out=dev)
+        DEVt = S.get("DEVt", (n, m))
+        np.subtract(EQt, twist, out=DEVt)
+        devt = S.get("devt", (n, m))
+        np.abs(DEVt, out=devt)
+        np.add(amp, devt, out=amp)  # |dtheta_i| + |dphi_i| of eq 28
 
         # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
         nb = S.get("nb", (m,))

@@ -145,6 +145,7 @@ class _Constants:
                 k, n, num, P = self.k_max, self.n, self.num, self.P
                 f32 = np.float32
                 self._scratch.append({
+                    "k_max": k,
                     "cb": np.empty((k, 2, n, 1, P), f32),  # cumulative bend per cell
                     "tw": np.empty((k * P, n), f32),
                     "phi": np.empty((k, 1, n + 1, 1, P), f32),  # cos Phi per cell and joint
@@ -191,11 +192,14 @@ def _chunks(blocks: np.ndarray, k_max: int) -> list[tuple[int, np.ndarray]]:
     return [(i, blocks[i:i + k_max]) for i in range(0, len(blocks), k_max)]
 
 
-def _select(array: np.ndarray, ids: np.ndarray):
-    """array[ids] along axis 0, as a view when ids are consecutive."""
+def _select(array: np.ndarray, ids: np.ndarray, scratch: dict, name: str):
+    """array[ids] along axis 0: a view when ids are consecutive, else gathered into scratch."""
     if ids[-1] - ids[0] + 1 == len(ids) and np.all(np.diff(ids) == 1):
         return array[ids[0]:ids[-1] + 1]
-    return array[ids]
+    buf = scratch.get(name)
+    if buf is None:  # first gather of this kind: allocate once for the largest chunk
+        buf = scratch[name] = np.empty((scratch["k_max"],) + array.shape[1:], array.dtype)
+    return np.take(array, ids, axis=0, out=buf[: len(ids)])
 
 
 # --------------------------------------------------------------------------------------------
@@ -266,8 +270,8 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     np.multiply(sphi[:, 0, :, 0], taper, out=sphi[:, 0, :, 0])
     np.multiply(phi, taper, out=phi)
 
-    rest, seg = _select(const.rest, ids), _select(const.seg, ids)
-    w_sc, root = _select(const.w_sc, ids), _select(const.root, ids)
+    rest, seg = _select(const.rest, ids, s, "sel_rest"), _select(const.seg, ids, s, "sel_seg")
+    w_sc, root = _select(const.w_sc, ids, s, "sel_w_sc"), _select(const.root, ids, s, "sel_root")
     if counts is not None:  # eq 9: slots >= N collapse onto the root
         mask = s["mask"][:k]
         np.less(const.slot, counts[cell_ids][:, None, :], out=mask[:, 0])

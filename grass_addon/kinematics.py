@@ -148,6 +148,7 @@ class _Constants:
                     "k_max": k,
                     "cb": np.empty((k, 2, n, 1, P), f32),  # cumulative bend per cell
                     "tw": np.empty((k * P, n), f32),
+                    "bend": np.empty((k * P, n, 2), f32),
                     "phi": np.empty((k, 1, n + 1, 1, P), f32),  # cos Phi per cell and joint
                     "sphi": np.empty((k, 1, n + 1, 1, P), f32),  # sin Phi
                     "step": np.empty((k, 3, n, num, P), f32),  # T, then the segment steps
@@ -252,7 +253,8 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
 
     # Per cell: cumulative bend sum_{k<=j} bend[c, k] and cumulative twist Phi_j = sum_{k<=j}
     # twist[c, k] (Phi_n = Phi_{n-1}), as cos/sin. A few row adds beat np.cumsum on a short axis.
-    raw = bend[cell_ids].transpose(0, 3, 2, 1)  # (k, 2, n, P)
+    raw = np.take(bend, cell_ids.ravel(), axis=0, out=s["bend"][: k * P])
+    raw = raw.reshape(k, P, n, 2).transpose(0, 3, 2, 1)  # (k, 2, n, P)
     cb = s["cb"][:k, :, :, 0]  # (k, 2, n, P)
     np.copyto(cb[:, :, 0], raw[:, :, 0])
     for j in range(1, n):

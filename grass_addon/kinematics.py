@@ -105,33 +105,34 @@ def card_vertex_count(layout, n_blocks: int) -> int:
 
 
 class _Constants:
-    """Per-blade values that never change, arranged (n_blocks, component, row, slot, cell) so that
-    per-cell values broadcast over the slot axis, the innermost axis (cells of a block) is
-    contiguous and x/y(/z) components go through one numpy call together."""
+    """Per-blade values that never change, arranged (n_blocks, row, slot, cell) so that per-cell
+    values broadcast over the slot axis and the innermost axis (cells of a block) is contiguous.
+    Horizontal 2-D vectors are complex64 x + iy: one numpy call handles both components, and
+    rotations by the twist are complex products."""
 
     def __init__(self, layout):
         n, num, P = layout.segments, layout.blades_per_cell, layout.cells_per_block_total
         nb = layout.n_blocks
         self.n, self.num, self.P, self.nb = n, num, P, nb
 
-        def arrange(values: np.ndarray) -> np.ndarray:
-            """Blade-major (B, comps, rows) -> (nb, comps, rows, num, P) float32."""
-            comps, rows = values.shape[1:]
-            grid = values.reshape(nb, P, num, comps, rows)
-            return np.ascontiguousarray(grid.transpose(0, 3, 4, 2, 1), dtype=np.float32)
+        def arrange(values: np.ndarray, dtype=np.float32) -> np.ndarray:
+            """Blade-major (B, rows) -> (nb, rows, num, P)."""
+            rows = values.shape[1]
+            return np.ascontiguousarray(values.reshape(nb, P, num, rows).transpose(0, 3, 2, 1), dtype=dtype)
 
         facing = layout.blade_facing.astype(np.float64)
-        cos_f, sin_f = np.cos(facing)[:, None], np.sin(facing)[:, None]
-        tilt = layout.blade_rest_tilt.astype(np.float64)
-        # rest tilt vector blade_rest_tilt * d_b, (nb, 2, n, num, P)
-        self.rest = arrange(np.stack([tilt * cos_f, tilt * sin_f], axis=1))
-        self.seg = arrange(layout.blade_length.astype(np.float64)[:, None, None] / n)[:, 0]  # (nb, 1, num, P)
-        # linear taper of the width along the blade, per joint (multiplies the per-cell cos/sin Phi)
+        d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
+        # rest tilt vector blade_rest_tilt * d_b, (nb, n, num, P) complex
+        self.rest = arrange(layout.blade_rest_tilt.astype(np.float64) * d_b, np.complex64)
+        self.seg = arrange(layout.blade_length.astype(np.float64)[:, None] / n)  # (nb, 1, num, P)
+        # linear taper of the width along the blade, per joint (multiplies the per-cell e^{i Phi})
         self.taper = (1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n).astype(np.float32)
-        half_w = 0.5 * layout.blade_width.astype(np.float64)[:, None]  # (B, 1)
-        # (w/2 sin f, w/2 cos f) at the root: the side offset is built from these and the twist
-        self.w_sc = arrange(np.stack([half_w * sin_f, half_w * cos_f], axis=1))  # (nb, 2, 1, num, P)
-        self.root = arrange(layout.blade_root.astype(np.float64)[:, :, None])  # (nb, 3, 1, num, P)
+        # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f}.
+        half_w = 0.5 * layout.blade_width.astype(np.float64)[:, None]
+        self.w_side = arrange(-1j * half_w * d_b, np.complex64)  # (nb, 1, num, P)
+        root = layout.blade_root.astype(np.float64)
+        self.root_xy = arrange((root[:, 0] + 1j * root[:, 1])[:, None], np.complex64)  # (nb, 1, num, P)
+        self.root_z = arrange(root[:, 2:3])
         self.slot = np.arange(num, dtype=np.int32)[None, :, None]  # (1, num, 1)
         self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
         self._scratch: list[dict[str, np.ndarray]] = []
@@ -143,20 +144,21 @@ class _Constants:
         with self._lock:
             while len(self._scratch) <= index:
                 k, n, num, P = self.k_max, self.n, self.num, self.P
-                f32 = np.float32
+                f32, c64 = np.float32, np.complex64
                 self._scratch.append({
                     "k_max": k,
-                    "cb": np.empty((k, 2, n, 1, P), f32),  # cumulative bend per cell
+                    "bend": np.empty((k * P, n), c64),  # gathered bend vectors
+                    "cb": np.empty((k, n, 1, P), c64),  # cumulative bend per cell
                     "tw": np.empty((k * P, n), f32),
-                    "bend": np.empty((k * P, n, 2), f32),
-                    "phi": np.empty((k, 1, n + 1, 1, P), f32),  # cos Phi per cell and joint
-                    "sphi": np.empty((k, 1, n + 1, 1, P), f32),  # sin Phi
-                    "step": np.empty((k, 3, n, num, P), f32),  # T, then the segment steps
+                    "phi": np.empty((k, n + 1, P), f32),  # cumulative twist per cell and joint
+                    "rot": np.empty((k, n + 1, 1, P), c64),  # taper_j e^{i Phi_j}
+                    "t": np.empty((k, n, num, P), c64),  # T, then the horizontal steps
                     "a": np.empty((k, n, num, P), f32),
                     "b": np.empty((k, n, num, P), f32),
-                    "p": np.empty((k, 3, n + 1, num, P), f32),  # joints
-                    "h": np.empty((k, 2, n + 1, num, P), f32),  # side offset s * w/2 (negated)
-                    "g": np.empty((k, 2, n + 1, num, P), f32),
+                    "dz": np.empty((k, n, num, P), f32),
+                    "p": np.empty((k, n + 1, num, P), c64),  # joints, x + iy
+                    "pz": np.empty((k, n + 1, num, P), f32),
+                    "h": np.empty((k, n + 1, num, P), c64),  # side offset -s w/2
                     "stage": np.empty((3, k, n + 1, num, P, 2), f32),
                     "mask": np.empty((k, 1, num, P), f32),
                     "seg": np.empty((k, 1, num, P), f32),
@@ -218,12 +220,13 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
     if rows == 0:
         return result
     const = _constants(layout)
-    bend = np.asarray(cells.bend, dtype=np.float32)
+    bend = np.ascontiguousarray(cells.bend, dtype=np.float32)
     twist = np.asarray(cells.twist, dtype=np.float32)
     shape = (layout.n_cells, layout.segments)
     if bend.shape != shape + (2,) or twist.shape != shape:
         raise ValueError(f"cell data must have bend {shape + (2,)} and twist {shape}, "
                          f"got {bend.shape} and {twist.shape}")
+    bend = bend.view(np.complex64)[..., 0]  # (C, n) bend vectors as x + iy (no copy)
     counts = None if blade_count is None else np.asarray(blade_count)
     per_block = layout.blades_per_block * (layout.segments + 1) * 2
     chunks = _chunks(blocks, const.k_max)
@@ -249,78 +252,71 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
                  counts, out: np.ndarray) -> None:
     """Vertices of the blades of blocks `ids` into `out` (k, blades_per_block * (n+1) * 2, 3)."""
     k, n, num, P = len(ids), const.n, const.num, const.P
-    cell_ids = layout.block_cells[ids]  # (k, P)
+    cell_ids = layout.block_cells[ids].ravel()  # (k * P,)
 
-    # Per cell: cumulative bend sum_{k<=j} bend[c, k] and cumulative twist Phi_j = sum_{k<=j}
-    # twist[c, k] (Phi_n = Phi_{n-1}), as cos/sin. A few row adds beat np.cumsum on a short axis.
-    raw = np.take(bend, cell_ids.ravel(), axis=0, out=s["bend"][: k * P])
-    raw = raw.reshape(k, P, n, 2).transpose(0, 3, 2, 1)  # (k, 2, n, P)
-    cb = s["cb"][:k, :, :, 0]  # (k, 2, n, P)
-    np.copyto(cb[:, :, 0], raw[:, :, 0])
+    # Per cell: cumulative bend sum_{k<=j} bend[c, k] (complex) and cumulative twist
+    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}.
+    # A few row adds beat np.cumsum along a short axis.
+    raw = np.take(bend, cell_ids, axis=0, out=s["bend"][: k * P]).reshape(k, P, n)
+    cb = s["cb"][:k, :, 0]  # (k, n, P)
+    np.copyto(cb[:, 0], raw[:, :, 0])
     for j in range(1, n):
-        np.add(cb[:, :, j - 1], raw[:, :, j], out=cb[:, :, j])
-    tw = np.take(twist, cell_ids.ravel(), axis=0, out=s["tw"][: k * P]).reshape(k, P, n)
-    phi = s["phi"][:k, 0, :, 0]  # (k, n+1, P)
+        np.add(cb[:, j - 1], raw[:, :, j], out=cb[:, j])
+    tw = np.take(twist, cell_ids, axis=0, out=s["tw"][: k * P]).reshape(k, P, n)
+    phi = s["phi"][:k]  # (k, n+1, P)
     np.copyto(phi[:, 0], tw[:, :, 0])
     for j in range(1, n):
         np.add(phi[:, j - 1], tw[:, :, j], out=phi[:, j])
     np.copyto(phi[:, n], phi[:, n - 1])  # the tip edge belongs to the top segment
-    sphi, cphi = s["sphi"][:k], s["phi"][:k]
-    np.sin(phi, out=sphi[:, 0, :, 0])
-    np.cos(phi, out=phi)
-    taper = const.taper[None, :, None]  # width taper folded into the per-cell factors
-    np.multiply(sphi[:, 0, :, 0], taper, out=sphi[:, 0, :, 0])
-    np.multiply(phi, taper, out=phi)
+    rot = s["rot"][:k]
+    taper = const.taper[None, :, None]
+    np.cos(phi, out=rot.real[:, :, 0])
+    np.multiply(rot.real[:, :, 0], taper, out=rot.real[:, :, 0])
+    np.sin(phi, out=rot.imag[:, :, 0])
+    np.multiply(rot.imag[:, :, 0], taper, out=rot.imag[:, :, 0])
 
     rest, seg = _select(const.rest, ids, s, "sel_rest"), _select(const.seg, ids, s, "sel_seg")
-    w_sc, root = _select(const.w_sc, ids, s, "sel_w_sc"), _select(const.root, ids, s, "sel_root")
+    w_side = _select(const.w_side, ids, s, "sel_w_side")
+    root_xy, root_z = _select(const.root_xy, ids, s, "sel_root_xy"), _select(const.root_z, ids, s, "sel_root_z")
     if counts is not None:  # eq 9: slots >= N collapse onto the root
         mask = s["mask"][:k]
-        np.less(const.slot, counts[cell_ids][:, None, :], out=mask[:, 0])
+        np.less(const.slot, counts[cell_ids].reshape(k, 1, P), out=mask[:, 0])
         seg = np.multiply(seg, mask, out=s["seg"][:k])
+        w_side = w_side * mask  # (k, 1, num, P): small
 
     # Tilt vector T_j = rest + cumulative bend; direction (sin|T| T/|T|, cos|T|) times l/n.
-    step, a, b = s["step"][:k], s["a"][:k], s["b"][:k]
-    T = step[:, :2]
-    np.add(rest, s["cb"][:k], out=T)
-    sq = s["g"][:k, :, :n]
-    np.multiply(T, T, out=sq)
-    np.add(sq[:, 0], sq[:, 1], out=a)
-    np.sqrt(a, out=a)  # |T|
-    np.cos(a, out=b)
-    np.multiply(b, seg, out=step[:, 2])  # dz = l/n cos|T|
+    t, a, b, dz = s["t"][:k], s["a"][:k], s["b"][:k], s["dz"][:k]
+    np.add(rest, s["cb"][:k], out=t)
+    np.abs(t, out=a)  # |T|
+    np.cos(a, out=dz)
+    np.multiply(dz, seg, out=dz)  # dz = l/n cos|T|
     np.sin(a, out=b)
     np.maximum(a, np.float32(1e-30), out=a)  # |T| = 0: sin|T| = 0, so the horizontal step is 0
     np.divide(b, a, out=b)
     np.multiply(b, seg, out=b)  # l/n sin|T| / |T|
-    np.multiply(T, b[:, None], out=T)  # dx, dy
+    np.multiply(t, b, out=t)  # horizontal steps dx + i dy
 
-    # Joints: p_0 = root, p_{j+1} = p_j + step_j (x, y, z together).
-    p = s["p"][:k]
-    np.copyto(p[:, :, 0], root[:, :, 0])
+    # Joints: p_0 = root, p_{j+1} = p_j + step_j.
+    p, pz = s["p"][:k], s["pz"][:k]
+    np.copyto(p[:, 0], root_xy[:, 0])
+    np.copyto(pz[:, 0], root_z[:, 0])
     for j in range(n):
-        np.add(p[:, :, j], step[:, :, j], out=p[:, :, j + 1])
+        np.add(p[:, j], t[:, j], out=p[:, j + 1])
+        np.add(pz[:, j], dz[:, j], out=pz[:, j + 1])
 
-    # Side offset h = -s w/2 = (w/2 sin(f + Phi), -w/2 cos(f + Phi)) by the angle-sum formulas:
-    # sin(f+Phi) = sin f cos Phi + cos f sin Phi, cos(f+Phi) = cos f cos Phi - sin f sin Phi.
-    h, g = s["h"][:k], s["g"][:k]
-    np.multiply(w_sc, cphi, out=h)  # (w/2 sin f cos Phi, w/2 cos f cos Phi), tapered
-    np.multiply(w_sc[:, ::-1], sphi, out=g)  # (w/2 cos f sin Phi, w/2 sin f sin Phi), tapered
-    np.add(h[:, 0], g[:, 0], out=h[:, 0])
-    np.subtract(g[:, 1], h[:, 1], out=h[:, 1])
-    if counts is not None:
-        np.multiply(h, mask[:, None], out=h)
+    # Side offset h = -s w/2 = -i (w/2) e^{i (f + Phi)} taper: one complex product.
+    h = s["h"][:k]
+    np.multiply(w_side, rot, out=h)
 
     # Write (k, P, num, n+1, side, xyz). The 6 floats of a joint's two vertices form 3 aligned
     # 8-byte pairs (Lx Ly)(Lz Rx)(Ry Rz): they are built in cache-local staging and scattered as
     # 3 uint64 copies, cheaper than 6 scattered float32 writes (bit-exact: a plain copy).
     st = s["stage"][:, :k]  # (3, k, n+1, num, P, 2)
-    np.add(p[:, 0], h[:, 0], out=st[0, ..., 0])  # left = p - s w/2 = p + h
-    np.add(p[:, 1], h[:, 1], out=st[0, ..., 1])
-    np.copyto(st[1, ..., 0], p[:, 2])
-    np.subtract(p[:, 0], h[:, 0], out=st[1, ..., 1])  # right = p + s w/2 = p - h
-    np.subtract(p[:, 1], h[:, 1], out=st[2, ..., 0])
-    np.copyto(st[2, ..., 1], p[:, 2])
+    np.add(p, h, out=st[0].view(np.complex64)[..., 0])  # left = p - s w/2 = p + h: (Lx, Ly)
+    np.copyto(st[1, ..., 0], pz)
+    np.subtract(p.real, h.real, out=st[1, ..., 1])  # right = p + s w/2 = p - h
+    np.subtract(p.imag, h.imag, out=st[2, ..., 0])
+    np.copyto(st[2, ..., 1], pz)
     pairs = out.reshape(-1).view(np.uint64).reshape(k, P, num, n + 1, 3).transpose(4, 0, 3, 2, 1)
     staged = st.view(np.uint64)[..., 0]  # (3, k, n+1, num, P)
     for i in range(3):

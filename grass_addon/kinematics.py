@@ -151,6 +151,7 @@ class _Constants:
                     "cb": np.empty((k, n, 1, P), c64),  # cumulative bend per cell
                     "tw": np.empty((k * P, n), f32),
                     "phi": np.empty((k, n + 1, P), f32),  # cumulative twist per cell and joint
+                    "trig": np.empty((k, n + 1, P), f32),
                     "rot": np.empty((k, n + 1, 1, P), c64),  # taper_j e^{i Phi_j}
                     "t": np.empty((k, n, num, P), c64),  # T, then the horizontal steps
                     "a": np.empty((k, n, num, P), f32),
@@ -270,10 +271,11 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     np.copyto(phi[:, n], phi[:, n - 1])  # the tip edge belongs to the top segment
     rot = s["rot"][:k]
     taper = const.taper[None, :, None]
-    np.cos(phi, out=rot.real[:, :, 0])
-    np.multiply(rot.real[:, :, 0], taper, out=rot.real[:, :, 0])
-    np.sin(phi, out=rot.imag[:, :, 0])
-    np.multiply(rot.imag[:, :, 0], taper, out=rot.imag[:, :, 0])
+    trig = s["trig"][:k]  # contiguous: trig functions run faster than into strided halves
+    np.cos(phi, out=trig)
+    np.multiply(trig, taper, out=rot.real[:, :, 0])
+    np.sin(phi, out=trig)
+    np.multiply(trig, taper, out=rot.imag[:, :, 0])
 
     rest, seg = _select(const.rest, ids, s, "sel_rest"), _select(const.seg, ids, s, "sel_seg")
     w_side = _select(const.w_side, ids, s, "sel_w_side")

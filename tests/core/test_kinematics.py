@@ -245,3 +245,23 @@ def test_quads_face_the_way_the_blade_leans():
     normal = normal.reshape(layout.n_blades, layout.segments, 3)
     facing = np.stack([np.cos(layout.blade_facing), np.sin(layout.blade_facing)], axis=1)
     assert np.all(np.einsum("bjk,bk->bj", normal[..., :2], facing) > 0.0)
+
+
+def test_any_block_order_with_blade_counts_matches_the_full_field():
+    """Blocks asked in any order (the bridge asks for the visible ones) give the same per-block
+    vertices as the whole field, with eq 9 counts applied (chunks of one block: gathers, threads)."""
+    layout = small_layout(**{"field.blocks_x": 3})
+    cells = random_cells(layout, seed=11)
+    count = (np.arange(layout.n_cells) % 4).astype(np.int32)  # 0..3 of 3 blades
+    full = kinematics.blade_vertices(layout, cells, np.arange(layout.n_blocks), count)
+    per_block = full.reshape(layout.n_blocks, -1, 3)
+    order = np.array([5, 2, 3, 0])
+    old = kinematics.CHUNK_BLADES
+    try:
+        kinematics.CHUNK_BLADES = layout.blades_per_block
+        kinematics._CACHE.clear()
+        got = kinematics.blade_vertices(layout, cells, order, count).reshape(len(order), -1, 3)
+    finally:
+        kinematics.CHUNK_BLADES = old
+        kinematics._CACHE.clear()
+    np.testing.assert_array_equal(got, per_block[order])

@@ -209,6 +209,10 @@ def main(argv=None) -> int:
         return 2
     if args.peers:
         result["peers"] = run_peers_json()
+    load = result["machine"].get("load_average")
+    if load and load[0] > 0.5 * (os.cpu_count() or 1):
+        result["note"] = (f"busy machine (load average {load[0]:g} on {os.cpu_count()} CPUs): wall-clock "
+                          "phases include waiting for the CPU; phases_cpu_ms shows the work itself")
     print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=1))
     return 0
 

@@ -237,14 +237,16 @@ def blender_camera(scene, to_field=None, depsgraph=None):
 # Slot assignment and writes
 
 
-def assign_slots(slot_block: np.ndarray, chosen: np.ndarray) -> np.ndarray:
-    """New block of every slot: blocks already shown keep their slot (their colours need no
-    rewrite), new blocks take free slots in order. ``len(chosen) <= len(slot_block)``."""
-    keep = np.isin(slot_block, chosen)
-    new = chosen[~np.isin(chosen, slot_block)]
-    out = np.where(keep, slot_block, FREE).astype(np.int32)
-    free = np.flatnonzero(~keep)
-    out[free[: len(new)]] = new
+def assign_slots(n_slots: int, chosen: np.ndarray) -> np.ndarray:
+    """Block shown by every slot: the chosen blocks in block order, then FREE.
+
+    Canonical on purpose: what each slot object holds is a function of the frame (and camera)
+    alone, not of the frames visited before, so a render farm rendering frames 3-4 alone gets
+    the same objects, hence the same pixels, as a run over frames 1-4 (house rule: state at
+    frame N = f(params, seed, N)). Colours are rewritten only for slots whose block changed."""
+    out = np.full(n_slots, FREE, dtype=np.int32)
+    blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_slots]
+    out[: len(blocks)] = blocks
     return out
 
 
@@ -262,7 +264,10 @@ def _resize_state(state: np.ndarray, n: int) -> np.ndarray:
 
 
 def _write_position(mesh, verts: np.ndarray) -> None:
-    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
+    # Through MeshVertex.co: it tags the positions as changed, so Blender drops the cached bounds
+    # and normals. A write to attributes["position"] does not, and a render then uses the normals
+    # of the first frame it rendered (pixels depend on the frames rendered before).
+    mesh.vertices.foreach_set("co", verts.ravel())
 
 
 def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
@@ -277,7 +282,7 @@ def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> No
     needs = (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
     chosen = nearest_blocks(needs, block_distance, n_slots)
     previous = rt.blade_slot_block
-    current = assign_slots(np.where(previous >= 0, previous, FREE), chosen)
+    current = assign_slots(n_slots, chosen)
     rt.blade_slot_block = current
     rt.blade_blocks = np.sort(chosen)
     verts_per_block = field_scene.blade_vertex_count(layout)
@@ -303,7 +308,11 @@ def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> No
             continue
         mesh = obj.data
         if block < 0:
-            _write_position(mesh, collapsed)  # unused slot: zero area, nothing drawn
+            # Unused slot: zero area, nothing drawn; attributes cleared too, so its data is the
+            # same whatever it showed before (a function of the frame alone).
+            _write_position(mesh, collapsed)
+            mesh.attributes[materials.ATTR_COLOR].data.foreach_set("color", np.zeros(verts_per_block * 4, np.float32))
+            mesh.attributes[materials.ATTR_SHADE].data.foreach_set("value", np.zeros(verts_per_block, np.float32))
         else:
             _write_position(mesh, verts[row[slot]])
             if block != before:  # this slot now shows another block: its blades' colours
@@ -329,7 +338,7 @@ def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> Non
     needs = (k_b[layout.block_cells] > 0).any(axis=1) & lod.block_visible
     chosen = nearest_blocks(needs, block_distance, n_slots)
     previous = rt.card_slot_block
-    current = assign_slots(np.where(previous >= 0, previous, FREE), chosen)
+    current = assign_slots(n_slots, chosen)
     rt.card_slot_block = current
     rt.card_blocks = np.sort(chosen)
     verts_per_block = field_scene.card_vertex_count(layout)
@@ -357,6 +366,7 @@ def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> Non
         mesh = obj.data
         if block < 0:
             _write_position(mesh, collapsed)
+            mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.zeros(verts_per_block, np.float32))
         else:
             _write_position(mesh, verts[row[slot]])
             mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.ascontiguousarray(opacity[row[slot]]))

@@ -1,4 +1,4 @@
-"""Per-frame driver: the one runtime registry and the ``frame_change_pre`` handler.
+"""Per-frame driver: the one runtime registry and the frame handlers.
 
 ``RUNTIMES`` maps ``(scene name, field uid)`` to a ``FieldRuntime`` holding the numpy engine
 (``GrassField``) built from the field's parameters, the digest it was built from and reusable
@@ -10,6 +10,14 @@ the LOD weights of eqs 7-11 from the scene camera, gives the nearest visible blo
 blades (K_g > 0, eq 8) to the blade slots and those that need cards (K_b > 0, eqs 7/11) to the
 card slots, and writes vertex positions and the per-vertex attributes with ``foreach_set``.
 No ``bpy.ops``, no per-blade Python loops; the only Python loop runs over slots.
+
+Handlers (all ``@persistent``, added once by ``register``):
+  ``frame_change_pre``       simulate and write the new frame (``update_scene``);
+  ``frame_change_post``      redo the LOD if the camera moved during evaluation (animated camera);
+  ``depsgraph_update_post``  the same when the camera is moved without a frame change;
+  ``load_post``              drop every runtime; ``undo_post``/``redo_post`` forget slot state.
+Which slot shows which block is a function of the frame and camera alone (canonical order), so
+frames rendered apart equal frames rendered in one run.
 """
 
 from __future__ import annotations

@@ -236,6 +236,7 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Pat
         # The camera first: the frame handler (grass LOD, eqs 7-11) reads it in frame_change_pre.
         stage.pose_camera(scene, params, frame)
         scene.frame_set(frame)
+        t_update = time.perf_counter() - t0
         final = out / FRAME_NAME.format(frame)
         partial = final.with_name("." + final.stem + PARTIAL_SUFFIX)
         scene.render.filepath = str(partial)
@@ -250,7 +251,8 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Pat
         written.append(final)
         spent = time.perf_counter() - t0
         eta = (time.perf_counter() - began) / i * (total - i)
-        print(f"frame {i}/{total} (#{frame}) {spent:.2f} s, ETA {_fmt_seconds(eta)} -> {final.name}",
+        print(f"frame {i}/{total} (#{frame}) {spent:.2f} s (grass {t_update:.2f} s), ETA {_fmt_seconds(eta)} "
+              f"-> {final.name}",
               flush=True)
     return written
 

@@ -201,6 +201,11 @@ def setup_render(scene, params) -> None:
     settings.color_mode = "RGB"
     settings.color_depth = "8"
     settings.compression = 15
+    # PNG metadata without wall-clock or host values: a frame is the same file on any machine.
+    for stamp in ("use_stamp_date", "use_stamp_time", "use_stamp_render_time", "use_stamp_memory",
+                  "use_stamp_hostname", "use_stamp_filename"):
+        if hasattr(render, stamp):
+            setattr(render, stamp, False)
     _set_enum(scene.view_settings, "view_transform", "AgX", "Filmic", "Standard")
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
@@ -216,7 +221,7 @@ def setup_render(scene, params) -> None:
         cycles.diffuse_bounces = 2
         cycles.glossy_bounces = 1
         cycles.transmission_bounces = 2
-        cycles.transparent_max_bounces = 16  # card alpha (III.B) stacks several layers deep
+        cycles.transparent_max_bounces = 8  # card alpha (III.B) stacks a few layers deep
         cycles.use_denoising = _has_oidn() and r.samples > 1  # OIDN on the CPU is deterministic
         if cycles.use_denoising:
             _set_enum(cycles, "denoiser", "OPENIMAGEDENOISE")
@@ -313,10 +318,11 @@ def setup_world(scene, params) -> bpy.types.World:
         ramp.color_ramp.elements[1].color = (0.18, 0.35, 0.75, 1.0)
         sky_colour = ramp.outputs["Color"]
         strength = 1.0
-    # Below the horizon: blend to the land colour within a few degrees (direction Z < 0).
+    # Below the horizon: the land colour from 0.25 deg down (direction Z < 0), so the strip
+    # between the field edge and the horizon reads as distant land, not as dark sky.
     below = nodes.new("ShaderNodeMapRange")
     below.inputs["From Min"].default_value = 0.0
-    below.inputs["From Max"].default_value = -0.05
+    below.inputs["From Max"].default_value = -0.004
     below.inputs["To Min"].default_value = 0.0
     below.inputs["To Max"].default_value = 1.0
     below.clamp = True

@@ -85,7 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "images as the full run")
     job.add_argument("--out", metavar="DIR", type=Path,
                      help=f"output folder (created); default {DEFAULT_OUT.relative_to(REPO)}/")
-    job.add_argument("--engine", metavar="{cycles,eevee}", help="render engine (render.engine)")
+    job.add_argument("--engine", metavar="{cycles,eevee}",
+                     help="render engine (render.engine); EEVEE wants a GPU: with software OpenGL "
+                          "a field frame takes minutes, Cycles on the CPU seconds")
     job.add_argument("--samples", metavar="N", help="samples per pixel (render.samples)")
     job.add_argument("--resolution", metavar="WxH",
                      help="image size in pixels, e.g. 640x360 (render.resolution_x/_y)")
@@ -338,8 +340,7 @@ def main(argv: list[str]) -> int:
         variants = [variant_params(params, i, "wind.speed" in schema.cli_overrides(args))
                     for i in range(args.variants)] if args.variants > 1 else [params]
     except (BadInputError, ParameterError) as exc:
-        parser.print_usage(sys.stderr)
-        print(f"render_field.py: error: {exc}", file=sys.stderr)
+        print(f"render_field.py: error: {exc}\n(render_field.py --help lists the options)", file=sys.stderr)
         return EXIT_BAD_INPUT
     out = (args.out if args.out is not None else DEFAULT_OUT).resolve()
     print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
@@ -371,9 +372,14 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    code = main(sys.argv)
+    inside_blender = Path(sys.argv[0]).resolve() != Path(__file__).resolve()
+    try:
+        code = main(sys.argv)
+    except SystemExit as exc:  # argparse: --help (0), bad options (2)
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_BAD_INPUT)
     sys.stdout.flush()
-    if "bpy" in sys.modules and not Path(sys.argv[0]).resolve() == Path(__file__).resolve():
-        # Inside a Blender binary the script's return value is ignored: leave with our code.
+    sys.stderr.flush()
+    if inside_blender:
+        # `blender -b -P` ignores a script's exit status and would go on: leave with ours.
         os._exit(code)
     sys.exit(code)

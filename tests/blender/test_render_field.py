@@ -268,6 +268,15 @@ def test_bad_input_exits_2_naming_the_option(env, tiny_config, tmp_path, args, n
     assert not (out.exists() and list(out.rglob("*.png")))
 
 
+def test_failure_while_rendering_exits_1(env, tiny_config, tmp_path):
+    """Not bad input but a failure during the job (the output folder cannot be made): exit 1."""
+    blocker = tmp_path / "taken"
+    blocker.write_text("a file where the output folder should go")
+    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", blocker / "sub", timeout=120)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "failed" in proc.stderr
+
+
 def test_help_documents_every_option(env):
     proc = render(env, "--help", timeout=60)
     assert proc.returncode == 0

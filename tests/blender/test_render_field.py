@@ -364,3 +364,19 @@ def test_sun_and_sky_follow_the_render_parameters(stage, tiny_params, scene):
     assert scene.world is not None and scene.world.node_tree is not None
     assert scene.view_settings.view_transform in ("AgX", "Filmic")
     assert scene.cycles.device == "CPU" and not scene.cycles.use_animated_seed
+
+
+def test_example_scenes_are_valid_and_the_default_is_small(addon):
+    """Every scenes/*.toml loads; the default (README's first command) stays a short, light job."""
+    from importlib import import_module
+
+    schema = import_module(f"{addon.__name__}.grass_addon.schema")
+    scenes = sorted((REPO / "scenes").glob("*.toml"))
+    assert any(p.name == "default.toml" for p in scenes)
+    for path in scenes:
+        schema.load_toml(path)  # raises ParameterError naming the key and the file
+    p = schema.load_toml(REPO / "scenes" / "default.toml")
+    frames = p.render.frame_end - p.render.frame_start + 1
+    # A few minutes on two CPU cores: at most ~2 s of animation at modest size and samples.
+    assert frames <= 48 and p.render.resolution_x * p.render.resolution_y <= 480 * 270
+    assert p.render.samples <= 16 and p.render.engine == "cycles" and p.camera.mode == "flythrough"

@@ -139,3 +139,13 @@ def test_bench_peers_missing_module_is_reported(monkeypatch):
     monkeypatch.setitem(sys.modules, "bench_peers", None)  # import of a None entry raises ImportError
     result = bench.run_peers_json()
     assert "error" in result and "bench_peers" in result["error"]
+
+
+def test_wind_type_flag_brings_its_preset_speed():
+    """--wind-type calm without --wind-speed means a calm (Beaufort 0, < 0.5 m/s), not the
+    default breeze speed; an explicit --wind-speed still wins."""
+    calm = run("simulate.py", *TINY, "--frames", 1, "--wind-type", "calm")
+    assert calm.returncode == 0, calm.stderr
+    assert f"calm, {schema.WIND_TYPE_PRESETS['calm']['speed']:g} m/s" in calm.stdout
+    given = run("simulate.py", *TINY, "--frames", 1, "--wind-type", "calm", "--wind-speed", "2")
+    assert "calm, 2 m/s" in given.stdout

@@ -317,7 +317,11 @@ class Params:
     def replace(self, overrides: Mapping[str, Any] | None = None, **dotted: Any) -> "Params":
         """New validated Params with ``{"wind.speed": 5.0}`` style overrides applied."""
         data = self.to_dict()
-        for name, value in {**(overrides or {}), **{k.replace("__", "."): v for k, v in dotted.items()}}.items():
+        changes = {**(overrides or {}), **{k.replace("__", "."): v for k, v in dotted.items()}}
+        if changes.get("wind.type", self.wind.type) != self.wind.type:
+            # a new wind type brings its preset speed and turbulence unless those are given too
+            changes = {**wind_preset(changes["wind.type"]), **changes}
+        for name, value in changes.items():
             if "." not in name:
                 raise ParameterError(name, "expected a dotted name such as 'wind.speed'")
             section, key = name.split(".", 1)

@@ -182,11 +182,11 @@ def resolve(args: argparse.Namespace):
 
 def variant_params(params, index: int, keep_speed: bool):
     """Variant ``index``: seed + index, wind type cycling through schema.WIND_TYPES (each with its
-    nominal speed unless the user set --wind-speed)."""
+    preset speed and turbulence, schema.wind_preset, unless the user set --wind-speed)."""
     wind_type = schema.WIND_TYPES[index % len(schema.WIND_TYPES)]
     changes = {"field.seed": params.field.seed + index, "wind.type": wind_type}
-    if not keep_speed:
-        changes["wind.speed"] = schema.WIND_TYPE_SPEED[wind_type]
+    if keep_speed:
+        changes["wind.speed"] = params.wind.speed
     return params.replace(changes)
 
 

@@ -47,8 +47,6 @@ def parse_args(argv):
 def load_params(args) -> schema.Params:
     params = schema.load_toml(args.config) if args.config else schema.defaults()
     overrides = schema.cli_overrides(args)
-    if "wind.type" in overrides:  # a wind type brings its preset speed/turbulence unless given too
-        overrides = {**schema.wind_preset(overrides["wind.type"]), **overrides}
     if args.fps is not None:
         overrides["render.fps"] = args.fps
     return params.replace(overrides) if overrides else params

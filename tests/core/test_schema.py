@@ -112,3 +112,14 @@ def test_params_are_immutable_and_hash_by_value():
         a.wind.speed = 3.0
     assert a.replace({"field.seed": 1}).digest() != a.digest()
     assert not math.isnan(a.wind.speed)
+
+
+def test_changing_the_wind_type_brings_its_preset_unless_given():
+    p = schema.defaults().replace({"wind.type": "calm"})
+    assert (p.wind.speed, p.wind.turbulence) == (schema.WIND_TYPE_PRESETS["calm"]["speed"],
+                                                  schema.WIND_TYPE_PRESETS["calm"]["turbulence"])
+    q = schema.defaults().replace({"wind.type": "moderate_breeze", "wind.speed": 7.5})
+    assert q.wind.speed == 7.5 and q.wind.turbulence == schema.WIND_TYPE_PRESETS["moderate_breeze"]["turbulence"]
+    # re-stating the current type keeps the user's values
+    r = schema.defaults().replace({"wind.speed": 5.0}).replace({"wind.type": "gentle_breeze"})
+    assert r.wind.speed == 5.0

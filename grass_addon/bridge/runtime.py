@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import time
 from dataclasses import dataclass
 from dataclasses import field as dc_field
 
@@ -453,13 +454,48 @@ def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None
             _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
 
 
-def mark_dirty(scene, item) -> None:
-    """Parameters of ``item`` changed: rewrite it now (the digest decides what is rebuilt)."""
+# Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
+# for this long, so dragging a slider on a large field does not re-simulate at every step.
+_EDIT_SETTLE_S = 0.15
+_PENDING: dict[tuple[str, str], float] = {}
+
+
+def mark_dirty(scene, item, defer: bool | None = None) -> None:
+    """Parameters of ``item`` changed: rewrite it (the digest decides what is rebuilt).
+
+    Scripts and background renders (``bpy.app.background``) get the update at once; in the UI
+    (``defer``) it waits until the edits settle (a timer), so interactive edits stay fluid.
+    """
+    if not (defer if defer is not None else not bpy.app.background):
+        _update_now(scene, item)
+        return
+    _PENDING[runtime_key(scene, item)] = time.monotonic()
+    if not bpy.app.timers.is_registered(_flush_pending):
+        bpy.app.timers.register(_flush_pending, first_interval=_EDIT_SETTLE_S)
+
+
+def _update_now(scene, item) -> None:
     try:
         if item.collection is not None:
             update_field(scene, item)
     except Exception as exc:
         _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
+
+
+def _flush_pending() -> float | None:
+    """Timer: apply settled edits; run again shortly while the user is still dragging."""
+    latest = max(_PENDING.values(), default=0.0)
+    wait = latest + _EDIT_SETTLE_S - time.monotonic()
+    if wait > 0:
+        return wait
+    pending = list(_PENDING)
+    _PENDING.clear()
+    for scene_name, uid in pending:
+        scene = bpy.data.scenes.get(scene_name)
+        item = next((f for f in scene.windgrass.fields if f.uid == uid), None) if scene else None
+        if item is not None:
+            _update_now(scene, item)
+    return None
 
 
 def reset_field(scene, item) -> None:
@@ -502,6 +538,7 @@ def on_depsgraph_update_post(scene, depsgraph=None):
 def on_load_post(*_args):
     RUNTIMES.clear()
     _WARNED.clear()
+    _PENDING.clear()
 
 
 @persistent
@@ -539,5 +576,8 @@ def unregister() -> None:
     for handlers, func in _HANDLERS:
         for existing in [h for h in handlers if _same(h, func)]:
             handlers.remove(existing)
+    if bpy.app.timers.is_registered(_flush_pending):
+        bpy.app.timers.unregister(_flush_pending)
+    _PENDING.clear()
     RUNTIMES.clear()
     _WARNED.clear()

@@ -213,6 +213,24 @@ def test_resizing_the_field_rebuilds_slots_where_the_user_placed_it(bridge):
     assert roots_world[:, 0].min() >= 5.0 - 1.2 - 1e-4 and roots_world[:, 0].max() <= 5.0 + 1.2 + 1e-4
 
 
+def test_ui_edits_are_coalesced_until_they_settle(bridge):
+    """In the UI a dragged slider marks the field dirty at every step; one rebuild follows."""
+    import time
+
+    _, runtime = bridge
+    scene, item = _add_field()
+    before = runtime.get_runtime(scene, item).digest
+    for turbulence in (1.25, 1.375, 1.5):  # three slider steps
+        item.wind["turbulence"] = turbulence  # raw ID-property write: no update callback of its own
+        runtime.mark_dirty(scene, item, defer=True)
+    assert runtime.get_runtime(scene, item).digest == before  # nothing rebuilt while dragging
+    assert runtime._flush_pending() is not None  # still settling: the timer runs again
+    time.sleep(runtime._EDIT_SETTLE_S + 0.05)
+    assert runtime._flush_pending() is None
+    assert runtime.get_runtime(scene, item).digest != before
+    assert runtime.get_runtime(scene, item).field.sim.params.wind.turbulence == pytest.approx(1.5)
+
+
 def test_frame_change_sways_tips_and_keeps_roots(bridge):
     _, runtime = bridge
     scene, item = _add_field()

@@ -19,11 +19,12 @@ from .wind import WindField
 
 
 class GrassField:
-    """``GrassField(params, wind_keys=None)``; wind_keys: None (params.wind) or (time_s, speed, deg) rows."""
+    """``GrassField(params, wind_keys=None, terrain=None)``; wind_keys: None (params.wind) or
+    (time_s, speed, deg) rows; terrain: a ``terrain.Heightfield`` in the field's frame or None (flat)."""
 
-    def __init__(self, params: Params, wind_keys=None):
+    def __init__(self, params: Params, wind_keys=None, terrain=None):
         self.params = params
-        self.layout: FieldLayout = build_layout(params)
+        self.layout: FieldLayout = build_layout(params, terrain=terrain)
         self.wind = WindField(self.layout, params, keys=wind_keys)
         self.sim = Simulation(self.layout, params, self.wind)
         self.cells: CellData | None = None  # cell data of the last seek

@@ -8,11 +8,13 @@ block has the same number of blades: one mesh topology serves any block (see DEV
 from __future__ import annotations
 
 from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import numpy as np
 
 from . import blade
 from .schema import Params
+from .terrain import Heightfield, ground_z
 
 # Purposes of the random streams: np.random.default_rng([seed, PURPOSE]).
 RNG_BLADES = 1
@@ -61,6 +63,10 @@ class FieldLayout:
     card_facing: np.ndarray
     card_shade: np.ndarray
     species_color: np.ndarray  # (n_species, 3) float32 linear RGB
+    # terrain (issue 3): None = flat ground z = 0; blade_root z lies on it
+    terrain: Heightfield | None = None
+    cell_ground: np.ndarray = dc_field(default=None)  # (n_cells,) float32 ground z at each cell centre
+    block_z_range: np.ndarray = dc_field(default=None)  # (n_blocks, 2) float32 lowest, highest ground
 
     @property
     def size(self) -> tuple[float, float]:
@@ -116,7 +122,9 @@ def _rest_tilt(params: Params, length, stiffness, inclination) -> np.ndarray:
     return blade.rest_tilt(inclination, theta)
 
 
-def build_layout(params: Params) -> FieldLayout:
+def build_layout(params: Params, terrain: Heightfield | None = None) -> FieldLayout:
+    """The layout of ``params``; ``terrain`` (a heightfield in the field's frame, None: flat
+    ground) sets the height of every blade root and cell (the x/y layout does not change)."""
     f = params.field
     cpb, cs, num, n = f.cells_per_block, f.cell_size, f.blades_per_cell, params.blade.segments
     cells_x, cells_y = f.blocks_x * cpb, f.blocks_y * cpb
@@ -141,6 +149,12 @@ def build_layout(params: Params) -> FieldLayout:
     offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
     root = np.zeros((n_blades, 3), dtype=np.float32)
     root[:, :2] = cell_center[blade_cell] + offset
+    root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
+    cell_ground = ground_z(terrain, cell_center)
+    if terrain is None:
+        block_z_range = np.zeros((n_blocks, 2), np.float32)
+    else:
+        block_z_range = terrain.box_z_range(block_bounds)
     facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
     kind, length, width, stiffness, inclination = _sample_blades(rng, n_blades, params, species)
     shade = rng.random(n_blades).astype(np.float32)
@@ -188,4 +202,6 @@ def build_layout(params: Params) -> FieldLayout:
         cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
         card_shade=card_shade.astype(f32), species_color=species["color"],
+        terrain=terrain, cell_ground=np.ascontiguousarray(cell_ground, dtype=f32),
+        block_z_range=np.ascontiguousarray(block_z_range, dtype=f32),
     )

@@ -1,6 +1,7 @@
 """Levels of detail (paper III.D, eqs 7-11) and block frustum culling.
 
-Per cell, ``d`` is the distance from the viewpoint to the cell centre on the ground (z = 0):
+Per cell, ``d`` is the distance from the viewpoint to the cell centre on the ground (z = 0, or
+the terrain's height there, ``layout.cell_ground``):
 
 * first transition region (blades -> cards), eqs 7-9:
   ``K_b = (d - d_g1) / (d_g2 - d_g1)``, ``K_g = 1 - K_b``, ``N = floor(num * K_g)``;
@@ -13,7 +14,8 @@ When a region has zero width (d_g1 == d_g2) the weight is a step at that distanc
 
 Blocks are culled against the camera frustum (side planes and the plane through the eye):
 a block's box is its ground rectangle widened by how far a blade or card can reach sideways,
-extruded from the ground to the tallest blade or card, so culling is conservative.
+extruded from its lowest ground (``layout.block_z_range``) to the tallest blade or card standing
+on its highest ground, so culling is conservative.
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ class LodWeights:
     k_texture: np.ndarray  # (n_cells,) float32: K_t, eq 10
     blade_count: np.ndarray  # (n_cells,) int32: N, eq 9
     block_visible: np.ndarray  # (n_blocks,) bool: the block's box meets the view frustum
-    block_distance: np.ndarray  # (n_blocks,) float32: eye to the nearest point of the block's ground rectangle
+    block_distance: np.ndarray  # (n_blocks,) float32: eye to the nearest point of the block's ground box
 
 
 def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:
@@ -129,12 +131,14 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     if eye.shape != (3,) or not np.all(np.isfinite(eye)):
         raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
     # d: eye to cell centre on the ground. The cells form a regular grid, so the squared distance
-    # is a column term + a row term (+ the eye height), combined by broadcasting.
+    # is a column term + a row term (+ the eye height above the cell's ground), by broadcasting.
     xs = layout.cell_center[: layout.cells_x, 0]
     ys = layout.cell_center[:: layout.cells_x, 1]
     dx2 = np.square(xs - np.float32(eye[0]))
-    dy2 = np.square(ys - np.float32(eye[1])) + np.float32(eye[2] ** 2)
-    d = np.sqrt(dy2[:, None] + dx2[None, :]).ravel()
+    dy2 = np.square(ys - np.float32(eye[1]))
+    ground = _cell_ground(layout).reshape(layout.cells_y, layout.cells_x)
+    dz2 = np.square(np.float32(eye[2]) - ground)
+    d = np.sqrt(dz2 + dy2[:, None] + dx2[None, :]).ravel()
 
     k_b = _ramp(d, lod.blade_near, lod.blade_far)  # eq 7
     k_g = 1.0 - k_b  # eq 8
@@ -148,16 +152,31 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
                       block_visible=_block_visible(layout, camera), block_distance=_block_distance(layout, eye))
 
 
-def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
-    """Distance from the eye to the nearest point of each block's ground rectangle (z = 0).
+def _cell_ground(layout) -> np.ndarray:
+    """Ground z of every cell centre (zeros for flat ground or a layout without terrain data)."""
+    ground = getattr(layout, "cell_ground", None)
+    return np.zeros(layout.n_cells, np.float32) if ground is None else ground
 
-    It is <= the distance to any cell centre of the block, so a block with
-    block_distance > lod.card_far holds nothing but ground texture.
+
+def _block_z_range(layout) -> np.ndarray:
+    """(n_blocks, 2) lowest and highest ground of each block (zeros: flat ground)."""
+    z = getattr(layout, "block_z_range", None)
+    return np.zeros((layout.n_blocks, 2), np.float32) if z is None else z
+
+
+def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
+    """Distance from the eye to the nearest point of each block's ground box: its rectangle,
+    from its lowest to its highest ground (z = 0 on flat ground).
+
+    It is <= the distance to any cell centre of the block (which lies on the ground inside that
+    box), so a block with block_distance > lod.card_far holds nothing but ground texture.
     """
     b = layout.block_bounds.astype(np.float64)
+    z = _block_z_range(layout).astype(np.float64)
     nx = np.clip(eye[0], b[:, 0], b[:, 2]) - eye[0]
     ny = np.clip(eye[1], b[:, 1], b[:, 3]) - eye[1]
-    return np.sqrt(nx * nx + ny * ny + eye[2] ** 2).astype(np.float32)
+    nz = np.clip(eye[2], z[:, 0], z[:, 1]) - eye[2]
+    return np.sqrt(nx * nx + ny * ny + nz * nz).astype(np.float32)
 
 
 def _block_visible(layout, camera: Camera) -> np.ndarray:
@@ -168,10 +187,12 @@ def _block_visible(layout, camera: Camera) -> np.ndarray:
     """
     reach, height = block_reach(layout)
     b = layout.block_bounds.astype(np.float64)
+    z = _block_z_range(layout).astype(np.float64)
+    bottom, top = z[:, 0], z[:, 1] + height  # lowest ground .. tallest blade on the highest ground
     centre = np.stack([(b[:, 0] + b[:, 2]) * 0.5, (b[:, 1] + b[:, 3]) * 0.5,
-                       np.full(len(b), 0.5 * height)], axis=1) - np.asarray(camera.position, dtype=np.float64)
+                       0.5 * (bottom + top)], axis=1) - np.asarray(camera.position, dtype=np.float64)
     half = np.stack([(b[:, 2] - b[:, 0]) * 0.5 + reach, (b[:, 3] - b[:, 1]) * 0.5 + reach,
-                     np.full(len(b), 0.5 * height)], axis=1)
+                     0.5 * (top - bottom)], axis=1)
     planes = camera.planes()  # (5, 3)
     best = centre @ planes.T + half @ np.abs(planes).T  # (n_blocks, 5)
     return np.all(best >= 0.0, axis=1)

@@ -1,0 +1,171 @@
+"""Terrain: the ground height under the field as a regular heightfield (numpy only, no bpy).
+
+The paper grows its grass on flat ground; issue 3 roots the blades on a mesh. The bridge samples
+the mesh at the points of a regular grid over the field (``grid_for``: one sample per cell corner,
+coarser for very large fields) and hands the heights to the core as a ``Heightfield``. Between
+samples the height is bilinear, so a plane (any tilt) is reproduced exactly. ``None`` everywhere
+means flat ground, z = 0.
+
+Coordinates are the field's frame (DEVELOPERS.md: X/Y in the ground plane, the field centred on
+the origin); heights are metres along Z in that frame.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from .errors import ParameterError
+
+# At most this many heightfield cells along a side: a 1024 x 1024-cell field is sampled every
+# 4 cells (the bridge ray-casts once per sample at build time, and the ground mesh has one quad
+# per heightfield cell).
+MAX_GRID_CELLS = 256
+
+
+class Heightfield:
+    """Ground heights on a regular grid: sample (i, j) lies at origin_xy + spacing * (i, j).
+
+    heights: (ny + 1, nx + 1) float32, row j along Y, column i along X; nx, ny >= 1.
+    """
+
+    def __init__(self, origin_xy, spacing: float, heights):
+        self.origin_xy = np.asarray(origin_xy, dtype=np.float64).reshape(2)
+        self.spacing = float(spacing)
+        self.heights = np.ascontiguousarray(heights, dtype=np.float32)
+        if not (self.spacing > 0.0 and math.isfinite(self.spacing)):
+            raise ParameterError("terrain", f"heightfield spacing {spacing!r} must be a positive number")
+        if self.heights.ndim != 2 or min(self.heights.shape) < 2:
+            raise ParameterError("terrain", f"heightfield needs at least 2 x 2 samples, got shape {self.heights.shape}")
+        if not np.all(np.isfinite(self.heights)):
+            raise ParameterError("terrain", "heightfield heights must be finite")
+        self.heights.setflags(write=False)
+
+    @property
+    def nx(self) -> int:
+        return self.heights.shape[1] - 1
+
+    @property
+    def ny(self) -> int:
+        return self.heights.shape[0] - 1
+
+    @classmethod
+    def flat(cls, origin_xy=(0.0, 0.0), spacing: float = 1.0, nx: int = 1, ny: int = 1) -> Heightfield:
+        """Flat ground z = 0 (the same as no terrain)."""
+        return cls(origin_xy, spacing, np.zeros((ny + 1, nx + 1), np.float32))
+
+    def points(self) -> np.ndarray:
+        """(ny + 1, nx + 1, 2) float64 XY of every sample."""
+        return grid_points(self.origin_xy, self.spacing, self.nx, self.ny)
+
+    def sample(self, xy) -> np.ndarray:
+        """Bilinear height at points xy (..., 2) -> (...) float32; clamped to the grid outside it."""
+        xy = np.asarray(xy, dtype=np.float64)
+        u = np.clip((xy[..., 0] - self.origin_xy[0]) / self.spacing, 0.0, self.nx)
+        v = np.clip((xy[..., 1] - self.origin_xy[1]) / self.spacing, 0.0, self.ny)
+        i = np.minimum(np.floor(u), self.nx - 1).astype(np.intp)
+        j = np.minimum(np.floor(v), self.ny - 1).astype(np.intp)
+        fu, fv = u - i, v - j
+        h = self.heights
+        z00, z10 = h[j, i].astype(np.float64), h[j, i + 1].astype(np.float64)
+        z01, z11 = h[j + 1, i].astype(np.float64), h[j + 1, i + 1].astype(np.float64)
+        low = z00 + (z10 - z00) * fu
+        high = z01 + (z11 - z01) * fu
+        return (low + (high - low) * fv).astype(np.float32)
+
+    def box_z_range(self, bounds) -> np.ndarray:
+        """(m, 2) float32 lowest and highest ground over each rectangle (m, 4) xmin, ymin, xmax, ymax.
+
+        The bilinear surface of a grid cell stays between its corner heights, so the range of the
+        samples of every grid cell a rectangle touches bounds the ground over it (conservative).
+        """
+        b = np.asarray(bounds, dtype=np.float64).reshape(-1, 4)
+        s, (ox, oy) = self.spacing, self.origin_xy
+        # grid cells touched: columns i0..i1-1, rows j0..j1-1 (clamped: outside, the edge holds)
+        i0 = np.clip(np.floor((b[:, 0] - ox) / s), 0, self.nx - 1).astype(np.intp)
+        i1 = np.clip(np.ceil((b[:, 2] - ox) / s), i0 + 1, self.nx).astype(np.intp)
+        j0 = np.clip(np.floor((b[:, 1] - oy) / s), 0, self.ny - 1).astype(np.intp)
+        j1 = np.clip(np.ceil((b[:, 3] - oy) / s), j0 + 1, self.ny).astype(np.intp)
+        h = self.heights
+        # Distinct column spans and row spans are few (one per block column / row): reduce the
+        # samples over each column span, then each of those over each row span.
+        col_keys, col_of = np.unique(np.stack([i0, i1], 1), axis=0, return_inverse=True)
+        row_keys, row_of = np.unique(np.stack([j0, j1], 1), axis=0, return_inverse=True)
+        lo = np.stack([h[:, a:c + 1].min(axis=1) for a, c in col_keys])  # (n_col_spans, ny + 1)
+        hi = np.stack([h[:, a:c + 1].max(axis=1) for a, c in col_keys])
+        lo = np.stack([lo[:, d:e + 1].min(axis=1) for d, e in row_keys], axis=1)  # (cols, rows)
+        hi = np.stack([hi[:, d:e + 1].max(axis=1) for d, e in row_keys], axis=1)
+        col_of, row_of = col_of.ravel(), row_of.ravel()
+        return np.stack([lo[col_of, row_of], hi[col_of, row_of]], axis=1).astype(np.float32)
+
+    def fingerprint(self) -> str:
+        """Hash of the grid and the heights (the runtime rebuilds when it changes)."""
+        h = hashlib.sha1()
+        h.update(np.asarray([*self.origin_xy, self.spacing], np.float64).tobytes())
+        h.update(np.asarray(self.heights.shape, np.int64).tobytes())
+        h.update(self.heights.tobytes())
+        return h.hexdigest()
+
+
+def grid_points(origin_xy, spacing: float, nx: int, ny: int) -> np.ndarray:
+    """(ny + 1, nx + 1, 2) float64 XY of a grid's samples, row-major over Y then X."""
+    ox, oy = np.asarray(origin_xy, dtype=np.float64).reshape(2)
+    xs = ox + spacing * np.arange(nx + 1)
+    ys = oy + spacing * np.arange(ny + 1)
+    gx, gy = np.meshgrid(xs, ys)
+    return np.stack([gx, gy], axis=-1)
+
+
+def grid_for(params, max_cells: int = MAX_GRID_CELLS) -> tuple[np.ndarray, float, int, int]:
+    """(origin_xy, spacing, nx, ny) of the heightfield grid over the field of ``params``.
+
+    One sample per cell corner (spacing = cell size); a field wider than ``max_cells`` cells is
+    sampled every ``step`` cells. The grid covers the whole field (it may reach past the far edge
+    by less than one spacing).
+    """
+    f = params.field
+    cells_x, cells_y = f.blocks_x * f.cells_per_block, f.blocks_y * f.cells_per_block
+    step = max(1, math.ceil(max(cells_x, cells_y) / max_cells))
+    spacing = f.cell_size * step
+    origin = -0.5 * np.array([cells_x * f.cell_size, cells_y * f.cell_size])
+    return origin, spacing, math.ceil(cells_x / step), math.ceil(cells_y / step)
+
+
+def ground_z(terrain: Heightfield | None, xy) -> np.ndarray:
+    """Ground height at xy (..., 2) -> (...) float32; zeros on flat ground (terrain None)."""
+    xy = np.asarray(xy)
+    if terrain is None:
+        return np.zeros(xy.shape[:-1], np.float32)
+    return terrain.sample(xy)
+
+
+def fill_missing(heights, hit, fallback: float | None = None) -> np.ndarray:
+    """Heights where ``hit`` is False (rays that missed the mesh) take the height of the nearest
+    hit sample (grown ring by ring, 8-neighbourhood); with no hit at all, ``fallback`` (or 0).
+
+    heights, hit: (ny + 1, nx + 1). Returns a new float32 array.
+    """
+    z = np.array(heights, dtype=np.float64)
+    known = np.array(hit, dtype=bool)
+    if not known.any():
+        return np.full(z.shape, 0.0 if fallback is None else fallback, np.float32)
+    z[~known] = 0.0
+    while not known.all():
+        # Mean of the known neighbours of each unknown sample adjacent to the known region.
+        total = np.zeros_like(z)
+        count = np.zeros(z.shape, np.int32)
+        pz = np.pad(np.where(known, z, 0.0), 1)
+        pk = np.pad(known, 1)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dx == 0 and dy == 0:
+                    continue
+                sl = (slice(1 + dy, pz.shape[0] - 1 + dy), slice(1 + dx, pz.shape[1] - 1 + dx))
+                total += pz[sl]
+                count += pk[sl]
+        grow = ~known & (count > 0)
+        z[grow] = total[grow] / count[grow]
+        known |= grow
+    return z.astype(np.float32)

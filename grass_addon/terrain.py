@@ -169,3 +169,61 @@ def fill_missing(heights, hit, fallback: float | None = None) -> np.ndarray:
         z[grow] = total[grow] / count[grow]
         known |= grow
     return z.astype(np.float32)
+
+
+def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
+          chunk_pairs: int = 1 << 21) -> tuple[np.ndarray, np.ndarray]:
+    """Heights of a triangle mesh at the grid's samples, as a ray cast straight down from above
+    would find them: the highest surface over each sample (the top of the terrain).
+
+    triangles: (T, 3, 3) vertex positions in the field's frame. Returns (heights, hit), both
+    (ny + 1, nx + 1): float32 heights (0 where nothing was hit) and bool hit. Vectorised: every
+    triangle is tested against the samples inside its XY bounding box (barycentric coordinates),
+    in chunks of at most ``chunk_pairs`` (triangle, sample) pairs.
+    """
+    tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    ox, oy = np.asarray(origin_xy, dtype=np.float64).reshape(2)
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    e1, e2 = b - a, c - a
+    det = e1[:, 0] * e2[:, 1] - e2[:, 0] * e1[:, 1]  # twice the signed XY area
+    scale = np.maximum(np.abs(e1[:, :2]).max(axis=1), np.abs(e2[:, :2]).max(axis=1))
+    keep = np.abs(det) > 1e-12 * np.maximum(scale * scale, 1e-30)  # seen edge-on from above: no area
+    tri, a, e1, e2, det = tri[keep], a[keep], e1[keep], e2[keep], det[keep]
+    best = np.full((ny + 1) * (nx + 1), -np.inf)
+    if len(tri):
+        eps = 1e-9
+        u = (tri[:, :, 0] - ox) / spacing
+        v = (tri[:, :, 1] - oy) / spacing
+        i0 = np.clip(np.ceil(u.min(axis=1) - eps), 0, nx + 1).astype(np.int64)
+        i1 = np.clip(np.floor(u.max(axis=1) + eps), -1, nx).astype(np.int64)
+        j0 = np.clip(np.ceil(v.min(axis=1) - eps), 0, ny + 1).astype(np.int64)
+        j1 = np.clip(np.floor(v.max(axis=1) + eps), -1, ny).astype(np.int64)
+        width = np.maximum(i1 - i0 + 1, 0)
+        counts = width * np.maximum(j1 - j0 + 1, 0)
+        ends = np.cumsum(counts)
+        start = 0
+        while start < len(tri):
+            # the next triangles up to chunk_pairs pairs (at least one triangle)
+            limit = (ends[start - 1] if start else 0) + chunk_pairs
+            stop = max(start + 1, int(np.searchsorted(ends, limit, side="right")))
+            idx = np.arange(start, stop)
+            cnt = counts[idx]
+            total = int(cnt.sum())
+            start = stop
+            if total == 0:
+                continue
+            t = np.repeat(idx, cnt)
+            local = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+            di, dj = np.divmod(local, width[t])[::-1]
+            pi, pj = i0[t] + di, j0[t] + dj
+            px, py = ox + spacing * pi - a[t, 0], oy + spacing * pj - a[t, 1]
+            # barycentric (l1 along e1, l2 along e2): p - a = l1 e1 + l2 e2 in XY
+            l1 = (px * e2[t, 1] - e2[t, 0] * py) / det[t]
+            l2 = (e1[t, 0] * py - px * e1[t, 1]) / det[t]
+            inside = (l1 >= -eps) & (l2 >= -eps) & (l1 + l2 <= 1.0 + eps)
+            z = a[t, 2] + l1 * e1[t, 2] + l2 * e2[t, 2]
+            flat_id = pj * (nx + 1) + pi
+            np.maximum.at(best, flat_id[inside], z[inside])
+    hit = np.isfinite(best)
+    heights = np.where(hit, best, 0.0).astype(np.float32).reshape(ny + 1, nx + 1)
+    return heights, hit.reshape(ny + 1, nx + 1)

@@ -98,15 +98,20 @@ def test_block_z_range_bounds_a_bumpy_ground():
 
 def test_blade_joint_0_sits_on_the_terrain():
     """The kinematics start every strip at its root: joint 0's centre (mean of left and right) is
-    on the ground, whatever the wind does to the rest of the blade."""
+    on the ground, whatever the wind does to the rest of the blade. Grass on a slope still grows
+    along gravity (paper III.A: the rest shape is set by gravity), so each blade is the flat
+    field's blade lifted by the ground height at its root, same shape."""
     params = small_params(**{"wind.speed": 6.0})
-    field = GrassField(params, terrain=heightfield_of(params, plane))
-    field.seek(10)
-    v = field.blade_vertices(field.all_blocks()).reshape(field.layout.n_blades, params.blade.segments + 1, 2, 3)
+    hilly = GrassField(params, terrain=heightfield_of(params, plane))
+    flat = GrassField(params)
+    shape = (hilly.layout.n_blades, params.blade.segments + 1, 2, 3)
+    hilly.seek(10)
+    flat.seek(10)
+    v = hilly.blade_vertices(hilly.all_blocks()).reshape(shape)
+    w = flat.blade_vertices(flat.all_blocks()).reshape(shape)
     root = v[:, 0].mean(axis=1)
     np.testing.assert_allclose(root[:, 2], plane(root[:, :2]), atol=1e-5)
-    tips = v[:, -1].mean(axis=1)
-    assert np.all(tips[:, 2] > root[:, 2])  # blades stand up from the slope
+    np.testing.assert_allclose(v - root[:, None, None, :] * [0, 0, 1], w, atol=2e-5)
 
 
 def test_lod_distance_is_measured_to_the_cell_on_the_ground():
@@ -177,3 +182,32 @@ def test_fingerprint_follows_the_heights_and_bad_grids_name_the_terrain():
         terrain.Heightfield((0, 0), 0.0, np.zeros((3, 3)))
     with pytest.raises(ParameterError, match="terrain"):
         terrain.Heightfield((0, 0), 1.0, np.full((3, 3), np.nan))
+
+
+def test_drape_finds_the_top_surface_of_a_triangle_mesh():
+    """Ray casts straight down, vectorised: a tilted quad (two triangles) under part of the grid
+    gives the plane's heights where it lies and no hit elsewhere; a second, higher sheet over
+    some samples wins there (the top of the terrain is what grass grows on)."""
+    quad = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+    corners = np.column_stack([quad, plane(quad)])
+    tris = np.stack([corners[[0, 1, 2]], corners[[0, 2, 3]]])
+    origin, spacing, nx, ny = np.array([-2.0, -2.0]), 0.25, 16, 16
+    z, hit = terrain.drape(tris, origin, spacing, nx, ny)
+    pts = terrain.grid_points(origin, spacing, nx, ny)
+    inside = np.all(np.abs(pts) <= 1.0 + 1e-9, axis=-1)  # edges included (samples on the border)
+    np.testing.assert_array_equal(hit, inside)
+    np.testing.assert_allclose(z[inside], plane(pts[inside]), atol=2e-6)
+    # Small chunks give the same answer.
+    z2, hit2 = terrain.drape(tris, origin, spacing, nx, ny, chunk_pairs=7)
+    np.testing.assert_array_equal(z2, z)
+    np.testing.assert_array_equal(hit2, hit)
+    # A roof at z = 5 over x in [0, 1], y in [0, 1] hides the plane below it.
+    roof = np.array([[(0, 0, 5), (1, 0, 5), (1, 1, 5)], [(0, 0, 5), (1, 1, 5), (0, 1, 5)]], float)
+    z3, _ = terrain.drape(np.concatenate([tris, roof]), origin, spacing, nx, ny)
+    under = inside & np.all((pts >= 0.0) & (pts <= 1.0), axis=-1)
+    np.testing.assert_allclose(z3[under], 5.0)
+    np.testing.assert_allclose(z3[inside & ~under], z[inside & ~under])
+    # A vertical wall (no area seen from above) is ignored.
+    wall = np.array([[(0, -1, 0), (0, 1, 0), (0, 1, 9)]], float)
+    z4, _ = terrain.drape(np.concatenate([tris, wall]), origin, spacing, nx, ny)
+    np.testing.assert_array_equal(z4, z)

@@ -1,6 +1,9 @@
 """windgrass.field_add: add a grass field (also in Add > Mesh and the Add menu)."""
 
+import math
+
 import bpy
+from mathutils import Vector
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties
@@ -9,6 +12,9 @@ from ._common import bridge, refresh, reported
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
 # (12.8 m square, 32,768 blades); every other value is the schema default.
 FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8}
+# On a terrain the field fits the mesh's XY extent (cell size kept) unless blocks_x/blocks_y are
+# given, up to this many blocks (a light field; the artist can grow it in the panel).
+FIT_MAX_BLOCKS = 256
 
 
 def _field_options() -> dict:
@@ -29,7 +35,8 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         **_field_options(),
         "use_selected_mesh": bpy.props.BoolProperty(
             name="Selected Mesh as Terrain", default=True,
-            description="Root the blades on the selected mesh (when terrain is supported)"),
+            description="Root the blades on the surface of the selected mesh (its terrain); "
+                        "the field is centred on the mesh and sized to it unless Blocks X/Y are set"),
     }
 
     @classmethod
@@ -39,20 +46,22 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        params = schema.defaults().replace(
-            {f"field.{p.key}": getattr(self, p.key) for p in schema.section_params("field")})
         scene_bridge = bridge("scene")  # before the item exists: a missing bridge leaves nothing behind
         terrain = None
         obj = context.active_object
         if self.use_selected_mesh and obj is not None and obj.type == "MESH" and obj.select_get():
             terrain = obj
+        if terrain is not None and not getattr(scene_bridge, "SUPPORTS_TERRAIN", False):
+            self.report({"WARNING"}, f"Mesh '{terrain.name}' not used: terrain is not supported yet, "
+                                     "the grass grows on flat ground at the origin")
+            terrain = None
+        values = {p.key: getattr(self, p.key) for p in schema.section_params("field")}
+        if terrain is not None:
+            values.update(self._fit_to(terrain, values))
+        params = schema.defaults().replace({f"field.{k}": v for k, v in values.items()})
         item = properties.add_field(scene, params)
         if terrain is not None:
-            if getattr(scene_bridge, "SUPPORTS_TERRAIN", False):
-                item.terrain = terrain
-            else:
-                self.report({"WARNING"}, f"Mesh '{terrain.name}' not used: terrain is not supported yet, "
-                                         "the grass grows on flat ground at the origin")
+            item.terrain = terrain
         try:
             collection = scene_bridge.build_field(scene, item)
         except Exception:
@@ -65,8 +74,25 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         blades = f.blocks_x * f.blocks_y * f.cells_per_block ** 2 * f.blades_per_cell
         size_x = f.blocks_x * f.cells_per_block * f.cell_size
         size_y = f.blocks_y * f.cells_per_block * f.cell_size
-        self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m")
+        where = f" rooted on '{terrain.name}'" if terrain is not None else ""
+        self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
         return {"FINISHED"}
+
+
+    def _fit_to(self, terrain, values: dict) -> dict:
+        """blocks_x/blocks_y covering the terrain's XY extent (world bounding box) with the cell
+        size kept, when not given; at least 1, at most FIT_MAX_BLOCKS blocks in all."""
+        if self.properties.is_property_set("blocks_x") or self.properties.is_property_set("blocks_y"):
+            return {}
+        corners = [terrain.matrix_world @ Vector(c) for c in terrain.bound_box]
+        extent = (max(c.x for c in corners) - min(c.x for c in corners),
+                  max(c.y for c in corners) - min(c.y for c in corners))
+        edge = values["cells_per_block"] * values["cell_size"]
+        bx, by = (max(1, round(e / edge)) for e in extent)
+        if bx * by > FIT_MAX_BLOCKS:
+            shrink = math.sqrt(FIT_MAX_BLOCKS / (bx * by))
+            bx, by = max(1, int(bx * shrink)), max(1, int(by * shrink))
+        return {"blocks_x": bx, "blocks_y": by}
 
 
 def _undo_add(scene, scene_bridge, item) -> None:

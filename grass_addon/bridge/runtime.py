@@ -72,6 +72,12 @@ class FieldRuntime:
     card_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
     lod: object = None
     camera_signature: tuple | None = None
+    # Terrain (issue 3): the heightfield sampled from item.terrain at build time (None: flat), the
+    # world XY the field is centred on, and what the samples depend on besides the mesh data.
+    params_digest: str = ""
+    terrain_key: str = ""
+    heightfield: object = None
+    terrain_centre: tuple | None = None
 
 
 def runtime_key(scene, item) -> tuple[str, str]:
@@ -180,16 +186,28 @@ def field_params(scene, item, previous: FieldRuntime | None = None):
 
 
 def ensure_runtime(scene, item) -> FieldRuntime:
-    """The field's runtime, rebuilt when its parameters (or animated wind) changed."""
+    """The field's runtime, rebuilt when its parameters (or animated wind) or its terrain changed.
+
+    The terrain is sampled once per build (never per frame): the samples are kept while the
+    terrain object and the grid stay the same; Rebuild (``scene.build_field``) drops the runtime,
+    so an edited terrain mesh is sampled again. The digest includes the heights' fingerprint."""
     from ..field import GrassField
 
     key = runtime_key(scene, item)
     rt = RUNTIMES.get(key)
     params, keys, fingerprint, digest = field_params(scene, item, rt)
-    if rt is not None and rt.digest == digest:
+    t_key = field_scene.terrain_key(scene, item, params)
+    if rt is not None and rt.params_digest == digest and rt.terrain_key == t_key:
         return rt
-    rt = FieldRuntime(field=GrassField(params, wind_keys=keys), params=params, digest=digest,
-                      wind_fingerprint=fingerprint, wind_keys=keys)
+    if rt is not None and rt.terrain_key == t_key:
+        heightfield, centre = rt.heightfield, rt.terrain_centre
+    else:
+        heightfield, centre = field_scene.sample_terrain(scene, item, params)
+    full_digest = digest if heightfield is None else hashlib.sha1(
+        (digest + heightfield.fingerprint()).encode()).hexdigest()
+    rt = FieldRuntime(field=GrassField(params, wind_keys=keys, terrain=heightfield), params=params,
+                      digest=full_digest, wind_fingerprint=fingerprint, wind_keys=keys, params_digest=digest,
+                      terrain_key=t_key, heightfield=heightfield, terrain_centre=centre)
     RUNTIMES[key] = rt
     if item.collection is not None:
         field_scene.update_field_materials(field_scene.owner_tag(scene, item), params)

@@ -11,6 +11,11 @@ One collection per field holds:
 Pools are sized from the LOD distances (d_g2 for blades, d_s2 for cards), not from the field
 size, so memory and per-frame cost follow what is near the camera.
 
+Terrain (issue 3): when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a
+heightfield grid (``grass_addon/terrain.py``) over its evaluated surface in world space, the field is
+centred on the mesh's XY bounding-box centre, the blades are rooted on the surface and the ground
+becomes a grid mesh following it. The user's mesh is never changed or removed.
+
 Every datablock the field makes carries the custom property ``wg_uid`` (the field's uid) and
 ``wg_role``, which is how ``remove_field`` finds all of it again (also after save and reopen).
 Slot meshes are modifier-free; a later "bake to PC2 + Mesh Cache modifier" can replace the
@@ -25,7 +30,14 @@ import math
 import bpy
 import numpy as np
 
+from .. import terrain as terrain_core
 from . import materials, textures
+
+# Blades are rooted on a selected mesh (operators/field_add.py reads this).
+SUPPORTS_TERRAIN = True
+# The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
+# the user's terrain mesh where both coincide; blade roots stay on the surface (hidden by 2 mm).
+GROUND_LIFT = 0.002
 
 # Roles stored in ``wg_role`` of the datablocks of a field.
 ROLE_COLLECTION = "collection"
@@ -116,8 +128,10 @@ def card_vertex_count(layout) -> int:
 def topology_key(layout, params) -> str:
     """What the slot meshes depend on; the runtime rebuilds them when it changes."""
     blades, cards = pool_sizes(layout, params)
+    ground = getattr(layout, "terrain", None)
     return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block,
-                       blades, cards, [round(float(v), 6) for v in layout.size]])
+                       blades, cards, [round(float(v), 6) for v in layout.size],
+                       ground.fingerprint() if ground is not None else "flat"])
 
 
 # --------------------------------------------------------------------------------------------
@@ -146,9 +160,12 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     return mesh
 
 
-def ground_mesh(name: str, size: tuple[float, float]) -> bpy.types.Mesh:
-    """A plane covering the field, centred on the origin."""
+def ground_mesh(name: str, size: tuple[float, float], heightfield=None) -> bpy.types.Mesh:
+    """A plane covering the field, centred on the origin; over a terrain (``heightfield``, in the
+    field's frame) a grid of one quad per heightfield cell following its heights."""
     hx, hy = 0.5 * size[0], 0.5 * size[1]
+    if heightfield is not None:
+        return _ground_grid(name, size, heightfield)
     verts = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
     uvs = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
     mesh = quad_mesh(name, 4, np.array([[0, 1, 2, 3]]), uvs, None, {})
@@ -157,6 +174,106 @@ def ground_mesh(name: str, size: tuple[float, float]) -> bpy.types.Mesh:
     mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
     mesh.update()
     return mesh
+
+
+def _ground_grid(name: str, size: tuple[float, float], heightfield) -> bpy.types.Mesh:
+    nx, ny = heightfield.nx, heightfield.ny
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
+    xy = np.stack([(u - 0.5) * size[0], (v - 0.5) * size[1]], axis=-1)  # exactly the field's extent
+    verts = np.empty((ny + 1, nx + 1, 3), np.float32)
+    verts[..., :2] = xy
+    verts[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT)
+    corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
+    faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
+    uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
+    mesh = quad_mesh(name, (nx + 1) * (ny + 1), faces, uv_of_vertex[faces.ravel()], None, {})
+    mesh.materials.clear()
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(faces), dtype=bool))
+    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
+    mesh.update()
+    return mesh
+
+
+# --------------------------------------------------------------------------------------------
+# Terrain
+
+
+def terrain_object(scene, item):
+    """``item.terrain`` when it is a mesh object of ``scene``, else None."""
+    obj = getattr(item, "terrain", None)
+    if obj is None or obj.type != "MESH" or scene.objects.get(obj.name) is not obj:
+        return None
+    return obj
+
+
+def terrain_key(scene, item, params) -> str:
+    """Cheap key of what the terrain samples depend on besides the mesh data (the object and the
+    grid): the runtime keeps its samples while it holds; Rebuild re-samples anyway."""
+    obj = terrain_object(scene, item)
+    if obj is None:
+        return ""
+    _, spacing, nx, ny = terrain_core.grid_for(params)
+    return json.dumps([obj.name, round(spacing, 9), nx, ny])
+
+
+def _world_triangles(obj) -> np.ndarray:
+    """(T, 3, 3) float64 world-space triangles of the mesh as evaluated (modifiers, shape keys)."""
+    from . import runtime
+
+    def extract(mesh, matrix) -> np.ndarray:
+        mesh.calc_loop_triangles()
+        co = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.vertices.foreach_get("co", co)
+        tri = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tri)
+        m = np.array(matrix, dtype=np.float64)
+        world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        return world[tri].reshape(-1, 3, 3)
+
+    if len(obj.modifiers) or obj.data.shape_keys is not None:
+        try:
+            evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = evaluated.to_mesh()
+            try:
+                return extract(mesh, evaluated.matrix_world)
+            finally:
+                evaluated.to_mesh_clear()
+        except Exception as exc:  # no depsgraph here (e.g. mid-render): the mesh without modifiers
+            runtime._warn_once(f"terrain '{obj.name}': modifiers not applied ({type(exc).__name__}: {exc})")
+    return extract(obj.data, obj.matrix_world)
+
+
+def sample_terrain(scene, item, params):
+    """(heightfield, centre_xy) of ``item.terrain``, or (None, None) for flat ground.
+
+    The field is centred on the terrain's XY bounding-box centre (world space); the heightfield
+    holds the world Z of the mesh's top surface at the grid's samples (``terrain.grid_for``), a
+    downward ray cast per sample done as one vectorised pass (``terrain.drape``); samples off the
+    mesh take the nearest hit's height. Deterministic: a function of the mesh and the params.
+    """
+    from . import runtime
+
+    obj = terrain_object(scene, item)
+    coll = item.collection
+    if obj is None:
+        lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
+        if lost:
+            name = coll.get("wg_terrain") if coll is not None and coll.get("wg_terrain") else item.terrain.name
+            runtime._warn_once(f"terrain '{name}' of field '{item.name}' is gone or not a mesh in this scene; "
+                               "the grass grows on flat ground")
+        return None, None
+    tris = _world_triangles(obj)
+    if len(tris) == 0:
+        runtime._warn_once(f"terrain '{obj.name}' of field '{item.name}' has no faces; the grass grows on flat ground")
+        return None, None
+    lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
+    centre = 0.5 * (lo[:2] + hi[:2])
+    tris = tris - np.array([centre[0], centre[1], 0.0])  # into the field's frame (z stays world z)
+    origin, spacing, nx, ny = terrain_core.grid_for(params)
+    heights, hit = terrain_core.drape(tris, origin, spacing, nx, ny)
+    if not hit.all():
+        heights = terrain_core.fill_missing(heights, hit, fallback=float(lo[2]))
+    return terrain_core.Heightfield(origin, spacing, heights), (float(centre[0]), float(centre[1]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -228,6 +345,7 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     pool sizes, field size) changed.
     """
     from .. import kinematics as kin  # numpy topology of one block
+    from . import runtime
 
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
@@ -239,13 +357,25 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     _remove_objects(_owned(bpy.data.objects, uid, ROLE_BLADES) + _owned(bpy.data.objects, uid, ROLE_CARDS)
                     + old_ground)
 
-    ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size))
+    heightfield = getattr(layout, "terrain", None)
+    ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size, heightfield))
     ground.data.materials.append(ground_mat)
     _tag(ground, uid, ROLE_GROUND)
     _tag(ground.data, uid, ROLE_GROUND)
     _link(coll, ground, None)
-    if placement is not None:
-        ground.matrix_basis, ground.parent = placement
+    rt = runtime.get_runtime(scene, item)
+    centre = getattr(rt, "terrain_centre", None) if heightfield is not None else None
+    if centre is not None:
+        # On a terrain the mesh places the field: centred on it, heights in world Z.
+        from mathutils import Matrix
+
+        ground.matrix_basis = Matrix.Translation((centre[0], centre[1], 0.0))
+        coll["wg_terrain"] = item.terrain.name if item.terrain is not None else ""
+    else:
+        if placement is not None:
+            ground.matrix_basis, ground.parent = placement
+        if "wg_terrain" in coll and heightfield is None and terrain_object(scene, item) is None:
+            del coll["wg_terrain"]
 
     n_blade_slots, n_card_slots = pool_sizes(layout, params)
     blade_verts = blade_vertex_count(layout)
@@ -303,6 +433,11 @@ def build_field(scene, item) -> bpy.types.Collection:
     the current frame. Returns the collection (also stored in ``item.collection``)."""
     from . import runtime
 
+    if getattr(item, "terrain", None) is not None:
+        try:  # the terrain's matrix and modifiers as they are now (never from a frame handler)
+            bpy.context.view_layer.update()
+        except Exception:
+            pass
     runtime.reset_field(scene, item)
     rt = runtime.ensure_runtime(scene, item)
     coll = build_slots(scene, item, rt.field.layout, rt.params)

@@ -1,0 +1,184 @@
+"""Terrain (issue 3): a selected mesh becomes the field's terrain; blades are rooted on its surface.
+
+Small fields (2 x 2 blocks of 8 x 8 cells of 0.1 m, 1.6 m square) on a 4 m grid mesh keep this fast.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+SLOPE = 0.2  # terrain z = SLOPE * x + LIFT in the mesh's frame (11 degrees)
+LIFT = 0.5
+OFFSET = (3.0, 1.0, 0.0)  # where the terrain object stands
+
+
+@pytest.fixture
+def bridge(with_bridge):
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge import scene as field_scene
+
+    return field_scene, runtime
+
+
+def _slope_mesh(func=lambda co: SLOPE * co[:, 0] + LIFT, location=OFFSET):
+    """A 4 m grid of 20 x 20 quads displaced to z = func(local xy), selected and active."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=20, size=4.0, location=location)
+    obj = bpy.context.active_object
+    _displace(obj, func)
+    return obj
+
+
+def _displace(obj, func):
+    mesh = obj.data
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    co[:, 2] = func(co)
+    mesh.vertices.foreach_set("co", co.ravel())
+    mesh.update()
+
+
+def _add_field(**options):
+    values = {"blocks_x": 2, "blocks_y": 2, "cells_per_block": 8}
+    values.update(options)
+    assert bpy.ops.windgrass.field_add(**values) == {"FINISHED"}
+    scene = bpy.context.scene
+    return scene, scene.windgrass.fields[-1]
+
+
+def _positions(obj) -> np.ndarray:
+    out = np.empty(len(obj.data.vertices) * 3, np.float32)
+    obj.data.attributes["position"].data.foreach_get("vector", out)
+    return out.reshape(-1, 3)
+
+
+def _blade_joints_world(scene, item, runtime) -> np.ndarray:
+    """(blades, n + 1, 2, 3) world-space vertices of every blade slot that shows a block."""
+    rt = runtime.get_runtime(scene, item)
+    n = rt.field.layout.segments
+    slots = {o["wg_slot"]: o for o in item.collection.objects if o.get("wg_role") == "blades"}
+    out = []
+    for slot in np.flatnonzero(rt.blade_slot_block >= 0):
+        obj = slots[int(slot)]
+        m = np.array(obj.matrix_world)
+        local = _positions(obj)
+        out.append((local @ m[:3, :3].T + m[:3, 3]).reshape(-1, n + 1, 2, 3))
+    assert out, "no blade slot shows a block"
+    return np.concatenate(out)
+
+
+def test_blades_are_rooted_on_the_selected_mesh(bridge):
+    field_scene, runtime = bridge
+    terrain = _slope_mesh()
+    scene, item = _add_field()
+    assert item.terrain == terrain
+    # The field is centred on the terrain (its XY bounding-box centre).
+    ground = field_scene.ground_object(item)
+    assert tuple(ground.matrix_world.translation)[:2] == pytest.approx(OFFSET[:2], abs=1e-6)
+    scene.frame_set(1)
+    before = _blade_joints_world(scene, item, runtime)
+    assert len(before) == 2 * 2 * 8 * 8 * 2  # every blade of the 4 blocks is drawn (no camera)
+    # Every root (centre of joint 0) lies on the terrain surface z = 0.2 (x - 3) + 0.5, within 1 mm.
+    root = before[:, 0].mean(axis=1)
+    surface = SLOPE * (root[:, 0] - OFFSET[0]) + LIFT
+    assert np.abs(root[:, 2] - surface).max() < 1e-3
+    assert root[:, 2].max() - root[:, 2].min() > 0.25  # a real slope: 1.6 m across at 0.2
+    # Frames still sway the tips, and the roots stay planted.
+    scene.frame_set(30)
+    after = _blade_joints_world(scene, item, runtime)
+    assert np.linalg.norm(after[:, -1] - before[:, -1], axis=-1).max() > 1e-3
+    np.testing.assert_allclose(after[:, 0].mean(axis=1), root, atol=1e-5)
+    # Tips stand above their roots on the slope (grass grows up, along gravity).
+    assert np.median(after[:, -1].mean(axis=1)[:, 2] - after[:, 0].mean(axis=1)[:, 2]) > 0.05
+    # The ground grid follows the surface (a hair above it, against z-fighting).
+    g = np.array(ground.matrix_world)
+    gv = _positions(ground) @ g[:3, :3].T + g[:3, 3]
+    assert len(gv) > 4
+    np.testing.assert_allclose(gv[:, 2], SLOPE * (gv[:, 0] - OFFSET[0]) + LIFT + field_scene.GROUND_LIFT, atol=1e-4)
+    assert ground.active_material is not None and ground.active_material.get("wg_role") == "ground_material"
+
+
+def test_field_size_fits_the_terrain_unless_given(bridge):
+    from windgrass.grass_addon.bridge import properties
+
+    _slope_mesh()
+    scene, item = _add_field(blocks_x=1, blocks_y=1)
+    assert properties.params_from_settings(item).field.blocks_x == 1  # given: kept
+    bpy.ops.object.select_all(action="DESELECT")
+    terrain = bpy.data.objects["Grid"]
+    terrain.select_set(True)
+    bpy.context.view_layer.objects.active = terrain
+    assert bpy.ops.windgrass.field_add(cells_per_block=8) == {"FINISHED"}
+    f = properties.params_from_settings(scene.windgrass.fields[-1]).field
+    assert (f.blocks_x, f.blocks_y) == (5, 5)  # 4 m / 0.8 m blocks
+
+
+def test_modifiers_of_the_terrain_count(bridge):
+    """The evaluated mesh is sampled: a Displace modifier (no texture: strength * (1 - midlevel)
+    along the normal) lifts a flat plane to z = 0.25, and so the roots."""
+    field_scene, runtime = bridge
+    terrain = _slope_mesh(func=lambda co: np.zeros(len(co)), location=(0.0, 0.0, 0.0))
+    mod = terrain.modifiers.new("Lift", "DISPLACE")
+    mod.strength = 0.5
+    scene, item = _add_field()
+    scene.frame_set(2)
+    root = _blade_joints_world(scene, item, runtime)[:, 0].mean(axis=1)
+    np.testing.assert_allclose(root[:, 2], 0.25, atol=1e-4)
+
+
+def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_path):
+    field_scene, runtime = bridge
+    terrain = _slope_mesh()
+    scene, item = _add_field()
+    scene.frame_set(3)
+    digest = runtime.get_runtime(scene, item).digest
+    _displace(terrain, lambda co: -SLOPE * co[:, 1])  # now tilted along -Y, no lift
+    scene.frame_set(4)
+    assert runtime.get_runtime(scene, item).digest == digest  # no re-sampling per frame
+    assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
+    assert runtime.get_runtime(scene, item).digest != digest
+    scene.frame_set(5)
+    root = _blade_joints_world(scene, item, runtime)[:, 0].mean(axis=1)
+    assert np.abs(root[:, 2] + SLOPE * (root[:, 1] - OFFSET[1])).max() < 1e-3
+    expected = _blade_joints_world(scene, item, runtime)
+    # Save and reopen: the runtime is rebuilt from item.terrain and gives the same blades.
+    path = tmp_path / "terrain.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert not runtime.RUNTIMES
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(2)
+    scene.frame_set(5)
+    assert item.terrain is not None and runtime.get_runtime(scene, item).heightfield is not None
+    np.testing.assert_allclose(_blade_joints_world(scene, item, runtime), expected, atol=1e-6)
+
+
+def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_falls_back_to_flat(bridge, capsys):
+    field_scene, runtime = bridge
+    terrain = _slope_mesh()
+    mesh_name, verts = terrain.data.name, len(terrain.data.vertices)
+    scene, item = _add_field()
+    assert bpy.ops.windgrass.field_remove() == {"FINISHED"}
+    assert bpy.data.objects.get("Grid") is terrain and terrain.name in scene.objects
+    assert bpy.data.meshes.get(mesh_name) is not None and len(terrain.data.vertices) == verts
+
+    # A field whose terrain is deleted keeps working on flat ground (one warning, no exception).
+    terrain.select_set(True)
+    bpy.context.view_layer.objects.active = terrain
+    scene, item = _add_field()
+    scene.frame_set(2)
+    capsys.readouterr()
+    bpy.data.objects.remove(terrain, do_unlink=True)
+    scene.frame_set(3)
+    scene.frame_set(4)
+    out = capsys.readouterr().out
+    assert out.count("terrain 'Grid'") == 1 and "flat ground" in out
+    rt = runtime.get_runtime(scene, item)
+    assert rt.heightfield is None
+    ground = field_scene.ground_object(item)
+    assert tuple(ground.matrix_world.translation)[:2] == pytest.approx(OFFSET[:2], abs=1e-6)  # stays put
+    root = _blade_joints_world(scene, item, runtime)[:, 0].mean(axis=1)
+    np.testing.assert_allclose(root[:, 2], 0.0, atol=1e-6)

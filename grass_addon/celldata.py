@@ -6,17 +6,33 @@ the camera and the card that replaces it farther away move together.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 
-@dataclass(eq=False)
 class CellData:
-    bend: np.ndarray  # (n_cells, n, 2) float32: each joint's bend vector (solver.py)
-    twist: np.ndarray  # (n_cells, n) float32: each joint's twist (solver.py)
-    wind: np.ndarray  # (n_cells, 2) float32: wind of the current frame, m/s
-    card_offset: np.ndarray  # (n_cells, 3) float32: M' of eq 34, displacement of the card's top edge
+    """The shared data of one frame (cell-major arrays, float32).
+
+    bend (n_cells, n, 2): each joint's bend vector (solver.py); twist (n_cells, n): each joint's
+    twist; wind (n_cells, 2) m/s; card_offset (n_cells, 3): M' of eq 34.
+    bend_t (n, 2, n_cells) and twist_t (n, n_cells) are the same values joint-major (the solver's
+    own layout, no copy) or None; kinematics reads them when present. When built from a solver
+    state, bend and twist are the state's public arrays, transposed on first access only.
+    """
+
+    __slots__ = ("_bend", "_twist", "wind", "card_offset", "bend_t", "twist_t", "_state")
+
+    def __init__(self, bend=None, twist=None, wind=None, card_offset=None, *, bend_t=None, twist_t=None,
+                 state=None):
+        self._bend, self._twist, self.wind, self.card_offset = bend, twist, wind, card_offset
+        self.bend_t, self.twist_t, self._state = bend_t, twist_t, state
+
+    @property
+    def bend(self) -> np.ndarray:
+        return self._state.bend if self._bend is None and self._state is not None else self._bend
+
+    @property
+    def twist(self) -> np.ndarray:
+        return self._state.twist if self._twist is None and self._state is not None else self._twist
 
 
 def card_offset(card_height: np.ndarray, bend_sum: np.ndarray) -> np.ndarray:
@@ -44,8 +60,11 @@ def card_offset(card_height: np.ndarray, bend_sum: np.ndarray) -> np.ndarray:
 
 
 def cell_data(layout, sim) -> CellData:
-    """The shared data of the simulation's current frame; bend/twist/wind are views (no copy)."""
+    """The shared data of the simulation's current frame; bend/twist/wind are views (no copy).
+
+    bend and twist are the state's public (cell-major) arrays, transposed only when first read;
+    bend_t/twist_t are the joint-major state arrays themselves."""
     state = sim.state
     bend_sum = np.add.reduce(state.bend_t, axis=0)  # (2, n_cells), joint-major: contiguous rows
-    return CellData(bend=state.bend, twist=state.twist, wind=sim.cell_wind,
-                    card_offset=card_offset(layout.card_height, bend_sum))
+    return CellData(wind=sim.cell_wind, card_offset=card_offset(layout.card_height, bend_sum),
+                    bend_t=state.bend_t, twist_t=state.twist_t, state=state)

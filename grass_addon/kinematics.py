@@ -134,6 +134,14 @@ class _Constants:
         self.root_xy = arrange((root[:, 0] + 1j * root[:, 1])[:, None], np.complex64)  # (nb, 1, num, P)
         self.root_z = arrange(root[:, 2:3])
         self.slot = np.arange(num, dtype=np.int32)[None, :, None]  # (1, num, 1)
+        # Cells of block b = by * blocks_x + bx are the cpb x cpb square at (by, bx) of the
+        # row-major field (layout.py): gathers of consecutive blocks of a block row are then
+        # strided copies (rows of cpb cells) instead of per-cell takes.
+        cpb, bx = layout.cells_per_block, layout.blocks_x
+        by_, bx_ = np.divmod(np.arange(nb), bx)
+        ly, lx = np.divmod(np.arange(P), cpb)
+        square = ((by_[:, None] * cpb + ly) * (bx * cpb) + bx_[:, None] * cpb + lx)
+        self.grid = ((layout.blocks_y, cpb, bx, cpb) if np.array_equal(square, layout.block_cells) else None)
         self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
         self._scratch: list[dict[str, np.ndarray]] = []
         self._lock = threading.Lock()
@@ -147,9 +155,7 @@ class _Constants:
                 f32, c64 = np.float32, np.complex64
                 self._scratch.append({
                     "k_max": k,
-                    "bend": np.empty((k * P, n), c64),  # gathered bend vectors
                     "cb": np.empty((k, n, 1, P), c64),  # cumulative bend per cell
-                    "tw": np.empty((k * P, n), f32),
                     "phi": np.empty((k, n + 1, P), f32),  # cumulative twist per cell and joint
                     "trig": np.empty((k, n + 1, P), f32),
                     "rot": np.empty((k, n + 1, 1, P), c64),  # taper_j e^{i Phi_j}
@@ -206,8 +212,43 @@ def _select(array: np.ndarray, ids: np.ndarray, scratch: dict, name: str):
     return np.take(array, ids, axis=0, out=buf[: len(ids)])
 
 
+def _gather_cells(layout, const: _Constants, src: np.ndarray, ids: np.ndarray, dst: np.ndarray) -> None:
+    """dst[..., i, :] = src[..., block_cells[ids[i]]]: src (..., C) -> dst (..., k, P) (may be a
+    strided view). Runs of consecutive blocks of one block row are one strided copy each."""
+    if const.grid is None:
+        np.copyto(dst, np.take(src, layout.block_cells[ids], axis=-1))
+        return
+    rows, cpb, bx, _ = const.grid
+    field = src.reshape(src.shape[:-1] + const.grid)  # (..., blocks_y, cpb, blocks_x, cpb)
+    squares = dst.view()
+    squares.shape = dst.shape[:-1] + (cpb, cpb)  # (..., k, cpb, cpb), a view of dst (never a copy)
+    breaks = np.flatnonzero((np.diff(ids) != 1) | (np.diff(ids // bx) != 0)) + 1
+    for start, stop in zip([0, *breaks.tolist()], [*breaks.tolist(), len(ids)]):
+        y, x = divmod(int(ids[start]), bx)
+        for row in np.ndindex(src.shape[:-1]):  # one source row at a time: few pages (TLB) per copy
+            block_row = field[row + (y, slice(None), slice(x, x + stop - start))]  # (cpb, m, cpb)
+            np.copyto(squares[row + (slice(start, stop),)], block_row.transpose(1, 0, 2))
+
+
 # --------------------------------------------------------------------------------------------
 # Blade strips
+
+
+def _joint_major(layout, cells) -> tuple[np.ndarray, np.ndarray]:
+    """(bend (n, 2, C), twist (n, C)) float32: CellData's joint-major arrays (the solver's own,
+    no copy) when present, else transposed from the cell-major bend (C, n, 2) and twist (C, n)."""
+    C, n = layout.n_cells, layout.segments
+    bend_t, twist_t = getattr(cells, "bend_t", None), getattr(cells, "twist_t", None)
+    if bend_t is None or twist_t is None:
+        bend, twist = np.asarray(cells.bend), np.asarray(cells.twist)
+        if bend.shape != (C, n, 2) or twist.shape != (C, n):
+            raise ValueError(f"cell data must have bend {(C, n, 2)} and twist {(C, n)}, "
+                             f"got {bend.shape} and {twist.shape}")
+        bend_t, twist_t = bend.transpose(1, 2, 0), twist.T
+    if bend_t.shape != (n, 2, C) or twist_t.shape != (n, C):
+        raise ValueError(f"cell data must have bend_t {(n, 2, C)} and twist_t {(n, C)}, "
+                         f"got {bend_t.shape} and {twist_t.shape}")
+    return (np.ascontiguousarray(bend_t, dtype=np.float32), np.ascontiguousarray(twist_t, dtype=np.float32))
 
 
 def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndarray:
@@ -221,13 +262,7 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
     if rows == 0:
         return result
     const = _constants(layout)
-    bend = np.ascontiguousarray(cells.bend, dtype=np.float32)
-    twist = np.asarray(cells.twist, dtype=np.float32)
-    shape = (layout.n_cells, layout.segments)
-    if bend.shape != shape + (2,) or twist.shape != shape:
-        raise ValueError(f"cell data must have bend {shape + (2,)} and twist {shape}, "
-                         f"got {bend.shape} and {twist.shape}")
-    bend = bend.view(np.complex64)[..., 0]  # (C, n) bend vectors as x + iy (no copy)
+    bend, twist = _joint_major(layout, cells)
     counts = None if blade_count is None else np.asarray(blade_count)
     per_block = layout.blades_per_block * (layout.segments + 1) * 2
     chunks = _chunks(blocks, const.k_max)
@@ -253,21 +288,19 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
                  counts, out: np.ndarray) -> None:
     """Vertices of the blades of blocks `ids` into `out` (k, blades_per_block * (n+1) * 2, 3)."""
     k, n, num, P = len(ids), const.n, const.num, const.P
-    cell_ids = layout.block_cells[ids].ravel()  # (k * P,)
-
     # Per cell: cumulative bend sum_{k<=j} bend[c, k] (complex) and cumulative twist
-    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}.
-    # A few row adds beat np.cumsum along a short axis.
-    raw = np.take(bend, cell_ids, axis=0, out=s["bend"][: k * P]).reshape(k, P, n)
+    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}. The joint-major
+    # bend (n, 2, C) is gathered straight into the real and imaginary parts of cb (k, n, P).
     cb = s["cb"][:k, :, 0]  # (k, n, P)
-    np.copyto(cb[:, 0], raw[:, :, 0])
+    parts = cb.view(np.float32).reshape(k, n, P, 2)
+    for c in range(2):  # one component at a time: the copy's inner loop runs along the cells
+        _gather_cells(layout, const, bend[:, c], ids, parts[..., c].transpose(1, 0, 2))
     for j in range(1, n):
-        np.add(cb[:, j - 1], raw[:, :, j], out=cb[:, j])
-    tw = np.take(twist, cell_ids, axis=0, out=s["tw"][: k * P]).reshape(k, P, n)
+        np.add(cb[:, j - 1], cb[:, j], out=cb[:, j])
     phi = s["phi"][:k]  # (k, n+1, P)
-    np.copyto(phi[:, 0], tw[:, :, 0])
+    _gather_cells(layout, const, twist, ids, phi[:, :n].transpose(1, 0, 2))
     for j in range(1, n):
-        np.add(phi[:, j - 1], tw[:, :, j], out=phi[:, j])
+        np.add(phi[:, j - 1], phi[:, j], out=phi[:, j])
     np.copyto(phi[:, n], phi[:, n - 1])  # the tip edge belongs to the top segment
     rot = s["rot"][:k]
     taper = const.taper[None, :, None]
@@ -282,7 +315,7 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     root_xy, root_z = _select(const.root_xy, ids, s, "sel_root_xy"), _select(const.root_z, ids, s, "sel_root_z")
     if counts is not None:  # eq 9: slots >= N collapse onto the root
         mask = s["mask"][:k]
-        np.less(const.slot, counts[cell_ids].reshape(k, 1, P), out=mask[:, 0])
+        np.less(const.slot, counts[layout.block_cells[ids]].reshape(k, 1, P), out=mask[:, 0])
         seg = np.multiply(seg, mask, out=s["seg"][:k])
         w_side = w_side * mask  # (k, 1, num, P): small
 
@@ -341,7 +374,11 @@ def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
     centre = layout.cell_center[cell_ids]  # (m, 2)
     half = np.float32(0.5 * layout.params.lod.card_width * layout.cell_size)
     facing = layout.card_facing[cell_ids]
-    total_twist = np.asarray(cells.twist, dtype=np.float32)[cell_ids].sum(axis=1)
+    twist_t = getattr(cells, "twist_t", None)  # joint-major (n, C) when present: no transpose
+    if twist_t is not None:
+        total_twist = np.add.reduce(np.asarray(twist_t, dtype=np.float32)[:, cell_ids], axis=0)
+    else:
+        total_twist = np.add.reduce(np.asarray(cells.twist, dtype=np.float32)[cell_ids], axis=1)
     offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
     height = layout.card_height[cell_ids]
     bx, by = np.cos(facing) * half, np.sin(facing) * half

@@ -265,3 +265,22 @@ def test_any_block_order_with_blade_counts_matches_the_full_field():
         kinematics.CHUNK_BLADES = old
         kinematics._CACHE.clear()
     np.testing.assert_array_equal(got, per_block[order])
+
+
+def test_joint_major_cell_data_gives_the_same_strips_and_cards():
+    """celldata.CellData carries the solver's joint-major arrays (bend_t (n, 2, C), twist_t (n, C));
+    the kernel reads them directly. Same numbers as the cell-major bend/twist, bit for bit, for
+    the whole field, for blocks in any order and for the cards."""
+    from grass_addon.celldata import CellData
+
+    layout = small_layout(**{"field.blocks_x": 3})
+    cells = random_cells(layout, seed=5)
+    joint_major = CellData(wind=cells.wind, card_offset=cells.card_offset,
+                           bend_t=np.ascontiguousarray(cells.bend.transpose(1, 2, 0)),
+                           twist_t=np.ascontiguousarray(cells.twist.T))
+    count = (np.arange(layout.n_cells) % 4).astype(np.int32)
+    for blocks in (np.arange(layout.n_blocks), np.array([5, 2, 3, 0]), np.array([1, 2, 4])):
+        np.testing.assert_array_equal(kinematics.blade_vertices(layout, joint_major, blocks, count),
+                                      kinematics.blade_vertices(layout, cells, blocks, count))
+        np.testing.assert_array_equal(kinematics.card_vertices(layout, joint_major, blocks),
+                                      kinematics.card_vertices(layout, cells, blocks))

@@ -52,9 +52,13 @@ AUTO_MAX_SUBSTEPS = 16  # stable_substeps never asks for more than this on its o
 FRAMES_PER_SWAY = 5.5  # a joint swinging faster than one period per this many frames flickers
 EPS = 1.0e-12
 SMOOTH_MIN_ANGLE = 0.1  # rad: below this gap the smooth update's rate stops falling (eq 26)
+# -log(1 - f) per unit of max(gap, SMOOTH_MIN_ANGLE) * twist_stiffness (>= 0.01) of a quasi-static
+# joint: makes its smooth fraction f exactly 1 (exp(-1e3) underflows); see _step_chunk
+QUASI_RATE = 1.0e6
 RELAX_GAIN = 1.0  # slope of the reconfigured equilibrium per radian of the blade's bend (_step_chunk)
 
 F32 = np.float32
+ROW_PAD = 16  # floats between the rows of a scratch buffer (see _Scratch)
 
 
 _STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t")
@@ -151,39 +155,46 @@ class SolverState:
 
 
 class _Scratch:
-    """Preallocated float32/bool buffers of one worker lane; ``get`` hands out contiguous views."""
+    """Preallocated float32/bool buffers of one worker lane; ``get`` hands out contiguous views.
+
+    Views are cached per (name, shape, dtype): a chunk asks for ~60 buffers and every call costs
+    (np.prod on a shape tuple alone was ~5 us). Rows are padded apart: numpy treats adjacent rows
+    of one buffer as overlapping (``np.add(M[i + 1], F[i], out=M[i])``, the running sums over
+    joints) and then goes through a temporary copy, ~5x slower.
+    """
 
     def __init__(self):
         self._bufs: dict[str, np.ndarray] = {}
+        self._views: dict[tuple, np.ndarray] = {}
 
     def get(self, name: str, shape: tuple[int, ...], dtype=F32) -> np.ndarray:
-        size = int(np.prod(shape))
-        buf = self._bufs.get(name)
-        if buf is None or buf.size < size or buf.dtype != dtype:
-            buf = np.empty(size, dtype=dtype)
-            self._bufs[name] = buf
-        return buf[:size].reshape(shape)
+        key = (name, shape, dtype)
+        view = self._views.get(key)
+        if view is None:
+            padded = shape[:-1] + (shape[-1] + (ROW_PAD if len(shape) > 1 else 0),)
+            size = math.prod(padded)
+            buf = self._bufs.get(name)
+            if buf is None or buf.size < size or buf.dtype != dtype:
+                buf = np.empty(size, dtype=dtype)
+                self._bufs[name] = buf
+            view = buf[:size].reshape(padded)[..., :shape[-1]]
+            self._views[key] = view
+        return view
 
-
-def _row(S: _Scratch, name: str, value: float, m: int) -> np.ndarray:
-    """A (m,) row filled with value: min/max against a row run on numpy's fast array-array
-    loops (against a scalar they are several times slower)."""
-    row = S.get(name, (m,))
-    row.fill(value)
-    return row
+    def const(self, name: str, value: float, m: int) -> np.ndarray:
+        """A (m,) row filled with value once: min/max against a row run on numpy's fast
+        array-array loops (against a scalar they are several times slower)."""
+        key = ("const", name, m)
+        row = self._views.get(key)
+        if row is None:
+            row = np.full(m, value, dtype=F32)
+            self._views[key] = row
+        return row
 
 
 def _clip(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
     np.minimum(x, hi, out=x)
     np.maximum(x, lo, out=x)
-
-
-def _blend(dst: np.ndarray, src: np.ndarray, sel: np.ndarray, keep: np.ndarray) -> None:
-    """dst = dst * keep + src * sel in place (sel 0/1, keep = 1 - sel): an exact masked copy
-    (x * 1 + y * 0 == x bitwise for finite values), much faster than copyto(where=)."""
-    dst *= keep
-    src *= sel
-    dst += src
 
 
 class BladeSolver:
@@ -217,7 +228,9 @@ class BladeSolver:
         j = np.arange(n, dtype=np.float64)[:, None]
         width = np.asarray(layout.cell_width, dtype=np.float64)[None, :] * (
             1.0 - (1.0 - b.tip_width) * (j + 0.5) / n)
-        self._area = (RHO_AIR * seg[None, :] * width).astype(F32)  # rho_wind * l_length * l_width
+        # rho_wind * l_length * l_width (eqs 16-17) times the lever unit l_length: eq 18's
+        # torques then come out in N m without a pass of their own (_forcing)
+        self._area_seg = (RHO_AIR * seg[None, :] ** 2 * width).astype(F32)
         # Moment of inertia about joint i of the part above it, used for M_grass of eqs 29-32.
         # The paper's M_grass is a mass, but K = mu_i is a torque per radian, so the consistent
         # quantity is a moment of inertia. We lump the mass of the (n - i) segments above joint i,
@@ -227,7 +240,6 @@ class BladeSolver:
         # must follow joint i's motion, and gives the 1-3 Hz sway of real blades.)
         above = (n - j) * seg[None, :]
         inertia = b.density * above ** 3
-        self._inertia = inertia.astype(F32)
         self._inv_inertia = (1.0 / inertia).astype(F32)
         facing = np.asarray(layout.cell_facing, dtype=np.float64)
         self._face = np.stack([np.cos(facing), np.sin(facing)]).astype(F32)  # rest face normal
@@ -244,7 +256,8 @@ class BladeSolver:
         self._lanes = [self._chunks[i::lanes] for i in range(lanes)]
         self._scratch = [_Scratch() for _ in range(lanes)]
         self._pool = ThreadPoolExecutor(max_workers=lanes) if lanes > 1 else None
-        self._allowed_cache: dict[float, np.ndarray] = {}
+        self._allowed_cache: dict[tuple[float, float], np.ndarray] = {}
+        self._allowed_rows: dict[int, int] = {}  # chunk start -> j1 for the cached allowed
         self._quasi_cache: tuple[float | None, np.ndarray | None] = (None, None)
         # Stiffest joint: eq 22-23 with the nonlinear part at its bound (the bend is clamped).
         k_max = self._mu_base + F32(self.k * STIFFEN_LIMIT)
@@ -304,7 +317,7 @@ class BladeSolver:
         scratch = _Scratch()
         out = np.empty((self.n, self.n_cells), dtype=F32)
         for a, b in self._chunks:
-            forcing = self._forcing(a, b, wind, scratch)
+            forcing = self._forcing(a, b, wind, scratch, twist=False)
             np.divide(forcing["Mb"], self._mu_base[:, a:b], out=out[:, a:b])
         return np.ascontiguousarray(out.T)
 
@@ -325,7 +338,7 @@ class BladeSolver:
         self._quasi_static = self._quasi_cache[1] if self._quasi_cache[0] == dt else None
         if self._quasi_static is None:
             fast = self._omega2 > self._visible_omega2(dt)
-            self._quasi_static = np.where(fast, F32(1e4), F32(0.0)).astype(F32)
+            self._quasi_static = np.where(fast, F32(QUASI_RATE), F32(0.0)).astype(F32)
             self._quasi_cache = (dt, self._quasi_static)
         if self._pool is None:
             for lane, chunks in enumerate(self._lanes):
@@ -363,15 +376,30 @@ class BladeSolver:
             allowed = ((hc <= 1.0) & (h * h * self._omega2 + 2.0 * hc <= 2.0)
                        & (self._omega2 <= self._visible_omega2(dt)))
             self._allowed_cache = {key: allowed}
+            self._allowed_rows = {}
         return allowed
 
-    def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch) -> dict[str, np.ndarray]:
-        """Wind torques on cells [a, b) for the current shape (eqs 16-20), joint-major (n, m)."""
+    def _oscillating_rows(self, allowed: np.ndarray, a: int, b: int) -> int:
+        """j1: joints j >= j1 of cells [a, b) never use eq 32 with this ``allowed`` (typically
+        the stiff tip joint); the oscillator's passes skip them."""
+        j1 = self._allowed_rows.get(a)
+        if j1 is None:
+            rows = np.flatnonzero(allowed[:, a:b].any(axis=1))
+            j1 = int(rows[-1]) + 1 if rows.size else 0
+            self._allowed_rows[a] = j1
+        return j1
+
+    def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch,
+                 twist: bool = True) -> dict[str, np.ndarray]:
+        """Wind torques on cells [a, b) for the current shape (eqs 16-20), joint-major (n, m).
+
+        Returns Mb (bend torque along the wind, N m), Mt (twist torque, N m), w_hat, speed, and
+        (twist=True) delta0, plus F, Fs, CT for _aero_q. Scratch buffers: valid until the next
+        call with the same S.
+        """
         n, m = self.n, b - a
         # the loads act on the shape of the equilibrium estimate E, not on the swinging blade
         bend = self.state.bend_eq_t[:, :, a:b]
-        rest = self._rest[:, :, a:b]
-        area = self._area[:, a:b]
 
         W = S.get("W", (2, m))
         np.copyto(W, wind[a:b].T)
@@ -382,26 +410,30 @@ class BladeSolver:
         v2 += tmp
         speed = S.get("speed", (m,))
         np.sqrt(v2, out=speed)
-        np.maximum(speed, _row(S, "tiny_speed", 1e-6, m), out=speed)
+        np.maximum(speed, S.const("tiny_speed", 1e-6, m), out=speed)
         w_hat = S.get("w_hat", (2, m))  # horizontal unit wind direction w (zero without wind)
         np.divide(W, speed, out=w_hat)
-        # delta0: angle from the rest face normal (a line: both sides face) to the wind line,
-        # in [-pi/2, pi/2) (twist, eqs 19-20)
-        # = arctan2(cross * dot, dot^2) of the rest face normal f and the wind w (0 without wind)
-        delta0 = S.get("delta0", (m,))
-        dot, cross = S.get("dot", (m,)), S.get("cross", (m,))
-        face = self._face[:, a:b]
-        np.multiply(face[0], W[0], out=dot)
-        np.multiply(face[1], W[1], out=tmp)
-        dot += tmp
-        np.multiply(face[0], W[1], out=cross)
-        np.multiply(face[1], W[0], out=tmp)
-        cross -= tmp
-        cross *= dot
-        dot *= dot
-        np.arctan2(cross, dot, out=delta0)
-        Av = S.get("Av", (n, m))  # v^2 rho_wind l_length l_width
-        np.multiply(area, v2, out=Av)
+        out = {"w_hat": w_hat, "speed": speed}
+        if twist:
+            # delta0: angle from the rest face normal (a line: both sides face) to the wind line,
+            # in [-pi/2, pi/2) (twist, eqs 19-20)
+            # = arctan2(cross * dot, dot^2) of the rest face normal f and the wind w (0 without wind)
+            delta0 = S.get("delta0", (m,))
+            dot, cross = S.get("dot", (m,)), S.get("cross", (m,))
+            face = self._face[:, a:b]
+            np.multiply(face[0], W[0], out=dot)
+            np.multiply(face[1], W[1], out=tmp)
+            dot += tmp
+            np.multiply(face[0], W[1], out=cross)
+            np.multiply(face[1], W[0], out=tmp)
+            cross -= tmp
+            cross *= dot
+            dot *= dot
+            np.arctan2(cross, dot, out=delta0)
+            out["delta0"] = delta0
+        # v^2 rho_wind l_length l_width, times l_length: the lever unit of eq 18 (see below)
+        Av = S.get("Av", (n, m))
+        np.multiply(self._area_seg[:, a:b], v2, out=Av)
 
         # Absolute tilt vectors T_j = rest_j + sum_{k<=j} bend_k of every segment (n, 2, m); the
         # running sum is the only loop over joints, the rest runs on all joints at once.
@@ -409,15 +441,12 @@ class BladeSolver:
         np.copyto(T[0], bend[0])
         for j in range(1, n):
             np.add(T[j - 1], bend[j], out=T[j])
-        T += rest
+        T += self._rest[:, :, a:b]
         TT = S.get("TT", (n, 2, m))
         tilt = S.get("tilt", (n, m))
         sin_tilt = S.get("sin_tilt", (n, m))
-        proj = S.get("proj", (n, m))
         cos_phi = S.get("cos_phi", (n, m))
-        sin_phi = S.get("sin_phi", (n, m))
-        F = S.get("F", (n, m))  # F_i^bend, eq 17
-        G = S.get("G", (n, m))  # per-segment twist torque / l_length, eq 20
+        F = S.get("F", (n, m))  # F_i^bend of eq 17 (times l_length)
         CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
 
         np.multiply(T, T, out=TT)
@@ -427,64 +456,72 @@ class BladeSolver:
         np.cos(tilt, out=CT)
         # eq 16: cos(phi) = a_j . w with the axis a_j = (sin|T| T/|T|, cos|T|), w horizontal
         np.multiply(T, w_hat[None, :, :], out=TT)
-        np.add(TT[:, 0], TT[:, 1], out=proj)
-        np.maximum(tilt, _row(S, "eps", EPS, m), out=tilt)
-        np.divide(proj, tilt, out=proj)
-        np.multiply(proj, sin_tilt, out=cos_phi)
+        np.add(TT[:, 0], TT[:, 1], out=cos_phi)
+        np.maximum(tilt, S.const("eps", EPS, m), out=tilt)
+        np.divide(cos_phi, tilt, out=cos_phi)
+        cos_phi *= sin_tilt
+        sin_phi = F
         np.multiply(cos_phi, cos_phi, out=sin_phi)
         np.subtract(F32(1.0), sin_phi, out=sin_phi)
-        np.maximum(sin_phi, _row(S, "zero", 0.0, m), out=sin_phi)
+        np.maximum(sin_phi, S.const("zero", 0.0, m), out=sin_phi)
         np.sqrt(sin_phi, out=sin_phi)
         # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
         # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
-        np.multiply(Av, sin_phi, out=F)
+        F *= Av
         # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
         # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is set
         # in _step_chunk). |cos(phi) sin|T||: a lever is a distance (|T| passes pi only in
         # absurd storms).
-        np.multiply(cos_phi, sin_tilt, out=G)
+        G = cos_phi  # per-segment twist torque, eq 20
+        G *= sin_tilt
         np.abs(G, out=G)
         G *= Av
 
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),
         # directed along w. Recursively, with z_i = l cos|T_i| and S_{i+1} = sum_{j>i} F_j:
-        # M_i = M_{i+1} + z_i (S_{i+1} + F_i / 2). The factor l_length is applied at the end.
-        Mb = S.get("Mb", (n, m))
-        Mt = S.get("Mt", (n, m))
-        Fs = S.get("Fs", (n, m))  # S_i = sum_{j>=i} F_j
+        # M_i = M_{i+1} + z_i (S_{i+1} + F_i / 2). The factor l_length of z_i is already in F
+        # (area_seg), so the running sums below come out in N m.
         last = n - 1
-        np.multiply(F[last], F32(0.5), out=tmp)
-        np.multiply(tmp, CT[last], out=Mb[last])
+        Fs = S.get("Fs", (n, m))  # S_i = sum_{j>=i} F_j
         np.copyto(Fs[last], F[last])
-        np.copyto(Mt[last], G[last])
-        # Q_i = sum_{j>=i} F_j h_ij^2 (for the aerodynamic damping in _step_chunk):
-        # Q_i = Q_{i+1} + z_i (2 M_{i+1} + z_i (S_{i+1} + F_i / 4)), in units of l_length^2.
-        Q = S.get("Q", (n, m))
-        np.multiply(CT[last], CT[last], out=Q[last])
-        Q[last] *= F[last]
-        Q[last] *= F32(0.25)
-        tq = S.get("tq", (m,))
-        for i in range(n - 2, -1, -1):
-            np.multiply(F[i], F32(0.5), out=tmp)
-            tmp += Fs[i + 1]
-            tmp *= CT[i]
-            np.add(Mb[i + 1], tmp, out=Mb[i])
-            np.multiply(F[i], F32(0.25), out=tq)
-            tq += Fs[i + 1]
-            tq *= CT[i]
-            tq += Mb[i + 1]
-            tq += Mb[i + 1]
-            tq *= CT[i]
-            np.add(Q[i + 1], tq, out=Q[i])
+        for i in range(last - 1, -1, -1):
             np.add(Fs[i + 1], F[i], out=Fs[i])
-            np.add(Mt[i + 1], G[i], out=Mt[i])  # twisting joint i turns every segment above
-        seg = self._seg[a:b]
-        Mb *= seg
-        Mt *= seg
-        Q *= seg
-        Q *= seg
-        return {"Mb": Mb, "Mt": Mt, "w_hat": w_hat, "Q": Q, "speed": speed, "delta0": delta0}
+        H = S.get("H", (n, m))  # z_i (S_{i+1} + F_i / 2)
+        np.multiply(F, F32(0.5), out=H)
+        H[:last] += Fs[1:]
+        H *= CT
+        Mb = S.get("Mb", (n, m))
+        np.copyto(Mb[last], H[last])
+        for i in range(last - 1, -1, -1):
+            np.add(Mb[i + 1], H[i], out=Mb[i])
+        Mt = G  # twisting joint i turns every segment above: M_t,i = sum_{j>=i} F_twist,j
+        for i in range(last - 1, -1, -1):
+            np.add(Mt[i + 1], Mt[i], out=Mt[i])
+        out.update(Mb=Mb, Mt=Mt, F=F, Fs=Fs, CT=CT)
+        return out
+
+    def _aero_q(self, forcing: dict[str, np.ndarray], j0: int, S: _Scratch) -> np.ndarray:
+        """Q_i = sum_{j>=i} F_j h_ij^2 for joints i >= j0 (rows below j0 are not written), in
+        N m^2: the aerodynamic damping of the oscillating joints in _step_chunk.
+
+        Q_i = Q_{i+1} + z_i (2 M_{i+1} + z_i (S_{i+1} + F_i / 4)), with F, S, M from _forcing
+        (one factor l_length already in F), so a last factor l_length is applied by the caller.
+        """
+        F, Fs, CT, Mb = forcing["F"], forcing["Fs"], forcing["CT"], forcing["Mb"]
+        n, m = self.n, F.shape[1]
+        last = n - 1
+        Q = S.get("Q", (n, m))
+        rows = slice(j0, n)
+        np.multiply(F[rows], F32(0.25), out=Q[rows])
+        Q[j0:last] += Fs[j0 + 1:]
+        Q[rows] *= CT[rows]
+        Q[j0:last] += Mb[j0 + 1:]
+        Q[j0:last] += Mb[j0 + 1:]
+        Q[rows] *= CT[rows]
+        for i in range(last - 1, j0 - 1, -1):
+            Q[i] += Q[i + 1]
+        return Q
 
     def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
                     allowed: np.ndarray, S: _Scratch) -> None:
@@ -492,48 +529,44 @@ class BladeSolver:
         st = self.state
         bend, vel = st.bend_t[:, :, a:b], st.bend_vel_t[:, :, a:b]
         twist, twist_vel = st.twist_t[:, a:b], st.twist_vel_t[:, a:b]
+        E = st.bend_eq_t[:, :, a:b]
         forcing = self._forcing(a, b, wind, S)
         Mb, Mt, w_hat = forcing["Mb"], forcing["Mt"], forcing["w_hat"]
+        bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
+        twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
+        BB = S.get("BB", (n, 2, m))
 
         # eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)
-        BB = S.get("BB", (n, 2, m))
-        mag = S.get("mag", (n, m))
-        np.multiply(bend, bend, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=mag)
-        np.sqrt(mag, out=mag)
-        np.minimum(mag, _row(S, "stiffen", STIFFEN_LIMIT, m), out=mag)
         mu = S.get("mu", (n, m))
-        np.multiply(mag, F32(self.k), out=mu)
+        np.multiply(bend, bend, out=BB)
+        np.add(BB[:, 0], BB[:, 1], out=mu)
+        np.sqrt(mu, out=mu)
+        np.minimum(mu, S.const("stiffen", STIFFEN_LIMIT, m), out=mu)
+        mu *= F32(self.k)
         mu += self._mu_base[:, a:b]
-        # eq 21/24: equilibrium bend vector = M_i^bend / mu_i(t), along the wind
+        # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)
         e = S.get("e", (n, m))
         np.divide(Mb, mu, out=e)
-        bend_lo, bend_hi = _row(S, "bend_lo", -BEND_LIMIT, m), _row(S, "bend_hi", BEND_LIMIT, m)
-        twist_lo, twist_hi = _row(S, "twist_lo", -TWIST_LIMIT, m), _row(S, "twist_hi", TWIST_LIMIT, m)
-        _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of EQ stays in bounds
-        EQ = S.get("EQ", (n, 2, m))
-        np.multiply(e[:, None, :], w_hat[None, :, :], out=EQ)
+        _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of e w_hat stays in bounds
         # Twisting: the same process with stiffness K_t = twist_stiffness * mu_i(t). The paper
         # gives the twisting torque's size (eq 20) but not its direction: it turns the face
         # towards broadside to the wind and vanishes there, like M_t sin(2 (delta - phi)) with
         # delta the angle from the face normal to the wind. Linearised, joint i's equilibrium
-        # turns the face by the fraction s_i = 2 M_t / (K_t + 2 M_t) of the angle still left
-        # by the joints below: phi_eq_i = s_i (delta0 - sum_{k<i} phi_eq_k). Self-limiting (the
-        # face never turns past broadside) and independent of the current twist, so it needs
-        # no fixed-point iteration (a twist-dependent torque on cumulative joints flutters).
-        Kt = S.get("Kt", (n, m))
-        np.multiply(mu, F32(self.twist_ratio), out=Kt)
+        # turns the face by the fraction s_i = 2 M_t / (K_t + 2 M_t) = M_t / (K_t / 2 + M_t) of
+        # the angle still left by the joints below: phi_eq_i = s_i (delta0 - sum_{k<i} phi_eq_k).
+        # Self-limiting (the face never turns past broadside) and independent of the current
+        # twist, so it needs no fixed-point iteration (a twist-dependent torque on cumulative
+        # joints flutters).
         EQt = S.get("EQt", (n, m))
+        np.multiply(mu, F32(0.5 * self.twist_ratio), out=EQt)  # K_t / 2
+        EQt += Mt
+        np.maximum(EQt, S.const("tiny_k", 0.5e-20, m), out=EQt)
+        np.divide(Mt, EQt, out=EQt)  # s_i
         left = S.get("left", (m,))
         np.copyto(left, forcing["delta0"])
-        Mt *= F32(2.0)
         for i in range(n):
-            s_i = EQt[i]
-            np.add(Kt[i], Mt[i], out=s_i)
-            np.maximum(s_i, _row(S, "tiny_k", 1e-20, m), out=s_i)
-            np.divide(Mt[i], s_i, out=s_i)
-            s_i *= left
-            left -= s_i
+            EQt[i] *= left
+            left -= EQt[i]
         _clip(EQt, twist_lo, twist_hi)
 
         # Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
@@ -547,7 +580,8 @@ class BladeSolver:
         # cumulative tilt, so the whole blade's bend counts), so the cell's
         # r = 1 / (1 + RELAX_GAIN sum_j |eq_j|) per reference frame (scaled by dt / dt_ref for
         # shorter steps): a full step when the wind drops (eq = 0, the blade is released at once
-        # and swings back), short steps in a storm.
+        # and swings back), short steps in a storm. Written E = E (1 - r) + (e r) w_hat.
+        # (The twist's equilibrium does not depend on the twist: no iteration needed.)
         relax = S.get("relax", (m,))
         e_abs = S.get("e_abs", (n, m))
         np.abs(e, out=e_abs)
@@ -555,12 +589,11 @@ class BladeSolver:
         relax *= F32(RELAX_GAIN)
         relax += F32(1.0)
         np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
-        # (The twist's equilibrium does not depend on the twist: no iteration needed.)
-        E = st.bend_eq_t[:, :, a:b]
-        np.subtract(EQ, E, out=BB)
-        BB *= relax
+        e *= relax
+        np.multiply(e[:, None, :], w_hat[None, :, :], out=BB)
+        np.subtract(F32(1.0), relax, out=relax)
+        E *= relax
         E += BB
-        EQ = E
 
         # Deviation from the equilibrium position E: the angles "relative to the equilibrium
         # position" of eq 28. A joint swinging through its equilibrium is not at equilibrium, so
@@ -568,16 +601,16 @@ class BladeSolver:
         # |dtheta| for a joint at rest); otherwise eq 28 would stop a swing at every crossing.
         # (The twist, a small effect, counts with |dphi| alone.)
         DEV = S.get("DEV", (n, 2, m))
-        np.subtract(EQ, bend, out=DEV)
+        np.subtract(E, bend, out=DEV)
         dev = S.get("dev", (n, m))  # |E - theta|: also drives the smooth update (eq 26)
         np.multiply(DEV, DEV, out=BB)
         np.add(BB[:, 0], BB[:, 1], out=dev)
+        kI = S.get("kI", (n, m))  # K / I = w^2
+        np.multiply(mu, self._inv_inertia[:, a:b], out=kI)
         amp = S.get("amp", (n, m))  # swing amplitude
-        inv_w2 = S.get("inv_w2", (n, m))  # I / K = 1 / w^2
-        np.divide(self._inertia[:, a:b], mu, out=inv_w2)
         np.multiply(vel, vel, out=BB)
         np.add(BB[:, 0], BB[:, 1], out=amp)
-        amp *= inv_w2
+        amp /= kI
         amp += dev
         np.sqrt(amp, out=amp)
         np.sqrt(dev, out=dev)
@@ -585,22 +618,28 @@ class BladeSolver:
         np.subtract(EQt, twist, out=DEVt)
         devt = S.get("devt", (n, m))
         np.abs(DEVt, out=devt)
-        np.add(amp, devt, out=amp)  # |dtheta_i| + |dphi_i| of eq 28
+        amp += devt  # |dtheta_i| + |dphi_i| of eq 28
 
         # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
-        nb = S.get("nb", (m,))
+        nb = self.n_boundary[a:b]
         np.add.reduce(amp, axis=0, out=nb)
         nb *= F32(0.5 / n)
         nb -= F32(self.boundary_k)
         nb *= F32(-self.boundary_lambda)
-        np.minimum(nb, F32(math.log(n) + 1.0), out=nb)  # beyond this n_boundary > n anyway
+        np.minimum(nb, S.const("nb_exp_max", math.log(n) + 1.0, m), out=nb)  # n_boundary > n anyway
         np.exp(nb, out=nb)
         nb *= F32(n)
-        np.minimum(nb, F32(n), out=nb)
-        np.copyto(self.n_boundary[a:b], nb)
-        osc = S.get("osc", (n, m), dtype=np.bool_)  # joints above n_boundary oscillate (eq 29)
-        np.greater(self._level, nb, out=osc)
-        np.logical_and(osc, allowed[:, a:b], out=osc)
+        np.minimum(nb, S.const("n", n, m), out=nb)
+        # joints above n_boundary oscillate (eq 29) where eq 32 is allowed; they are the top
+        # ones of each cell, so rows [j0, j1) hold every oscillating joint of the chunk
+        j1 = self._oscillating_rows(allowed, a, b)
+        j0 = j1
+        if j1 > 0:
+            osc = S.get("osc", (j1, m), dtype=np.bool_)
+            np.greater(self._level[:j1], nb, out=osc)
+            np.logical_and(osc, allowed[:j1, a:b], out=osc)
+            rows = osc.any(axis=1)
+            j0 = int(np.argmax(rows)) if rows.any() else j1
 
         # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f, theta_eq = E.
         # Eq 26 makes the fraction per frame M/gamma, which overshoots once M > gamma; the sound
@@ -612,108 +651,158 @@ class BladeSolver:
         # (hyperbolically: a blade that looks frozen a few degrees off); a linear spring returns
         # at a rate independent of the gap, so below SMOOTH_MIN_ANGLE the rate is held at its
         # value there: M = mu max(|theta_eq - theta|, SMOOTH_MIN_ANGLE).
-        rate = F32(-dt / (self.gamma * REFERENCE_DT))
-        x = S.get("x", (n, m))
-        NEW = S.get("NEW", (n, 2, m))
         # Joints too stiff to show a sway at this frame rate (see stable_substeps) are in their
         # quasi-static limit: they follow theta_eq within the step (f = 1, via exp(-huge)).
-        quasi = self._quasi_static[:, a:b]
-        floor = _row(S, "smooth_min", SMOOTH_MIN_ANGLE, m)
+        # (f = 1: murate - QUASI_RATE makes exp underflow to 0 for bend and twist alike).
+        floor = S.const("smooth_min", SMOOTH_MIN_ANGLE, m)
+        murate = S.get("murate", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
+        np.multiply(mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=murate)
+        murate -= self._quasi_static[:, a:b]
+        x = S.get("x", (n, m))
         np.maximum(dev, floor, out=x)
-        x *= mu
-        x *= rate
-        x -= quasi
+        x *= murate
         np.expm1(x, out=x)  # -f
-        np.multiply(DEV, x[:, None, :], out=NEW)
-        np.subtract(bend, NEW, out=NEW)
-        NEWt = S.get("NEWt", (n, m))
-        np.maximum(devt, floor, out=x)
-        x *= Kt
-        x *= rate
-        x -= quasi
-        np.expm1(x, out=x)
-        np.multiply(DEVt, x, out=NEWt)
-        np.subtract(twist, NEWt, out=NEWt)
+        xt = S.get("xt", (n, m))  # the twist's, with K_t = twist_stiffness * mu
+        np.maximum(devt, floor, out=xt)
+        xt *= murate
+        xt *= F32(self.twist_ratio)
+        np.expm1(xt, out=xt)
 
-        # eqs 29-32 for the joints above n_boundary (osc joints are the top ones of each cell)
-        rows = osc.any(axis=1)
-        j0 = int(np.argmax(rows)) if rows.any() else n
-        if j0 < n:
-            js = slice(j0, n)
-            nj = n - j0
-            sel = S.get("sel", (nj, m))  # 1 where the joint oscillates
-            np.copyto(sel, osc[js])
-            keep = S.get("keep", (nj, m))
-            np.subtract(F32(1.0), sel, out=keep)
-            h = dt / substeps
-            # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
-            # (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held
-            # for the frame, so we integrate x = theta - theta_eq. Eq 32 (symplectic Euler):
-            # acceleration, then velocity v += h a, then angle x += h v; here v = p v - q x with
-            # q = h K/I and p = 1 - h C/I.
-            kI = S.get("kI", (nj, m))
-            np.multiply(mu[js], self._inv_inertia[js, a:b], out=kI)
-            q = S.get("q", (nj, m))
-            p = S.get("p", (nj, m))
-            X = S.get("X", (nj, 2, m))
-            V = S.get("V", (nj, 2, m))
-            TMP = S.get("TMP", (nj, 2, m))
-            selb, keepb = sel[:, None, :], keep[:, None, :]
-            np.multiply(kI, F32(h), out=q)
-            np.multiply(kI, F32(-h * self.beta), out=p)
-            p += F32(1.0 - h * self.alpha)
-            # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
-            # the speed of the wind relative to the segment, v - u with u = theta' h_ij, and
-            # linearising F = rho (v - u)^2 A sin(phi) in u gives the damping torque
-            # (2 / v) sum_j F_j h_ij^2 theta' = (2 Q_i / v) theta'. It is what keeps real grass
-            # from resonating with gusts, while it sways freely once the wind stops (v = 0). It
-            # is integrated implicitly, v_new = (p v - q x) / (1 + h c_aero / I): stable at any v.
-            ca = S.get("ca", (nj, m))
-            np.multiply(forcing["Q"][js], self._inv_inertia[js, a:b], out=ca)
-            ca /= forcing["speed"]
-            ca *= F32(2.0 * h)
-            ca += F32(1.0)
-            q /= ca
-            p /= ca
-            np.negative(DEV[js], out=X)
-            np.copyto(V, vel[js])
-            qb, pb = q[:, None, :], p[:, None, :]
-            for _ in range(substeps):
-                np.multiply(X, qb, out=TMP)
-                V *= pb
-                V -= TMP
-                np.multiply(V, F32(h), out=TMP)
-                X += TMP
-            X += EQ[js]
-            _clip(X, bend_lo, bend_hi)  # physical bound: a forced swing can overshoot its target
-            _blend(NEW[js], X, selb, keepb)
-            # twisting (eq 30): the same with K = twist_stiffness * mu_i(t)
-            np.multiply(kI, F32(h * self.twist_ratio), out=q)
-            np.multiply(kI, F32(-h * self.beta * self.twist_ratio), out=p)
-            p += F32(1.0 - h * self.alpha)
-            Xt, Vt, TMPt = S.get("Xt", (nj, m)), S.get("Vt", (nj, m)), S.get("TMPt", (nj, m))
-            np.negative(DEVt[js], out=Xt)
-            np.copyto(Vt, twist_vel[js])
-            for _ in range(substeps):
-                np.multiply(Xt, q, out=TMPt)
-                Vt *= p
-                Vt -= TMPt
-                np.multiply(Vt, F32(h), out=TMPt)
-                Xt += TMPt
-            Xt += EQt[js]
-            _clip(Xt, twist_lo, twist_hi)
-            _blend(NEWt[js], Xt, sel, keep)
+        # Joints without an oscillator in this chunk: the smooth step alone, theta -= (E - theta) x,
+        # and its rate d theta / dt = -(E - theta) x / dt. (It stays within bounds by itself:
+        # it moves between two bounded angles.)
+        inv_dt = F32(-1.0 / dt)
+        for rows in (slice(0, j0), slice(j1, n)):
+            if rows.start < rows.stop:
+                D = DEV[rows]
+                D *= x[rows, None, :]
+                bend[rows] -= D
+                np.multiply(D, inv_dt, out=vel[rows])
+                Dt = DEVt[rows]
+                Dt *= xt[rows]
+                twist[rows] -= Dt
+                np.multiply(Dt, inv_dt, out=twist_vel[rows])
+        if j0 < j1:
+            self._oscillate(forcing, j0, j1, dt, substeps, osc, mu, kI, x, xt, S, a, b)
 
-        # Velocities: the smooth joints' rate is (new - old) / dt, the oscillating joints keep
-        # their own (eq 32 only runs where it is stable). The smooth update stays within bounds
-        # by itself (it moves between two bounded angles), so only the swings were clipped.
-        inv_dt = F32(1.0 / dt)
-        np.subtract(NEW, bend, out=vel)
-        vel *= inv_dt
-        np.subtract(NEWt, twist, out=twist_vel)
-        twist_vel *= inv_dt
-        if j0 < n:
-            _blend(vel[js], V, selb, keepb)
-            _blend(twist_vel[js], Vt, sel, keep)
-        np.copyto(bend, NEW)
-        np.copyto(twist, NEWt)
+    def _oscillate(self, forcing, j0, j1, dt, substeps, osc, mu, kI, x, xt, S, a, b) -> None:
+        """Rows [j0, j1) of cells [a, b): eqs 29-32 for the joints above n_boundary (``osc``),
+        the smooth update (x, xt from _step_chunk) for the others. Scratch of _step_chunk:
+        DEV, DEVt (y = E - theta) and EQt hold this step's values."""
+        m = b - a
+        st = self.state
+        js = slice(j0, j1)
+        nj = j1 - j0
+        bend, vel = st.bend_t[js, :, a:b], st.bend_vel_t[js, :, a:b]
+        twist, twist_vel = st.twist_t[js, a:b], st.twist_vel_t[js, a:b]
+        E = st.bend_eq_t[js, :, a:b]
+        Y, Yt = S.get("DEV", (self.n, 2, m))[js], S.get("DEVt", (self.n, m))[js]
+        EQt = S.get("EQt", (self.n, m))[js]
+        x, xt, kI = x[js], xt[js], kI[js]
+        bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
+        twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
+        sel = S.get("sel", (nj, m))  # 1 where the joint oscillates
+        np.copyto(sel, osc[js])
+        keep = S.get("keep", (nj, m))
+        np.subtract(F32(1.0), sel, out=keep)
+        h = dt / substeps
+        # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
+        # (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held
+        # for the frame, so we integrate y = theta_eq - theta (= DEV, in place). Eq 32
+        # (symplectic Euler): acceleration, then velocity v += h a, then angle y -= h v;
+        # here v = p v + q y with q = h K/I and p = 1 - h C/I.
+        # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
+        # the speed of the wind relative to the segment, v - u with u = theta' h_ij, and
+        # linearising F = rho (v - u)^2 A sin(phi) in u gives the damping torque
+        # (2 / v) sum_j F_j h_ij^2 theta' = (2 Q_i / v) theta'. It is what keeps real grass
+        # from resonating with gusts, while it sways freely once the wind stops (v = 0). It
+        # is integrated implicitly, v_new = (p v + q y) / (1 + h c_aero / I): stable at any v.
+        Q = self._aero_q(forcing, j0, S)
+        hs = S.get("hs", (m,))  # 2 h l_length / |v|: the last factor l_length of Q
+        np.divide(F32(2.0 * h), forcing["speed"], out=hs)
+        hs *= self._seg[a:b]
+        rc = S.get("rc", (nj, m))  # 1 / (1 + h c_aero / I)
+        np.multiply(Q[js], self._inv_inertia[js, a:b], out=rc)
+        rc *= hs
+        rc += F32(1.0)
+        np.divide(F32(1.0), rc, out=rc)
+        q = S.get("q", (nj, m))
+        p = S.get("p", (nj, m))
+        np.multiply(kI, rc, out=q)
+        q *= F32(h)
+        rc *= F32(1.0 - h * self.alpha)
+        np.multiply(q, F32(self.beta), out=p)
+        np.subtract(rc, p, out=p)
+        # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning in the
+        # wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
+        qt = S.get("qt", (nj, m))
+        pt = S.get("pt", (nj, m))
+        np.multiply(kI, F32(h * self.twist_ratio), out=qt)
+        np.multiply(qt, F32(-self.beta), out=pt)
+        pt += F32(1.0 - h * self.alpha)
+        TMP = S.get("TMP", (nj, 2, m))
+        TMPt = S.get("TMPt", (nj, m))
+        if substeps == 1:
+            # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
+            # is its rate, y -= h v its step), so each joint just takes its own coefficients.
+            # (Exact masked copies: a * 1 + b * 0 == a bitwise for finite values.)
+            for qq, pp, xx in ((q, p, x), (qt, pt, xt)):
+                qq *= sel
+                np.multiply(xx, F32(-1.0 / h), out=TMPt)
+                TMPt *= keep
+                qq += TMPt
+                pp *= sel
+            np.multiply(Y, q[:, None, :], out=TMP)
+            vel *= p[:, None, :]
+            vel += TMP
+            np.multiply(vel, F32(h), out=TMP)
+            Y -= TMP
+            np.subtract(E, Y, out=bend)
+            _clip(bend, bend_lo, bend_hi)  # a forced swing can overshoot its target
+            np.multiply(Yt, qt, out=TMPt)
+            twist_vel *= pt
+            twist_vel += TMPt
+            np.multiply(twist_vel, F32(h), out=TMPt)
+            Yt -= TMPt
+            np.subtract(EQt, Yt, out=twist)
+            _clip(twist, twist_lo, twist_hi)
+            return
+
+        # Several sub-steps: the smooth step (as in _step_chunk) and the oscillator, blended.
+        D = S.get("D", (nj, 2, m))
+        np.multiply(Y, x[:, None, :], out=D)
+        Dt = S.get("Dt", (nj, m))
+        np.multiply(Yt, xt, out=Dt)
+        qb, pb = q[:, None, :], p[:, None, :]
+        for _ in range(substeps):
+            np.multiply(Y, qb, out=TMP)
+            vel *= pb
+            vel += TMP
+            np.multiply(vel, F32(h), out=TMP)
+            Y -= TMP
+            np.multiply(Yt, qt, out=TMPt)
+            twist_vel *= pt
+            twist_vel += TMPt
+            np.multiply(twist_vel, F32(h), out=TMPt)
+            Yt -= TMPt
+        selb, keepb = sel[:, None, :], keep[:, None, :]
+        np.subtract(E, Y, out=TMP)
+        _clip(TMP, bend_lo, bend_hi)  # a forced swing can overshoot its target
+        bend -= D
+        bend *= keepb
+        TMP *= selb
+        bend += TMP
+        np.subtract(EQt, Yt, out=TMPt)
+        _clip(TMPt, twist_lo, twist_hi)
+        twist -= Dt
+        twist *= keep
+        TMPt *= sel
+        twist += TMPt
+        # rates: the oscillating joints keep their own (already in vel), the others -D / dt
+        keep *= F32(-1.0 / dt)
+        D *= keepb
+        vel *= selb
+        vel += D
+        Dt *= keep
+        twist_vel *= sel
+        twist_vel += Dt

@@ -101,48 +101,53 @@ def card_vertex_count(layout, n_blocks: int) -> int:
 
 
 # --------------------------------------------------------------------------------------------
-# Per-layout constants in the kernel's layout: (block, joint/segment, slot, cell-in-block)
+# Per-layout constants in the kernel's layout: blade-major, (block, blade-in-block, joint)
+
+
+def _void(array: np.ndarray) -> np.ndarray:
+    """The last axis of a C-contiguous-rows array as one opaque record (bitwise copies)."""
+    return array.view(np.dtype((np.void, array.shape[-1] * array.itemsize)))[..., 0]
 
 
 class _Constants:
-    """Per-blade values that never change, arranged (n_blocks, row, slot, cell) so that per-cell
-    values broadcast over the slot axis and the innermost axis (cells of a block) is contiguous.
-    Horizontal 2-D vectors are complex64 x + iy: one numpy call handles both components, and
-    rotations by the twist are complex products."""
+    """Per-blade values that never change, blade-major like the output: (n_blocks, blade in
+    block = cell * num + slot, joint/segment), so every per-(blade, joint) operation is one
+    contiguous pass and the vertex writes go straight to `out`. Per-cell values (bend, twist)
+    are expanded over the slots by bitwise record copies. Horizontal 2-D vectors are complex64
+    x + iy: one numpy call handles both components, and rotations by the twist are complex
+    products."""
 
     def __init__(self, layout):
         n, num, P = layout.segments, layout.blades_per_cell, layout.cells_per_block_total
         nb = layout.n_blocks
+        bpb = P * num
         self.n, self.num, self.P, self.nb = n, num, P, nb
-
-        def arrange(values: np.ndarray, dtype=np.float32) -> np.ndarray:
-            """Blade-major (B, rows) -> (nb, rows, num, P)."""
-            rows = values.shape[1]
-            return np.ascontiguousarray(values.reshape(nb, P, num, rows).transpose(0, 3, 2, 1), dtype=dtype)
-
         facing = layout.blade_facing.astype(np.float64)
         d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
-        # rest tilt vector blade_rest_tilt * d_b, (nb, n, num, P) complex
-        self.rest = arrange(layout.blade_rest_tilt.astype(np.float64) * d_b, np.complex64)
-        self.seg = arrange(layout.blade_length.astype(np.float64)[:, None] / n)  # (nb, 1, num, P)
+        # rest tilt vector blade_rest_tilt * d_b, (nb, bpb, n) complex
+        self.rest = (layout.blade_rest_tilt.astype(np.float64) * d_b).astype(np.complex64).reshape(nb, bpb, n)
+        seg = (layout.blade_length.astype(np.float64) / n).astype(np.float32)  # l/n
+        self.seg = np.ascontiguousarray(np.broadcast_to(seg.reshape(nb, bpb, 1), (nb, bpb, n)))
         # linear taper of the width along the blade, per joint (multiplies the per-cell e^{i Phi})
         self.taper = (1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n).astype(np.float32)
-        # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f}.
-        half_w = 0.5 * layout.blade_width.astype(np.float64)[:, None]
-        self.w_side = arrange(-1j * half_w * d_b, np.complex64)  # (nb, 1, num, P)
+        # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f},
+        # repeated for every joint (nb, bpb, n+1).
+        w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
+        self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
         root = layout.blade_root.astype(np.float64)
-        self.root_xy = arrange((root[:, 0] + 1j * root[:, 1])[:, None], np.complex64)  # (nb, 1, num, P)
-        self.root_z = arrange(root[:, 2:3])
-        self.slot = np.arange(num, dtype=np.int32)[None, :, None]  # (1, num, 1)
+        self.root_xy = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(nb, bpb)
+        self.root_z = root[:, 2].astype(np.float32).reshape(nb, bpb)
+        self.slot = np.arange(num, dtype=np.int32)[None, :]  # (1, num)
         # Cells of block b = by * blocks_x + bx are the cpb x cpb square at (by, bx) of the
         # row-major field (layout.py): gathers of consecutive blocks of a block row are then
-        # strided copies (rows of cpb cells) instead of per-cell takes.
+        # strided copies instead of per-cell takes.
         cpb, bx = layout.cells_per_block, layout.blocks_x
         by_, bx_ = np.divmod(np.arange(nb), bx)
         ly, lx = np.divmod(np.arange(P), cpb)
         square = ((by_[:, None] * cpb + ly) * (bx * cpb) + bx_[:, None] * cpb + lx)
         self.grid = ((layout.blocks_y, cpb, bx, cpb) if np.array_equal(square, layout.block_cells) else None)
-        self.k_max = max(1, CHUNK_BLADES // max(1, layout.blades_per_block))
+        self.k_max = max(1, CHUNK_BLADES // max(1, bpb))
+        self.taper_rows = np.ascontiguousarray(np.broadcast_to(self.taper, (self.k_max * P, n + 1)))
         self._scratch: list[dict[str, np.ndarray]] = []
         self._lock = threading.Lock()
         self.call_lock = threading.Lock()
@@ -152,23 +157,27 @@ class _Constants:
         with self._lock:
             while len(self._scratch) <= index:
                 k, n, num, P = self.k_max, self.n, self.num, self.P
+                cells, blades = k * P, k * P * num
                 f32, c64 = np.float32, np.complex64
                 self._scratch.append({
                     "k_max": k,
-                    "cb": np.empty((k, n, 1, P), c64),  # cumulative bend per cell
-                    "phi": np.empty((k, n + 1, P), f32),  # cumulative twist per cell and joint
-                    "trig": np.empty((k, n + 1, P), f32),
-                    "rot": np.empty((k, n + 1, 1, P), c64),  # taper_j e^{i Phi_j}
-                    "t": np.empty((k, n, num, P), c64),  # T, then the horizontal steps
-                    "a": np.empty((k, n, num, P), f32),
-                    "b": np.empty((k, n, num, P), f32),
-                    "dz": np.empty((k, n, num, P), f32),
-                    "p": np.empty((k, n + 1, num, P), c64),  # joints, x + iy
-                    "pz": np.empty((k, n + 1, num, P), f32),
-                    "h": np.empty((k, n + 1, num, P), c64),  # side offset -s w/2
-                    "stage": np.empty((3, k, n + 1, num, P, 2), f32),
-                    "mask": np.empty((k, 1, num, P), f32),
-                    "seg": np.empty((k, 1, num, P), f32),
+                    "cb": np.empty((cells, n), c64),  # cumulative bend per cell
+                    "tw": np.empty((cells, n), f32),  # twist per cell
+                    "phi": np.empty((cells, n + 1), f32),  # cumulative twist per cell and joint
+                    "trig": np.empty((cells, n + 1), f32),
+                    "rot": np.empty((cells, n + 1), c64),  # taper_j e^{i Phi_j}
+                    "cb_blade": np.empty((cells, num, n), c64),  # cb of each blade's cell
+                    "rot_blade": np.empty((cells, num, n + 1), c64),
+                    "t": np.empty((blades, n), c64),  # T, then the horizontal steps
+                    "a": np.empty((blades, n), f32),
+                    "b": np.empty((blades, n), f32),
+                    "dz": np.empty((blades, n), f32),
+                    "p": np.empty((blades, n + 1), c64),  # joints, x + iy
+                    "pz": np.empty((blades, n + 1), f32),
+                    "h": np.empty((blades, n + 1), c64),  # side offset -s w/2
+                    "mask": np.empty((cells, num), f32),
+                    "seg": np.empty((blades, n), f32),
+                    "w_side": np.empty((blades, n + 1), c64),
                 })
             return self._scratch[index]
 
@@ -213,21 +222,25 @@ def _select(array: np.ndarray, ids: np.ndarray, scratch: dict, name: str):
 
 
 def _gather_cells(layout, const: _Constants, src: np.ndarray, ids: np.ndarray, dst: np.ndarray) -> None:
-    """dst[..., i, :] = src[..., block_cells[ids[i]]]: src (..., C) -> dst (..., k, P) (may be a
-    strided view). Runs of consecutive blocks of one block row are one strided copy each."""
+    """Cell-major copy of joint-major data: dst[i * P + c] = src[..., block_cells[ids[i], c]] for
+    src (R..., C) and dst (k * P, R...). Runs of consecutive blocks of one block row are one
+    strided copy each (the field's rows of cells, no index arrays)."""
+    rest = src.shape[:-1]
     if const.grid is None:
-        np.copyto(dst, np.take(src, layout.block_cells[ids], axis=-1))
+        np.copyto(dst, np.moveaxis(np.take(src, layout.block_cells[ids].ravel(), axis=-1), -1, 0))
         return
-    rows, cpb, bx, _ = const.grid
-    field = src.reshape(src.shape[:-1] + const.grid)  # (..., blocks_y, cpb, blocks_x, cpb)
+    _, cpb, bx, _ = const.grid
+    field = src.view()
+    field.shape = rest + const.grid  # (R..., blocks_y, cpb, blocks_x, cpb), a view (never a copy)
     squares = dst.view()
-    squares.shape = dst.shape[:-1] + (cpb, cpb)  # (..., k, cpb, cpb), a view of dst (never a copy)
+    squares.shape = (len(ids), cpb, cpb) + rest
+    r = len(rest)
+    order = (r + 1, r, r + 2) + tuple(range(r))  # (R..., ly, m, lx) -> (m, ly, lx, R...)
     breaks = np.flatnonzero((np.diff(ids) != 1) | (np.diff(ids // bx) != 0)) + 1
     for start, stop in zip([0, *breaks.tolist()], [*breaks.tolist(), len(ids)]):
         y, x = divmod(int(ids[start]), bx)
-        for row in np.ndindex(src.shape[:-1]):  # one source row at a time: few pages (TLB) per copy
-            block_row = field[row + (y, slice(None), slice(x, x + stop - start))]  # (cpb, m, cpb)
-            np.copyto(squares[row + (slice(start, stop),)], block_row.transpose(1, 0, 2))
+        block_row = field[(Ellipsis, y, slice(None), slice(x, x + stop - start), slice(None))]
+        np.copyto(squares[start:stop], block_row.transpose(order))
 
 
 # --------------------------------------------------------------------------------------------
@@ -244,11 +257,13 @@ def _joint_major(layout, cells) -> tuple[np.ndarray, np.ndarray]:
         if bend.shape != (C, n, 2) or twist.shape != (C, n):
             raise ValueError(f"cell data must have bend {(C, n, 2)} and twist {(C, n)}, "
                              f"got {bend.shape} and {twist.shape}")
-        bend_t, twist_t = bend.transpose(1, 2, 0), twist.T
+        bend_t = np.asarray(bend, dtype=np.float32).transpose(1, 2, 0)  # views: the gathers read them
+        twist_t = np.asarray(twist, dtype=np.float32).T
+    bend_t, twist_t = np.asarray(bend_t, dtype=np.float32), np.asarray(twist_t, dtype=np.float32)
     if bend_t.shape != (n, 2, C) or twist_t.shape != (n, C):
         raise ValueError(f"cell data must have bend_t {(n, 2, C)} and twist_t {(n, C)}, "
                          f"got {bend_t.shape} and {twist_t.shape}")
-    return (np.ascontiguousarray(bend_t, dtype=np.float32), np.ascontiguousarray(twist_t, dtype=np.float32))
+    return bend_t, twist_t
 
 
 def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndarray:
@@ -288,40 +303,46 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
                  counts, out: np.ndarray) -> None:
     """Vertices of the blades of blocks `ids` into `out` (k, blades_per_block * (n+1) * 2, 3)."""
     k, n, num, P = len(ids), const.n, const.num, const.P
+    cells, blades = k * P, k * P * num
+
     # Per cell: cumulative bend sum_{k<=j} bend[c, k] (complex) and cumulative twist
-    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}. The joint-major
-    # bend (n, 2, C) is gathered straight into the real and imaginary parts of cb (k, n, P).
-    cb = s["cb"][:k, :, 0]  # (k, n, P)
-    parts = cb.view(np.float32).reshape(k, n, P, 2)
-    for c in range(2):  # one component at a time: the copy's inner loop runs along the cells
-        _gather_cells(layout, const, bend[:, c], ids, parts[..., c].transpose(1, 0, 2))
+    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}.
+    cb = s["cb"][:cells]  # (cells, n) complex
+    _gather_cells(layout, const, bend, ids, cb.view(np.float32).reshape(cells, n, 2))
     for j in range(1, n):
         np.add(cb[:, j - 1], cb[:, j], out=cb[:, j])
-    phi = s["phi"][:k]  # (k, n+1, P)
-    _gather_cells(layout, const, twist, ids, phi[:, :n].transpose(1, 0, 2))
+    tw, phi = s["tw"][:cells], s["phi"][:cells]
+    _gather_cells(layout, const, twist, ids, tw)
+    np.copyto(phi[:, 0], tw[:, 0])
     for j in range(1, n):
-        np.add(phi[:, j - 1], phi[:, j], out=phi[:, j])
+        np.add(phi[:, j - 1], tw[:, j], out=phi[:, j])
     np.copyto(phi[:, n], phi[:, n - 1])  # the tip edge belongs to the top segment
-    rot = s["rot"][:k]
-    taper = const.taper[None, :, None]
-    trig = s["trig"][:k]  # contiguous: trig functions run faster than into strided halves
-    np.cos(phi, out=trig)
-    np.multiply(trig, taper, out=rot.real[:, :, 0])
+    rot, trig, taper = s["rot"][:cells], s["trig"][:cells], const.taper_rows[:cells]
+    np.cos(phi, out=trig)  # contiguous: trig functions run faster than into strided halves
+    np.multiply(trig, taper, out=rot.real)
     np.sin(phi, out=trig)
-    np.multiply(trig, taper, out=rot.imag[:, :, 0])
+    np.multiply(trig, taper, out=rot.imag)
+    # Every blade of a cell shares the cell's values: whole rows copied as records, per slot.
+    cb_blade, rot_blade = s["cb_blade"][:cells], s["rot_blade"][:cells]
+    for slot in range(num):
+        np.copyto(_void(cb_blade)[:, slot], _void(cb))
+        np.copyto(_void(rot_blade)[:, slot], _void(rot))
 
-    rest, seg = _select(const.rest, ids, s, "sel_rest"), _select(const.seg, ids, s, "sel_seg")
-    w_side = _select(const.w_side, ids, s, "sel_w_side")
-    root_xy, root_z = _select(const.root_xy, ids, s, "sel_root_xy"), _select(const.root_z, ids, s, "sel_root_z")
+    rest = _select(const.rest, ids, s, "sel_rest").reshape(blades, n)
+    seg = _select(const.seg, ids, s, "sel_seg").reshape(blades, n)
+    w_side = _select(const.w_side, ids, s, "sel_w_side").reshape(blades, n + 1)
+    root_xy = _select(const.root_xy, ids, s, "sel_root_xy").reshape(blades)
+    root_z = _select(const.root_z, ids, s, "sel_root_z").reshape(blades)
     if counts is not None:  # eq 9: slots >= N collapse onto the root
-        mask = s["mask"][:k]
-        np.less(const.slot, counts[layout.block_cells[ids]].reshape(k, 1, P), out=mask[:, 0])
-        seg = np.multiply(seg, mask, out=s["seg"][:k])
-        w_side = w_side * mask  # (k, 1, num, P): small
+        mask = s["mask"][:cells]
+        np.less(const.slot, counts[layout.block_cells[ids]].reshape(cells, 1), out=mask)
+        mask = mask.reshape(blades, 1)
+        seg = np.multiply(seg, mask, out=s["seg"][:blades])
+        w_side = np.multiply(w_side, mask, out=s["w_side"][:blades])
 
     # Tilt vector T_j = rest + cumulative bend; direction (sin|T| T/|T|, cos|T|) times l/n.
-    t, a, b, dz = s["t"][:k], s["a"][:k], s["b"][:k], s["dz"][:k]
-    np.add(rest, s["cb"][:k], out=t)
+    t, a, b, dz = s["t"][:blades], s["a"][:blades], s["b"][:blades], s["dz"][:blades]
+    np.add(rest, cb_blade.reshape(blades, n), out=t)
     np.abs(t, out=a)  # |T|
     np.cos(a, out=dz)
     np.multiply(dz, seg, out=dz)  # dz = l/n cos|T|
@@ -331,31 +352,26 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     np.multiply(b, seg, out=b)  # l/n sin|T| / |T|
     np.multiply(t, b, out=t)  # horizontal steps dx + i dy
 
-    # Joints: p_0 = root, p_{j+1} = p_j + step_j.
-    p, pz = s["p"][:k], s["pz"][:k]
-    np.copyto(p[:, 0], root_xy[:, 0])
-    np.copyto(pz[:, 0], root_z[:, 0])
+    # Joints: p_0 = root, p_{j+1} = p_j + step_j (columns of the blade-major arrays).
+    p, pz = s["p"][:blades], s["pz"][:blades]
+    np.copyto(p[:, 0], root_xy)
+    np.copyto(pz[:, 0], root_z)
     for j in range(n):
         np.add(p[:, j], t[:, j], out=p[:, j + 1])
         np.add(pz[:, j], dz[:, j], out=pz[:, j + 1])
 
     # Side offset h = -s w/2 = -i (w/2) e^{i (f + Phi)} taper: one complex product.
-    h = s["h"][:k]
-    np.multiply(w_side, rot, out=h)
+    h = s["h"][:blades]
+    np.multiply(w_side, rot_blade.reshape(blades, n + 1), out=h)
 
-    # Write (k, P, num, n+1, side, xyz). The 6 floats of a joint's two vertices form 3 aligned
-    # 8-byte pairs (Lx Ly)(Lz Rx)(Ry Rz): they are built in cache-local staging and scattered as
-    # 3 uint64 copies, cheaper than 6 scattered float32 writes (bit-exact: a plain copy).
-    st = s["stage"][:, :k]  # (3, k, n+1, num, P, 2)
-    np.add(p, h, out=st[0].view(np.complex64)[..., 0])  # left = p - s w/2 = p + h: (Lx, Ly)
-    np.copyto(st[1, ..., 0], pz)
-    np.subtract(p.real, h.real, out=st[1, ..., 1])  # right = p + s w/2 = p - h
-    np.subtract(p.imag, h.imag, out=st[2, ..., 0])
-    np.copyto(st[2, ..., 1], pz)
-    pairs = out.reshape(-1).view(np.uint64).reshape(k, P, num, n + 1, 3).transpose(4, 0, 3, 2, 1)
-    staged = st.view(np.uint64)[..., 0]  # (3, k, n+1, num, P)
-    for i in range(3):
-        np.copyto(pairs[i], staged[i])
+    # Write (blade, joint, [left xyz, right xyz]) straight into `out`, which has the same order:
+    # left = p - s w/2 = p + h, right = p - h. (Lx, Ly) is an aligned 8-byte pair: one complex add.
+    v = out.reshape(blades, n + 1, 6)
+    np.add(p, h, out=out.reshape(-1).view(np.complex64).reshape(blades, n + 1, 3)[..., 0])
+    np.copyto(v[..., 2], pz)
+    np.subtract(p.real, h.real, out=v[..., 3])
+    np.subtract(p.imag, h.imag, out=v[..., 4])
+    np.copyto(v[..., 5], pz)
 
 
 # --------------------------------------------------------------------------------------------

@@ -158,20 +158,21 @@ class _Scratch:
     """Preallocated float32/bool buffers of one worker lane; ``get`` hands out contiguous views.
 
     Views are cached per (name, shape, dtype): a chunk asks for ~60 buffers and every call costs
-    (np.prod on a shape tuple alone was ~5 us). Rows are padded apart: numpy treats adjacent rows
-    of one buffer as overlapping (``np.add(M[i + 1], F[i], out=M[i])``, the running sums over
-    joints) and then goes through a temporary copy, ~5x slower.
+    (np.prod on a shape tuple alone was ~5 us). ``pad=True`` pads the rows apart, for the
+    buffers of the running sums over joints (``np.add(M[i + 1], F[i], out=M[i])``): numpy treats
+    adjacent rows of one buffer as overlapping and goes through a temporary copy, ~5x slower.
+    The others stay contiguous (cheaper calls).
     """
 
     def __init__(self):
         self._bufs: dict[str, np.ndarray] = {}
         self._views: dict[tuple, np.ndarray] = {}
 
-    def get(self, name: str, shape: tuple[int, ...], dtype=F32) -> np.ndarray:
+    def get(self, name: str, shape: tuple[int, ...], dtype=F32, pad: bool = False) -> np.ndarray:
         key = (name, shape, dtype)
         view = self._views.get(key)
         if view is None:
-            padded = shape[:-1] + (shape[-1] + (ROW_PAD if len(shape) > 1 else 0),)
+            padded = shape[:-1] + (shape[-1] + (ROW_PAD if pad else 0),)
             size = math.prod(padded)
             buf = self._bufs.get(name)
             if buf is None or buf.size < size or buf.dtype != dtype:
@@ -437,7 +438,7 @@ class BladeSolver:
 
         # Absolute tilt vectors T_j = rest_j + sum_{k<=j} bend_k of every segment (n, 2, m); the
         # running sum is the only loop over joints, the rest runs on all joints at once.
-        T = S.get("T", (n, 2, m))
+        T = S.get("T", (n, 2, m), pad=True)
         np.copyto(T[0], bend[0])
         for j in range(1, n):
             np.add(T[j - 1], bend[j], out=T[j])
@@ -445,7 +446,7 @@ class BladeSolver:
         TT = S.get("TT", (n, 2, m))
         tilt = S.get("tilt", (n, m))
         sin_tilt = S.get("sin_tilt", (n, m))
-        cos_phi = S.get("cos_phi", (n, m))
+        cos_phi = S.get("cos_phi", (n, m), pad=True)
         F = S.get("F", (n, m))  # F_i^bend of eq 17 (times l_length)
         CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
 
@@ -483,7 +484,7 @@ class BladeSolver:
         # M_i = M_{i+1} + z_i (S_{i+1} + F_i / 2). The factor l_length of z_i is already in F
         # (area_seg), so the running sums below come out in N m.
         last = n - 1
-        Fs = S.get("Fs", (n, m))  # S_i = sum_{j>=i} F_j
+        Fs = S.get("Fs", (n, m), pad=True)  # S_i = sum_{j>=i} F_j
         np.copyto(Fs[last], F[last])
         for i in range(last - 1, -1, -1):
             np.add(Fs[i + 1], F[i], out=Fs[i])
@@ -491,7 +492,7 @@ class BladeSolver:
         np.multiply(F, F32(0.5), out=H)
         H[:last] += Fs[1:]
         H *= CT
-        Mb = S.get("Mb", (n, m))
+        Mb = S.get("Mb", (n, m), pad=True)
         np.copyto(Mb[last], H[last])
         for i in range(last - 1, -1, -1):
             np.add(Mb[i + 1], H[i], out=Mb[i])
@@ -511,7 +512,7 @@ class BladeSolver:
         F, Fs, CT, Mb = forcing["F"], forcing["Fs"], forcing["CT"], forcing["Mb"]
         n, m = self.n, F.shape[1]
         last = n - 1
-        Q = S.get("Q", (n, m))
+        Q = S.get("Q", (n, m), pad=True)
         rows = slice(j0, n)
         np.multiply(F[rows], F32(0.25), out=Q[rows])
         Q[j0:last] += Fs[j0 + 1:]
@@ -640,6 +641,11 @@ class BladeSolver:
             np.logical_and(osc, allowed[:j1, a:b], out=osc)
             rows = osc.any(axis=1)
             j0 = int(np.argmax(rows)) if rows.any() else j1
+        if j0 < j1:
+            sel = S.get("sel", (j1 - j0, m))  # 1 where the joint oscillates
+            np.copyto(sel, osc[j0:j1])
+            keep = S.get("keep", (j1 - j0, m))
+            np.subtract(F32(1.0), sel, out=keep)
 
         # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f, theta_eq = E.
         # Eq 26 makes the fraction per frame M/gamma, which overshoots once M > gamma; the sound
@@ -658,6 +664,8 @@ class BladeSolver:
         murate = S.get("murate", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
         np.multiply(mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=murate)
         murate -= self._quasi_static[:, a:b]
+        if j0 < j1:
+            murate[j0:j1] *= keep  # the oscillating joints take no smooth step (x = f = 0)
         x = S.get("x", (n, m))
         np.maximum(dev, floor, out=x)
         x *= murate
@@ -701,10 +709,7 @@ class BladeSolver:
         x, xt, kI = x[js], xt[js], kI[js]
         bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
         twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
-        sel = S.get("sel", (nj, m))  # 1 where the joint oscillates
-        np.copyto(sel, osc[js])
-        keep = S.get("keep", (nj, m))
-        np.subtract(F32(1.0), sel, out=keep)
+        sel, keep = S.get("sel", (nj, m)), S.get("keep", (nj, m))  # osc as 1/0 and 0/1
         h = dt / substeps
         # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
         # (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held
@@ -728,6 +733,45 @@ class BladeSolver:
         np.divide(F32(1.0), rc, out=rc)
         q = S.get("q", (nj, m))
         p = S.get("p", (nj, m))
+        qt = S.get("qt", (nj, m))
+        pt = S.get("pt", (nj, m))
+        TMP = S.get("TMP", (nj, 2, m))
+        TMPt = S.get("TMPt", (nj, m))
+        if substeps == 1:
+            # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
+            # is its rate, theta += h v its step), so each joint takes its own coefficients:
+            # the oscillator's times sel plus the smooth ones (x = -f is 0 where sel is 1).
+            rc *= sel
+            np.multiply(kI, rc, out=q)
+            q *= F32(h)
+            rc *= F32(1.0 - h * self.alpha)
+            np.multiply(q, F32(self.beta), out=p)
+            np.subtract(rc, p, out=p)
+            np.multiply(x, F32(-1.0 / h), out=TMPt)
+            q += TMPt
+            # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning
+            # in the wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
+            np.multiply(kI, sel, out=qt)
+            qt *= F32(h * self.twist_ratio)
+            np.multiply(sel, F32(1.0 - h * self.alpha), out=pt)
+            np.multiply(qt, F32(self.beta), out=TMPt)
+            pt -= TMPt
+            np.multiply(xt, F32(-1.0 / h), out=TMPt)
+            qt += TMPt
+            np.multiply(Y, q[:, None, :], out=TMP)
+            vel *= p[:, None, :]
+            vel += TMP
+            np.multiply(vel, F32(h), out=TMP)
+            bend += TMP
+            _clip(bend, bend_lo, bend_hi)  # a forced swing can overshoot its target
+            np.multiply(Yt, qt, out=TMPt)
+            twist_vel *= pt
+            twist_vel += TMPt
+            np.multiply(twist_vel, F32(h), out=TMPt)
+            twist += TMPt
+            _clip(twist, twist_lo, twist_hi)
+            return
+
         np.multiply(kI, rc, out=q)
         q *= F32(h)
         rc *= F32(1.0 - h * self.alpha)
@@ -735,39 +779,9 @@ class BladeSolver:
         np.subtract(rc, p, out=p)
         # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning in the
         # wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
-        qt = S.get("qt", (nj, m))
-        pt = S.get("pt", (nj, m))
         np.multiply(kI, F32(h * self.twist_ratio), out=qt)
         np.multiply(qt, F32(-self.beta), out=pt)
         pt += F32(1.0 - h * self.alpha)
-        TMP = S.get("TMP", (nj, 2, m))
-        TMPt = S.get("TMPt", (nj, m))
-        if substeps == 1:
-            # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
-            # is its rate, y -= h v its step), so each joint just takes its own coefficients.
-            # (Exact masked copies: a * 1 + b * 0 == a bitwise for finite values.)
-            for qq, pp, xx in ((q, p, x), (qt, pt, xt)):
-                qq *= sel
-                np.multiply(xx, F32(-1.0 / h), out=TMPt)
-                TMPt *= keep
-                qq += TMPt
-                pp *= sel
-            np.multiply(Y, q[:, None, :], out=TMP)
-            vel *= p[:, None, :]
-            vel += TMP
-            np.multiply(vel, F32(h), out=TMP)
-            Y -= TMP
-            np.subtract(E, Y, out=bend)
-            _clip(bend, bend_lo, bend_hi)  # a forced swing can overshoot its target
-            np.multiply(Yt, qt, out=TMPt)
-            twist_vel *= pt
-            twist_vel += TMPt
-            np.multiply(twist_vel, F32(h), out=TMPt)
-            Yt -= TMPt
-            np.subtract(EQt, Yt, out=twist)
-            _clip(twist, twist_lo, twist_hi)
-            return
-
         # Several sub-steps: the smooth step (as in _step_chunk) and the oscillator, blended.
         D = S.get("D", (nj, 2, m))
         np.multiply(Y, x[:, None, :], out=D)

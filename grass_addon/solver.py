@@ -443,7 +443,7 @@ class BladeSolver:
         for j in range(1, n):
             np.add(T[j - 1], bend[j], out=T[j])
         T += self._rest[:, :, a:b]
-        TT = S.get("TT", (n, 2, m))
+        TT = S.get("BB", (n, 2, m))
         tilt = S.get("tilt", (n, m))
         sin_tilt = S.get("sin_tilt", (n, m))
         cos_phi = S.get("cos_phi", (n, m), pad=True)
@@ -488,7 +488,7 @@ class BladeSolver:
         np.copyto(Fs[last], F[last])
         for i in range(last - 1, -1, -1):
             np.add(Fs[i + 1], F[i], out=Fs[i])
-        H = S.get("H", (n, m))  # z_i (S_{i+1} + F_i / 2)
+        H = S.get("tilt", (n, m))  # z_i (S_{i+1} + F_i / 2)
         np.multiply(F, F32(0.5), out=H)
         H[:last] += Fs[1:]
         H *= CT
@@ -512,7 +512,7 @@ class BladeSolver:
         F, Fs, CT, Mb = forcing["F"], forcing["Fs"], forcing["CT"], forcing["Mb"]
         n, m = self.n, F.shape[1]
         last = n - 1
-        Q = S.get("Q", (n, m), pad=True)
+        Q = S.get("T", (n, m), pad=True)  # (T is not needed any more)
         rows = slice(j0, n)
         np.multiply(F[rows], F32(0.25), out=Q[rows])
         Q[j0:last] += Fs[j0 + 1:]
@@ -546,7 +546,7 @@ class BladeSolver:
         mu *= F32(self.k)
         mu += self._mu_base[:, a:b]
         # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)
-        e = S.get("e", (n, m))
+        e = S.get("Av", (n, m))
         np.divide(Mb, mu, out=e)
         _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of e w_hat stays in bounds
         # Twisting: the same process with stiffness K_t = twist_stiffness * mu_i(t). The paper
@@ -584,7 +584,7 @@ class BladeSolver:
         # and swings back), short steps in a storm. Written E = E (1 - r) + (e r) w_hat.
         # (The twist's equilibrium does not depend on the twist: no iteration needed.)
         relax = S.get("relax", (m,))
-        e_abs = S.get("e_abs", (n, m))
+        e_abs = S.get("sin_tilt", (n, m))
         np.abs(e, out=e_abs)
         np.add.reduce(e_abs, axis=0, out=relax)
         relax *= F32(RELAX_GAIN)
@@ -608,7 +608,7 @@ class BladeSolver:
         np.add(BB[:, 0], BB[:, 1], out=dev)
         kI = S.get("kI", (n, m))  # K / I = w^2
         np.multiply(mu, self._inv_inertia[:, a:b], out=kI)
-        amp = S.get("amp", (n, m))  # swing amplitude
+        amp = S.get("Av", (n, m))  # swing amplitude
         np.multiply(vel, vel, out=BB)
         np.add(BB[:, 0], BB[:, 1], out=amp)
         amp /= kI
@@ -661,16 +661,16 @@ class BladeSolver:
         # quasi-static limit: they follow theta_eq within the step (f = 1, via exp(-huge)).
         # (f = 1: murate - QUASI_RATE makes exp underflow to 0 for bend and twist alike).
         floor = S.const("smooth_min", SMOOTH_MIN_ANGLE, m)
-        murate = S.get("murate", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
+        murate = S.get("sin_tilt", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
         np.multiply(mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=murate)
         murate -= self._quasi_static[:, a:b]
         if j0 < j1:
             murate[j0:j1] *= keep  # the oscillating joints take no smooth step (x = f = 0)
-        x = S.get("x", (n, m))
+        x = dev  # (dev is not needed any more)
         np.maximum(dev, floor, out=x)
         x *= murate
         np.expm1(x, out=x)  # -f
-        xt = S.get("xt", (n, m))  # the twist's, with K_t = twist_stiffness * mu
+        xt = devt  # the twist's, with K_t = twist_stiffness * mu
         np.maximum(devt, floor, out=xt)
         xt *= murate
         xt *= F32(self.twist_ratio)
@@ -726,17 +726,15 @@ class BladeSolver:
         hs = S.get("hs", (m,))  # 2 h l_length / |v|: the last factor l_length of Q
         np.divide(F32(2.0 * h), forcing["speed"], out=hs)
         hs *= self._seg[a:b]
-        rc = S.get("rc", (nj, m))  # 1 / (1 + h c_aero / I)
+        rc = S.get("cos_phi", (nj, m))  # 1 / (1 + h c_aero / I)
         np.multiply(Q[js], self._inv_inertia[js, a:b], out=rc)
         rc *= hs
         rc += F32(1.0)
         np.divide(F32(1.0), rc, out=rc)
-        q = S.get("q", (nj, m))
-        p = S.get("p", (nj, m))
-        qt = S.get("qt", (nj, m))
-        pt = S.get("pt", (nj, m))
-        TMP = S.get("TMP", (nj, 2, m))
-        TMPt = S.get("TMPt", (nj, m))
+        # (the forcing's buffers are free once Q is known)
+        q, p = S.get("F", (nj, m)), S.get("CT", (nj, m))
+        qt, pt = S.get("Fs", (nj, m)), S.get("Mb", (nj, m))
+        TMP, TMPt = S.get("BB", (nj, 2, m)), S.get("tilt", (nj, m))
         if substeps == 1:
             # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
             # is its rate, theta += h v its step), so each joint takes its own coefficients:
@@ -783,9 +781,9 @@ class BladeSolver:
         np.multiply(qt, F32(-self.beta), out=pt)
         pt += F32(1.0 - h * self.alpha)
         # Several sub-steps: the smooth step (as in _step_chunk) and the oscillator, blended.
-        D = S.get("D", (nj, 2, m))
+        D = S.get("T", (nj, 2, m))
         np.multiply(Y, x[:, None, :], out=D)
-        Dt = S.get("Dt", (nj, m))
+        Dt = S.get("sin_tilt", (nj, m))
         np.multiply(Yt, xt, out=Dt)
         qb, pb = q[:, None, :], p[:, None, :]
         for _ in range(substeps):

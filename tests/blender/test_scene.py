@@ -231,6 +231,19 @@ def test_ui_edits_are_coalesced_until_they_settle(bridge):
     assert runtime.get_runtime(scene, item).field.sim.params.wind.turbulence == pytest.approx(1.5)
 
 
+def test_frame_change_refreshes_bounds_of_written_meshes(bridge):
+    """Blender must see the new positions (bounds), or renders depend on earlier frames."""
+    scene, item = _add_field()
+    for frame in (1, 40):
+        scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for obj in _owned(item, "blades"):
+            points = _positions(obj)
+            box = np.array(obj.evaluated_get(depsgraph).bound_box)
+            assert (points.min(axis=0) >= box.min(axis=0) - 1e-5).all()
+            assert (points.max(axis=0) <= box.max(axis=0) + 1e-5).all()
+
+
 def test_frame_change_sways_tips_and_keeps_roots(bridge):
     _, runtime = bridge
     scene, item = _add_field()

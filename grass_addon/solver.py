@@ -201,7 +201,7 @@ def _clip(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
 class BladeSolver:
     """Bending/twisting of every cell's representative blade (paper V.A). See the module doc."""
 
-    def __init__(self, layout, params, chunk_cells: int = 32768, threads: int = 2):
+    def __init__(self, layout, params, chunk_cells: int = 65536, threads: int = 2):
         b = params.blade
         n = int(layout.segments)
         C = int(layout.n_cells)
@@ -252,7 +252,10 @@ class BladeSolver:
         # n_boundary of eq 28 of the last step, per cell (joints with 1-based index above it
         # oscillate); n everywhere at rest.
         self.n_boundary = np.full(C, n, dtype=F32)
-        self._chunks = [(a, min(a + self.chunk_cells, C)) for a in range(0, C, self.chunk_cells)]
+        # at most chunk_cells per chunk, and at least one chunk per thread (fewer, longer numpy
+        # calls beat cache locality here: each call costs ~1-2 us of Python and setup)
+        size = max(1, min(self.chunk_cells, -(-C // self.threads)))
+        self._chunks = [(a, min(a + size, C)) for a in range(0, C, size)]
         lanes = min(self.threads, len(self._chunks))
         self._lanes = [self._chunks[i::lanes] for i in range(lanes)]
         self._scratch = [_Scratch() for _ in range(lanes)]

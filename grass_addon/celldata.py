@@ -15,16 +15,18 @@ class CellData:
     bend (n_cells, n, 2): each joint's bend vector (solver.py); twist (n_cells, n): each joint's
     twist; wind (n_cells, 2) m/s; card_offset (n_cells, 3): M' of eq 34.
     bend_t (n, 2, n_cells) and twist_t (n, n_cells) are the same values joint-major (the solver's
-    own layout, no copy) or None; kinematics reads them when present. When built from a solver
-    state, bend and twist are the state's public arrays, transposed on first access only.
+    own layout, no copy) or None; kinematics reads them when present. When built by cell_data,
+    bend and twist are the state's public arrays, transposed on first access only, and
+    card_offset is computed on first access (a frame that draws no cards never pays for it).
+    Like the state's arrays, they describe the state at the time of that access.
     """
 
-    __slots__ = ("_bend", "_twist", "wind", "card_offset", "bend_t", "twist_t", "_state")
+    __slots__ = ("_bend", "_twist", "wind", "_card_offset", "bend_t", "twist_t", "_state", "_card_height")
 
     def __init__(self, bend=None, twist=None, wind=None, card_offset=None, *, bend_t=None, twist_t=None,
-                 state=None):
-        self._bend, self._twist, self.wind, self.card_offset = bend, twist, wind, card_offset
-        self.bend_t, self.twist_t, self._state = bend_t, twist_t, state
+                 state=None, card_height=None):
+        self._bend, self._twist, self.wind, self._card_offset = bend, twist, wind, card_offset
+        self.bend_t, self.twist_t, self._state, self._card_height = bend_t, twist_t, state, card_height
 
     @property
     def bend(self) -> np.ndarray:
@@ -33,6 +35,13 @@ class CellData:
     @property
     def twist(self) -> np.ndarray:
         return self._state.twist if self._twist is None and self._state is not None else self._twist
+
+    @property
+    def card_offset(self) -> np.ndarray:
+        if self._card_offset is None and self._card_height is not None and self.bend_t is not None:
+            bend_sum = np.add.reduce(self.bend_t, axis=0)  # (2, n_cells), joint-major: contiguous rows
+            self._card_offset = card_offset(self._card_height, bend_sum)
+        return self._card_offset
 
 
 def card_offset(card_height: np.ndarray, bend_sum: np.ndarray) -> np.ndarray:
@@ -63,8 +72,8 @@ def cell_data(layout, sim) -> CellData:
     """The shared data of the simulation's current frame; bend/twist/wind are views (no copy).
 
     bend and twist are the state's public (cell-major) arrays, transposed only when first read;
-    bend_t/twist_t are the joint-major state arrays themselves."""
+    bend_t/twist_t are the joint-major state arrays themselves; card_offset (eq 34) is computed
+    when first read."""
     state = sim.state
-    bend_sum = np.add.reduce(state.bend_t, axis=0)  # (2, n_cells), joint-major: contiguous rows
-    return CellData(wind=sim.cell_wind, card_offset=card_offset(layout.card_height, bend_sum),
-                    bend_t=state.bend_t, twist_t=state.twist_t, state=state)
+    return CellData(wind=sim.cell_wind, bend_t=state.bend_t, twist_t=state.twist_t, state=state,
+                    card_height=layout.card_height)

@@ -291,19 +291,30 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
     chunks = _chunks(blocks, const.k_max)
     view = result.reshape(len(blocks), per_block, 3)
 
-    def work(worker: int, part: list[tuple[int, np.ndarray]]) -> None:
+    # Workers take the next chunk from a shared queue (on a busy machine a static split waits
+    # for the slower thread); each chunk writes its own rows, so the result never depends on it.
+    queue = iter(chunks)
+    queue_lock = threading.Lock()
+
+    def work(worker: int) -> None:
         s = const.scratch(worker)
-        for start, ids in part:
+        while True:
+            with queue_lock:
+                item = next(queue, None)
+            if item is None:
+                return
+            start, ids = item
             _blade_chunk(layout, const, s, ids, bend, twist, counts, view[start:start + len(ids)])
 
     with const.call_lock:  # the scratch arrays serve one call at a time
         if len(chunks) == 1 or THREADS < 2:
-            work(0, chunks)
+            work(0)
         else:
-            half = (len(chunks) + 1) // 2
-            future = _pool().submit(work, 1, chunks[half:])
-            work(0, chunks[:half])
-            future.result()
+            future = _pool().submit(work, 1)
+            try:
+                work(0)
+            finally:
+                future.result()
     return result
 
 

@@ -356,10 +356,26 @@ def defaults() -> Params:
 # Validation
 
 
+class _Expect:
+    """``valid: <range>`` for messages, formatted only when an error is raised (validation runs
+    every frame in the add-on)."""
+
+    __slots__ = ("param",)
+
+    def __init__(self, param: Param):
+        self.param = param
+
+    def __str__(self) -> str:
+        return f"valid: {self.param.range_text()}"
+
+    def __format__(self, spec: str) -> str:
+        return format(str(self), spec)
+
+
 def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
     """Return ``value`` converted to the parameter's type, or raise ParameterError."""
     name = name or p.name
-    expect = f"valid: {p.range_text()}"
+    expect = _Expect(p)
     if p.kind == "bool":
         if not isinstance(value, bool):
             raise ParameterError(name, f"{value!r} is not true/false ({expect})")
@@ -386,7 +402,7 @@ def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
 
 
 def _check_number(p: Param, value: Any, name: str, kind: type) -> float | int:
-    expect = f"valid: {p.range_text()}"
+    expect = _Expect(p)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         what = "a whole number" if kind is int else "a number"
         raise ParameterError(name, f"{value!r} is not {what} ({expect})")

@@ -25,9 +25,13 @@ height, moved by the deformation vector M' of eq 34 (CellData.card_offset) and t
 vertical axis by the cell's total twist.
 
 Every block has the same topology, so the output for blocks [b0, b1, ...] is the concatenation of
-per-block arrays. The work runs over chunks of blocks with preallocated scratch arrays sized to
-stay in cache, on a 2-thread pool (numpy releases the GIL); each output row is written by exactly
-one chunk, so results do not depend on the threading.
+per-block arrays. The work runs over chunks of blocks with preallocated scratch arrays, on a
+2-thread pool (numpy releases the GIL) whose workers take chunks from a shared queue; each output
+row is written by exactly one chunk, so results do not depend on the threading. The kernel is
+blade-major like the output (blade, joint): per-(blade, joint) work is contiguous passes and the
+vertices are written straight into `out`. Cell data comes joint-major from the solver
+(CellData.bend_t/twist_t) and is gathered per chunk, one strided copy per run of blocks of a
+block row; per-cell rows are expanded over the slots by bitwise record copies.
 """
 
 from __future__ import annotations

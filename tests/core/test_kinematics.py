@@ -284,3 +284,27 @@ def test_joint_major_cell_data_gives_the_same_strips_and_cards():
                                       kinematics.blade_vertices(layout, cells, blocks, count))
         np.testing.assert_array_equal(kinematics.card_vertices(layout, joint_major, blocks),
                                       kinematics.card_vertices(layout, cells, blocks))
+
+
+def test_chunks_across_block_rows_and_plain_gathers_match_the_full_field():
+    """Chunks of several blocks that cross block rows or skip blocks (the per-cell gathers split
+    them into runs of one block row), and the index-array gather used when the layout's cells are
+    not in the row-major square order, give the same vertices, bit for bit, as the whole field."""
+    layout = small_layout(**{"field.blocks_x": 3, "field.blocks_y": 3})
+    cells = random_cells(layout, seed=13)
+    count = (np.arange(layout.n_cells) % 4).astype(np.int32)
+    full = kinematics.blade_vertices(layout, cells, np.arange(layout.n_blocks), count)
+    per_block = full.reshape(layout.n_blocks, -1, 3)
+    order = np.array([1, 2, 3, 4, 0, 8, 6, 7])
+    old = kinematics.CHUNK_BLADES
+    try:
+        kinematics.CHUNK_BLADES = 4 * layout.blades_per_block  # chunks [1 2 3 4], [0 8 6 7]
+        for plain in (False, True):
+            kinematics._CACHE.clear()
+            if plain:
+                kinematics._constants(layout).grid = None
+            got = kinematics.blade_vertices(layout, cells, order, count).reshape(len(order), -1, 3)
+            np.testing.assert_array_equal(got, per_block[order])
+    finally:
+        kinematics.CHUNK_BLADES = old
+        kinematics._CACHE.clear()

@@ -568,8 +568,7 @@ class BladeSolver:
         # joints flutters).
         EQt = S.get("EQt", (n, m))
         np.multiply(mu, F32(0.5 * self.twist_ratio), out=EQt)  # K_t / 2
-        EQt += Mt
-        np.maximum(EQt, S.const("tiny_k", 0.5e-20, m), out=EQt)
+        EQt += Mt  # > 0: mu >= mu_base > 0 (root_stiffness >= 1e-7), M_t >= 0
         np.divide(Mt, EQt, out=EQt)  # s_i
         left = S.get("left", (m,))
         np.copyto(left, forcing["delta0"])

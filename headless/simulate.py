@@ -5,7 +5,7 @@
 
 Simulates frames render.frame_start .. render.frame_start + N - 1 (N defaults to the scene's frame
 range), prints a one-screen summary and, with --trace, writes an .npz whose keys are documented in
-docs/simulate.md. Bad input exits with status 2 and a message naming the parameter.
+README.md. Bad input exits with status 2 and a message naming the parameter.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def parse_args(argv):
     parser.add_argument("--frames", metavar="N", type=int, default=None,
                         help="frames to simulate from render.frame_start (default: the scene's frame range)")
     parser.add_argument("--fps", metavar="N", type=int, default=None, help="frames per second (same as --render-fps)")
-    parser.add_argument("--trace", metavar="OUT.npz", help="write the trace here (keys: docs/simulate.md)")
+    parser.add_argument("--trace", metavar="OUT.npz", help="write the trace here (keys: README.md)")
     schema.add_cli_arguments(parser)
     return parser.parse_args(argv)
 

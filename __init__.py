@@ -7,22 +7,15 @@ name comes from the extension system (``bl_ext.<repo>.windgrass``) or ``headless
 """
 
 import importlib
-import importlib.util
 
 _registered = False
 
-# Registered in this order, unregistered in reverse; runtime is optional while it is written.
+# Registered in this order, unregistered in reverse.
 _MODULES = (".grass_addon.bridge.properties", ".operators", ".panels", ".grass_addon.bridge.runtime")
-_OPTIONAL = frozenset({".grass_addon.bridge.runtime"})
 
 
 def _modules() -> list:
-    out = []
-    for name in _MODULES:
-        if name in _OPTIONAL and importlib.util.find_spec(name, __name__) is None:
-            continue
-        out.append(importlib.import_module(name, __name__))
-    return out
+    return [importlib.import_module(name, __name__) for name in _MODULES]
 
 
 def register() -> None:

@@ -14,9 +14,10 @@ import hashlib
 import json
 import math
 import tomllib
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from .errors import ParameterError
 
@@ -63,7 +64,7 @@ class Param:
     soft_max: float | None = None
     choices: tuple[str, ...] = ()
     size: int = 0  # for kind == "vec"
-    fields: tuple["Param", ...] = ()  # for kind == "table_list": the columns of each row
+    fields: tuple[Param, ...] = ()  # for kind == "table_list": the columns of each row
     label: str = ""
 
     @property
@@ -314,7 +315,7 @@ class Params:
         text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha1(text.encode()).hexdigest()
 
-    def replace(self, overrides: Mapping[str, Any] | None = None, **dotted: Any) -> "Params":
+    def replace(self, overrides: Mapping[str, Any] | None = None, **dotted: Any) -> Params:
         """New validated Params with ``{"wind.speed": 5.0}`` style overrides applied."""
         data = self.to_dict()
         changes = {**(overrides or {}), **{k.replace("__", "."): v for k, v in dotted.items()}}

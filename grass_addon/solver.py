@@ -133,12 +133,12 @@ class SolverState:
     def twist_vel(self) -> np.ndarray:
         return self._public("twist_vel")
 
-    def copy(self) -> "SolverState":
+    def copy(self) -> SolverState:
         out = SolverState(self.n_cells, self.segments)
         out.assign(self)
         return out
 
-    def assign(self, other: "SolverState") -> None:
+    def assign(self, other: SolverState) -> None:
         """Copy ``other``'s values into this state (bitwise)."""
         for name in _STATE_ARRAYS:
             np.copyto(getattr(self, name), getattr(other, name))
@@ -149,7 +149,7 @@ class SolverState:
             getattr(self, name).fill(0.0)
         self.changed()
 
-    def equals(self, other: "SolverState") -> bool:
+    def equals(self, other: SolverState) -> bool:
         """Bitwise equality of every array."""
         return all(np.array_equal(getattr(self, k).view(np.uint32), getattr(other, k).view(np.uint32))
                    for k in _STATE_ARRAYS)
@@ -357,7 +357,7 @@ class BladeSolver:
             def run(lane: int) -> None:
                 for a, b in self._lanes[lane]:
                     self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
-            for result in self._pool.map(run, range(len(self._lanes))):
+            for _ in self._pool.map(run, range(len(self._lanes))):  # waits; re-raises a lane's error
                 pass
         self.state.changed()
 

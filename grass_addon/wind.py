@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

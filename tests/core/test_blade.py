@@ -9,9 +9,10 @@ N = 5
 OFFSET = 0.05  # x of eq 1 (schema default)
 DENSITY = 0.003  # rho_grass, kg/m (schema default)
 MU_ROOT = 8.0e-4  # mu_root of eq 1 (schema default)
+INCLINATION = float(np.radians(10.0))  # alpha, the random initial inclination of III.A
 
 
-def rest(length, mu_root=MU_ROOT, inclination=np.radians(10.0), density=DENSITY):
+def rest(length, mu_root=MU_ROOT, inclination=INCLINATION, density=DENSITY):
     """Absolute rest tilt of each segment of one blade, and its joint angles."""
     seg = np.array([length / N])
     mu = blade.joint_stiffness(np.array([mu_root]), seg, N, OFFSET)

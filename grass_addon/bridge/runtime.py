@@ -9,14 +9,16 @@ Each frame ``update_scene`` seeks every field of the scene to ``scene.frame_curr
 the LOD weights of eqs 7-11 from the scene camera, gives the nearest visible blocks that need
 blades (K_g > 0, eq 8) to the blade slots and those that need cards (K_b > 0, eqs 7/11) to the
 card slots, and writes vertex positions and the per-vertex attributes with ``foreach_set``.
-No ``bpy.ops``, no per-blade Python loops; the only Python loop runs over slots.
+A slot object holds k blocks ("positions" ``wg_slot * k .. wg_slot * k + k - 1``,
+``scene.blocks_per_slot``): one position write per object per frame.
+No ``bpy.ops``, no per-blade Python loops; the only Python loop runs over slot objects.
 
 Handlers (all ``@persistent``, added once by ``register``):
   ``frame_change_pre``       simulate and write the new frame (``update_scene``);
   ``frame_change_post``      redo the LOD if the camera moved during evaluation (animated camera);
   ``depsgraph_update_post``  the same when the camera is moved without a frame change;
   ``load_post``              drop every runtime; ``undo_post``/``redo_post`` forget slot state.
-Which slot shows which block is a function of the frame and camera alone (canonical order), so
+Which position shows which block is a function of the frame and camera alone (canonical order), so
 frames rendered apart equal frames rendered in one run.
 """
 
@@ -35,7 +37,7 @@ from bpy.app.handlers import persistent
 from . import materials
 from . import scene as field_scene
 
-# Slot state: which block a slot shows. UNKNOWN forces a full write (new runtime, reopened file).
+# Position state: which block a slot position shows. UNKNOWN forces a full write (new runtime, reopened file).
 FREE = -1
 UNKNOWN = -2
 
@@ -62,8 +64,9 @@ class FieldRuntime:
     digest: str
     wind_fingerprint: str = ""
     wind_keys: tuple | None = None
-    blade_slot_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
-    card_slot_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    # Block shown at every slot position (FREE / UNKNOWN); object wg_slot s holds positions s*k..s*k+k-1.
+    blade_position_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
+    card_position_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
     blade_buffer: np.ndarray | None = None
     card_buffer: np.ndarray | None = None
     # Last written frame, for tests and panels: blocks shown by slots, the LOD weights.
@@ -265,12 +268,13 @@ def blender_camera(scene, to_field=None, depsgraph=None):
 
 
 def assign_slots(n_slots: int, chosen: np.ndarray) -> np.ndarray:
-    """Block shown by every slot: the chosen blocks in block order, then FREE.
+    """Block shown at every slot position: the chosen blocks in block order, then FREE.
 
     Canonical on purpose: what each slot object holds is a function of the frame (and camera)
     alone, not of the frames visited before, so a render farm rendering frames 3-4 alone gets
     the same objects, hence the same pixels, as a run over frames 1-4 (house rule: state at
-    frame N = f(params, seed, N)). Colours are rewritten only for slots whose block changed."""
+    frame N = f(params, seed, N)). Colours are rewritten only for objects where a position's
+    block changed. The shown blocks fill positions 0 .. len(chosen) - 1, FREE the rest."""
     out = np.full(n_slots, FREE, dtype=np.int32)
     blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_slots]
     out[: len(blocks)] = blocks
@@ -305,106 +309,113 @@ def _write_position(mesh, verts: np.ndarray) -> None:
         first.co = first.co
 
 
+def _slot_writes(current: np.ndarray, previous: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(write, changed) per slot object: write unless all its k positions are FREE now and were
+    FREE before (it stays collapsed); changed where some position shows another block."""
+    cur, prev = current.reshape(-1, k), previous.reshape(-1, k)
+    write = ~((cur == FREE).all(axis=1) & (prev == FREE).all(axis=1))
+    return write, (cur != prev).any(axis=1)
+
+
+def _position_buffer(buffer: np.ndarray | None, rows: int) -> np.ndarray:
+    if buffer is None or len(buffer) != rows:
+        return np.zeros((rows, 3), dtype=np.float32)
+    return buffer
+
+
+def _blade_colours(layout, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(RGBA (V*4,), shade (V,)) float32 per vertex of the blocks at k positions (FREE: zeros)."""
+    per_blade = (layout.segments + 1) * 2
+    bpb = layout.blades_per_block
+    shown = blocks >= 0
+    rgba = np.zeros((len(blocks), bpb, 4), dtype=np.float32)
+    shade = np.zeros((len(blocks), bpb), dtype=np.float32)
+    blades = blocks[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
+    rgba[shown, :, :3] = layout.species_color[layout.blade_species[blades]]
+    rgba[shown, :, 3] = 1.0
+    shade[shown] = layout.blade_shade[blades]
+    return np.repeat(rgba.reshape(-1, 4), per_blade, axis=0).ravel(), np.repeat(shade.ravel(), per_blade)
+
+
 def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
     layout = rt.field.layout
     slots = field_scene.slot_objects(item, field_scene.ROLE_BLADES)
-    n_slots = field_scene.pool_sizes(layout, rt.params)[0]
-    rt.blade_slot_block = _resize_state(rt.blade_slot_block, n_slots)
-    if n_slots == 0:
+    n_positions = field_scene.position_counts(layout, rt.params)[0]
+    k = field_scene.blocks_per_slot(layout, rt.params)[0]
+    rt.blade_position_block = _resize_state(rt.blade_position_block, n_positions)
+    if n_positions == 0:
         rt.blade_blocks = np.zeros(0, np.int32)
         return
     # A block needs blades where some cell has N > 0 (eq 9).
     needs = (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    chosen = nearest_blocks(needs, block_distance, n_slots)
-    previous = rt.blade_slot_block
-    current = assign_slots(n_slots, chosen)
-    rt.blade_slot_block = current
+    chosen = nearest_blocks(needs, block_distance, n_positions)
+    previous = rt.blade_position_block
+    current = assign_slots(n_positions, chosen)
+    rt.blade_position_block = current
     rt.blade_blocks = np.sort(chosen)
     verts_per_block = field_scene.blade_vertex_count(layout)
-    active = np.flatnonzero(current >= 0)
-    total = len(active) * verts_per_block
-    if rt.blade_buffer is None or len(rt.blade_buffer) < max(total, verts_per_block):
-        rt.blade_buffer = np.zeros((max(total, verts_per_block), 3), dtype=np.float32)
-    verts = None
-    if len(active):
-        verts = rt.field.blade_vertices(current[active], lod=lod, out=rt.blade_buffer[:total])
-        verts = verts.reshape(len(active), verts_per_block, 3)
-    per_blade = (layout.segments + 1) * 2
-    collapsed = np.zeros((verts_per_block, 3), dtype=np.float32)
-    row = {int(s): j for j, s in enumerate(active)}
-    for slot in range(n_slots):  # loop over slots, each write is one foreach_set
-        block, before = int(current[slot]), int(previous[slot])
-        if block < 0 and before == FREE:
-            continue  # stays collapsed
+    shown = len(chosen) * verts_per_block  # shown blocks fill the first positions (assign_slots)
+    rt.blade_buffer = buffer = _position_buffer(rt.blade_buffer, n_positions * verts_per_block)
+    if len(chosen):
+        rt.field.blade_vertices(current[: len(chosen)], lod=lod, out=buffer[:shown])
+    buffer[shown:] = 0.0  # FREE positions: collapsed to a point, zero area, nothing drawn
+    write, changed = _slot_writes(current, previous, k)
+    rows = k * verts_per_block
+    for slot in np.flatnonzero(write).tolist():  # loop over slot objects, one position write each
         obj = slots.get(slot)
         if obj is None:
             _warn_once(f"blade slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
                        "(rebuild the field to restore it)")
             continue
         mesh = obj.data
-        if block < 0:
-            # Unused slot: zero area, nothing drawn; attributes cleared too, so its data is the
-            # same whatever it showed before (a function of the frame alone).
-            _write_position(mesh, collapsed)
-            mesh.attributes[materials.ATTR_COLOR].data.foreach_set("color", np.zeros(verts_per_block * 4, np.float32))
-            mesh.attributes[materials.ATTR_SHADE].data.foreach_set("value", np.zeros(verts_per_block, np.float32))
-        else:
-            _write_position(mesh, verts[row[slot]])
-            if block != before:  # this slot now shows another block: its blades' colours
-                blades = layout.block_blades(block)
-                rgba = np.ones((layout.blades_per_block, 4), dtype=np.float32)
-                rgba[:, :3] = layout.species_color[layout.blade_species[blades]]
-                mesh.attributes[materials.ATTR_COLOR].data.foreach_set(
-                    "color", np.repeat(rgba, per_blade, axis=0).ravel())
-                mesh.attributes[materials.ATTR_SHADE].data.foreach_set(
-                    "value", np.repeat(layout.blade_shade[blades].astype(np.float32), per_blade))
+        _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
+        if changed[slot]:
+            # Another block at some position: its blades' colours (FREE positions cleared, so the
+            # data is the same whatever the object showed before: a function of the frame alone).
+            rgba, shade = _blade_colours(layout, current[slot * k:(slot + 1) * k])
+            mesh.attributes[materials.ATTR_COLOR].data.foreach_set("color", rgba)
+            mesh.attributes[materials.ATTR_SHADE].data.foreach_set("value", shade)
         mesh.update()
 
 
 def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
     layout = rt.field.layout
     slots = field_scene.slot_objects(item, field_scene.ROLE_CARDS)
-    n_slots = field_scene.pool_sizes(layout, rt.params)[1]
-    rt.card_slot_block = _resize_state(rt.card_slot_block, n_slots)
-    if n_slots == 0:
+    n_positions = field_scene.position_counts(layout, rt.params)[1]
+    k = field_scene.blocks_per_slot(layout, rt.params)[1]
+    rt.card_position_block = _resize_state(rt.card_position_block, n_positions)
+    if n_positions == 0:
         rt.card_blocks = np.zeros(0, np.int32)
         return
     k_b = lod.k_billboard  # opacity of the cards, K_b of eq 7 / K'_b of eq 11
     needs = (k_b[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    chosen = nearest_blocks(needs, block_distance, n_slots)
-    previous = rt.card_slot_block
-    current = assign_slots(n_slots, chosen)
-    rt.card_slot_block = current
+    chosen = nearest_blocks(needs, block_distance, n_positions)
+    previous = rt.card_position_block
+    current = assign_slots(n_positions, chosen)
+    rt.card_position_block = current
     rt.card_blocks = np.sort(chosen)
     verts_per_block = field_scene.card_vertex_count(layout)
-    active = np.flatnonzero(current >= 0)
-    total = len(active) * verts_per_block
-    if rt.card_buffer is None or len(rt.card_buffer) < max(total, verts_per_block):
-        rt.card_buffer = np.zeros((max(total, verts_per_block), 3), dtype=np.float32)
-    verts = opacity = None
-    if len(active):
-        verts = rt.field.card_vertices(current[active], out=rt.card_buffer[:total])
-        verts = verts.reshape(len(active), verts_per_block, 3)
-        # one card per cell, 4 vertices each, cells in block order
-        opacity = np.repeat(k_b[layout.block_cells[current[active]]].astype(np.float32), 4, axis=1)
-    collapsed = np.zeros((verts_per_block, 3), dtype=np.float32)
-    row = {int(s): j for j, s in enumerate(active)}
-    for slot in range(n_slots):
-        block, before = int(current[slot]), int(previous[slot])
-        if block < 0 and before == FREE:
-            continue
+    shown = len(chosen) * verts_per_block
+    rt.card_buffer = buffer = _position_buffer(rt.card_buffer, n_positions * verts_per_block)
+    # one card per cell, 4 vertices each, cells in block order; FREE positions fully transparent
+    opacity = np.zeros(n_positions * verts_per_block, dtype=np.float32)
+    if len(chosen):
+        rt.field.card_vertices(current[: len(chosen)], out=buffer[:shown])
+        opacity[:shown] = np.repeat(k_b[layout.block_cells[current[: len(chosen)]]].astype(np.float32),
+                                    4, axis=1).ravel()
+    buffer[shown:] = 0.0
+    write, _ = _slot_writes(current, previous, k)
+    rows = k * verts_per_block
+    for slot in np.flatnonzero(write).tolist():
         obj = slots.get(slot)
         if obj is None:
             _warn_once(f"card slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
                        "(rebuild the field to restore it)")
             continue
         mesh = obj.data
-        if block < 0:
-            _write_position(mesh, collapsed)
-            mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.zeros(verts_per_block, np.float32))
-        else:
-            _write_position(mesh, verts[row[slot]])
-            mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.ascontiguousarray(opacity[row[slot]]))
+        _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
+        # K_b follows the camera every frame, not only when a position changes block.
+        mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", opacity[slot * rows:(slot + 1) * rows])
         mesh.update()
 
 
@@ -446,8 +457,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
     layout = rt.field.layout
     if coll.get("wg_topology") != field_scene.topology_key(layout, rt.params):
         field_scene.build_slots(scene, item, layout, rt.params)
-        rt.blade_slot_block = np.zeros(0, np.int32)
-        rt.card_slot_block = np.zeros(0, np.int32)
+        rt.blade_position_block = np.zeros(0, np.int32)
+        rt.card_position_block = np.zeros(0, np.int32)
     camera = _field_camera(scene, item, depsgraph)
     signature = _camera_signature(camera)
     if rt.frame != frame or getattr(rt.field, "cells", None) is None:
@@ -572,8 +583,8 @@ def on_undo_redo_post(*_args):
     """Undo and redo bring back older mesh data: forget what the slots show, so the next
     update rewrites every slot (positions and colours) instead of trusting stale state."""
     for rt in RUNTIMES.values():
-        rt.blade_slot_block = np.zeros(0, np.int32)
-        rt.card_slot_block = np.zeros(0, np.int32)
+        rt.blade_position_block = np.zeros(0, np.int32)
+        rt.card_position_block = np.zeros(0, np.int32)
 
 
 _HANDLERS = (

@@ -3,13 +3,16 @@
 One collection per field holds:
   * a ground plane the size of the field (far LOD, paper III.C); every other object of the
     field is parented to it, so moving the ground moves the field;
-  * a pool of blade "slots": meshes with the topology of ONE block of blades (every block has
-    the same topology). Each frame ``runtime.py`` gives the nearest visible blocks that need
-    blades to slots and writes their vertices; an unused slot collapses to a point;
-  * a pool of card slots, one block of cards (paper III.B) each, handled the same way.
+  * a pool of blade "slots": meshes with the topology of k blocks of blades (every block has
+    the same topology, so a slot is k copies of one block's faces, ``blocks_per_slot``). The
+    pool has ``slots * k`` block "positions"; each frame ``runtime.py`` gives the nearest
+    visible blocks that need blades to positions and writes their vertices; an unused
+    position collapses to a point;
+  * a pool of card slots, k blocks of cards (paper III.B) each, handled the same way.
 
 Pools are sized from the LOD distances (d_g2 for blades, d_s2 for cards), not from the field
-size, so memory and per-frame cost follow what is near the camera.
+size, so memory and per-frame cost follow what is near the camera. Several blocks per object
+cut Blender's per-object cost (one write, one update and one depsgraph evaluation per object).
 
 Terrain (issue 3): when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a
 heightfield grid (``grass_addon/terrain.py``) over its evaluated surface in world space, the field is
@@ -50,6 +53,9 @@ ROLE_GROUND_MATERIAL = "ground_material"
 ROLE_CARD_IMAGE = "card_image"
 
 CARD_TEXTURE_SIZE = 256
+# Vertices a slot object aims at: k = SLOT_VERTEX_BUDGET // vertices per block blocks share one
+# object (default blades 6144 vertices per block: k = 4; cards 1024: k = 24).
+SLOT_VERTEX_BUDGET = 24576
 
 
 def owner_tag(scene, item) -> str:
@@ -105,7 +111,8 @@ def slot_count(layout, distance: float, lod_enabled: bool) -> int:
 
 
 def pool_sizes(layout, params) -> tuple[int, int]:
-    """(blade slots, card slots). Blades need d < d_g2 (eq 7), cards d < d_s2 (eq 10);
+    """(blade blocks, card blocks) the pools must show at once (block positions, not objects:
+    see ``slot_counts``). Blades need d < d_g2 (eq 7), cards d < d_s2 (eq 10);
     with the LOD off every block is geometry and no card is ever drawn."""
     lod = params.lod
     blades = slot_count(layout, lod.blade_far, lod.enabled)
@@ -113,6 +120,39 @@ def pool_sizes(layout, params) -> tuple[int, int]:
     if layout.blades_per_block == 0:
         blades = 0
     return blades, cards
+
+
+def _per_slot(verts_per_block: int, positions: int) -> int:
+    k = max(1, SLOT_VERTEX_BUDGET // max(1, verts_per_block))
+    return max(1, min(k, positions))  # never more positions per object than the pool needs
+
+
+def blocks_per_slot(layout, params) -> tuple[int, int]:
+    """(k blades, k cards): blocks held by one blade / card slot object."""
+    blades, cards = pool_sizes(layout, params)
+    return _per_slot(blade_vertex_count(layout), blades), _per_slot(card_vertex_count(layout), cards)
+
+
+def slot_counts(layout, params) -> tuple[int, int]:
+    """(blade objects, card objects) = ceil(block positions needed / k)."""
+    blades, cards = pool_sizes(layout, params)
+    k_blades, k_cards = blocks_per_slot(layout, params)
+    return -(-blades // k_blades), -(-cards // k_cards)
+
+
+def position_counts(layout, params) -> tuple[int, int]:
+    """(blade positions, card positions) = objects * k: blocks the pools can show at once."""
+    k_blades, k_cards = blocks_per_slot(layout, params)
+    blades, cards = slot_counts(layout, params)
+    return blades * k_blades, cards * k_cards
+
+
+def tiled_topology(faces: np.ndarray, uvs: np.ndarray, verts_per_block: int, k: int):
+    """(faces, uvs) of k copies of one block's topology: copy i uses vertices from
+    i * verts_per_block on; UVs repeat per copy."""
+    offsets = (np.arange(k, dtype=np.int32) * verts_per_block)[:, None, None]
+    tiled = (faces.astype(np.int32)[None] + offsets).reshape(-1, 4)
+    return np.ascontiguousarray(tiled), np.ascontiguousarray(np.tile(uvs, (k, 1)), dtype=np.float32)
 
 
 def blade_vertex_count(layout) -> int:
@@ -130,7 +170,7 @@ def topology_key(layout, params) -> str:
     blades, cards = pool_sizes(layout, params)
     ground = getattr(layout, "terrain", None)
     return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block,
-                       blades, cards, [round(float(v), 6) for v in layout.size],
+                       blades, cards, list(blocks_per_slot(layout, params)), [round(float(v), 6) for v in layout.size],
                        ground.fingerprint() if ground is not None else "flat"])
 
 
@@ -377,22 +417,23 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
         if "wg_terrain" in coll and heightfield is None and terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    n_blade_slots, n_card_slots = pool_sizes(layout, params)
-    blade_verts = blade_vertex_count(layout)
+    n_blade_slots, n_card_slots = slot_counts(layout, params)
+    k_blades, k_cards = blocks_per_slot(layout, params)
     if n_blade_slots:
-        faces, uvs = kin.blade_faces(layout), kin.blade_uvs(layout)
+        blade_verts = blade_vertex_count(layout)
+        faces, uvs = tiled_topology(kin.blade_faces(layout), kin.blade_uvs(layout), blade_verts, k_blades)
         for i in range(n_blade_slots):  # once per build, not per frame
-            mesh = quad_mesh(f"{base} blades {i:03d}", blade_verts, faces, uvs, blade_mat,
+            mesh = quad_mesh(f"{base} blades {i:03d}", k_blades * blade_verts, faces, uvs, blade_mat,
                              {materials.ATTR_COLOR: "FLOAT_COLOR", materials.ATTR_SHADE: "FLOAT"})
             obj = bpy.data.objects.new(mesh.name, mesh)
             _tag(obj, uid, ROLE_BLADES, i)
             _tag(mesh, uid, ROLE_BLADES, i)
             _link(coll, obj, ground)
     if n_card_slots:
-        faces, uvs = kin.card_faces(layout), kin.card_uvs(layout)
         card_verts = card_vertex_count(layout)
+        faces, uvs = tiled_topology(kin.card_faces(layout), kin.card_uvs(layout), card_verts, k_cards)
         for i in range(n_card_slots):
-            mesh = quad_mesh(f"{base} cards {i:03d}", card_verts, faces, uvs, card_mat,
+            mesh = quad_mesh(f"{base} cards {i:03d}", k_cards * card_verts, faces, uvs, card_mat,
                              {materials.ATTR_OPACITY: "FLOAT"})
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True

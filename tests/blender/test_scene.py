@@ -135,6 +135,38 @@ def test_pool_size_bounds_every_camera_position(bridge):
     assert field_scene.pool_sizes(layout, lod_off) == (layout.n_blocks, 0)
 
 
+def test_slot_objects_hold_k_blocks_and_cover_the_pool(bridge):
+    """A slot object holds k blocks (k from the vertices per block, fewer objects means less
+    per-object cost in Blender); objects * k positions still hold every block the pool needs."""
+    field_scene, _ = bridge
+    from windgrass.grass_addon import layout as layout_mod
+    from windgrass.grass_addon import schema
+
+    params = schema.defaults().replace({"field.blocks_x": 14, "field.blocks_y": 14})
+    layout = layout_mod.build_layout(params)
+    for p in (params, params.replace({"lod.enabled": False})):
+        pool = field_scene.pool_sizes(layout, p)
+        k = field_scene.blocks_per_slot(layout, p)
+        objects = field_scene.slot_counts(layout, p)
+        positions = field_scene.position_counts(layout, p)
+        verts = (field_scene.blade_vertex_count(layout), field_scene.card_vertex_count(layout))
+        for i in range(2):
+            if pool[i] == 0:
+                assert objects[i] == 0
+                continue
+            # k blocks per object, within the vertex budget (one block at least) and the pool.
+            assert k[i] == max(1, min(field_scene.SLOT_VERTEX_BUDGET // verts[i], pool[i]))
+            assert positions[i] == objects[i] * k[i]
+            assert positions[i] - k[i] < pool[i] <= positions[i]  # no object more than needed
+    # Defaults: 512 blades of 12 vertices (6144) per block: 4 blocks per object; LOD off, the
+    # 196 blocks of the field take 49 objects instead of 196.
+    lod_off = params.replace({"lod.enabled": False})
+    assert field_scene.blocks_per_slot(layout, lod_off)[0] == 4
+    assert field_scene.slot_counts(layout, lod_off) == (49, 0)
+    faces, uvs = field_scene.tiled_topology(np.array([[0, 1, 3, 2]]), np.zeros((4, 2), np.float32), 6, 3)
+    assert faces.tolist() == [[0, 1, 3, 2], [6, 7, 9, 8], [12, 13, 15, 14]] and uvs.shape == (12, 2)
+
+
 def test_slot_assignment_is_a_function_of_the_chosen_blocks(bridge):
     """Which slot shows which block must not depend on earlier frames (frames rendered apart
     must equal frames rendered in one run)."""
@@ -159,13 +191,16 @@ def test_field_add_builds_collection_ground_and_slot_pools(bridge):
     assert ground.dimensions.y == pytest.approx(1.6, abs=1e-5)
     assert tuple(ground.matrix_world.translation) == pytest.approx((0.0, 0.0, 0.0))
     blades, cards = _owned(item, "blades"), _owned(item, "cards")
-    # The whole field lies well within d_g2 = 12 m of any camera near it: one slot per block.
-    assert len(blades) == 4 and len(cards) == 4
+    # The whole field lies well within d_g2 = 12 m of any camera near it: a position per block,
+    # all 4 in one object (blocks of 1536 blade / 256 card vertices: 16 / 96 would fit one).
+    assert len(blades) == 1 and len(cards) == 1
     rt = runtime.get_runtime(scene, item)
     layout = rt.field.layout
+    assert field_scene.blocks_per_slot(layout, rt.params) == (4, 4)
     per_block_verts = layout.blades_per_block * (layout.segments + 1) * 2
-    assert all(len(o.data.vertices) == per_block_verts for o in blades)
-    assert all(len(o.data.polygons) == layout.blades_per_block * layout.segments for o in blades)
+    assert all(len(o.data.vertices) == 4 * per_block_verts for o in blades)
+    assert all(len(o.data.polygons) == 4 * layout.blades_per_block * layout.segments for o in blades)
+    assert all(len(o.data.vertices) == 4 * layout.cells_per_block_total * 4 for o in cards)
     assert all(o.parent == ground for o in blades + cards)
     assert not any(o.modifiers for o in blades + cards)
     assert scene.render.use_lock_interface
@@ -202,7 +237,8 @@ def test_resizing_the_field_rebuilds_slots_where_the_user_placed_it(bridge):
     ground = field_scene.ground_object(item)
     assert tuple(ground.location) == pytest.approx((5.0, 0.0, 0.0))
     assert ground.dimensions.x == pytest.approx(2.4, abs=1e-5)
-    assert len(_owned(item, "blades")) == 6
+    # 6 blocks of 128 blades (1536 vertices): up to 16 fit one object, all 6 share one.
+    assert len(_owned(item, "blades")) == 1 and len(_owned(item, "blades")[0].data.vertices) == 6 * 1536
     assert len([m for m in bpy.data.meshes if m.users == 0]) == 0  # old slot meshes are gone
     # Blades follow the ground: every blade root lies on the moved plane.
     scene.frame_set(4)
@@ -266,6 +302,38 @@ def test_frame_change_sways_tips_and_keeps_roots(bridge):
     assert runtime.get_runtime(scene, item) is rt  # same params: the runtime is reused
 
 
+def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
+    """An object holding k positions shows the chosen blocks' blades at its shown positions,
+    exactly as the engine computes them (GrassField.blade_vertices), with their species colours,
+    and collapsed rows (one point, no colour) at FREE positions."""
+    field_scene, runtime = bridge
+    # 6 blocks of 16 x 16 cells (6144 vertices each): k = 4, 2 objects; no camera: all shown.
+    scene, item = _add_field(blocks_x=3, cells_per_block=16)
+    scene.frame_set(7)
+    rt = runtime.get_runtime(scene, item)
+    layout = rt.field.layout
+    k = field_scene.blocks_per_slot(layout, rt.params)[0]
+    assert k == 4 and rt.blade_blocks.tolist() == [0, 1, 2, 3, 4, 5]
+    assert rt.blade_position_block.tolist() == [0, 1, 2, 3, 4, 5, runtime.FREE, runtime.FREE]
+    second = _owned(item, "blades")[1]  # positions 4..7: blocks 4, 5, then two FREE
+    rows = _positions(second).reshape(k, -1, 3)
+    expected = rt.field.blade_vertices(np.array([4, 5], dtype=np.int32), lod=rt.lod).reshape(2, -1, 3)
+    np.testing.assert_array_equal(rows[:2], expected)
+    assert np.abs(rows[2:]).max() == 0.0  # FREE: every vertex at the origin (zero area)
+    colour = np.empty(len(second.data.vertices) * 4, dtype=np.float32)
+    second.data.attributes["wg_color"].data.foreach_get("color", colour)
+    colour = colour.reshape(k, layout.blades_per_block, -1, 4)  # (position, blade, vertex, rgba)
+    for i, block in enumerate((4, 5)):
+        species = layout.blade_species[layout.block_blades(block)]
+        np.testing.assert_allclose(colour[i, :, 0, :3], layout.species_color[species], atol=1e-6)
+        assert (colour[i, ..., 3] == 1.0).all()
+    assert np.abs(colour[2:]).max() == 0.0
+    # The first object holds blocks 0..3 in order.
+    first = _positions(_owned(item, "blades")[0]).reshape(k, -1, 3)
+    np.testing.assert_array_equal(first, rt.field.blade_vertices(np.arange(4, dtype=np.int32), lod=rt.lod)
+                                  .reshape(k, -1, 3))
+
+
 def test_wind_fcurves_become_wind_keys(bridge):
     _, runtime = bridge
     scene, item = _add_field()
@@ -310,12 +378,13 @@ def test_camera_moves_change_lod(bridge):
     assert not np.array_equal(opacity_near, _card_opacity(item, rt))
     scene.frame_set(3)
     assert far_block in rt.blade_blocks.tolist() and corner_block not in rt.blade_blocks.tolist()
-    # Slots without a block collapse to one point (zero area: nothing drawn).
-    shown = set(rt.blade_slot_block[rt.blade_slot_block >= 0].tolist())
+    # Positions without a block collapse to one point (zero area: nothing drawn).
+    k = field_scene.blocks_per_slot(layout, rt.params)[0]
     for obj in _owned(item, "blades"):
-        pos = _positions(obj)
-        spread = float(np.ptp(pos, axis=0).max())
-        assert (spread > 0.0) == (int(rt.blade_slot_block[obj["wg_slot"]]) in shown)
+        rows = _positions(obj).reshape(k, -1, 3)
+        for i, pos in enumerate(rows):
+            spread = float(np.ptp(pos, axis=0).max())
+            assert (spread > 0.0) == (int(rt.blade_position_block[obj["wg_slot"] * k + i]) >= 0)
 
 
 def _slot_data(item) -> dict[str, np.ndarray]:
@@ -358,13 +427,17 @@ def test_animated_camera_lod_and_frames_independent_of_history(bridge):
 
 
 def _card_opacity(item, rt):
+    from windgrass.grass_addon.bridge import scene as field_scene
+
+    k = field_scene.blocks_per_slot(rt.field.layout, rt.params)[1]
     out = {}
     for obj in _owned(item, "cards"):
         data = np.empty(len(obj.data.vertices), dtype=np.float32)
         obj.data.attributes["wg_opacity"].data.foreach_get("value", data)
-        block = int(rt.card_slot_block[obj["wg_slot"]])
-        if block >= 0:
-            out[block] = data
+        for i, rows in enumerate(data.reshape(k, -1)):
+            block = int(rt.card_position_block[obj["wg_slot"] * k + i])
+            if block >= 0:
+                out[block] = rows
     return np.concatenate([out[b] for b in sorted(out)]) if out else np.zeros(0)
 
 
@@ -469,8 +542,10 @@ def test_remove_leaves_no_orphans_and_undo_restores(bridge):
 
 def test_deleting_a_slot_by_hand_does_not_break_frame_changes(bridge, capsys):
     _, runtime = bridge
-    scene, item = _add_field()
+    # 6 blocks of 16 x 16 cells (512 blades, 6144 vertices), 4 per object: 2 blade objects
+    scene, item = _add_field(blocks_x=3, cells_per_block=16)
     blades = _owned(item, "blades")
+    assert len(blades) == 2
     bpy.data.objects.remove(blades[0], do_unlink=True)
     survivor = blades[1]
     before = _positions(survivor).copy()

@@ -59,11 +59,14 @@ def _blade_joints_world(scene, item, runtime) -> np.ndarray:
     rt = runtime.get_runtime(scene, item)
     n = rt.field.layout.segments
     slots = {o["wg_slot"]: o for o in item.collection.objects if o.get("wg_role") == "blades"}
+    from windgrass.grass_addon.bridge import scene as field_scene
+
+    k = field_scene.blocks_per_slot(rt.field.layout, rt.params)[0]  # blocks per slot object
     out = []
-    for slot in np.flatnonzero(rt.blade_slot_block >= 0):
-        obj = slots[int(slot)]
+    for position in np.flatnonzero(rt.blade_position_block >= 0):
+        obj = slots[int(position) // k]
         m = np.array(obj.matrix_world)
-        local = _positions(obj)
+        local = _positions(obj).reshape(k, -1, 3)[int(position) % k]
         out.append((local @ m[:3, :3].T + m[:3, 3]).reshape(-1, n + 1, 2, 3))
     assert out, "no blade slot shows a block"
     return np.concatenate(out)

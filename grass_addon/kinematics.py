@@ -425,18 +425,21 @@ def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
         total_twist = np.add.reduce(np.asarray(cells.twist, dtype=np.float32)[cell_ids], axis=1)
     offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
     height = layout.card_height[cell_ids]
+    cell_ground = getattr(layout, "cell_ground", None)  # terrain height at the cell centre (issue 3)
+    ground = np.float32(0.0) if cell_ground is None else cell_ground[cell_ids]
     bx, by = np.cos(facing) * half, np.sin(facing) * half
     top_facing = facing + total_twist
     tx, ty = np.cos(top_facing) * half, np.sin(top_facing) * half
     topx = centre[:, 0] + offset[:, 0]
     topy = centre[:, 1] + offset[:, 1]
-    topz = height + offset[:, 2]
+    topz = ground + height + offset[:, 2]
     v = result.reshape(-1, 4, 3)
     v[:, 0, 0] = centre[:, 0] - bx
     v[:, 0, 1] = centre[:, 1] - by
     v[:, 1, 0] = centre[:, 0] + bx
     v[:, 1, 1] = centre[:, 1] + by
-    v[:, 0:2, 2] = 0.0
+    v[:, 0, 2] = ground
+    v[:, 1, 2] = ground
     v[:, 2, 0] = topx + tx
     v[:, 2, 1] = topy + ty
     v[:, 3, 0] = topx - tx

@@ -211,3 +211,22 @@ def test_drape_finds_the_top_surface_of_a_triangle_mesh():
     wall = np.array([[(0, -1, 0), (0, 1, 0), (0, 1, 9)]], float)
     z4, _ = terrain.drape(np.concatenate([tris, wall]), origin, spacing, nx, ny)
     np.testing.assert_array_equal(z4, z)
+
+
+def test_cards_stand_on_the_ground_of_their_cell():
+    """Cards (paper III.B) are vertical quads with their bottom edge on the ground: on a terrain
+    both bottom corners sit at the cell centre's ground height and the card keeps its height,
+    i.e. each card is the flat field's card lifted by cell_ground."""
+    params = small_params(**{"wind.speed": 6.0})
+    hilly = GrassField(params, terrain=heightfield_of(params, plane))
+    flat = GrassField(params)
+    hilly.seek(8)
+    flat.seek(8)
+    blocks = hilly.all_blocks()
+    v = hilly.card_vertices(blocks).reshape(-1, 4, 3)
+    w = flat.card_vertices(blocks).reshape(-1, 4, 3)
+    ground = hilly.layout.cell_ground[hilly.layout.block_cells[blocks].ravel()]
+    np.testing.assert_allclose(v[:, :2, 2], np.repeat(ground[:, None], 2, axis=1), atol=1e-6)
+    np.testing.assert_allclose(ground, plane(hilly.layout.cell_center[hilly.layout.block_cells[blocks].ravel()]),
+                               atol=2e-6)
+    np.testing.assert_allclose(v - ground[:, None, None] * np.array([0, 0, 1], np.float32), w, atol=1e-5)

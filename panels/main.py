@@ -65,6 +65,7 @@ class WINDGRASS_PT_main(bpy.types.Panel):
         item = properties.active_field(context.scene)
         if item is not None:
             layout.prop(item, "collection")
+            layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 
 
 CLASSES = (WINDGRASS_UL_fields, WINDGRASS_UL_rows, WINDGRASS_PT_main)

@@ -288,10 +288,14 @@ def nearest_blocks(candidates: np.ndarray, distance: np.ndarray, count: int) -> 
     return idx[order[:count]].astype(np.int32)
 
 
-def _resize_state(state: np.ndarray, n: int) -> np.ndarray:
-    if len(state) == n:
-        return state
-    return np.full(n, UNKNOWN, dtype=np.int32)
+def _choose_positions(state: np.ndarray, n_positions: int, needs: np.ndarray,
+                      block_distance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(current, previous, chosen) block of every pool position: the nearest blocks that ``need``
+    this LOD, in block order in the first positions (``assign_slots``), the rest FREE. ``previous``
+    is UNKNOWN everywhere when the pool was resized (forces a full write)."""
+    previous = state if len(state) == n_positions else np.full(n_positions, UNKNOWN, dtype=np.int32)
+    chosen = nearest_blocks(needs, block_distance, n_positions)
+    return assign_slots(n_positions, chosen), previous, chosen
 
 
 def _write_position(mesh, verts: np.ndarray) -> None:
@@ -342,17 +346,10 @@ def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> No
     slots = field_scene.slot_objects(item, field_scene.ROLE_BLADES)
     n_positions = field_scene.position_counts(layout, rt.params)[0]
     k = field_scene.blocks_per_slot(layout, rt.params)[0]
-    rt.blade_position_block = _resize_state(rt.blade_position_block, n_positions)
-    if n_positions == 0:
-        rt.blade_blocks = np.zeros(0, np.int32)
-        return
     # A block needs blades where some cell has N > 0 (eq 9).
     needs = (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    chosen = nearest_blocks(needs, block_distance, n_positions)
-    previous = rt.blade_position_block
-    current = assign_slots(n_positions, chosen)
-    rt.blade_position_block = current
-    rt.blade_blocks = np.sort(chosen)
+    current, previous, chosen = _choose_positions(rt.blade_position_block, n_positions, needs, block_distance)
+    rt.blade_position_block, rt.blade_blocks = current, np.sort(chosen)
     verts_per_block = field_scene.blade_vertex_count(layout)
     shown = len(chosen) * verts_per_block  # shown blocks fill the first positions (assign_slots)
     rt.blade_buffer = buffer = _position_buffer(rt.blade_buffer, n_positions * verts_per_block)
@@ -383,17 +380,10 @@ def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> Non
     slots = field_scene.slot_objects(item, field_scene.ROLE_CARDS)
     n_positions = field_scene.position_counts(layout, rt.params)[1]
     k = field_scene.blocks_per_slot(layout, rt.params)[1]
-    rt.card_position_block = _resize_state(rt.card_position_block, n_positions)
-    if n_positions == 0:
-        rt.card_blocks = np.zeros(0, np.int32)
-        return
     k_b = lod.k_billboard  # opacity of the cards, K_b of eq 7 / K'_b of eq 11
     needs = (k_b[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    chosen = nearest_blocks(needs, block_distance, n_positions)
-    previous = rt.card_position_block
-    current = assign_slots(n_positions, chosen)
-    rt.card_position_block = current
-    rt.card_blocks = np.sort(chosen)
+    current, previous, chosen = _choose_positions(rt.card_position_block, n_positions, needs, block_distance)
+    rt.card_position_block, rt.card_blocks = current, np.sort(chosen)
     verts_per_block = field_scene.card_vertex_count(layout)
     shown = len(chosen) * verts_per_block
     rt.card_buffer = buffer = _position_buffer(rt.card_buffer, n_positions * verts_per_block)

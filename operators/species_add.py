@@ -29,10 +29,7 @@ class WINDGRASS_OT_species_add(bpy.types.Operator):
     @reported
     def execute(self, context):
         item = properties.active_field(context.scene)
-        p = properties.table_param(self.table)
-        group = getattr(item, p.section)
-        rows = getattr(group, p.key)
-        index_name = properties.index_name(p)
+        p, group, rows, index_name = properties.table_rows(item, self.table)
         if len(rows):
             source = rows[min(getattr(group, index_name), len(rows) - 1)]
             values = {f.key: properties.from_blender(f, getattr(source, f.key)) for f in p.fields}

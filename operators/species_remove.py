@@ -24,13 +24,10 @@ class WINDGRASS_OT_species_remove(bpy.types.Operator):
     @reported
     def execute(self, context):
         item = properties.active_field(context.scene)
-        p = properties.table_param(self.table)
-        group = getattr(item, p.section)
-        rows = getattr(group, p.key)
+        p, group, rows, index_name = properties.table_rows(item, self.table)
         if not len(rows):
             self.report({"WARNING"}, f"{p.name} of '{item.name}' has no rows to remove")
             return {"CANCELLED"}
-        index_name = properties.index_name(p)
         index = min(getattr(group, index_name), len(rows) - 1)
         with properties.batch(item):  # removing a row fires no update callback: notify at the end
             rows.remove(index)

@@ -303,6 +303,13 @@ def table_param(name: str) -> schema.Param:
     return p
 
 
+def table_rows(item: Any, name: str) -> tuple[schema.Param, Any, Any, str]:
+    """(table parameter, its section group, its rows collection, active-index name) of ``item``."""
+    p = table_param(name)
+    group = getattr(item, p.section)
+    return p, group, getattr(group, p.key), index_name(p)
+
+
 def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
     """Replace the rows of table ``p`` of a field item by ``rows`` (dicts of schema values)."""
     collection = getattr(getattr(item, p.section), p.key)
@@ -369,7 +376,7 @@ def remove_item(scene: bpy.types.Scene, item: Any) -> None:
 
 
 __all__ = ["ParameterError", "params_from_settings", "apply_params", "active_field", "add_field",
-           "remove_item", "field_by_uid", "make_property", "write_rows", "table_param", "batch", "notify",
+           "remove_item", "field_by_uid", "make_property", "write_rows", "table_param", "table_rows", "batch", "notify",
            "register", "unregister"]
 
 # --------------------------------------------------------------------------------------------

@@ -7,7 +7,8 @@ from mathutils import Vector
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties
-from ._common import bridge, refresh, reported
+from ..grass_addon.bridge import scene as field_scene
+from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
 # (12.8 m square, 32,768 blades); every other value is the schema default.
@@ -46,15 +47,10 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        scene_bridge = bridge("scene")  # before the item exists: a missing bridge leaves nothing behind
         terrain = None
         obj = context.active_object
         if self.use_selected_mesh and obj is not None and obj.type == "MESH" and obj.select_get():
             terrain = obj
-        if terrain is not None and not getattr(scene_bridge, "SUPPORTS_TERRAIN", False):
-            self.report({"WARNING"}, f"Mesh '{terrain.name}' not used: terrain is not supported yet, "
-                                     "the grass grows on flat ground at the origin")
-            terrain = None
         values = {p.key: getattr(self, p.key) for p in schema.section_params("field")}
         if terrain is not None:
             values.update(self._fit_to(terrain, values))
@@ -63,9 +59,9 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         if terrain is not None:
             item.terrain = terrain
         try:
-            collection = scene_bridge.build_field(scene, item)
+            collection = field_scene.build_field(scene, item)
         except Exception:
-            _undo_add(scene, scene_bridge, item)
+            _undo_add(scene, item)
             raise
         if collection is not None and item.collection is None:
             item.collection = collection
@@ -95,10 +91,10 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         return {"blocks_x": bx, "blocks_y": by}
 
 
-def _undo_add(scene, scene_bridge, item) -> None:
+def _undo_add(scene, item) -> None:
     """A failed build leaves neither objects nor a settings item."""
     try:
-        scene_bridge.remove_field(scene, item)
+        field_scene.remove_field(scene, item)
     finally:
         properties.remove_item(scene, item)
 

@@ -3,7 +3,8 @@
 import bpy
 
 from ..grass_addon.bridge import properties
-from ._common import bridge, has_active_field, refresh, reported
+from ..grass_addon.bridge import scene as field_scene
+from ._common import has_active_field, refresh, reported
 
 
 class WINDGRASS_OT_field_rebuild(bpy.types.Operator):
@@ -23,7 +24,7 @@ class WINDGRASS_OT_field_rebuild(bpy.types.Operator):
         scene = context.scene
         item = properties.active_field(scene)
         properties.params_from_settings(item)  # a bad setting stops here, naming its key
-        collection = bridge("scene").build_field(scene, item)
+        collection = field_scene.build_field(scene, item)
         if collection is not None and item.collection is None:
             item.collection = collection
         refresh(scene)

@@ -3,7 +3,8 @@
 import bpy
 
 from ..grass_addon.bridge import properties
-from ._common import bridge, has_active_field, reported
+from ..grass_addon.bridge import scene as field_scene
+from ._common import has_active_field, reported
 
 
 class WINDGRASS_OT_field_remove(bpy.types.Operator):
@@ -26,7 +27,7 @@ class WINDGRASS_OT_field_remove(bpy.types.Operator):
         scene = context.scene
         item = properties.active_field(scene)
         name = item.name
-        bridge("scene").remove_field(scene, item)
+        field_scene.remove_field(scene, item)
         properties.remove_item(scene, item)
         self.report({"INFO"}, f"Removed grass field '{name}'")
         return {"FINISHED"}

@@ -2,8 +2,8 @@
 
 import bpy
 
-from ..grass_addon.bridge import properties
-from ._common import bridge, has_active_field, refresh, reported
+from ..grass_addon.bridge import properties, runtime
+from ._common import has_active_field, refresh, reported
 
 
 class WINDGRASS_OT_simulation_reset(bpy.types.Operator):
@@ -24,7 +24,7 @@ class WINDGRASS_OT_simulation_reset(bpy.types.Operator):
         scene = context.scene
         item = properties.active_field(scene)
         properties.params_from_settings(item)  # a bad setting stops here, naming its key
-        bridge("runtime").reset_field(scene, item)
+        runtime.reset_field(scene, item)
         refresh(scene)
         self.report({"INFO"}, f"Reset the simulation of '{item.name}' (frame {scene.frame_current})")
         return {"FINISHED"}

@@ -4,8 +4,8 @@ mean speed, turbulence)."""
 import bpy
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties
-from ._common import has_active_field, optional_bridge, reported
+from ..grass_addon.bridge import properties, runtime
+from ._common import has_active_field, reported
 
 
 def _items():
@@ -19,9 +19,7 @@ def _items():
 
 def _animated(scene, item, key: str) -> bool:
     """True when ``item.wind.<key>`` has an F-curve (its keyframes override a value set here)."""
-    runtime = optional_bridge("runtime")
-    wind_fcurves = getattr(runtime, "wind_fcurves", None)
-    return wind_fcurves is not None and key in wind_fcurves(scene, item)
+    return key in runtime.wind_fcurves(scene, item)
 
 
 class WINDGRASS_OT_wind_preset(bpy.types.Operator):

@@ -321,6 +321,19 @@ def _slot_writes(current: np.ndarray, previous: np.ndarray, k: int) -> tuple[np.
     return write, (cur != prev).any(axis=1)
 
 
+def _slot_meshes(item, role: str, write: np.ndarray):
+    """(slot index, mesh) of every slot object to write this frame; a slot object the user
+    deleted is skipped with a one-time warning (its blocks are not drawn until a Rebuild)."""
+    slots = field_scene.slot_objects(item, role)
+    for slot in np.flatnonzero(write).tolist():
+        obj = slots.get(slot)
+        if obj is None:
+            _warn_once(f"{role[:-1]} slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
+                       "(rebuild the field to restore it)")
+            continue
+        yield slot, obj.data
+
+
 def _position_buffer(buffer: np.ndarray | None, rows: int) -> np.ndarray:
     if buffer is None or len(buffer) != rows:
         return np.zeros((rows, 3), dtype=np.float32)
@@ -343,7 +356,6 @@ def _blade_colours(layout, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
     layout = rt.field.layout
-    slots = field_scene.slot_objects(item, field_scene.ROLE_BLADES)
     n_positions = field_scene.position_counts(layout, rt.params)[0]
     k = field_scene.blocks_per_slot(layout, rt.params)[0]
     # A block needs blades where some cell has N > 0 (eq 9).
@@ -358,13 +370,7 @@ def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> No
     buffer[shown:] = 0.0  # FREE positions: collapsed to a point, zero area, nothing drawn
     write, changed = _slot_writes(current, previous, k)
     rows = k * verts_per_block
-    for slot in np.flatnonzero(write).tolist():  # loop over slot objects, one position write each
-        obj = slots.get(slot)
-        if obj is None:
-            _warn_once(f"blade slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
-                       "(rebuild the field to restore it)")
-            continue
-        mesh = obj.data
+    for slot, mesh in _slot_meshes(item, field_scene.ROLE_BLADES, write):  # one position write each
         _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
         if changed[slot]:
             # Another block at some position: its blades' colours (FREE positions cleared, so the
@@ -377,7 +383,6 @@ def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> No
 
 def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
     layout = rt.field.layout
-    slots = field_scene.slot_objects(item, field_scene.ROLE_CARDS)
     n_positions = field_scene.position_counts(layout, rt.params)[1]
     k = field_scene.blocks_per_slot(layout, rt.params)[1]
     k_b = lod.k_billboard  # opacity of the cards, K_b of eq 7 / K'_b of eq 11
@@ -396,13 +401,7 @@ def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> Non
     buffer[shown:] = 0.0
     write, _ = _slot_writes(current, previous, k)
     rows = k * verts_per_block
-    for slot in np.flatnonzero(write).tolist():
-        obj = slots.get(slot)
-        if obj is None:
-            _warn_once(f"card slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
-                       "(rebuild the field to restore it)")
-            continue
-        mesh = obj.data
+    for slot, mesh in _slot_meshes(item, field_scene.ROLE_CARDS, write):
         _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
         # K_b follows the camera every frame, not only when a position changes block.
         mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", opacity[slot * rows:(slot + 1) * rows])

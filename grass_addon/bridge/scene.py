@@ -36,8 +36,6 @@ import numpy as np
 from .. import terrain as terrain_core
 from . import materials, textures
 
-# Blades are rooted on a selected mesh (operators/field_add.py reads this).
-SUPPORTS_TERRAIN = True
 # The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
 # the user's terrain mesh where both coincide; blade roots stay on the surface (hidden by 2 mm).
 GROUND_LIFT = 0.002

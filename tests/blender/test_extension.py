@@ -410,19 +410,14 @@ def test_field_add_builds_a_light_field_and_remove_deletes_it(scene, with_bridge
     assert after == before
 
 
-def test_field_add_with_a_selected_mesh(scene, with_bridge, capfd):
+def test_field_add_with_a_selected_mesh(scene, with_bridge):
     from windgrass.grass_addon.bridge import properties
 
     bpy.ops.mesh.primitive_plane_add(size=4.0)
     plane = bpy.context.active_object
-    capfd.readouterr()
     assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=3) == {"FINISHED"}
     item = properties.active_field(scene)
     params = properties.params_from_settings(item)
     assert (params.field.blocks_x, params.field.blocks_y) == (2, 3)
     assert item.collection is not None
-    if getattr(with_bridge.grass_addon.bridge.scene, "SUPPORTS_TERRAIN", False):
-        assert item.terrain == plane
-    else:  # flat ground, and the artist is told why the mesh was not used
-        assert item.terrain is None
-        assert f"Mesh '{plane.name}' not used" in capfd.readouterr().out
+    assert item.terrain == plane  # the selected mesh became the field's terrain

@@ -11,7 +11,8 @@ import importlib
 _registered = False
 
 # Registered in this order, unregistered in reverse.
-_MODULES = (".grass_addon.bridge.properties", ".operators", ".panels", ".grass_addon.bridge.runtime")
+_MODULES = (".grass_addon.bridge.module_exit", ".grass_addon.bridge.properties", ".operators", ".panels",
+            ".grass_addon.bridge.runtime")
 
 
 def _modules() -> list:

@@ -787,6 +787,10 @@ class BladeSolver:
         np.multiply(kI, F32(h * self.twist_ratio), out=qt)
         np.multiply(qt, F32(-self.beta), out=pt)
         pt += F32(1.0 - h * self.alpha)
+        # Joints that do not oscillate (sel = 0) take no sub-steps (v = 0, y held): they may be
+        # stiffer than the sub-step can integrate, and their discarded values must stay finite.
+        for coefficient in (q, p, qt, pt):
+            coefficient *= sel
         # Several sub-steps: the smooth step (as in _step_chunk) and the oscillator, blended.
         D = S.get("T", (nj, 2, m))
         np.multiply(Y, x[:, None, :], out=D)

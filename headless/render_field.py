@@ -12,7 +12,9 @@ The state of frame N is a function of (parameters, seed, N) and the camera path 
 function of N, so any sub-range (--frames 10-20) renders exactly the images of the full run:
 split a long animation across machines freely.
 
-Exit codes: 0 done, 2 bad input (the message names the option), 1 a failure inside Blender.
+Exit codes: 0 done, 2 bad input (the message names the option), 1 a failure inside Blender (or a
+frame that could not be written: nothing incomplete is left under a frame's name), 130 stopped by
+Ctrl-C after the frame in progress (the finished frames are kept).
 """
 
 from __future__ import annotations
@@ -20,7 +22,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -46,9 +50,12 @@ def addon_module(name: str):
 schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
 PARTIAL_SUFFIX = ".partial.png"  # temporary name of a frame being written
+OLDEST_BLENDER = (4, 2, 0)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"IEND\xaeB`\x82"  # the last chunk of a complete PNG: type and CRC
 
 
 class BadInputError(Exception):
@@ -75,7 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render a grass field swaying in the wind (Windgrass) to numbered PNGs. "
                     "Precedence: schema defaults < --config < flags.",
         epilog="Run inside Blender: blender -b -P headless/render_field.py -- [options]. "
-               "Exit codes: 0 done, 2 bad input, 1 failure inside Blender.")
+               "Exit codes: 0 done, 2 bad input, 1 failure inside Blender, 130 stopped by Ctrl-C "
+               "after the frame in progress.")
     job = parser.add_argument_group("render job")
     job.add_argument("--config", metavar="SCENE.toml", type=Path,
                      help=f"scene file (TOML, see scenes/); default {DEFAULT_CONFIG.relative_to(REPO)}")
@@ -133,7 +141,7 @@ def parse_frames(text: str, params) -> tuple[int, int]:
     except ValueError:
         raise BadInputError(f"--frames: {text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)") from None
     if last < first:
-        raise BadInputError(f"--frames: {text!r} ends before it starts")
+        raise BadInputError(f"--frames: {text!r} ends before it starts (valid: A-B with A <= B)")
     if first < start or last > end:
         raise BadInputError(f"--frames: {text!r} is outside the scene's frames {start}-{end} "
                        "(render.frame_start/frame_end; set them with --render-frame-start/-end)")
@@ -175,9 +183,49 @@ def resolve(args: argparse.Namespace):
                        f"({schema.BY_NAME['field.seed'].range_text()})")
     if params.camera.mode == "fixed" and params.camera.position == params.camera.target:
         raise ParameterError("camera.target", "equals camera.position; the camera needs a point to look at")
-    frames = parse_frames(args.frames, params) if args.frames else (params.render.frame_start,
-                                                                      params.render.frame_end)
+    if args.frames is None:
+        frames = (params.render.frame_start, params.render.frame_end)
+    else:
+        frames = parse_frames(args.frames, params)
     return params, frames, config
+
+
+def prepare_out(out: Path) -> Path:
+    """The output folder, created and proven writable before anything is built or rendered."""
+    out = out.expanduser().resolve()
+    if out.exists() and not out.is_dir():
+        raise BadInputError(f"--out: {out} is a file; give a folder (it is created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".windgrass-probe-"):
+            pass
+    except OSError as exc:
+        raise BadInputError(f"--out: cannot write into {out}: {exc.strerror or exc}") from None
+    return out
+
+
+def blender_version_error(version: tuple[int, ...]) -> str | None:
+    """The message for a Blender older than Windgrass supports, else None."""
+    if tuple(version[:3]) >= OLDEST_BLENDER:
+        return None
+    oldest = ".".join(str(v) for v in OLDEST_BLENDER[:2])
+    return f"Windgrass needs Blender {oldest} or newer (this is {'.'.join(str(v) for v in version[:3])})"
+
+
+def check_png(path: Path) -> None:
+    """Raise OSError unless ``path`` holds a whole PNG (a full disk leaves empty or cut files)."""
+    try:
+        size = path.stat().st_size
+        with path.open("rb") as fh:
+            head = fh.read(len(PNG_SIGNATURE))
+            fh.seek(max(0, size - len(PNG_END)))
+            tail = fh.read()
+    except OSError as exc:
+        raise OSError(f"cannot read back {path.name}: {exc.strerror or exc}") from None
+    if size == 0:
+        raise OSError(f"{path.name} is empty (disk full?)")
+    if head != PNG_SIGNATURE or tail != PNG_END:
+        raise OSError(f"{path.name} is not a complete PNG ({size} bytes; disk full?)")
 
 
 def variant_params(params, index: int, keep_speed: bool):
@@ -223,8 +271,41 @@ def _fmt_seconds(seconds: float) -> str:
     return f"{seconds // 60}:{seconds % 60:02d}"
 
 
-def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Path]:
-    """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame."""
+class FrameWriteError(RuntimeError):
+    """A frame could not be written completely (disk full, folder gone)."""
+
+
+class StopAfterFrame:
+    """Ctrl-C (SIGINT) while frames render: finish the frame in progress, then stop.
+
+    A second Ctrl-C stops at once (the frame in progress is discarded)."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def __enter__(self):
+        try:
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        except ValueError:  # not the main thread: Ctrl-C keeps its default
+            self._previous = None
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\ninterrupt: stopping after the frame in progress (Ctrl-C again to stop now)", flush=True)
+
+
+def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopAfterFrame | None = None) -> list[Path]:
+    """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame. Each frame is
+    written under a temporary name, checked to be a whole PNG, then renamed into place; with
+    ``stop`` requested the loop ends after the frame in progress."""
     import bpy
 
     stage = addon_module("grass_addon.bridge.stage")
@@ -234,6 +315,8 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Pat
     scene.render.use_file_extension = False
     began = time.perf_counter()
     for i, frame in enumerate(range(first, last + 1), start=1):
+        if stop is not None and stop.requested:
+            break
         t0 = time.perf_counter()
         # The camera first: the frame handler (grass LOD, eqs 7-11) reads it in frame_change_pre.
         stage.pose_camera(scene, params, frame)
@@ -245,10 +328,14 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path) -> list[Pat
         try:
             result = bpy.ops.render.render(write_still=True, scene=scene.name)
             if "FINISHED" not in result or not partial.is_file():
-                raise RuntimeError(f"Blender did not write frame {frame} ({result})")
+                raise FrameWriteError(f"Blender did not write frame {frame} to {out} (disk full or folder removed?)")
+            try:
+                check_png(partial)
+            except OSError as exc:
+                raise FrameWriteError(f"frame {frame} could not be written to {out}: {exc}") from None
             os.replace(partial, final)
         finally:
-            if partial.exists():
+            if partial.exists() or partial.is_symlink():
                 partial.unlink()
         written.append(final)
         spent = time.perf_counter() - t0
@@ -306,7 +393,7 @@ def encode_video(frames: list[Path], fps: int, target: Path) -> Path | None:
     return target
 
 
-def run_variant(params, frames, out: Path, args) -> dict:
+def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = None) -> dict:
     """Build one scene, render its frames (and optional .blend and video) into ``out``."""
     import bpy
 
@@ -324,12 +411,14 @@ def run_variant(params, frames, out: Path, args) -> dict:
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         print(f"saved {blend}", flush=True)
     t1 = time.perf_counter()
-    written = render_frames(scene, params, frames, out)
+    written = render_frames(scene, params, frames, out, stop)
     seconds = time.perf_counter() - t1
-    video = encode_video(written, params.render.fps, out / "animation.mp4") if args.video else None
+    interrupted = stop is not None and stop.requested
+    video = (encode_video(written, params.render.fps, out / "animation.mp4")
+             if args.video and written and not interrupted else None)
     if video is not None:
         print(f"video {video}", flush=True)
-    return {"out": out, "frames": written, "seconds": seconds, "video": video}
+    return {"out": out, "frames": written, "seconds": seconds, "video": video, "interrupted": interrupted}
 
 
 def main(argv: list[str]) -> int:
@@ -339,21 +428,41 @@ def main(argv: list[str]) -> int:
         params, frames, config = resolve(args)
         variants = [variant_params(params, i, "wind.speed" in schema.cli_overrides(args))
                     for i in range(args.variants)] if args.variants > 1 else [params]
+        out = prepare_out(args.out if args.out is not None else DEFAULT_OUT)
     except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}\n(render_field.py --help lists the options)", file=sys.stderr)
         return EXIT_BAD_INPUT
-    out = (args.out if args.out is not None else DEFAULT_OUT).resolve()
+    try:
+        import bpy  # the module, or the running Blender
+    except ImportError:
+        print("render_field.py: error: Blender's Python module 'bpy' is not importable here; run this "
+              "inside .venv (python3.11 dev.py render) or as blender -b -P headless/render_field.py -- ...",
+              file=sys.stderr)
+        return EXIT_FAILED
+    too_old = blender_version_error(bpy.app.version)
+    if too_old:
+        print(f"render_field.py: error: {too_old}", file=sys.stderr)
+        return EXIT_FAILED
     print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
     results = []
     try:
-        import bpy  # noqa: F401  (the module, or the running Blender)
-
-        for index, variant in enumerate(variants):
-            target = out / f"variant_{index:02d}" if len(variants) > 1 else out
-            results.append(run_variant(variant, frames, target, args))
+        with StopAfterFrame() as stop:
+            for index, variant in enumerate(variants):
+                target = out / f"variant_{index:02d}" if len(variants) > 1 else out
+                results.append(run_variant(variant, frames, target, args, stop))
+                if stop.requested:
+                    break
     except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except FrameWriteError as exc:
+        print(f"render_field.py: failed: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except KeyboardInterrupt:
+        done = sum(len(r["frames"]) for r in results)
+        print(f"render_field.py: interrupted: stopped at once; the frame in progress was discarded "
+              f"(finished frames of completed variants: {done})", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except Exception as exc:  # a failure inside Blender
         import traceback
 
@@ -363,11 +472,19 @@ def main(argv: list[str]) -> int:
     count = sum(len(r["frames"]) for r in results)
     seconds = sum(r["seconds"] for r in results)
     per = seconds / max(count, 1)
-    print(f"done: {count} frame(s) in {seconds:.1f} s ({per:.2f} s per frame)", flush=True)
+    interrupted = any(r["interrupted"] for r in results)
+    print(f"{'interrupted' if interrupted else 'done'}: {count} frame(s) in {seconds:.1f} s "
+          f"({per:.2f} s per frame)", flush=True)
     for r in results:
         names = r["frames"]
+        if not names:
+            continue
         span = f"{names[0].name} .. {names[-1].name}" if len(names) > 1 else names[0].name
         print(f"  {r['out']}/  {span}" + (f"  + {r['video'].name}" if r["video"] else ""), flush=True)
+    if interrupted:
+        print("render_field.py: interrupted by Ctrl-C: the finished frames above are complete and kept; "
+              "render the rest with --frames", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK
 
 

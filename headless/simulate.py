@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -145,9 +147,39 @@ def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
             tr["blade_root"] = layout.blade_root
             tr["blade_rest_tip"] = rest_tip.astype(np.float32)
         tr["params_toml"] = np.array(schema.dumps_toml(params))
-        with open(trace_path, "wb") as fh:
-            np.savez(fh, **tr)
+        write_trace(Path(trace_path), tr)
     return summary
+
+
+def check_trace_path(path: Path) -> Path:
+    """The trace's path, once its folder is known to take a new file (before simulating)."""
+    path = path.expanduser()
+    if path.is_dir():
+        raise ParameterError("trace", f"{path} is a folder; give a file name such as {path / 'trace.npz'}")
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise ParameterError("trace", f"folder {folder} of {path} does not exist")
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".windgrass-probe-"):
+            pass
+    except OSError as exc:
+        raise ParameterError("trace", f"cannot write into {folder}: {exc.strerror or exc}") from None
+    return path
+
+
+def write_trace(path: Path, arrays: dict) -> None:
+    """Write the .npz beside ``path`` under a temporary name, then rename it into place: a failed
+    write (disk full) leaves any earlier trace at ``path`` untouched and no partial file."""
+    fd, partial = tempfile.mkstemp(dir=path.resolve().parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(partial, path)
+    except BaseException:
+        Path(partial).unlink(missing_ok=True)
+        raise
 
 
 def print_summary(params, frames: int, summary: dict, trace_path: str | None, layout_info: dict) -> None:
@@ -183,12 +215,16 @@ def main(argv=None) -> int:
             frames = params.render.frame_end - params.render.frame_start + 1
         if frames < 1 or frames > 1_000_000:
             raise ParameterError("frames", f"{frames} is out of range (valid: 1 to 1000000; flag --frames)")
-        if args.trace and not Path(args.trace).resolve().parent.is_dir():
-            raise ParameterError("trace", f"folder of {args.trace} does not exist")
+        if args.trace:
+            check_trace_path(Path(args.trace))
         summary = run(params, frames, args.trace)
     except ParameterError as exc:
         print(f"simulate.py: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the trace could not be written after all (disk full)
+        print(f"simulate.py: failed: cannot write the trace {args.trace}: {exc.strerror or exc}; "
+              "an earlier file there is unchanged", file=sys.stderr)
+        return 1
     f = params.field
     cells_x, cells_y = f.blocks_x * f.cells_per_block, f.blocks_y * f.cells_per_block
     info = {"cells": cells_x * cells_y, "blades": cells_x * cells_y * f.blades_per_cell,

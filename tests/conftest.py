@@ -1,6 +1,10 @@
-"""Test-wide setup: Blender must write its user files to a temp dir, set before ``import bpy``."""
+"""Test-wide setup: Blender must write its user files to a temp dir, set before ``import bpy``.
+
+The temp dir is removed when the session ends (``pytest_unconfigure``), so runs leave nothing.
+"""
 
 import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -14,3 +18,7 @@ if "bpy" not in sys.modules:
 for path in (REPO, REPO / "headless"):
     if str(path) not in sys.path:
         sys.path.insert(0, str(path))
+
+
+def pytest_unconfigure(config):
+    shutil.rmtree(_tmp, ignore_errors=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import struct
 import subprocess
 import sys
@@ -233,6 +234,20 @@ def _bad_toml(tmp_path: Path) -> Path:
     return path
 
 
+def _config_bytes(name: str, data: bytes):
+    def make(tmp_path: Path) -> list:
+        path = tmp_path / name
+        path.write_bytes(data)
+        return ["--config", path]
+    return make
+
+
+def _out_at_file(tmp_path: Path) -> list:
+    path = tmp_path / "a-file.png"
+    path.write_text("not a folder")
+    return ["--out", path]
+
+
 BAD_INPUTS = [
     (["--wind-type", "tornado"], "wind.type"),
     (["--field-blades-per-cell", "-1"], "field.blades_per_cell"),
@@ -248,10 +263,18 @@ BAD_INPUTS = [
     (["--resolution", "8x8"], "--resolution"),
     (["--variants", "0"], "--variants"),
     (["--no-such-option", "3"], "--no-such-option"),
+    (["--frames", ""], "--frames"),
+    (["--lod-enabled", "maybe"], "--lod-enabled"),
+    ([_out_at_file], "--out"),
+    (["--out", "/proc/windgrass-cannot-be-made"], "--out"),
+    ([_config_bytes("utf16.toml", "[field]\nblocks_x = 4\n".encode("utf-16"))], "--config"),
+    ([_config_bytes("binary.toml", bytes(range(256)) * 8)], "--config"),
+    ([_config_bytes("deep.toml", b"a = " + b"[" * 50000 + b"]" * 50000)], "--config"),
 ]
 
 
-BAD_IDS = [f"{n}:{a[-1] if isinstance(a[-1], str) else 'broken-toml'}" for a, n in BAD_INPUTS]
+BAD_IDS = [f"{n}:{a[-1] if isinstance(a[-1], str) else getattr(a[-1], '__name__', 'file')}:{i}"
+           for i, (a, n) in enumerate(BAD_INPUTS)]
 
 
 @pytest.mark.parametrize("args, named", BAD_INPUTS, ids=BAD_IDS)
@@ -262,19 +285,74 @@ def test_bad_input_exits_2_naming_the_option(env, tiny_config, tmp_path, args, n
         expanded.extend(a(tmp_path) if callable(a) else [a])
     if "--config" not in expanded:
         expanded = ["--config", tiny_config, *expanded]
-    proc = render(env, *expanded, "--out", out, timeout=60)
+    if "--out" not in expanded:
+        expanded += ["--out", out]
+    proc = render(env, *expanded, timeout=60)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert named in proc.stderr, proc.stderr
+    # Before anything is built: no scene, no frame, no traceback, no internal helper names.
+    assert "scene ready" not in proc.stdout and "Traceback" not in proc.stderr
+    assert "_parse" not in proc.stderr and "e+09" not in proc.stderr
     assert not (out.exists() and list(out.rglob("*.png")))
 
 
-def test_failure_while_rendering_exits_1(env, tiny_config, tmp_path):
-    """Not bad input but a failure during the job (the output folder cannot be made): exit 1."""
-    blocker = tmp_path / "taken"
-    blocker.write_text("a file where the output folder should go")
-    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", blocker / "sub", timeout=120)
+def test_a_frame_that_cannot_be_written_fails_and_leaves_nothing(env, tiny_config, tmp_path):
+    """A full disk: the frame's temporary file goes to /dev/full (writes fail with ENOSPC).
+    The job fails with status 1 and no file looks like a finished frame."""
+    (tmp_path / ".frame_0001.partial.png").symlink_to("/dev/full")
+    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", tmp_path, timeout=120)
     assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert "failed" in proc.stderr
+    assert "frame 1" in proc.stderr and "done:" not in proc.stdout
+    assert frames_in(tmp_path) == [] and not list(tmp_path.iterdir())
+
+
+def test_incomplete_pngs_are_refused(addon, tmp_path):
+    import render_field
+
+    empty = tmp_path / "empty.png"
+    empty.write_bytes(b"")
+    cut = tmp_path / "cut.png"
+    whole = tmp_path / "whole.png"
+    whole.write_bytes(render_field.PNG_SIGNATURE + b"\0" * 40 + render_field.PNG_END)
+    cut.write_bytes(whole.read_bytes()[:30])
+    render_field.check_png(whole)
+    for bad, why in ((empty, "empty"), (cut, "not a complete PNG")):
+        with pytest.raises(OSError, match=why):
+            render_field.check_png(bad)
+
+
+def test_older_blender_is_named_with_the_version_needed(addon):
+    import render_field
+
+    assert render_field.blender_version_error((3, 4, 1)) == \
+        "Windgrass needs Blender 4.2 or newer (this is 3.4.1)"
+    assert render_field.blender_version_error((4, 2, 0)) is None
+    assert render_field.blender_version_error((5, 0, 1)) is None
+
+
+def test_ctrl_c_stops_after_the_frame_in_progress(env, tiny_config, tmp_path):
+    """SIGINT during a batch render: the frame in progress finishes, the job stops, the finished
+    frames stay whole, status 130 and a message saying so."""
+    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--config", tiny_config, "--render-frame-end", "40",
+                             "--frames", "1-40", "--out", str(tmp_path)], env=env, cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:
+            if line.startswith("frame 1/40"):
+                proc.send_signal(signal.SIGINT)
+                break
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, out[-2000:] + err[-2000:]
+    names = frames_in(tmp_path)
+    assert 1 <= len(names) < 40 and names[0] == "frame_0001.png"
+    for name in names:
+        width, height, _, _ = read_png(tmp_path / name)
+        assert (width, height) == (64, 36)
+    assert "interrupted" in err and "kept" in err
+    assert not list(tmp_path.glob(".*")), "temporary files left behind"
 
 
 def test_help_documents_every_option(env):

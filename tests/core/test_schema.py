@@ -53,6 +53,11 @@ def test_wind_type_brings_its_beaufort_speed_unless_given():
     ("[field]\nblocks_x = 2.5", "field.blocks_x", ["whole number"]),
     ("[field]\nblocks_x = 1e12", "field.blocks_x", ["out of range"]),
     ("[field]\nblades_per_cell = 64\nblocks_x = 256\nblocks_y = 256", "field.blades_per_cell", ["20,000,000"]),
+    ("[field]\nblades_per_cell = 0\nblocks_x = 256\nblocks_y = 256\ncells_per_block = 64", "field.cells_per_block",
+     ["268,435,456 cells", "4,194,304"]),
+    ("[field]\nseed = -1", "field.seed", ["0 to 2147483647"]),
+    ("[render]\nframe_end = 2000000", "render.frame_end", ["0 to 1000000"]),
+    ("[blade]\nroot_stiffness = 0.0", "blade.root_stiffness", ["1e-07 to 1 N*m^2/rad"]),
     ("[lod]\nenabled = 1", "lod.enabled", ["true/false"]),
     ("[lod]\nblade_near = 10.0\nblade_far = 5.0", "lod.blade_far", [">= lod.blade_near"]),
     ("[camera]\nposition = [1, 2]", "camera.position", ["3 numbers"]),
@@ -123,3 +128,19 @@ def test_changing_the_wind_type_brings_its_preset_unless_given():
     # re-stating the current type keeps the user's values
     r = schema.defaults().replace({"wind.speed": 5.0}).replace({"wind.type": "gentle_breeze"})
     assert r.wind.speed == 5.0
+
+
+def test_unreadable_scene_files_are_clear_errors(tmp_path):
+    cases = {
+        "utf16.toml": ("[field]\nblocks_x = 4\n".encode("utf-16"), "not UTF-8"),
+        "binary.toml": (bytes(range(256)) * 4, "not UTF-8"),
+        "deep.toml": (b"a = " + b"[" * 50000 + b"]" * 50000, "too deeply"),
+    }
+    for name, (data, words) in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        with pytest.raises(ParameterError, match=words) as info:
+            schema.load_toml(path)
+        assert info.value.key == "config", name
+    with pytest.raises(ParameterError, match="is a folder"):
+        schema.load_toml(tmp_path)

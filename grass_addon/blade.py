@@ -10,6 +10,14 @@ from __future__ import annotations
 import numpy as np
 
 GRAVITY = 9.81  # g of eq 2, m/s^2
+# mu of eq 1 is the stiffness of a joint of a blade drawn with this many segments (the paper's
+# experiments use 4-6). With n segments a joint stands for REFERENCE_SEGMENTS / n of such a joint's
+# length of blade, so its stiffness is mu * n / REFERENCE_SEGMENTS (springs in series): the joint
+# angles then add up to the same shape whatever n, as a bending stiffness EI(s) = mu(s) l_ref would.
+REFERENCE_SEGMENTS = 5
+# The ground stops a blade: no segment tilts further from the vertical than this (flat ground);
+# a hair less than lying flat, so a blade pressed down lies just above the ground.
+GROUND_TILT = 0.5 * np.pi - 0.03
 
 
 def joint_stiffness(root_stiffness: np.ndarray, segment_length: np.ndarray, segments: int,
@@ -17,11 +25,13 @@ def joint_stiffness(root_stiffness: np.ndarray, segment_length: np.ndarray, segm
     """mu_i^base of every joint, shape (..., n).
 
     Eq 5 (eq 1 at L = l_length * i): mu_i = mu_root / (l_length * i + x). The root is the
-    stiffest joint; stiffness falls towards the tip.
+    stiffest joint; stiffness falls towards the tip. Scaled by n / REFERENCE_SEGMENTS so that a
+    blade's shape does not depend on how many segments draw it.
     """
     i = np.arange(segments, dtype=np.float64)
     L = np.asarray(segment_length, dtype=np.float64)[..., None] * i
-    return (np.asarray(root_stiffness, dtype=np.float64)[..., None] / (L + offset)).astype(np.float32)
+    per_joint = segments / REFERENCE_SEGMENTS
+    return (np.asarray(root_stiffness, dtype=np.float64)[..., None] * per_joint / (L + offset)).astype(np.float32)
 
 
 def segment_weight(density: float, segment_length: np.ndarray) -> np.ndarray:
@@ -65,9 +75,20 @@ def rest_angles(inclination: np.ndarray, segment_length: np.ndarray, stiffness: 
         target = torque / mu  # eq 6
         change = np.abs(target - theta).max(initial=0.0)
         theta = 0.5 * theta + 0.5 * target
+        theta = _stopped_by_ground(alpha, theta)
         if change < 1e-5:  # radians; far below what a render can show
             break
     return np.ascontiguousarray(theta.T, dtype=np.float32)
+
+
+def _stopped_by_ground(alpha: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Joint angles (n, B) whose absolute tilts alpha + cumsum(theta) stay within GROUND_TILT."""
+    tilt = np.minimum(alpha + _cumsum_rows(theta), np.float32(GROUND_TILT))
+    tilt = np.maximum.accumulate(np.maximum(tilt, alpha), axis=0)  # droop never turns back up
+    out = np.empty_like(theta)
+    out[0] = tilt[0] - alpha[0]
+    out[1:] = tilt[1:] - tilt[:-1]
+    return out
 
 
 def _cumsum_rows(a: np.ndarray) -> np.ndarray:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .blade import GROUND_TILT
+
 
 class CellData:
     """The shared data of one frame (cell-major arrays, float32).
@@ -57,9 +59,10 @@ def card_offset(card_height: np.ndarray, bend_sum: np.ndarray) -> np.ndarray:
     """
     L = np.asarray(card_height, dtype=np.float32)
     sx, sy = bend_sum[0], bend_sum[1]
-    omega = np.sqrt(sx * sx + sy * sy)
-    # L sin(w) * (s / w): s / w is Normal(V); where w = 0 the offset is 0 (s = 0).
-    scale = L * np.sin(omega) / np.maximum(omega, np.float32(1e-20))
+    norm = np.sqrt(sx * sx + sy * sy)
+    omega = np.minimum(norm, np.float32(GROUND_TILT))  # the ground stops the card's top too
+    # L sin(w) * (s / |s|): s / |s| is Normal(V); where |s| = 0 the offset is 0 (s = 0).
+    scale = L * np.sin(omega) / np.maximum(norm, np.float32(1e-20))
     out = np.empty((L.shape[0], 3), dtype=np.float32)
     np.multiply(scale, sx, out=out[:, 0])
     np.multiply(scale, sy, out=out[:, 1])

@@ -7,7 +7,9 @@ tilt vector
 
 whose magnitude is the angle from the vertical and whose direction is the way it leans; its
 direction is (sin|T| T/|T|, cos|T|). Joints: p_0 = root, p_{j+1} = p_j + (length/n) dir_j, so
-segment lengths never change. Twist (paper V.A) turns the strip about the blade: joint j's side
+segment lengths never change. The ground stops a segment: its tilt |T| is held at the ground's
+(blade.GROUND_TILT on flat ground, the local slope on a terrain), so no vertex goes below it.
+Twist (paper V.A) turns the strip about the blade: joint j's side
 vector is s_j = (-sin(facing + Phi_j), cos(facing + Phi_j), 0) with the cumulative twist
 Phi_j = sum_{k<=j} twist[c, k]. Joint j is the bottom edge of segment j, so every segment's bottom
 edge faces the way the solver turns that segment (solver.py: azimuth facing + sum_{k<=j} twist);
@@ -41,6 +43,8 @@ import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from . import blade
 
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = 2
@@ -140,6 +144,11 @@ class _Constants:
         self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
         root = layout.blade_root.astype(np.float64)
         self.root_xy = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(nb, bpb)
+        # The ground stops each segment (blade.GROUND_TILT): flat ground as one row of the limit;
+        # on a terrain the conjugate slope conj(g) at each root (the limit depends on the lean).
+        slope = getattr(layout, "blade_ground_slope", None)
+        self.slope = (None if slope is None else
+                      (slope[:, 0] - 1j * slope[:, 1]).astype(np.complex64).reshape(nb, bpb, 1))
         self.root_z = root[:, 2].astype(np.float32).reshape(nb, bpb)
         self.slot = np.arange(num, dtype=np.int32)[None, :]  # (1, num)
         # Cells of block b = by * blocks_x + bx are the cpb x cpb square at (by, bx) of the
@@ -154,6 +163,7 @@ class _Constants:
         self.taper_rows = np.ascontiguousarray(np.broadcast_to(self.taper, (self.k_max * P, n + 1)))
         # floor of |T| as a full array: np.maximum runs ~3x faster than with a scalar operand
         self.tiny = np.full((self.k_max * bpb, n), 1e-30, dtype=np.float32)
+        self.ground_tilt = np.full((self.k_max * bpb, n), blade.GROUND_TILT, dtype=np.float32)
         self._scratch: list[dict[str, np.ndarray]] = []
         self._lock = threading.Lock()
         self.call_lock = threading.Lock()
@@ -368,16 +378,29 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
         seg = np.multiply(seg, mask, out=s["seg"][:blades])
         w_side = np.multiply(w_side, mask, out=s["w_side"][:blades])
 
-    # Tilt vector T_j = rest + cumulative bend; direction (sin|T| T/|T|, cos|T|) times l/n.
+    # Tilt vector T_j = rest + cumulative bend; the tilt |T| is stopped by the ground at theta_g:
+    # GROUND_TILT on flat ground; on a slope g, the direction (sin theta u, cos theta) stays above
+    # the ground plane while cos theta >= sin theta (g . u), i.e. theta <= atan2(1, g . u), less
+    # the same clearance (g . u |T| = Re(conj(g) T), so no division). The segment's direction is
+    # (sin theta T/|T|, cos theta) times l/n.
     t, a, b, dz = s["t"][:blades], s["a"][:blades], s["b"][:blades], s["dz"][:blades]
     np.add(rest, cb_blade.reshape(blades, n), out=t)
     np.abs(t, out=a)  # |T|
-    np.cos(a, out=dz)
-    np.multiply(dz, seg, out=dz)  # dz = l/n cos|T|
-    np.sin(a, out=b)
-    np.maximum(a, const.tiny[:blades], out=a)  # |T| = 0: sin|T| = 0, so the horizontal step is 0
+    if const.slope is None:
+        np.minimum(a, const.ground_tilt[:blades], out=b)  # theta
+    else:
+        along = s["p"][:blades, :n]  # (p is free until the joints are written below)
+        slope = _select(const.slope, ids, run, s, "sel_slope").reshape(blades, 1)
+        np.multiply(t, slope, out=along)
+        np.arctan2(a, along.real, out=b)
+        b -= np.float32(0.5 * np.pi - blade.GROUND_TILT)
+        np.minimum(b, a, out=b)  # theta
+    np.cos(b, out=dz)
+    np.multiply(dz, seg, out=dz)  # dz = l/n cos theta
+    np.sin(b, out=b)
+    np.maximum(a, const.tiny[:blades], out=a)  # |T| = 0: sin theta = 0, so the horizontal step is 0
     np.divide(b, a, out=b)
-    np.multiply(b, seg, out=b)  # l/n sin|T| / |T|
+    np.multiply(b, seg, out=b)  # l/n sin theta / |T|
     np.multiply(t, b, out=t)  # horizontal steps dx + i dy
 
     # Joints: p_0 = root, p_{j+1} = p_j + step_j (columns of the blade-major arrays).

@@ -67,6 +67,7 @@ class FieldLayout:
     terrain: Heightfield | None = None
     cell_ground: np.ndarray = dc_field(default=None)  # (n_cells,) float32 ground z at each cell centre
     block_z_range: np.ndarray = dc_field(default=None)  # (n_blocks, 2) float32 lowest, highest ground
+    blade_ground_slope: np.ndarray | None = None  # (n_blades, 2) float32 dz/dx, dz/dy at each root
 
     @property
     def size(self) -> tuple[float, float]:
@@ -204,4 +205,5 @@ def build_layout(params: Params, terrain: Heightfield | None = None) -> FieldLay
         card_shade=card_shade.astype(f32), species_color=species["color"],
         terrain=terrain, cell_ground=np.ascontiguousarray(cell_ground, dtype=f32),
         block_z_range=np.ascontiguousarray(block_z_range, dtype=f32),
+        blade_ground_slope=None if terrain is None else terrain.gradient(root[:, :2]),
     )

@@ -215,7 +215,12 @@ class BladeSolver:
         self.n, self.n_cells = n, C
         self.chunk_cells = max(1, int(chunk_cells))
         self.threads = max(1, int(threads))
-        self.k = float(b.nonlinear_stiffness)  # k of eq 23
+        # k of eq 23 per joint: stiffness and the joint angles of a given curvature scale with
+        # n / REFERENCE_SEGMENTS and its inverse (blade.joint_stiffness), so k by its square and
+        # the angle where stiffening stops by its inverse: the bent shape does not depend on n.
+        per_joint = n / blade.REFERENCE_SEGMENTS
+        self.k = float(b.nonlinear_stiffness) * per_joint * per_joint
+        self.stiffen_limit = STIFFEN_LIMIT / per_joint
         self.gamma = float(b.response_torque)  # gamma of eq 26
         self.twist_ratio = float(b.twist_stiffness)  # twist stiffness = ratio * mu
         self.alpha = float(b.damping_mass)  # alpha of eq 31
@@ -269,7 +274,7 @@ class BladeSolver:
         self._allowed_rows: dict[int, int] = {}  # chunk start -> j1 for the cached allowed
         self._quasi_cache: tuple[float | None, np.ndarray | None] = (None, None)
         # Stiffest joint: eq 22-23 with the nonlinear part at its bound (the bend is clamped).
-        k_max = self._mu_base + F32(self.k * STIFFEN_LIMIT)
+        k_max = self._mu_base + F32(self.k * self.stiffen_limit)
         ratio = max(1.0, self.twist_ratio)  # twist uses ratio * K with the same inertia
         self._omega2 = (k_max.astype(np.float64) * self._inv_inertia * ratio)  # K/I, (n, C)
         self._damp = self.alpha + self.beta * self._omega2  # C/I of eq 31
@@ -550,7 +555,7 @@ class BladeSolver:
         np.multiply(bend, bend, out=BB)
         np.add(BB[:, 0], BB[:, 1], out=mu)
         np.sqrt(mu, out=mu)
-        np.minimum(mu, S.const("stiffen", STIFFEN_LIMIT, m), out=mu)
+        np.minimum(mu, S.const("stiffen", self.stiffen_limit, m), out=mu)
         mu *= F32(self.k)
         mu += self._mu_base[:, a:b]
         # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)

@@ -75,6 +75,21 @@ class Heightfield:
         high = z01 + (z11 - z01) * fu
         return (low + (high - low) * fv).astype(np.float32)
 
+    def gradient(self, xy) -> np.ndarray:
+        """(..., 2) float32 slope dz/dx, dz/dy of the bilinear surface at points xy (that of the
+        nearest grid cell outside the grid)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        u = np.clip((xy[..., 0] - self.origin_xy[0]) / self.spacing, 0.0, self.nx)
+        v = np.clip((xy[..., 1] - self.origin_xy[1]) / self.spacing, 0.0, self.ny)
+        i = np.minimum(np.floor(u), self.nx - 1).astype(np.intp)
+        j = np.minimum(np.floor(v), self.ny - 1).astype(np.intp)
+        fu, fv = u - i, v - j
+        h = self.heights.astype(np.float64)
+        z00, z10, z01, z11 = h[j, i], h[j, i + 1], h[j + 1, i], h[j + 1, i + 1]
+        dx = ((z10 - z00) * (1.0 - fv) + (z11 - z01) * fv) / self.spacing
+        dy = ((z01 - z00) * (1.0 - fu) + (z11 - z10) * fu) / self.spacing
+        return np.stack([dx, dy], axis=-1).astype(np.float32)
+
     def box_z_range(self, bounds) -> np.ndarray:
         """(m, 2) float32 lowest and highest ground over each rectangle (m, 4) xmin, ymin, xmax, ymax.
 

@@ -5,8 +5,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from grass_addon import kinematics, schema
+from grass_addon import blade, kinematics, schema
 from grass_addon.layout import build_layout
+from grass_addon.terrain import Heightfield, grid_for
 
 
 def small_layout(**overrides):
@@ -158,8 +159,9 @@ def test_matches_per_blade_formula_and_block_concatenation():
                 T_bend += cells.bend[c, j]
                 T = layout.blade_rest_tilt[b, j] * np.array([np.cos(f), np.sin(f)]) + T_bend
                 a = np.linalg.norm(T)
-                hor = np.sin(a) * T / a if a > 0 else np.zeros(2)
-                p = p + layout.blade_length[b] / n * np.array([hor[0], hor[1], np.cos(a)])
+                theta = min(a, blade.GROUND_TILT)  # the ground stops the segment
+                hor = np.sin(theta) * T / a if a > 0 else np.zeros(2)
+                p = p + layout.blade_length[b] / n * np.array([hor[0], hor[1], np.cos(theta)])
             np.testing.assert_allclose(got[i, local], np.array(expect), atol=2e-6)
 
 
@@ -308,3 +310,46 @@ def test_chunks_across_block_rows_and_plain_gathers_match_the_full_field():
     finally:
         kinematics.CHUNK_BLADES = old
         kinematics._CACHE.clear()
+
+
+def test_the_ground_stops_every_blade_and_card():
+    """Bends far past lying flat (up to the solver's bound at every joint): no blade vertex and no
+    card corner goes below the flat ground, and a pressed-down blade lies close to it."""
+    layout = small_layout(**{"blade.segments": 6})
+    rng = np.random.default_rng(5)
+    C, n = layout.n_cells, layout.segments
+    direction = rng.uniform(0, 2 * np.pi, C)
+    bend = np.zeros((C, n, 2), np.float32)
+    bend[..., 0] = (np.cos(direction) * 1.2)[:, None]
+    bend[..., 1] = (np.sin(direction) * 1.2)[:, None]
+    from grass_addon.celldata import card_offset
+
+    cells = cells_of(layout, bend, card_offset=card_offset(layout.card_height, bend.sum(axis=1).T))
+    blocks = np.arange(layout.n_blocks)
+    v = kinematics.blade_vertices(layout, cells, blocks)
+    assert v[:, 2].min() >= 0.0
+    tips = v.reshape(-1, n + 1, 2, 3)[:, -1, :, 2]
+    assert np.median(tips) < 0.1 * layout.blade_length.mean()  # pressed down, not floating
+    cards = kinematics.card_vertices(layout, cells, blocks)
+    assert cards[:, 2].min() >= 0.0
+
+
+def test_a_slope_stops_blades_leaning_uphill():
+    """On a plane z = 0.5 x (27 degrees) a blade bent hard uphill lies along the slope, above it."""
+    params = schema.defaults().replace({"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 2,
+                                        "field.blades_per_cell": 3, "blade.segments": 5, "field.cell_size": 0.2})
+    origin, spacing, nx, ny = grid_for(params)
+    xs = origin[0] + spacing * np.arange(nx + 1)
+    heights = np.tile(0.5 * xs, (ny + 1, 1)).astype(np.float32)
+    layout = build_layout(params, terrain=Heightfield(origin, spacing, heights))
+    C, n = layout.n_cells, layout.segments
+    bend = np.zeros((C, n, 2), np.float32)
+    bend[..., 0] = 0.6  # towards +x: uphill, 3 rad in all
+    v = kinematics.blade_vertices(layout, cells_of(layout, bend), np.arange(layout.n_blocks))
+    centres = v.reshape(-1, n + 1, 2, 3).mean(axis=2)
+    assert (centres[..., 2] - 0.5 * centres[..., 0]).min() >= -1e-5
+    # the strip's edges are level across the blade: at most half a width times the slope lower
+    assert (v[:, 2] - 0.5 * v[:, 0]).min() >= -0.5 * 0.5 * layout.blade_width.max() - 1e-5
+    tips = centres[:, -1]
+    roots = layout.blade_root
+    assert np.all(tips[:, 0] > roots[:, 0])  # they still lean uphill

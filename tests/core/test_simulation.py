@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from grass_addon import schema
+from grass_addon.blade import GROUND_TILT
 from grass_addon.celldata import card_offset, cell_data
 from grass_addon.layout import build_layout
 from grass_addon.simulation import Simulation
@@ -148,5 +149,8 @@ def test_card_offset_at_rest_and_at_a_right_angle():
     at_rest = card_offset(L, np.zeros((2, 2), dtype=np.float32))
     assert np.array_equal(at_rest, np.zeros((2, 3), dtype=np.float32))
     flat = card_offset(L, np.array([[0.0, math.pi / 2], [math.pi / 2, 0.0]], dtype=np.float32))
-    # omega = 90 degrees: the top moves L sideways (first cell along +Y, second along +X) and L down
-    assert np.allclose(flat, [[0.0, 0.3, -0.3], [0.5, 0.0, -0.5]], atol=1e-6)
+    # omega = 90 degrees: the top moves L sideways (first cell along +Y, second along +X) and L down,
+    # stopped just above the ground (the ground tilt, a hair short of lying flat)
+    s, c = math.sin(GROUND_TILT), math.cos(GROUND_TILT)
+    assert np.allclose(flat, [[0.0, 0.3 * s, 0.3 * c - 0.3], [0.5 * s, 0.0, 0.5 * c - 0.5]], atol=1e-6)
+    assert np.all(L + flat[:, 2] > 0.0)

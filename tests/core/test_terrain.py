@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from grass_addon import schema, terrain
+from grass_addon.blade import GROUND_TILT
 from grass_addon.errors import ParameterError
 from grass_addon.field import GrassField
 from grass_addon.layout import build_layout
@@ -100,7 +101,7 @@ def test_blade_joint_0_sits_on_the_terrain():
     """The kinematics start every strip at its root: joint 0's centre (mean of left and right) is
     on the ground, whatever the wind does to the rest of the blade. Grass on a slope still grows
     along gravity (paper III.A: the rest shape is set by gravity), so each blade is the flat
-    field's blade lifted by the ground height at its root, same shape."""
+    field's blade lifted by the ground height at its root, same shape, until the slope stops it."""
     params = small_params(**{"wind.speed": 6.0})
     hilly = GrassField(params, terrain=heightfield_of(params, plane))
     flat = GrassField(params)
@@ -111,7 +112,18 @@ def test_blade_joint_0_sits_on_the_terrain():
     w = flat.blade_vertices(flat.all_blocks()).reshape(shape)
     root = v[:, 0].mean(axis=1)
     np.testing.assert_allclose(root[:, 2], plane(root[:, :2]), atol=1e-5)
-    np.testing.assert_allclose(v - root[:, None, None, :] * [0, 0, 1], w, atol=2e-5)
+    # The same shape as on flat ground, except where the slope stops a blade leaning into it;
+    # every joint stays above the slope.
+    lifted = w + root[:, None, None, :] * [0, 0, 1]
+    joints = v.mean(axis=2)
+    assert np.all(joints[..., 2] - plane(joints[..., :2]) >= -1e-5)
+    # free: blades none of whose segments comes near lying on the flat ground or on the slope
+    steps = np.diff(lifted.mean(axis=2), axis=1)
+    seg = (hilly.layout.blade_length / params.blade.segments)[:, None]
+    over_slope = steps[..., 2] - (plane(steps[..., :2]) - plane(np.zeros(2)))
+    free = np.all((steps[..., 2] > seg * np.cos(GROUND_TILT) + 1e-3) & (over_slope > 0.05 * seg), axis=1)
+    assert free.mean() > 0.8
+    np.testing.assert_allclose(v[free], lifted[free], atol=2e-5)
 
 
 def test_lod_distance_is_measured_to_the_cell_on_the_ground():

@@ -64,8 +64,9 @@ def rest_angles(inclination: np.ndarray, segment_length: np.ndarray, stiffness: 
     weight = segment_weight(density, seg)  # f^G, eq 2
     theta = np.zeros_like(mu)
     above = np.arange(n, 0, -1, dtype=np.float32)[:, None]  # (n - i): segments at and above joint i (eq 3)
+    ground = np.float32(GROUND_TILT)
+    tilt = np.repeat(alpha, n, axis=0)  # absolute tilt of every segment
     for _ in range(iterations):
-        tilt = alpha + _cumsum_rows(theta)  # absolute tilt of every segment
         dx = seg * np.sin(tilt)  # horizontal extent of every segment
         joint_x = _cumsum_rows(dx) - dx  # horizontal position of joint i
         centre_x = joint_x + 0.5 * dx
@@ -73,22 +74,27 @@ def rest_angles(inclination: np.ndarray, segment_length: np.ndarray, stiffness: 
         centre_sum = _cumsum_rows(centre_x[::-1])[::-1]
         torque = weight * (centre_sum - above * joint_x)  # M_i^G, eqs 3-4
         target = torque / mu  # eq 6
-        change = np.abs(target - theta).max(initial=0.0)
-        theta = 0.5 * theta + 0.5 * target
-        theta = _stopped_by_ground(alpha, theta)
-        if change < 1e-5:  # radians; far below what a render can show
+        new = 0.5 * theta + 0.5 * target
+        tilt = alpha + _cumsum_rows(new)
+        if tilt.max(initial=0.0) > ground:
+            new, tilt = _stopped_by_ground(alpha, tilt)
+        change = np.abs(new - theta).max(initial=0.0)
+        theta = new
+        if change < 5e-6:  # radians; far below what a render can show
             break
     return np.ascontiguousarray(theta.T, dtype=np.float32)
 
 
-def _stopped_by_ground(alpha: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """Joint angles (n, B) whose absolute tilts alpha + cumsum(theta) stay within GROUND_TILT."""
-    tilt = np.minimum(alpha + _cumsum_rows(theta), np.float32(GROUND_TILT))
-    tilt = np.maximum.accumulate(np.maximum(tilt, alpha), axis=0)  # droop never turns back up
-    out = np.empty_like(theta)
-    out[0] = tilt[0] - alpha[0]
-    out[1:] = tilt[1:] - tilt[:-1]
-    return out
+def _stopped_by_ground(alpha: np.ndarray, tilt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(joint angles, tilts) (n, B) with every absolute tilt held at GROUND_TILT at most.
+
+    Gravity only bends a blade further down (theta >= 0), so the tilts rise root to tip and the
+    held ones are the top of the blade."""
+    tilt = np.minimum(tilt, np.float32(GROUND_TILT))
+    theta = np.empty_like(tilt)
+    theta[0] = tilt[0] - alpha[0]
+    np.subtract(tilt[1:], tilt[:-1], out=theta[1:])
+    return theta, tilt
 
 
 def _cumsum_rows(a: np.ndarray) -> np.ndarray:

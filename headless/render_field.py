@@ -35,6 +35,23 @@ DEFAULT_OUT = REPO / "renders"
 if str(HEADLESS) not in sys.path:
     sys.path.insert(0, str(HEADLESS))
 
+OLDEST_BLENDER = (4, 2, 0)
+
+
+def blender_version_error(version: tuple[int, ...]) -> str | None:
+    """The message for a Blender older than Windgrass supports, else None."""
+    if tuple(version[:3]) >= OLDEST_BLENDER:
+        return None
+    oldest = ".".join(str(v) for v in OLDEST_BLENDER[:2])
+    return f"Windgrass needs Blender {oldest} or newer (this is {'.'.join(str(v) for v in version[:3])})"
+
+
+if "bpy" in sys.modules:  # run by a Blender executable: refuse an old one before loading anything
+    _too_old = blender_version_error(tuple(sys.modules["bpy"].app.version))
+    if _too_old:
+        print(f"render_field.py: error: {_too_old}", file=sys.stderr, flush=True)
+        os._exit(1)  # `blender -b -P` would ignore sys.exit and go on
+
 import addon_loader  # noqa: E402
 
 # The add-on package without registering it (no bpy yet): one copy of the schema, so the
@@ -53,7 +70,6 @@ ParameterError = schema.ParameterError
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
 PARTIAL_SUFFIX = ".partial.png"  # temporary name of a frame being written
-OLDEST_BLENDER = (4, 2, 0)
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_END = b"IEND\xaeB`\x82"  # the last chunk of a complete PNG: type and CRC
 
@@ -204,14 +220,6 @@ def prepare_out(out: Path) -> Path:
     return out
 
 
-def blender_version_error(version: tuple[int, ...]) -> str | None:
-    """The message for a Blender older than Windgrass supports, else None."""
-    if tuple(version[:3]) >= OLDEST_BLENDER:
-        return None
-    oldest = ".".join(str(v) for v in OLDEST_BLENDER[:2])
-    return f"Windgrass needs Blender {oldest} or newer (this is {'.'.join(str(v) for v in version[:3])})"
-
-
 def check_png(path: Path) -> None:
     """Raise OSError unless ``path`` holds a whole PNG (a full disk leaves empty or cut files)."""
     try:
@@ -275,6 +283,10 @@ class FrameWriteError(RuntimeError):
     """A frame could not be written completely (disk full, folder gone)."""
 
 
+class FieldError(RuntimeError):
+    """A grass field could not be simulated: its frame would be rendered without it."""
+
+
 class StopAfterFrame:
     """Ctrl-C (SIGINT) while frames render: finish the frame in progress, then stop.
 
@@ -302,6 +314,16 @@ class StopAfterFrame:
         print("\ninterrupt: stopping after the frame in progress (Ctrl-C again to stop now)", flush=True)
 
 
+def check_fields(scene) -> None:
+    """Raise FieldError when a field of ``scene`` could not be simulated for this frame (its grass
+    would be missing from the image)."""
+    runtime = addon_module("grass_addon.bridge.runtime")
+    for item in scene.windgrass.fields:
+        error = runtime.field_error(scene, item)
+        if error:
+            raise FieldError(f"grass field '{item.name}' cannot be simulated: {error}")
+
+
 def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopAfterFrame | None = None) -> list[Path]:
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame. Each frame is
     written under a temporary name, checked to be a whole PNG, then renamed into place; with
@@ -321,6 +343,7 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopA
         # The camera first: the frame handler (grass LOD, eqs 7-11) reads it in frame_change_pre.
         stage.pose_camera(scene, params, frame)
         scene.frame_set(frame)
+        check_fields(scene)
         t_update = time.perf_counter() - t0
         final = out / FRAME_NAME.format(frame)
         partial = final.with_name("." + final.stem + PARTIAL_SUFFIX)
@@ -455,7 +478,7 @@ def main(argv: list[str]) -> int:
     except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except FrameWriteError as exc:
+    except (FrameWriteError, FieldError) as exc:
         print(f"render_field.py: failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
     except KeyboardInterrupt:

@@ -1,8 +1,10 @@
 """The "Grass" tab of the 3D View sidebar: the list of fields and their main buttons."""
 
+import textwrap
+
 import bpy
 
-from ..grass_addon.bridge import properties
+from ..grass_addon.bridge import properties, runtime
 
 CATEGORY = "Grass"
 # Row PropertyGroup name -> its table parameter (the columns come from the schema).
@@ -15,7 +17,9 @@ class WINDGRASS_UL_fields(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
         row = layout.row(align=True)
         row.prop(item, "name", text="", emboss=False, icon="OUTLINER_OB_CURVES")
-        if item.collection is not None:
+        if runtime.field_error(context.scene, item):
+            row.label(text="", icon="ERROR")  # a setting cannot be simulated: see the panel
+        elif item.collection is not None:
             row.label(text="", icon="OUTLINER_COLLECTION")
         else:
             row.label(text="", icon="ERROR")  # settings without objects: press Rebuild
@@ -64,6 +68,13 @@ class WINDGRASS_PT_main(bpy.types.Panel):
         row.operator("windgrass.simulation_reset", text="Reset", icon="LOOP_BACK")
         item = properties.active_field(context.scene)
         if item is not None:
+            error = runtime.field_error(context.scene, item)
+            if error:
+                box = layout.box()
+                box.alert = True
+                box.label(text="Grass hidden: this field cannot be simulated", icon="ERROR")
+                for line in textwrap.wrap(error, 48):
+                    box.label(text=line)
             layout.prop(item, "collection")
             layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 

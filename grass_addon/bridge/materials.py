@@ -158,6 +158,13 @@ def blade_material(name: str, uid: str):
     return mat
 
 
+def set_card_image(mat, image) -> None:
+    """Point the card material's texture node at ``image``."""
+    for node in mat.node_tree.nodes:
+        if node.bl_idname == "ShaderNodeTexImage":
+            node.image = image
+
+
 def card_material(name: str, uid: str, image):
     """Cards (paper III.B): the grass-clump texture; its alpha times ``wg_opacity`` (K_b of
     eqs 7 and 11) mixes the foliage shader with a Transparent BSDF."""

@@ -1,6 +1,6 @@
 """Per-frame driver: the one runtime registry and the frame handlers.
 
-``RUNTIMES`` maps ``(scene name, field uid)`` to a ``FieldRuntime`` holding the numpy engine
+``RUNTIMES`` maps ``(scene session uid, field uid)`` to a ``FieldRuntime`` holding the numpy engine
 (``GrassField``) built from the field's parameters, the digest it was built from and reusable
 float32 buffers. Nothing in Blender's file refers to it: it is dropped on file load and rebuilt
 from the stored parameters (the state at frame N is a function of params, seed and N).
@@ -34,6 +34,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..errors import WindgrassError
 from . import materials
 from . import scene as field_scene
 
@@ -46,7 +47,10 @@ UNKNOWN = -2
 # this many frames, so the sampled keys (and the cache key) rarely change.
 _EXTEND_FRAMES = 240
 
-RUNTIMES: dict[tuple[str, str], FieldRuntime] = {}
+RUNTIMES: dict[tuple[int, str], FieldRuntime] = {}
+# The last error of each field whose settings cannot be simulated (shown by the panel; its grass
+# is hidden rather than left at a stale frame), by the same key as RUNTIMES.
+ERRORS: dict[tuple[int, str], str] = {}
 _WARNED: set[str] = set()
 
 
@@ -83,8 +87,25 @@ class FieldRuntime:
     terrain_centre: tuple | None = None
 
 
-def runtime_key(scene, item) -> tuple[str, str]:
-    return scene.name, str(item.uid)
+def runtime_key(scene, item) -> tuple[int, str]:
+    """The scene's session uid (kept through renames and undo, new for a copied scene) and the
+    field's uid."""
+    return scene.session_uid, str(item.uid)
+
+
+def field_error(scene, item) -> str | None:
+    """Why the field cannot be simulated now (a setting out of range, ...), or None."""
+    return ERRORS.get(runtime_key(scene, item))
+
+
+def _forget_stale_runtimes() -> None:
+    """Drop runtimes of scenes or fields that no longer exist (deleted scene, removed field)."""
+    alive = {(s.session_uid, str(f.uid)) for s in bpy.data.scenes if hasattr(s, "windgrass")
+             for f in s.windgrass.fields}
+    for key in [k for k in RUNTIMES if k not in alive]:
+        del RUNTIMES[key]
+    for key in [k for k in ERRORS if k not in alive]:
+        del ERRORS[key]
 
 
 def get_runtime(scene, item) -> FieldRuntime | None:
@@ -198,6 +219,8 @@ def ensure_runtime(scene, item) -> FieldRuntime:
 
     key = runtime_key(scene, item)
     rt = RUNTIMES.get(key)
+    if rt is None:
+        _forget_stale_runtimes()
     params, keys, fingerprint, digest = field_params(scene, item, rt)
     t_key = field_scene.terrain_key(scene, item, params)
     if rt is not None and rt.params_digest == digest and rt.terrain_key == t_key:
@@ -213,7 +236,7 @@ def ensure_runtime(scene, item) -> FieldRuntime:
                       terrain_key=t_key, heightfield=heightfield, terrain_centre=centre)
     RUNTIMES[key] = rt
     if item.collection is not None:
-        field_scene.update_field_materials(field_scene.owner_tag(scene, item), params)
+        field_scene.update_field_materials(item, params)
     return rt
 
 
@@ -474,10 +497,42 @@ def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None
     if settings is None:
         return
     for item in settings.fields:
+        _update_guarded(scene, item, depsgraph, camera_moved_only)
+
+
+def _update_guarded(scene, item, depsgraph=None, camera_moved_only: bool = False) -> None:
+    """update_field, never raising: a field that cannot be simulated (a setting out of range, a
+    failure) records the error for the panel and for scripts (``field_error``) and hides its
+    grass, so no frame shows the grass of another frame."""
+    key = runtime_key(scene, item)
+    try:
+        update_field(scene, item, depsgraph, camera_moved_only)
+    except Exception as exc:  # a handler must not break playback or rendering
+        message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
+        ERRORS[key] = message
+        _warn_once(f"field '{item.name}' cannot be simulated, its grass is hidden: {message}")
         try:
-            update_field(scene, item, depsgraph, camera_moved_only)
-        except Exception as exc:  # a handler must not break playback or rendering
-            _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
+            _hide_field(scene, item)
+        except Exception as hide_exc:  # pragma: no cover (objects gone mid-render)
+            _warn_once(f"field '{item.name}' could not be hidden: {hide_exc}")
+    else:
+        if not camera_moved_only:  # (that pass skips fields not written at this frame)
+            ERRORS.pop(key, None)
+
+
+def _hide_field(scene, item) -> None:
+    """Collapse every slot of the field to a point (nothing drawn) and forget what they showed."""
+    for role in (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS):
+        for obj in field_scene.slot_objects(item, role).values():
+            mesh = obj.data
+            if len(mesh.vertices):
+                _write_position(mesh, np.zeros((len(mesh.vertices), 3), np.float32))
+                mesh.update()
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.blade_position_block = np.zeros(0, np.int32)
+        rt.card_position_block = np.zeros(0, np.int32)
+        rt.frame = None
 
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
@@ -501,11 +556,8 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
 
 
 def _update_now(scene, item) -> None:
-    try:
-        if item.collection is not None:
-            update_field(scene, item)
-    except Exception as exc:
-        _warn_once(f"field '{item.name}' could not be updated: {type(exc).__name__}: {exc}")
+    if item.collection is not None:
+        _update_guarded(scene, item)
 
 
 def _flush_pending() -> float | None:
@@ -516,8 +568,9 @@ def _flush_pending() -> float | None:
         return wait
     pending = list(_PENDING)
     _PENDING.clear()
-    for scene_name, uid in pending:
-        scene = bpy.data.scenes.get(scene_name)
+    scenes = {s.session_uid: s for s in bpy.data.scenes}
+    for scene_uid, uid in pending:
+        scene = scenes.get(scene_uid)
         item = next((f for f in scene.windgrass.fields if f.uid == uid), None) if scene else None
         if item is not None:
             _update_now(scene, item)
@@ -563,6 +616,7 @@ def on_depsgraph_update_post(scene, depsgraph=None):
 @persistent
 def on_load_post(*_args):
     RUNTIMES.clear()
+    ERRORS.clear()
     _WARNED.clear()
     _PENDING.clear()
 
@@ -606,4 +660,5 @@ def unregister() -> None:
         bpy.app.timers.unregister(_flush_pending)
     _PENDING.clear()
     RUNTIMES.clear()
+    ERRORS.clear()
     _WARNED.clear()

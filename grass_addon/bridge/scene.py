@@ -19,8 +19,14 @@ heightfield grid (``grass_addon/terrain.py``) over its evaluated surface in worl
 centred on the mesh's XY bounding-box centre, the blades are rooted on the surface and the ground
 becomes a grid mesh following it. The user's mesh is never changed or removed.
 
-Every datablock the field makes carries the custom property ``wg_uid`` (the field's uid) and
-``wg_role``, which is how ``remove_field`` finds all of it again (also after save and reopen).
+What belongs to a field is recorded on its settings item: the custom property ``wg_objects`` holds ID
+pointers to its ground, slot objects, materials and card image (Blender keeps them valid through
+renames, save and reopen, and points a Full Copy of the scene at the copies; on the collection
+itself such pointers crash Blender 4.2's Full Copy). Rebuild and Remove
+touch only those, so a user's Shift+D copy of a grass object (tags and all) is never taken for a
+slot, never taken over and never deleted, and a copied scene's field never touches the original's.
+Every datablock also carries ``wg_uid`` and ``wg_role`` custom properties (files of 0.1 are found
+through them, inside the field's collection only).
 Slot meshes are modifier-free; a later "bake to PC2 + Mesh Cache modifier" can replace the
 per-frame writes on the same objects.
 """
@@ -88,6 +94,38 @@ def _tag(idblock, uid: str, role: str, index: int | None = None) -> None:
 def _owned(collection, uid: str, role: str | None = None) -> list:
     """Datablocks of ``collection`` (a bpy.data collection) made by the field ``uid``."""
     return [d for d in collection if d.get("wg_uid") == uid and (role is None or d.get("wg_role") == role)]
+
+
+REGISTRY = "wg_objects"  # the field item's custom property: {key: ID pointer} of what it made
+
+
+def registered(item) -> dict:
+    """{key: datablock} recorded on the field's settings item (keys ``ground``, ``blades 003``,
+    ``cards 000``, ``blade_material``, ...); datablocks deleted since are left out."""
+    group = item.get(REGISTRY)
+    if group is None or not hasattr(group, "items"):
+        return {}
+    return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
+
+
+def _register(item, key: str, idblock) -> None:
+    if item.get(REGISTRY) is None or not hasattr(item[REGISTRY], "items"):
+        item[REGISTRY] = {}
+    item[REGISTRY][key] = idblock
+
+
+def _slot_key(role: str, index: int) -> str:
+    return f"{role} {index:03d}"
+
+
+def field_objects(item) -> list:
+    """The field's own objects: registered ones, and in a 0.1 file the tagged objects inside its
+    collection (never tagged copies elsewhere)."""
+    if item.get(REGISTRY) is not None:
+        return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
+    coll = item.collection
+    uid = coll.get("wg_uid") if coll is not None else None
+    return [o for o in coll.objects if o.get("wg_uid") == uid] if uid else []
 
 
 # --------------------------------------------------------------------------------------------
@@ -330,34 +368,34 @@ def ensure_collection(scene, item) -> bpy.types.Collection:
     return coll
 
 
-def _material(uid: str, role: str, make):
-    found = _owned(bpy.data.materials, uid, role)
-    if found:
-        return found[0]
+def _material(item, role: str, make):
+    found = registered(item).get(role)
+    if isinstance(found, bpy.types.Material):
+        return found
     mat = make()
     mat["wg_role"] = role
+    _register(item, role, mat)
     return mat
 
 
-def field_materials(uid: str, base_name: str):
-    """(blade, card, ground) materials of the field, created once."""
-    images = _owned(bpy.data.images, uid, ROLE_CARD_IMAGE)
-    if images:
-        image = images[0]
-    else:
+def field_materials(item):
+    """(blade, card, ground) materials of the field, created once and recorded on ``item``."""
+    uid, base_name = item.collection["wg_uid"], item.collection.name
+    image = registered(item).get(ROLE_CARD_IMAGE)
+    if not isinstance(image, bpy.types.Image):
         image = textures.ensure_card_image(f"{base_name} card texture", size=CARD_TEXTURE_SIZE)
         _tag(image, uid, ROLE_CARD_IMAGE)
-    blade = _material(uid, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
-    card = _material(uid, ROLE_CARD_MATERIAL, lambda: materials.card_material(f"{base_name} cards", uid, image))
-    ground = _material(uid, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
+        _register(item, ROLE_CARD_IMAGE, image)
+    blade = _material(item, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
+    card = _material(item, ROLE_CARD_MATERIAL, lambda: materials.card_material(f"{base_name} cards", uid, image))
+    ground = _material(item, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
     return blade, card, ground
 
 
-def update_field_materials(uid: str, params) -> None:
+def update_field_materials(item, params) -> None:
     """Refresh the parameter-dependent values (eq 10 distances, colours) of the materials."""
-    ground = _owned(bpy.data.materials, uid, ROLE_GROUND_MATERIAL)
-    cards = _owned(bpy.data.materials, uid, ROLE_CARD_MATERIAL)
-    materials.update_materials(params, ground[0] if ground else None, cards[0] if cards else None,
+    reg = registered(item)
+    materials.update_materials(params, reg.get(ROLE_GROUND_MATERIAL), reg.get(ROLE_CARD_MATERIAL),
                                tuple(float(c) for c in textures.TIP_COLOUR))
 
 
@@ -388,12 +426,13 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
     base = coll.name
-    blade_mat, card_mat, ground_mat = field_materials(uid, base)
+    blade_mat, card_mat, ground_mat = field_materials(item)
     # Where the user placed the field (the ground carries it) survives the rebuild.
-    old_ground = _owned(bpy.data.objects, uid, ROLE_GROUND)
-    placement = (old_ground[0].matrix_basis.copy(), old_ground[0].parent) if old_ground else None
-    _remove_objects(_owned(bpy.data.objects, uid, ROLE_BLADES) + _owned(bpy.data.objects, uid, ROLE_CARDS)
-                    + old_ground)
+    old_ground = ground_object(item)
+    placement = (old_ground.matrix_basis.copy(), old_ground.parent) if old_ground is not None else None
+    _remove_objects(field_objects(item))
+    for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
+        del item[REGISTRY][key]
 
     heightfield = getattr(layout, "terrain", None)
     ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size, heightfield))
@@ -401,6 +440,7 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     _tag(ground, uid, ROLE_GROUND)
     _tag(ground.data, uid, ROLE_GROUND)
     _link(coll, ground, None)
+    _register(item, ROLE_GROUND, ground)
     rt = runtime.get_runtime(scene, item)
     centre = getattr(rt, "terrain_centre", None) if heightfield is not None else None
     if centre is not None:
@@ -427,6 +467,7 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
             _tag(obj, uid, ROLE_BLADES, i)
             _tag(mesh, uid, ROLE_BLADES, i)
             _link(coll, obj, ground)
+            _register(item, _slot_key(ROLE_BLADES, i), obj)
     if n_card_slots:
         card_verts = card_vertex_count(layout)
         faces, uvs = tiled_topology(kin.card_faces(layout), kin.card_uvs(layout), card_verts, k_cards)
@@ -438,33 +479,64 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
             _tag(obj, uid, ROLE_CARDS, i)
             _tag(mesh, uid, ROLE_CARDS, i)
             _link(coll, obj, ground)
+            _register(item, _slot_key(ROLE_CARDS, i), obj)
     coll["wg_topology"] = topology_key(layout, params)
-    update_field_materials(uid, params)
+    update_field_materials(item, params)
     return coll
 
 
 def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
-    """{slot index: object} of the field's slots that still exist (the user may delete some)."""
+    """{slot index: object} of the field's slots that still exist in its collection (the user may
+    delete some; copies of them are not slots)."""
     coll = item.collection
-    if coll is None:
-        return {}
-    uid = coll.get("wg_uid")
     out = {}
-    for obj in coll.objects:
-        if obj.get("wg_uid") == uid and obj.get("wg_role") == role and obj.type == "MESH":
+    if coll is None:
+        return out
+    for obj in field_objects(item):
+        if obj.get("wg_role") == role and obj.type == "MESH" and coll.objects.get(obj.name) is obj:
             out[int(obj.get("wg_slot", -1))] = obj
     return out
 
 
 def ground_object(item):
-    coll = item.collection
-    if coll is None:
-        return None
-    uid = coll.get("wg_uid")
-    for obj in coll.objects:
-        if obj.get("wg_uid") == uid and obj.get("wg_role") == ROLE_GROUND:
+    for obj in field_objects(item):
+        if obj.get("wg_role") == ROLE_GROUND:
             return obj
     return None
+
+
+def separate_copy(item) -> bool:
+    """A Full Copy of the scene (or a copied collection) shares the original's tag and, unless
+    the user's preferences duplicate them, its materials: give this field's collection a tag of
+    its own and its own copies of the materials and card image. Returns whether it was a copy.
+    Called by ``build_field`` (Rebuild); until then the copy draws with the shared materials."""
+    coll = item.collection
+    if coll is None or not coll.get("wg_uid"):
+        return False
+    tag = coll["wg_uid"]
+    if not any(c is not coll and c.get("wg_uid") == tag for c in bpy.data.collections):
+        return False
+    new_tag = _unused_tag(tag.split("#")[0])
+    coll["wg_uid"] = new_tag
+    reg = registered(item)
+    copies = {}
+    for key, data in reg.items():
+        if isinstance(data, (bpy.types.Material, bpy.types.Image)):
+            copies[data] = data.copy()
+            copies[data]["wg_uid"] = new_tag
+            _register(item, key, copies[data])
+    card_mat, image = copies.get(reg.get(ROLE_CARD_MATERIAL)), copies.get(reg.get(ROLE_CARD_IMAGE))
+    if card_mat is not None and image is not None:
+        materials.set_card_image(card_mat, image)
+    for obj in field_objects(item):
+        obj["wg_uid"] = new_tag
+        if obj.data is not None:
+            obj.data["wg_uid"] = new_tag
+            mats = obj.data.materials
+            for i, mat in enumerate(mats):
+                if mat in copies:
+                    mats[i] = copies[mat]
+    return True
 
 
 def build_field(scene, item) -> bpy.types.Collection:
@@ -477,6 +549,7 @@ def build_field(scene, item) -> bpy.types.Collection:
             bpy.context.view_layer.update()
         except Exception:
             pass
+    separate_copy(item)  # (never from a frame handler: it edits materials of objects)
     runtime.reset_field(scene, item)
     rt = runtime.ensure_runtime(scene, item)
     coll = build_slots(scene, item, rt.field.layout, rt.params)
@@ -487,20 +560,25 @@ def build_field(scene, item) -> bpy.types.Collection:
 
 
 def remove_field(scene, item) -> None:
-    """Delete every object, mesh, material, image and the collection the field made, and its
-    runtime; no orphan data is left behind."""
+    """Delete the field's objects, their meshes, its materials, image and collection (what its
+    collection records, nothing else), and its runtime; no orphan data is left behind."""
     from . import runtime
 
-    uid = owner_tag(scene, item)
     runtime.drop_runtime(scene, item)
-    _remove_objects(_owned(bpy.data.objects, uid))
-    for mesh in _owned(bpy.data.meshes, uid):
-        bpy.data.meshes.remove(mesh)
-    for mat in _owned(bpy.data.materials, uid):
-        bpy.data.materials.remove(mat)
-    for image in _owned(bpy.data.images, uid):
-        bpy.data.images.remove(image)
-    for coll in _owned(bpy.data.collections, uid):
+    coll = item.collection
+    if coll is not None:
+        reg = registered(item)
+        _remove_objects(field_objects(item))
+        if item.get(REGISTRY) is not None:
+            del item[REGISTRY]  # its pointers count as users of the materials and the image
+        uid = coll.get("wg_uid")
+        data = [d for d in reg.values() if isinstance(d, (bpy.types.Material, bpy.types.Image))]
+        if not reg and uid:  # a 0.1 file: the tagged materials and image
+            data = _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid)
+        data.sort(key=lambda d: isinstance(d, bpy.types.Image))  # the materials use the image
+        for block in data:  # shared with a copied scene's field: kept while that one uses it
+            if block.users == 0:
+                (bpy.data.materials if isinstance(block, bpy.types.Material) else bpy.data.images).remove(block)
         bpy.data.collections.remove(coll)
     try:
         item.collection = None

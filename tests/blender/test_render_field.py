@@ -458,3 +458,27 @@ def test_example_scenes_are_valid_and_the_default_is_small(addon):
     # A few minutes on two CPU cores: at most ~2 s of animation at modest size and samples.
     assert frames <= 48 and p.render.resolution_x * p.render.resolution_y <= 480 * 270
     assert p.render.samples <= 16 and p.render.engine == "cycles" and p.camera.mode == "flythrough"
+
+
+def test_a_field_that_cannot_be_simulated_fails_the_batch_render(addon):
+    """Grass that could not be simulated for a frame is an error for a batch render, not a frame
+    rendered without it (or with the grass of another frame)."""
+    from importlib import import_module
+
+    import render_field
+
+    properties = import_module(f"{addon.__name__}.grass_addon.bridge.properties")
+    field_scene = import_module(f"{addon.__name__}.grass_addon.bridge.scene")
+    schema = import_module(f"{addon.__name__}.grass_addon.schema")
+    import bpy
+
+    scene = bpy.context.scene
+    params = schema.defaults().replace({"field.blocks_x": 1, "field.blocks_y": 1, "field.cells_per_block": 4})
+    item = properties.add_field(scene, params, name="Meadow")
+    field_scene.build_field(scene, item)
+    scene.frame_set(2)
+    render_field.check_fields(scene)  # fine
+    item.render.frame_end = 0  # before frame_start: cannot be simulated
+    scene.frame_set(3)
+    with pytest.raises(render_field.FieldError, match="Meadow.*render.frame_end"):
+        render_field.check_fields(scene)

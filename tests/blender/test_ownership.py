@@ -1,0 +1,125 @@
+"""What a field owns and what it answers for: copied scenes, a user's copies of grass objects,
+renamed scenes, and settings that cannot be simulated (grass hidden, error shown, render fails)."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def bridge(with_bridge):
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge import scene as field_scene
+
+    return field_scene, runtime
+
+
+def _add_field():
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2, cells_per_block=8) == {"FINISHED"}
+    scene = bpy.context.scene
+    return scene, scene.windgrass.fields[-1]
+
+
+def _positions(obj) -> np.ndarray:
+    out = np.empty(len(obj.data.vertices) * 3, dtype=np.float32)
+    obj.data.attributes["position"].data.foreach_get("vector", out)
+    return out.reshape(-1, 3)
+
+
+def _grass_objects(scene) -> set[str]:
+    return {o.name for o in scene.objects if o.get("wg_role")}
+
+
+def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
+    field_scene, runtime = bridge
+    original, item = _add_field()
+    original_objects = _grass_objects(original)
+    bpy.ops.scene.new(type="FULL_COPY")
+    copy = bpy.context.scene
+    copy_item = copy.windgrass.fields[0]
+    copy.frame_set(5)
+    assert copy_item.collection is not item.collection
+    assert runtime.get_runtime(copy, copy_item) is not runtime.get_runtime(original, item)
+    # Rebuild and Remove in the copy leave the original's grass alone.
+    assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
+    assert copy_item.collection["wg_uid"] != item.collection["wg_uid"]
+    copy_materials = {m for o in copy_item.collection.objects for m in o.data.materials}
+    assert not copy_materials & {m for o in item.collection.objects for m in o.data.materials}
+    assert _grass_objects(original) == original_objects
+    bpy.ops.windgrass.field_remove()
+    assert _grass_objects(original) == original_objects
+    assert not _grass_objects(copy)
+    # The original still animates: its blades move between frames.
+    bpy.context.window.scene = original if bpy.context.window else None
+    original.frame_set(2)
+    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    before = _positions(blades).copy()
+    original.frame_set(9)
+    assert not np.array_equal(before, _positions(blades))
+    assert all(m.users > 0 for m in item.collection.objects[0].data.materials if m)
+
+
+def test_shift_d_copies_are_the_users_own(bridge):
+    """A duplicate of a slot object inside the field does not take the slot over; one moved to
+    the user's own collection survives Remove."""
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    slot = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    inside = slot.copy()
+    inside.data = slot.data.copy()
+    item.collection.objects.link(inside)
+    mine = bpy.data.collections.new("Mine")
+    scene.collection.children.link(mine)
+    kept = slot.copy()
+    kept.data = slot.data.copy()
+    mine.objects.link(kept)
+    scene.frame_set(3)
+    assert field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0] is slot
+    before = _positions(slot).copy()
+    scene.frame_set(11)
+    assert not np.array_equal(before, _positions(slot)), "the original slot froze"
+    kept_name = kept.name
+    bpy.ops.windgrass.field_remove()
+    assert kept_name in bpy.data.objects and bpy.data.objects[kept_name].users_collection[0] == mine
+
+
+def test_renaming_a_scene_keeps_one_runtime(bridge):
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    scene.frame_set(2)
+    rt = runtime.get_runtime(scene, item)
+    for i in range(4):
+        scene.name = f"Meadow {i}"
+        scene.frame_set(3 + i)
+    assert runtime.get_runtime(scene, item) is rt
+    assert len(runtime.RUNTIMES) == 1
+
+
+def test_a_deleted_scene_leaves_no_runtime(bridge):
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    scene.frame_set(2)
+    other = bpy.data.scenes.new("Other")
+    bpy.context.window.scene = other if bpy.context.window else None
+    bpy.data.scenes.remove(scene)
+    assert bpy.ops.windgrass.field_add(blocks_x=1, blocks_y=1, cells_per_block=4) == {"FINISHED"}
+    assert len(runtime.RUNTIMES) == 1
+
+
+def test_a_setting_that_cannot_be_simulated_hides_the_grass_and_says_why(bridge):
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    scene.frame_set(4)
+    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    assert np.abs(_positions(blades)).max() > 0.0
+    item.lod.blade_far = 1.0  # below blade_near (6 m): the LOD distances are out of order
+    scene.frame_set(5)
+    error = runtime.field_error(scene, item)
+    assert error and "lod.blade_far" in error and "blade_near" in error
+    assert np.abs(_positions(blades)).max() == 0.0, "stale grass is still drawn"
+    item.lod.blade_far = 12.0
+    scene.frame_set(6)
+    assert runtime.field_error(scene, item) is None
+    assert np.abs(_positions(blades)).max() > 0.0

@@ -60,14 +60,19 @@ class Heightfield:
         """(ny + 1, nx + 1, 2) float64 XY of every sample."""
         return grid_points(self.origin_xy, self.spacing, self.nx, self.ny)
 
-    def sample(self, xy) -> np.ndarray:
-        """Bilinear height at points xy (..., 2) -> (...) float32; clamped to the grid outside it."""
+    def _cell(self, xy):
+        """(i, j, fu, fv): the grid cell holding each point (clamped to the grid) and the point's
+        fractions across it."""
         xy = np.asarray(xy, dtype=np.float64)
         u = np.clip((xy[..., 0] - self.origin_xy[0]) / self.spacing, 0.0, self.nx)
         v = np.clip((xy[..., 1] - self.origin_xy[1]) / self.spacing, 0.0, self.ny)
         i = np.minimum(np.floor(u), self.nx - 1).astype(np.intp)
         j = np.minimum(np.floor(v), self.ny - 1).astype(np.intp)
-        fu, fv = u - i, v - j
+        return i, j, u - i, v - j
+
+    def sample(self, xy) -> np.ndarray:
+        """Bilinear height at points xy (..., 2) -> (...) float32; clamped to the grid outside it."""
+        i, j, fu, fv = self._cell(xy)
         h = self.heights
         z00, z10 = h[j, i].astype(np.float64), h[j, i + 1].astype(np.float64)
         z01, z11 = h[j + 1, i].astype(np.float64), h[j + 1, i + 1].astype(np.float64)
@@ -78,12 +83,7 @@ class Heightfield:
     def gradient(self, xy) -> np.ndarray:
         """(..., 2) float32 slope dz/dx, dz/dy of the bilinear surface at points xy (that of the
         nearest grid cell outside the grid)."""
-        xy = np.asarray(xy, dtype=np.float64)
-        u = np.clip((xy[..., 0] - self.origin_xy[0]) / self.spacing, 0.0, self.nx)
-        v = np.clip((xy[..., 1] - self.origin_xy[1]) / self.spacing, 0.0, self.ny)
-        i = np.minimum(np.floor(u), self.nx - 1).astype(np.intp)
-        j = np.minimum(np.floor(v), self.ny - 1).astype(np.intp)
-        fu, fv = u - i, v - j
+        i, j, fu, fv = self._cell(xy)
         h = self.heights.astype(np.float64)
         z00, z10, z01, z11 = h[j, i], h[j, i + 1], h[j + 1, i], h[j + 1, i + 1]
         dx = ((z10 - z00) * (1.0 - fv) + (z11 - z01) * fv) / self.spacing

@@ -104,13 +104,29 @@ def registered(item) -> dict:
     ``cards 000``, ``blade_material``, ...); datablocks deleted since are left out."""
     group = item.get(REGISTRY)
     if group is None or not hasattr(group, "items"):
-        return {}
+        return _tagged(item)
     return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
+
+
+def _tagged(item) -> dict:
+    """What a 0.1 file's field made, found by its tag: objects inside its collection only."""
+    coll = item.collection
+    uid = coll.get("wg_uid") if coll is not None else None
+    if not uid:
+        return {}
+    found = {}
+    for obj in coll.objects:
+        if obj.get("wg_uid") == uid and obj.get("wg_role"):
+            role = obj["wg_role"]
+            found.setdefault(role if role == ROLE_GROUND else _slot_key(role, int(obj.get("wg_slot", -1))), obj)
+    for data in _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid):
+        found.setdefault(data.get("wg_role"), data)
+    return found
 
 
 def _register(item, key: str, idblock) -> None:
     if item.get(REGISTRY) is None or not hasattr(item[REGISTRY], "items"):
-        item[REGISTRY] = {}
+        item[REGISTRY] = _tagged(item)
     item[REGISTRY][key] = idblock
 
 
@@ -119,13 +135,8 @@ def _slot_key(role: str, index: int) -> str:
 
 
 def field_objects(item) -> list:
-    """The field's own objects: registered ones, and in a 0.1 file the tagged objects inside its
-    collection (never tagged copies elsewhere)."""
-    if item.get(REGISTRY) is not None:
-        return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
-    coll = item.collection
-    uid = coll.get("wg_uid") if coll is not None else None
-    return [o for o in coll.objects if o.get("wg_uid") == uid] if uid else []
+    """The field's own objects (never a user's tagged copies elsewhere)."""
+    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -571,10 +582,7 @@ def remove_field(scene, item) -> None:
         _remove_objects(field_objects(item))
         if item.get(REGISTRY) is not None:
             del item[REGISTRY]  # its pointers count as users of the materials and the image
-        uid = coll.get("wg_uid")
         data = [d for d in reg.values() if isinstance(d, (bpy.types.Material, bpy.types.Image))]
-        if not reg and uid:  # a 0.1 file: the tagged materials and image
-            data = _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid)
         data.sort(key=lambda d: isinstance(d, bpy.types.Image))  # the materials use the image
         for block in data:  # shared with a copied scene's field: kept while that one uses it
             if block.users == 0:

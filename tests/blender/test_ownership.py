@@ -123,3 +123,19 @@ def test_a_setting_that_cannot_be_simulated_hides_the_grass_and_says_why(bridge)
     scene.frame_set(6)
     assert runtime.field_error(scene, item) is None
     assert np.abs(_positions(blades)).max() > 0.0
+
+
+def test_a_field_without_a_record_is_found_by_its_tags(bridge):
+    """Files made before fields recorded what they own: the field's data is found by its tag,
+    inside its own collection, and Remove leaves nothing behind."""
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    del item[field_scene.REGISTRY]
+    scene.frame_set(4)
+    assert field_scene.ground_object(item) is not None
+    assert field_scene.slot_objects(item, field_scene.ROLE_BLADES)
+    names = {d.name for d in field_scene.registered(item).values()}
+    assert {"Grass blades", "Grass cards", "Grass ground"} <= names
+    bpy.ops.windgrass.field_remove()
+    assert not [d for d in (*bpy.data.objects, *bpy.data.meshes, *bpy.data.materials, *bpy.data.images)
+                if d.get("wg_uid")]

@@ -1,7 +1,11 @@
-"""Load the repository as the add-on package, without installing it (tests and headless scripts).
+"""The repository as the package ``windgrass``: the one name every script and test imports it by.
 
-The repository root is the extension; its package name is the manifest id, ``windgrass``.
-Inside the extension all imports are relative, so the name only appears here.
+The repository root is the extension; its package name is the manifest id, ``windgrass`` (Blender
+itself imports an installed copy as ``bl_ext.<repository>.windgrass``). Inside the extension all
+imports are relative, so the name only appears here. ``load_package`` makes ``windgrass`` and its
+engine ``windgrass.grass_addon`` importable without Blender (the numpy core never imports bpy);
+``load_addon`` also registers the add-on with Blender. Importing the engine by any other name
+(``grass_addon`` with the repository on ``sys.path``) would load a second copy of every module.
 """
 
 from __future__ import annotations
@@ -15,8 +19,8 @@ REPO = Path(__file__).resolve().parent.parent
 PACKAGE = "windgrass"
 
 
-def load_addon(register: bool = True) -> ModuleType:
-    """Import the repo root as package ``windgrass`` (once) and register it with Blender."""
+def load_package() -> ModuleType:
+    """Import the repository root as package ``windgrass`` (once); nothing is registered."""
     module = sys.modules.get(PACKAGE)
     if module is None:
         spec = importlib.util.spec_from_file_location(
@@ -24,15 +28,12 @@ def load_addon(register: bool = True) -> ModuleType:
         module = importlib.util.module_from_spec(spec)
         sys.modules[PACKAGE] = module
         spec.loader.exec_module(module)
-    if register and not getattr(module, "_registered", False):
-        module.register()
     return module
 
 
-def core() -> ModuleType:
-    """The numpy-only engine package ``grass_addon`` (importable without bpy)."""
-    if str(REPO) not in sys.path:
-        sys.path.insert(0, str(REPO))
-    import grass_addon
-
-    return grass_addon
+def load_addon(register: bool = True) -> ModuleType:
+    """``load_package`` and register the add-on with Blender (needs bpy)."""
+    module = load_package()
+    if register and not getattr(module, "_registered", False):
+        module.register()
+    return module

@@ -36,14 +36,15 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-REPO = HERE.parent
-for _p in (REPO, HERE):
-    if str(_p) not in sys.path:
-        sys.path.insert(0, str(_p))
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
 
-from grass_addon import kinematics, schema  # noqa: E402
-from grass_addon.errors import ParameterError  # noqa: E402
-from grass_addon.lod import Camera, lod_weights  # noqa: E402
+import addon_loader  # noqa: E402
+
+addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, no Blender)
+from windgrass.grass_addon import kinematics, schema  # noqa: E402
+from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+from windgrass.grass_addon.lod import Camera, lod_weights  # noqa: E402
 
 CELLS_PER_BLOCK = 16
 BLADES_PER_CELL = 2
@@ -101,8 +102,8 @@ def machine_info() -> dict:
 
 
 def run_bench(blades: int, segments: int, frames: int) -> dict:
-    from grass_addon.celldata import cell_data
-    from grass_addon.field import GrassField
+    from windgrass.grass_addon.celldata import cell_data
+    from windgrass.grass_addon.field import GrassField
 
     params = field_params(blades, segments)
     t0 = time.perf_counter()

@@ -68,10 +68,11 @@ def field_plan(blades: int) -> dict[str, Any]:
     real count is a multiple of that (10 000 -> 10 240, 100 000 -> 100 352). The blade size,
     segments, cell size and wind come from the schema defaults (the single source of truth).
     """
-    from addon_loader import core
+    from addon_loader import load_package
 
-    core()
-    from grass_addon import schema
+    load_package()
+    from windgrass.grass_addon import schema
+
     p = schema.defaults()
     species = p.species()[0]
     per_block = p.field.cells_per_block ** 2 * p.field.blades_per_cell

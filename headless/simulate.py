@@ -21,13 +21,16 @@ from types import SimpleNamespace
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+HEADLESS = Path(__file__).resolve().parent
+if str(HEADLESS) not in sys.path:
+    sys.path.insert(0, str(HEADLESS))
 
-from grass_addon import kinematics, schema  # noqa: E402
-from grass_addon.errors import ParameterError  # noqa: E402
-from grass_addon.field import GrassField  # noqa: E402
+import addon_loader  # noqa: E402
+
+addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, no Blender)
+from windgrass.grass_addon import kinematics, schema  # noqa: E402
+from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+from windgrass.grass_addon.field import GrassField  # noqa: E402
 
 MAX_TRACE_BLADES = 100_000  # blade_tip is stored for fields up to this many blades
 SUMMARY_BLADES = 100_000  # tip statistics of larger fields use evenly spread blocks up to this many

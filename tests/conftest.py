@@ -15,9 +15,12 @@ if "bpy" not in sys.modules:
     os.environ["BLENDER_USER_RESOURCES"] = str(_tmp / "blender-user")
     os.environ["HOME"] = str(_tmp / "home")
     (_tmp / "home").mkdir()
-for path in (REPO, REPO / "headless"):
-    if str(path) not in sys.path:
-        sys.path.insert(0, str(path))
+if str(REPO / "headless") not in sys.path:
+    sys.path.insert(0, str(REPO / "headless"))
+import addon_loader  # noqa: E402
+
+# The one name of the package (never `grass_addon` from the repository root: a second copy).
+addon_loader.load_package()
 
 
 def pytest_unconfigure(config):

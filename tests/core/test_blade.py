@@ -2,8 +2,7 @@
 
 import numpy as np
 import pytest
-
-from grass_addon import blade
+from windgrass.grass_addon import blade
 
 N = 5
 OFFSET = 0.05  # x of eq 1 (schema default)
@@ -73,8 +72,8 @@ def test_converged_statics_is_a_torque_balance():
 def _tip_positions(segments: int) -> tuple[np.ndarray, np.ndarray]:
     """Rest tip (horizontal, vertical) of every blade of a field drawn with `segments` segments,
     in blade lengths, and the tip segment's tilt in degrees (the same blades for any count)."""
-    from grass_addon import schema
-    from grass_addon.layout import build_layout
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.layout import build_layout
 
     layout = build_layout(schema.defaults().replace({"field.blocks_x": 2, "field.blocks_y": 2,
                                                      "blade.segments": segments}))

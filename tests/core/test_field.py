@@ -4,10 +4,9 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import kinematics, schema
-from grass_addon.field import GrassField
-from grass_addon.lod import Camera
+from windgrass.grass_addon import kinematics, schema
+from windgrass.grass_addon.field import GrassField
+from windgrass.grass_addon.lod import Camera
 
 
 def small_params(**values):

@@ -10,9 +10,8 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon.field import GrassField
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.field import GrassField
 
 RUNS = 120
 DRAWN = ("blade.segments", "blade.tip_width", "blade.inclination", "blade.root_stiffness",

@@ -4,10 +4,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
-from grass_addon import blade, kinematics, schema
-from grass_addon.layout import build_layout
-from grass_addon.terrain import Heightfield, grid_for
+from windgrass.grass_addon import blade, kinematics, schema
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.terrain import Heightfield, grid_for
 
 
 def small_layout(**overrides):
@@ -273,7 +272,7 @@ def test_joint_major_cell_data_gives_the_same_strips_and_cards():
     """celldata.CellData carries the solver's joint-major arrays (bend_t (n, 2, C), twist_t (n, C));
     the kernel reads them directly. Same numbers as the cell-major bend/twist, bit for bit, for
     the whole field, for blocks in any order and for the cards."""
-    from grass_addon.celldata import CellData
+    from windgrass.grass_addon.celldata import CellData
 
     layout = small_layout(**{"field.blocks_x": 3})
     cells = random_cells(layout, seed=5)
@@ -322,7 +321,7 @@ def test_the_ground_stops_every_blade_and_card():
     bend = np.zeros((C, n, 2), np.float32)
     bend[..., 0] = (np.cos(direction) * 1.2)[:, None]
     bend[..., 1] = (np.sin(direction) * 1.2)[:, None]
-    from grass_addon.celldata import card_offset
+    from windgrass.grass_addon.celldata import card_offset
 
     cells = cells_of(layout, bend, card_offset=card_offset(layout.card_height, bend.sum(axis=1).T))
     blocks = np.arange(layout.n_blocks)

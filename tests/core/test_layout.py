@@ -1,9 +1,8 @@
 """Field layout (paper III, III.A-B): blocks of cells, blades in cells, species, cards."""
 
 import numpy as np
-
-from grass_addon import schema
-from grass_addon.layout import build_layout
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.layout import build_layout
 
 
 def make(**values):

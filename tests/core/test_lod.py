@@ -4,10 +4,9 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon.layout import build_layout
-from grass_addon.lod import Camera, lod_weights
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.lod import Camera, lod_weights
 
 
 def row_layout(**lod):

@@ -2,9 +2,8 @@
 
 import numpy as np
 import pytest
-
-from grass_addon import blade, presets, schema
-from grass_addon.errors import ParameterError
+from windgrass.grass_addon import blade, presets, schema
+from windgrass.grass_addon.errors import ParameterError
 
 
 def _mean_length(rows) -> float:

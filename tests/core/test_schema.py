@@ -4,9 +4,8 @@ import argparse
 import math
 
 import pytest
-
-from grass_addon import schema
-from grass_addon.errors import ParameterError
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.errors import ParameterError
 
 
 def test_defaults_are_the_papers_test_scene():

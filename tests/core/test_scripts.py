@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon.solver import SolverState
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.solver import SolverState
 
 REPO = Path(__file__).resolve().parents[2]
 TINY = ["--field-blocks-x", "2", "--field-blocks-y", "1", "--field-cells-per-block", "4",

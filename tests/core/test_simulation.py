@@ -4,13 +4,12 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon.blade import GROUND_TILT
-from grass_addon.celldata import card_offset, cell_data
-from grass_addon.layout import build_layout
-from grass_addon.simulation import Simulation
-from grass_addon.wind import WindField
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.blade import GROUND_TILT
+from windgrass.grass_addon.celldata import card_offset, cell_data
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.simulation import Simulation
+from windgrass.grass_addon.wind import WindField
 
 BASE = {"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4, "render.fps": 24,
         "render.frame_start": 1, "simulation.preroll": 0.5, "simulation.checkpoint_interval": 6}

@@ -4,12 +4,11 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon import solver as solver_mod
-from grass_addon.field import GrassField
-from grass_addon.layout import build_layout
-from grass_addon.solver import BEND_LIMIT, TWIST_LIMIT, BladeSolver
+from windgrass.grass_addon import schema
+from windgrass.grass_addon import solver as solver_mod
+from windgrass.grass_addon.field import GrassField
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.solver import BEND_LIMIT, TWIST_LIMIT, BladeSolver
 
 FPS = 24
 DT = 1.0 / FPS

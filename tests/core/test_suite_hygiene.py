@@ -18,3 +18,14 @@ def test_a_test_run_leaves_no_temporary_folder(tmp_path):
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert "passed" in proc.stdout
     assert list(tmpdir.iterdir()) == []
+
+
+def test_the_engine_has_one_import_name():
+    """Scripts, core tests and Blender tests all import the engine as windgrass.grass_addon: one
+    copy of every module, one ParameterError class."""
+    import sys
+
+    from windgrass.grass_addon import errors, schema
+
+    assert not [name for name in sys.modules if name == "grass_addon" or name.startswith("grass_addon.")]
+    assert schema.ParameterError is errors.ParameterError

@@ -4,13 +4,12 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema, terrain
-from grass_addon.blade import GROUND_TILT
-from grass_addon.errors import ParameterError
-from grass_addon.field import GrassField
-from grass_addon.layout import build_layout
-from grass_addon.lod import Camera, lod_weights
+from windgrass.grass_addon import schema, terrain
+from windgrass.grass_addon.blade import GROUND_TILT
+from windgrass.grass_addon.errors import ParameterError
+from windgrass.grass_addon.field import GrassField
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.lod import Camera, lod_weights
 
 
 def small_params(**extra):

@@ -8,11 +8,10 @@ import math
 
 import numpy as np
 import pytest
-
-from grass_addon import schema
-from grass_addon.errors import ParameterError
-from grass_addon.layout import build_layout
-from grass_addon.wind import WindField
+from windgrass.grass_addon import schema
+from windgrass.grass_addon.errors import ParameterError
+from windgrass.grass_addon.layout import build_layout
+from windgrass.grass_addon.wind import WindField
 
 # 1-D [1, 2, 1] / 4 filter of eq 13 applied to white noise: correlation at lag 0, 1, 2, 3.
 # (sum of products of the shifted kernel over sum of squares: 6/6, 4/6, 1/6, 0).

@@ -448,7 +448,7 @@ def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
         total_twist = np.add.reduce(np.asarray(cells.twist, dtype=np.float32)[cell_ids], axis=1)
     offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
     height = layout.card_height[cell_ids]
-    cell_ground = getattr(layout, "cell_ground", None)  # terrain height at the cell centre (issue 3)
+    cell_ground = getattr(layout, "cell_ground", None)  # terrain height at the cell centre
     ground = np.float32(0.0) if cell_ground is None else cell_ground[cell_ids]
     bx, by = np.cos(facing) * half, np.sin(facing) * half
     top_facing = facing + total_twist

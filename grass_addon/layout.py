@@ -63,7 +63,7 @@ class FieldLayout:
     card_facing: np.ndarray
     card_shade: np.ndarray
     species_color: np.ndarray  # (n_species, 3) float32 linear RGB
-    # terrain (issue 3): None = flat ground z = 0; blade_root z lies on it
+    # terrain: None = flat ground z = 0; blade_root z lies on it
     terrain: Heightfield | None = None
     cell_ground: np.ndarray = dc_field(default=None)  # (n_cells,) float32 ground z at each cell centre
     block_z_range: np.ndarray = dc_field(default=None)  # (n_blocks, 2) float32 lowest, highest ground

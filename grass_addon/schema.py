@@ -69,6 +69,7 @@ class Param:
     size: int = 0  # for kind == "vec"
     fields: tuple[Param, ...] = ()  # for kind == "table_list": the columns of each row
     label: str = ""
+    applies_when: tuple[str, str] = ()  # (enum key of the section, choice): only matters then
 
     @property
     def name(self) -> str:
@@ -193,15 +194,15 @@ PARAMS: tuple[Param, ...] = (
     _p("wind", "turbulence_period", "float", 1.5, "Seconds between independent turbulence samples",
        unit="s", minimum=0.05, maximum=600.0, soft_max=10.0),
     _p("wind", "gust_speed", "float", 9.0, "Blast: extra speed at the centre of the gust front",
-       unit="m/s", minimum=0.0, maximum=60.0, soft_max=25.0),
+       unit="m/s", minimum=0.0, maximum=60.0, soft_max=25.0, applies_when=("type", "blast")),
     _p("wind", "gust_width", "float", 6.0, "Blast: width of the gust front", unit="m", minimum=0.1,
-       maximum=1000.0, soft_max=50.0),
+       maximum=1000.0, soft_max=50.0, applies_when=("type", "blast")),
     _p("wind", "gust_interval", "float", 6.0, "Blast: seconds between gust fronts", unit="s", minimum=0.5,
-       maximum=3600.0, soft_max=60.0),
+       maximum=3600.0, soft_max=60.0, applies_when=("type", "blast")),
     _p("wind", "vortex_radius", "float", 3.0, "Whirlwind: core radius of the vortex", unit="m",
-       minimum=0.1, maximum=1000.0, soft_max=30.0),
+       minimum=0.1, maximum=1000.0, soft_max=30.0, applies_when=("type", "whirlwind")),
     _p("wind", "vortex_speed", "float", 9.0, "Whirlwind: peak tangential speed at the core radius",
-       unit="m/s", minimum=0.0, maximum=60.0, soft_max=30.0),
+       unit="m/s", minimum=0.0, maximum=60.0, soft_max=30.0, applies_when=("type", "whirlwind")),
     _p("wind", "keys", "table_list", (), "Keys that change the mean speed and direction over time",
        fields=WIND_KEY_FIELDS),
     # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------
@@ -225,11 +226,11 @@ PARAMS: tuple[Param, ...] = (
        maximum=10000.0, soft_max=50.0),
     _p("camera", "fov", "float", 55.0, "Horizontal field of view", unit="deg", minimum=1.0, maximum=170.0),
     _p("camera", "speed", "float", 1.2, "Flythrough: speed along the path", unit="m/s", minimum=0.0,
-       maximum=1000.0, soft_max=20.0),
+       maximum=1000.0, soft_max=20.0, applies_when=("mode", "flythrough")),
     _p("camera", "position", "vec", (0.0, -6.0, 1.6), "Fixed view: camera position (field centre is 0,0)",
-       unit="m", minimum=-1e5, maximum=1e5, size=3),
+       unit="m", minimum=-1e5, maximum=1e5, size=3, applies_when=("mode", "fixed")),
     _p("camera", "target", "vec", (0.0, 4.0, 0.2), "Fixed view: point the camera looks at", unit="m",
-       minimum=-1e5, maximum=1e5, size=3),
+       minimum=-1e5, maximum=1e5, size=3, applies_when=("mode", "fixed")),
     # --- [render] ------------------------------------------------------------------------------
     _p("render", "engine", "enum", "cycles", "Render engine", choices=("cycles", "eevee")),
     _p("render", "samples", "int", 16, "Samples per pixel", minimum=1, maximum=65536, soft_max=512),

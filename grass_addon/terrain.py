@@ -1,6 +1,6 @@
 """Terrain: the ground height under the field as a regular heightfield (numpy only, no bpy).
 
-The paper grows its grass on flat ground; issue 3 roots the blades on a mesh. The bridge samples
+The paper grows its grass on flat ground; Windgrass can root the blades on a mesh. The bridge samples
 the mesh at the points of a regular grid over the field (``grid_for``: one sample per cell corner,
 coarser for very large fields) and hands the heights to the core as a ``Heightfield``. Between
 samples the height is bilinear, so a plane (any tilt) is reproduced exactly. ``None`` everywhere

@@ -1,4 +1,4 @@
-"""Peer benchmark (issue 3): our frame against Geometry Nodes wind and hair dynamics, same blade count.
+"""Peer benchmark: our frame against Geometry Nodes wind and hair dynamics, same blade count.
 
     python headless/bench_peers.py [--blades 10000 100000] [--frames N] [--no-ours] [--peers ...]
 
@@ -541,7 +541,7 @@ def run_peers(blade_counts=(10_000, 100_000), frames: int = 3, ours: bool = True
         for peer, key in RATIOS:
             a, b = row["ours_ms"], row[f"{peer}_ms"]
             row[key] = round(a / b, 5) if a is not None and b else None
-        for key, goal in GOALS.items():  # issue 3: ours <= 1/20 of GN, <= 1/200 of hair dynamics
+        for key, goal in GOALS.items():  # goals: ours <= 1/20 of GN, <= 1/200 of hair dynamics
             row[key.replace("ratio_ours_to", "meets_goal")] = None if row[key] is None else row[key] <= goal
         row["detail"] = detail
         results[str(n)] = row

@@ -6,15 +6,15 @@ from . import (
     field_add,
     field_rebuild,
     field_remove,
+    row_add,
+    row_remove,
     simulation_reset,
-    species_add,
     species_preset,
-    species_remove,
     wind_preset,
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, simulation_reset, wind_preset, species_preset,
-            species_add, species_remove)
+            row_add, row_remove)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

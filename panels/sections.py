@@ -26,20 +26,6 @@ PRESETS = {
 ROW_WORD = {"blade.species": "Species", "wind.keys": "Key"}
 
 
-def _condition(p: schema.Param, section: tuple[schema.Param, ...]) -> tuple[str, str] | None:
-    """A parameter whose help starts with "<Choice>:" (e.g. "Blast: ...") only applies when an
-    enum of its section has that choice: returns (enum key, choice)."""
-    head, sep, _ = p.help.partition(":")
-    if not sep:
-        return None
-    words = head.strip().lower().split()
-    for candidate in ("_".join(words), words[0] if words else ""):
-        for q in section:
-            if q.kind == "enum" and candidate in q.choices:
-                return q.key, candidate
-    return None
-
-
 def draw_table(layout, group, p: schema.Param) -> None:
     """UI list of a table parameter, add/remove buttons and the selected row's columns."""
     box = layout.box()
@@ -49,8 +35,8 @@ def draw_table(layout, group, p: schema.Param) -> None:
     row.template_list("WINDGRASS_UL_rows", p.name, group, p.key, group, index, rows=3)
     col = row.column(align=True)
     word = ROW_WORD.get(p.name, "Row")
-    col.operator("windgrass.species_add", text="", icon="ADD").table = p.name
-    col.operator("windgrass.species_remove", text="", icon="REMOVE").table = p.name
+    col.operator("windgrass.row_add", text="", icon="ADD").table = p.name
+    col.operator("windgrass.row_remove", text="", icon="REMOVE").table = p.name
     rows = getattr(group, p.key)
     if not len(rows):
         box.label(text=f"No {word.lower()} rows: {p.help}", icon="INFO")
@@ -70,9 +56,8 @@ def draw_section(layout, context, item, section: str) -> None:
         op, prop, text = PRESETS[section]
         layout.operator_menu_enum(op, prop, text=text, icon="PRESET")
     for p in params:
-        condition = _condition(p, params)
-        if condition is not None and getattr(group, condition[0]) != condition[1]:
-            continue
+        if p.applies_when and getattr(group, p.applies_when[0]) != p.applies_when[1]:
+            continue  # e.g. the gust front's settings while the wind is not a blast
         if p.kind == "table_list":
             draw_table(layout, group, p)
         else:
@@ -81,11 +66,13 @@ def draw_section(layout, context, item, section: str) -> None:
         render = context.scene.render
         fps = render.fps / render.fps_base
         col = layout.column(align=True)
-        col.label(text=f"Steps at the scene's {fps:g} fps from frame {context.scene.frame_start}", icon="INFO")
-        col.label(text="(render.fps of the settings is for headless renders)")
+        col.label(text=f"Steps at the scene's {render.fps} fps from frame {context.scene.frame_start}",
+                  icon="INFO")
+        if render.fps_base != 1.0:
+            col.label(text=f"(the scene's {fps:.3g} fps is simulated as {render.fps} fps)")
     if section in HEADLESS:
-        layout.label(text="Used by headless renders; Blender uses the scene's camera and render settings",
-                     icon="INFO")
+        layout.label(text="Used by headless renders; in Blender the scene's camera, frame rate and "
+                          "frame range rule", icon="INFO")
 
 
 def _panel(section: str) -> type:

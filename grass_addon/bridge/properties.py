@@ -272,10 +272,28 @@ CLASSES: tuple[type, ...] = (*ROW_CLASSES.values(), *SECTION_CLASSES.values(), W
 # Settings <-> Params
 
 
-def params_from_settings(item: Any) -> schema.Params:
-    """Validated Params of a field item; a bad value raises ParameterError naming its key."""
+# The scene's clock: inside Blender these come from the scene, not from the field's settings
+# (which headless renders use to set up their scene).
+SCENE_CLOCK = ("render.fps", "render.frame_start", "render.frame_end")
+
+
+def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
+    """Validated Params of a field item; a bad value raises ParameterError naming its key.
+
+    With ``scene`` the clock is the scene's: its frame rate (``render.fps``; a fractional
+    ``fps_base`` such as 29.97 fps is not followed) and frame range."""
     data = {s: {p.key: from_blender(p, getattr(getattr(item, s), p.key)) for p in schema.section_params(s)}
             for s in schema.SECTIONS}
+    if scene is not None:
+        last = schema.BY_NAME["render.frame_end"].maximum
+        data["render"].update(fps=int(scene.render.fps), frame_start=int(scene.frame_start),
+                              frame_end=int(min(max(scene.frame_end, scene.frame_start), last)))
+        try:
+            return schema.from_dict(data)
+        except ParameterError as exc:
+            if exc.key in SCENE_CLOCK:
+                raise ParameterError(exc.key, f"the scene's {exc.message}") from None
+            raise
     return schema.from_dict(data)
 
 
@@ -322,24 +340,12 @@ def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
         setattr(getattr(item, p.section), index_name(p), 0)
 
 
-def settings(scene: bpy.types.Scene) -> Any:
-    """``scene.windgrass`` (the root settings)."""
-    return scene.windgrass
-
-
 def active_field(scene: bpy.types.Scene) -> Any | None:
     """The field item selected in the UI list, or None when the scene has no field."""
     root = getattr(scene, "windgrass", None)
     if root is None or not len(root.fields):
         return None
     return root.fields[min(max(root.active_index, 0), len(root.fields) - 1)]
-
-
-def field_by_uid(scene: bpy.types.Scene, uid: str) -> Any | None:
-    for item in scene.windgrass.fields:
-        if item.uid == uid:
-            return item
-    return None
 
 
 def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name: str = "Grass") -> Any:
@@ -376,7 +382,7 @@ def remove_item(scene: bpy.types.Scene, item: Any) -> None:
 
 
 __all__ = ["ParameterError", "params_from_settings", "apply_params", "active_field", "add_field",
-           "remove_item", "field_by_uid", "make_property", "write_rows", "table_param", "table_rows", "batch", "notify",
+           "remove_item", "make_property", "write_rows", "table_param", "table_rows", "batch", "notify",
            "register", "unregister"]
 
 # --------------------------------------------------------------------------------------------

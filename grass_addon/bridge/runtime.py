@@ -79,7 +79,7 @@ class FieldRuntime:
     card_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
     lod: object = None
     camera_signature: tuple | None = None
-    # Terrain (issue 3): the heightfield sampled from item.terrain at build time (None: flat), the
+    # Terrain: the heightfield sampled from item.terrain at build time (None: flat), the
     # world XY the field is centred on, and what the samples depend on besides the mesh data.
     params_digest: str = ""
     terrain_key: str = ""
@@ -186,7 +186,7 @@ def field_params(scene, item, previous: FieldRuntime | None = None):
     """(params, wind_keys, wind_fingerprint, digest) of the field now."""
     from . import properties
 
-    params = properties.params_from_settings(item)
+    params = properties.params_from_settings(item, scene)
     fcurves = wind_fcurves(scene, item) if scene.animation_data is not None else {}
     if not fcurves:
         return params, None, "", params.digest()
@@ -295,8 +295,8 @@ def assign_slots(n_slots: int, chosen: np.ndarray) -> np.ndarray:
 
     Canonical on purpose: what each slot object holds is a function of the frame (and camera)
     alone, not of the frames visited before, so a render farm rendering frames 3-4 alone gets
-    the same objects, hence the same pixels, as a run over frames 1-4 (house rule: state at
-    frame N = f(params, seed, N)). Colours are rewritten only for objects where a position's
+    the same objects, hence the same pixels, as a run over frames 1-4 (the state at frame N is
+    a function of the parameters, the seed and N). Colours are rewritten only for objects where a position's
     block changed. The shown blocks fill positions 0 .. len(chosen) - 1, FREE the rest."""
     out = np.full(n_slots, FREE, dtype=np.int32)
     blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_slots]
@@ -580,9 +580,6 @@ def _flush_pending() -> float | None:
 def reset_field(scene, item) -> None:
     """Forget the runtime of ``item`` so it is re-simulated from its parameters."""
     RUNTIMES.pop(runtime_key(scene, item), None)
-
-
-drop_runtime = reset_field
 
 
 # --------------------------------------------------------------------------------------------

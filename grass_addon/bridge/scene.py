@@ -14,7 +14,7 @@ Pools are sized from the LOD distances (d_g2 for blades, d_s2 for cards), not fr
 size, so memory and per-frame cost follow what is near the camera. Several blocks per object
 cut Blender's per-object cost (one write, one update and one depsgraph evaluation per object).
 
-Terrain (issue 3): when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a
+Terrain: when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a
 heightfield grid (``grass_addon/terrain.py``) over its evaluated surface in world space, the field is
 centred on the mesh's XY bounding-box centre, the blades are rooted on the surface and the ground
 becomes a grid mesh following it. The user's mesh is never changed or removed.
@@ -575,7 +575,7 @@ def remove_field(scene, item) -> None:
     collection records, nothing else), and its runtime; no orphan data is left behind."""
     from . import runtime
 
-    runtime.drop_runtime(scene, item)
+    runtime.reset_field(scene, item)
     coll = item.collection
     if coll is not None:
         reg = registered(item)

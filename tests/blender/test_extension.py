@@ -15,7 +15,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 OPERATORS = ("field_add", "field_rebuild", "field_remove", "simulation_reset", "wind_preset",
-             "species_preset", "species_add", "species_remove")
+             "species_preset", "row_add", "row_remove")
 
 
 def _blender_ext() -> Path:
@@ -162,13 +162,11 @@ def test_every_section_has_a_sidebar_panel(addon):
 
 
 def test_type_specific_wind_and_camera_parameters_follow_their_mode(addon):
-    """Gust parameters are shown for a blast, vortex ones for a whirlwind (schema help prefix)."""
+    """Gust parameters are shown for a blast, vortex ones for a whirlwind (schema applies_when)."""
     from windgrass.grass_addon import schema
-    from windgrass.panels import sections
 
     def condition(name):
-        p = schema.BY_NAME[name]
-        return sections._condition(p, schema.section_params(p.section))
+        return schema.BY_NAME[name].applies_when or None
 
     assert condition("wind.gust_speed") == ("type", "blast")
     assert condition("wind.vortex_radius") == ("type", "whirlwind")
@@ -356,12 +354,12 @@ def test_species_preset_add_and_remove(scene):
     assert bpy.ops.windgrass.species_preset(preset="wild") == {"FINISHED"}
     assert properties.params_from_settings(item).blade.species == presets.species_rows("wild")
     item.blade.species_index = 1
-    assert bpy.ops.windgrass.species_add() == {"FINISHED"}
+    assert bpy.ops.windgrass.row_add() == {"FINISHED"}
     species = properties.params_from_settings(item).blade.species
     assert len(species) == 4 and species[3] == species[1]  # a copy of the selected row
     assert item.blade.species_index == 3
-    assert bpy.ops.windgrass.species_remove() == {"FINISHED"}
-    assert bpy.ops.windgrass.species_remove() == {"FINISHED"}
+    assert bpy.ops.windgrass.row_remove() == {"FINISHED"}
+    assert bpy.ops.windgrass.row_remove() == {"FINISHED"}
     assert [s["name"] for s in properties.params_from_settings(item).blade.species] == ["tall grass", "reed"]
 
 
@@ -370,7 +368,7 @@ def test_wind_keys_added_by_the_operator_keep_increasing_times(scene):
 
     item = properties.add_field(scene)
     for _ in range(3):
-        assert bpy.ops.windgrass.species_add(table="wind.keys") == {"FINISHED"}
+        assert bpy.ops.windgrass.row_add(table="wind.keys") == {"FINISHED"}
     times = [k["time"] for k in properties.params_from_settings(item).wind.keys]
     assert times == [0.0, 1.0, 2.0]
 
@@ -382,7 +380,7 @@ def test_operators_need_an_active_field_and_report_bad_input(scene):
     assert not bpy.ops.windgrass.wind_preset.poll()
     properties.add_field(scene)
     with pytest.raises(RuntimeError, match="not a table parameter"):
-        bpy.ops.windgrass.species_add(table="wind.speed")
+        bpy.ops.windgrass.row_add(table="wind.speed")
     properties.active_field(scene).lod.card_far = 1.0
     with pytest.raises(RuntimeError, match=r"lod\.card_far"):  # an ERROR report, not a crash
         bpy.ops.windgrass.field_rebuild()

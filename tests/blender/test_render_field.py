@@ -478,7 +478,7 @@ def test_a_field_that_cannot_be_simulated_fails_the_batch_render(addon):
     field_scene.build_field(scene, item)
     scene.frame_set(2)
     render_field.check_fields(scene)  # fine
-    item.render.frame_end = 0  # before frame_start: cannot be simulated
+    item.lod.blade_far = 1.0  # nearer than blade_near: cannot be simulated
     scene.frame_set(3)
-    with pytest.raises(render_field.FieldError, match="Meadow.*render.frame_end"):
+    with pytest.raises(render_field.FieldError, match="Meadow.*lod.blade_far"):
         render_field.check_fields(scene)

@@ -1,4 +1,4 @@
-"""Terrain (issue 3): a selected mesh becomes the field's terrain; blades are rooted on its surface.
+"""Terrain: a selected mesh becomes the field's terrain; blades are rooted on its surface.
 
 Small fields (2 x 2 blocks of 8 x 8 cells of 0.1 m, 1.6 m square) on a 4 m grid mesh keep this fast.
 """

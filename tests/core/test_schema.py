@@ -143,3 +143,12 @@ def test_unreadable_scene_files_are_clear_errors(tmp_path):
         assert info.value.key == "config", name
     with pytest.raises(ParameterError, match="is a folder"):
         schema.load_toml(tmp_path)
+
+
+def test_applies_when_names_a_choice_of_an_enum_of_the_section():
+    conditional = [p for p in schema.PARAMS if p.applies_when]
+    assert {p.name for p in conditional} >= {"wind.gust_speed", "wind.vortex_speed", "camera.position"}
+    for p in conditional:
+        key, choice = p.applies_when
+        enum = schema.BY_NAME[f"{p.section}.{key}"]
+        assert enum.kind == "enum" and choice in enum.choices, p.name

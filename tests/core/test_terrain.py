@@ -1,4 +1,4 @@
-"""Terrain (issue 3): a bilinear heightfield under the field; roots, cells, LOD and culling follow it."""
+"""Terrain: a bilinear heightfield under the field; roots, cells, LOD and culling follow it."""
 
 import math
 

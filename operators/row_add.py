@@ -1,4 +1,4 @@
-"""windgrass.species_add: add a row to the species list (or another table, e.g. wind keys)."""
+"""windgrass.row_add: add a row to a table parameter (grass species, wind keys)."""
 
 import bpy
 
@@ -11,12 +11,13 @@ from ._common import has_active_field, reported
 TIME_STEP = 1.0
 
 
-class WINDGRASS_OT_species_add(bpy.types.Operator):
-    """Add a grass species to the active field (a copy of the selected one)"""
+class WINDGRASS_OT_row_add(bpy.types.Operator):
+    """Add a row to a table of the active field (a species, a wind key): a copy of the selected one"""
 
-    bl_idname = "windgrass.species_add"
-    bl_label = "Add Grass Species"
-    bl_description = "Add a grass species to the active field, copying the selected one"
+    bl_idname = "windgrass.row_add"
+    bl_label = "Add Row"
+    bl_description = ("Add a row to a table of the active field (a grass species, a wind key), copying the "
+                      "selected one; a wind key goes one second after the last")
     bl_options = {"REGISTER", "UNDO"}
 
     table: bpy.props.StringProperty(name="Table", default="blade.species", options={"HIDDEN", "SKIP_SAVE"},
@@ -48,4 +49,4 @@ class WINDGRASS_OT_species_add(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (WINDGRASS_OT_species_add,)
+CLASSES = (WINDGRASS_OT_row_add,)

@@ -1,4 +1,4 @@
-"""windgrass.species_remove: remove the selected row of the species list (or another table)."""
+"""windgrass.row_remove: remove the selected row of a table parameter (grass species, wind keys)."""
 
 import bpy
 
@@ -6,12 +6,12 @@ from ..grass_addon.bridge import properties
 from ._common import has_active_field, reported
 
 
-class WINDGRASS_OT_species_remove(bpy.types.Operator):
-    """Remove the selected grass species from the active field"""
+class WINDGRASS_OT_row_remove(bpy.types.Operator):
+    """Remove the selected row of a table of the active field (a species, a wind key)"""
 
-    bl_idname = "windgrass.species_remove"
-    bl_label = "Remove Grass Species"
-    bl_description = "Remove the selected grass species from the active field"
+    bl_idname = "windgrass.row_remove"
+    bl_label = "Remove Row"
+    bl_description = "Remove the selected row of a table of the active field (a grass species, a wind key)"
     bl_options = {"REGISTER", "UNDO"}
 
     table: bpy.props.StringProperty(name="Table", default="blade.species", options={"HIDDEN", "SKIP_SAVE"},
@@ -36,4 +36,4 @@ class WINDGRASS_OT_species_remove(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (WINDGRASS_OT_species_remove,)
+CLASSES = (WINDGRASS_OT_row_remove,)

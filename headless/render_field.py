@@ -264,11 +264,11 @@ def build_scene(params):
     """Stage (render settings, sun, sky, camera) and the grass field of ``params``."""
     properties = addon_module("grass_addon.bridge.properties")
     stage = addon_module("grass_addon.bridge.stage")
-    field_scene = addon_module("grass_addon.bridge.scene")
+    runtime = addon_module("grass_addon.bridge.runtime")
     scene = fresh_scene()
     stage.setup_stage(scene, params)
     item = properties.add_field(scene, params, name="Grass")
-    collection = field_scene.build_field(scene, item)
+    collection = runtime.build_field(scene, item)
     if collection is not None and item.collection is None:
         item.collection = collection
     return scene

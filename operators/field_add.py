@@ -6,8 +6,7 @@ import bpy
 from mathutils import Vector
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties
-from ..grass_addon.bridge import scene as field_scene
+from ..grass_addon.bridge import properties, runtime
 from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
@@ -59,7 +58,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         if terrain is not None:
             item.terrain = terrain
         try:
-            collection = field_scene.build_field(scene, item)
+            collection = runtime.build_field(scene, item)
         except Exception:
             _undo_add(scene, item)
             raise
@@ -94,7 +93,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
 def _undo_add(scene, item) -> None:
     """A failed build leaves neither objects nor a settings item."""
     try:
-        field_scene.remove_field(scene, item)
+        runtime.remove_field(scene, item)
     finally:
         properties.remove_item(scene, item)
 

@@ -2,8 +2,7 @@
 
 import bpy
 
-from ..grass_addon.bridge import properties
-from ..grass_addon.bridge import scene as field_scene
+from ..grass_addon.bridge import properties, runtime
 from ._common import has_active_field, refresh, reported
 
 
@@ -24,7 +23,7 @@ class WINDGRASS_OT_field_rebuild(bpy.types.Operator):
         scene = context.scene
         item = properties.active_field(scene)
         properties.params_from_settings(item)  # a bad setting stops here, naming its key
-        collection = field_scene.build_field(scene, item)
+        collection = runtime.build_field(scene, item, force=True)
         if collection is not None and item.collection is None:
             item.collection = collection
         refresh(scene)

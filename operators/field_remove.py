@@ -2,8 +2,7 @@
 
 import bpy
 
-from ..grass_addon.bridge import properties
-from ..grass_addon.bridge import scene as field_scene
+from ..grass_addon.bridge import properties, runtime
 from ._common import has_active_field, reported
 
 
@@ -27,7 +26,7 @@ class WINDGRASS_OT_field_remove(bpy.types.Operator):
         scene = context.scene
         item = properties.active_field(scene)
         name = item.name
-        field_scene.remove_field(scene, item)
+        runtime.remove_field(scene, item)
         properties.remove_item(scene, item)
         self.report({"INFO"}, f"Removed grass field '{name}'")
         return {"FINISHED"}

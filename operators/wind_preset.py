@@ -4,7 +4,7 @@ mean speed, turbulence)."""
 import bpy
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.bridge import animation, properties
 from ._common import has_active_field, reported
 
 
@@ -19,7 +19,7 @@ def _items():
 
 def _animated(scene, item, key: str) -> bool:
     """True when ``item.wind.<key>`` has an F-curve (its keyframes override a value set here)."""
-    return key in runtime.wind_fcurves(scene, item)
+    return key in animation.wind_fcurves(scene, item)
 
 
 class WINDGRASS_OT_wind_preset(bpy.types.Operator):

@@ -13,7 +13,6 @@ decimal that maps onto the same stored float32, so values typed by a user or wri
 import contextlib
 import math
 import re
-import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -27,7 +26,6 @@ from ..errors import ParameterError
 # keyframes on any other parameter would silently do nothing, so only these are animatable.
 ANIMATED = frozenset({"wind.speed", "wind.direction"})
 
-_RUNTIME = (__package__ or "") + ".runtime"
 _FIELD_PATH = re.compile(r"windgrass\.fields\[(\d+)\]")
 _PREFIX = "WINDGRASS_PG_"
 
@@ -118,12 +116,16 @@ def description(p: schema.Param) -> str:
 _batch_depth = 0  # > 0 while ``batch`` writes many settings: one runtime update at the end
 
 
+# Called with (scene, item) when a field's settings change; the runtime sets it (runtime.mark_dirty)
+# when the add-on registers, so this module needs no import of the runtime.
+on_edit = None
+
+
 def notify(item: Any) -> None:
-    """Tell the runtime that the settings of field ``item`` changed (if the runtime is loaded)."""
-    mark_dirty = getattr(sys.modules.get(_RUNTIME), "mark_dirty", None)
+    """Tell the runtime that the settings of field ``item`` changed."""
     scene = item.id_data
-    if mark_dirty is not None and isinstance(scene, bpy.types.Scene):
-        mark_dirty(scene, item)
+    if on_edit is not None and isinstance(scene, bpy.types.Scene):
+        on_edit(scene, item)
 
 
 @contextlib.contextmanager

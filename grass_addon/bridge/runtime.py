@@ -1,493 +1,248 @@
-"""Per-frame driver: the one runtime registry and the frame handlers.
+"""A grass field in Blender, frame by frame: resolving, building and the frame handlers.
 
-``RUNTIMES`` maps ``(scene session uid, field uid)`` to a ``FieldRuntime`` holding the numpy engine
-(``GrassField``) built from the field's parameters, the digest it was built from and reusable
-float32 buffers. Nothing in Blender's file refers to it: it is dropped on file load and rebuilt
-from the stored parameters (the state at frame N is a function of params, seed and N).
+Each field is resolved once into a ``FieldRuntime``: its parameters (with the scene's clock), the
+numpy engine (``GrassField``), its terrain samples and its two slot pools (``pools.SlotPool``).
+``registry.REGISTRY`` holds them. One frame is one pass (``update_field``): wind, solver and
+shared cell data (``GrassField.seek``), LOD from the scene camera (eqs 7-11), slot assignment
+(``slots.py``), vertex writes (``pools.py``). No ``bpy.ops``, no per-blade Python loop.
 
-Each frame ``update_scene`` seeks every field of the scene to ``scene.frame_current``, computes
-the LOD weights of eqs 7-11 from the scene camera, gives the nearest visible blocks that need
-blades (K_g > 0, eq 8) to the blade slots and those that need cards (K_b > 0, eqs 7/11) to the
-card slots, and writes vertex positions and the per-vertex attributes with ``foreach_set``.
-A slot object holds k blocks ("positions" ``wg_slot * k .. wg_slot * k + k - 1``,
-``scene.blocks_per_slot``): one position write per object per frame.
-No ``bpy.ops``, no per-blade Python loops; the only Python loop runs over slot objects.
+What rebuilds what:
+  * an edit of the field's settings (``mark_dirty``; at once in scripts and background renders,
+    once the edits settle in the UI), Rebuild, Add, file load: ``build_field`` resolves the field
+    again and, when the objects' topology changed, rebuilds the objects (``scene.build_slots``);
+  * a frame handler never creates or deletes objects. It resolves the engine again (numpy only)
+    when the scene's clock or the animated wind changed; a field whose objects do not match its
+    settings (an edit still settling) keeps drawing the runtime it has until the edit is applied.
 
 Handlers (all ``@persistent``, added once by ``register``):
-  ``frame_change_pre``       simulate and write the new frame (``update_scene``);
+  ``frame_change_pre``       simulate and write the new frame;
   ``frame_change_post``      redo the LOD if the camera moved during evaluation (animated camera);
   ``depsgraph_update_post``  the same when the camera is moved without a frame change;
-  ``load_post``              drop every runtime; ``undo_post``/``redo_post`` forget slot state.
-Which position shows which block is a function of the frame and camera alone (canonical order), so
-frames rendered apart equal frames rendered in one run.
+  ``load_post``              empty the registry; ``undo_post``/``redo_post`` forget slot state.
+Which position shows which block is a function of the frame and camera alone (canonical order),
+so frames rendered apart equal frames rendered in one run.
 """
 
 from __future__ import annotations
 
 import hashlib
-import math
 import time
 from dataclasses import dataclass
-from dataclasses import field as dc_field
 
 import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from .. import schema, slots
 from ..errors import WindgrassError
-from . import materials
+from ..field import GrassField
+from . import animation, pools, properties
+from . import camera as field_camera
 from . import scene as field_scene
+from .registry import REGISTRY, Key, key_of, warn_once
 
-# Position state: which block a slot position shows. UNKNOWN forces a full write (new runtime, reopened file).
-FREE = -1
-UNKNOWN = -2
-
-# Animated wind F-curves become one key per frame (the solver reads the wind once per frame,
-# paper IV) from the simulation start to frame_end; past frame_end the range grows in steps of
-# this many frames, so the sampled keys (and the cache key) rarely change.
-_EXTEND_FRAMES = 240
-
-RUNTIMES: dict[tuple[int, str], FieldRuntime] = {}
-# The last error of each field whose settings cannot be simulated (shown by the panel; its grass
-# is hidden rather than left at a stale frame), by the same key as RUNTIMES.
-ERRORS: dict[tuple[int, str], str] = {}
-_WARNED: set[str] = set()
+# Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
+# for this long, so dragging a slider on a large field does not re-simulate at every step.
+EDIT_SETTLE_S = 0.15
 
 
-def _warn_once(text: str) -> None:
-    """Report a problem in the console once; a frame handler must never raise into Blender."""
-    if text not in _WARNED:
-        _WARNED.add(text)
-        print(f"Windgrass: {text}")
-
-
-@dataclass
+@dataclass(eq=False)
 class FieldRuntime:
-    field: object  # GrassField
-    params: object  # Params the field was built from
-    digest: str
-    wind_fingerprint: str = ""
-    wind_keys: tuple | None = None
-    # Block shown at every slot position (FREE / UNKNOWN); object wg_slot s holds positions s*k..s*k+k-1.
-    blade_position_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
-    card_position_block: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
-    blade_buffer: np.ndarray | None = None
-    card_buffer: np.ndarray | None = None
-    # Last written frame, for tests and panels: blocks shown by slots, the LOD weights.
-    frame: int | None = None
-    blade_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
-    card_blocks: np.ndarray = dc_field(default_factory=lambda: np.zeros(0, np.int32))
-    lod: object = None
+    """One field resolved from its settings: everything a frame needs, nothing read again."""
+
+    key: Key
+    params: schema.Params  # validated, with the scene's clock
+    digest: str  # of the parameters, the animated wind and the terrain samples
+    clock: tuple[int, int, int]  # the scene's fps, frame_start, frame_end it was resolved with
+    wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
+    wind_keys: tuple | None
+    terrain_key: str
+    heightfield: object  # terrain.Heightfield or None (flat ground)
+    terrain_centre: tuple | None  # world XY the field is centred on over a terrain
+    field: GrassField
+    blades: pools.SlotPool
+    cards: pools.SlotPool
+    topology: str  # slots.topology_key: what the slot objects must be built for
+    dirty: bool = False  # the settings were edited since: resolve again
+    frame: int | None = None  # the frame last written
+    lod: object = None  # its LOD weights
     camera_signature: tuple | None = None
-    # Terrain: the heightfield sampled from item.terrain at build time (None: flat), the
-    # world XY the field is centred on, and what the samples depend on besides the mesh data.
-    params_digest: str = ""
-    terrain_key: str = ""
-    heightfield: object = None
-    terrain_centre: tuple | None = None
+    error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
 
 
-def runtime_key(scene, item) -> tuple[int, str]:
-    """The scene's session uid (kept through renames and undo, new for a copied scene) and the
-    field's uid."""
-    return scene.session_uid, str(item.uid)
+def get_runtime(scene, item) -> FieldRuntime | None:
+    return REGISTRY.fields.get(key_of(scene, item))
 
 
 def field_error(scene, item) -> str | None:
     """Why the field cannot be simulated now (a setting out of range, ...), or None."""
-    return ERRORS.get(runtime_key(scene, item))
+    return REGISTRY.errors.get(key_of(scene, item))
 
 
-def _forget_stale_runtimes() -> None:
-    """Drop runtimes of scenes or fields that no longer exist (deleted scene, removed field)."""
-    alive = {(s.session_uid, str(f.uid)) for s in bpy.data.scenes if hasattr(s, "windgrass")
-             for f in s.windgrass.fields}
-    for key in [k for k in RUNTIMES if k not in alive]:
-        del RUNTIMES[key]
-    for key in [k for k in ERRORS if k not in alive]:
-        del ERRORS[key]
-
-
-def get_runtime(scene, item) -> FieldRuntime | None:
-    return RUNTIMES.get(runtime_key(scene, item))
+def _clock(scene) -> tuple[int, int, int]:
+    return int(scene.render.fps), int(scene.frame_start), int(scene.frame_end)
 
 
 # --------------------------------------------------------------------------------------------
-# Parameters and animated wind
+# Resolving
 
 
-def _action_fcurves(anim_data):
-    """F-curves of the animation data's action; Blender 4.4+ layered actions use channelbags
-    (``action.fcurves`` is gone in 5.0)."""
-    action = anim_data.action if anim_data is not None else None
-    if action is None:
-        return ()
-    slot = getattr(anim_data, "action_slot", None)
-    try:
-        from bpy_extras import anim_utils
-        get_bag = getattr(anim_utils, "action_get_channelbag_for_slot", None)
-    except ImportError:  # pragma: no cover
-        get_bag = None
-    if get_bag is not None and slot is not None:
-        bag = get_bag(action, slot)
-        return tuple(bag.fcurves) if bag is not None else ()
-    return tuple(getattr(action, "fcurves", ()))
-
-
-def wind_fcurves(scene, item) -> dict[str, object]:
-    """{'speed': fcurve, 'direction': fcurve} of this field's animated wind, if any."""
-    base = item.path_from_id("wind")
-    wanted = {f"{base}.speed": "speed", f"{base}.direction": "direction"}
-    out = {}
-    for fc in _action_fcurves(scene.animation_data):
-        role = wanted.get(fc.data_path)
-        if role is not None and not fc.mute:
-            out[role] = fc
-    return out
-
-
-def _fcurve_fingerprint(fc) -> bytes:
-    n = len(fc.keyframe_points)
-    data = np.empty(n * 6, dtype=np.float32)
-    if n:
-        fc.keyframe_points.foreach_get("co", data[: 2 * n])
-        fc.keyframe_points.foreach_get("handle_left", data[2 * n: 4 * n])
-        fc.keyframe_points.foreach_get("handle_right", data[4 * n:])
-    extra = f"{fc.extrapolation}|{len(fc.modifiers)}|" + ",".join(k.interpolation for k in fc.keyframe_points)
-    return data.tobytes() + extra.encode()
-
-
-def sample_range(scene, params) -> tuple[int, int]:
-    """Frames from the simulation start (t = -preroll) to frame_end, extended in steps when the
-    current frame lies beyond it, so the range (and the cache key) rarely changes."""
-    r = params.render
-    first = r.frame_start - int(math.ceil(params.simulation.preroll * r.fps))
-    last = r.frame_end
-    if scene.frame_current > last:
-        last += int(math.ceil((scene.frame_current - last) / _EXTEND_FRAMES)) * _EXTEND_FRAMES
-    return first, last
-
-
-def sample_wind_keys(fcurves: dict, params, frames: tuple[int, int]) -> tuple:
-    """(time_s, speed_m_s, direction_deg) per frame from the F-curves (one sample a frame).
-
-    Time follows the engine's clock t = (frame - frame_start) / fps; direction F-curves hold
-    radians (Blender's angle unit) and become degrees (the schema's unit).
-    """
-    r = params.render
-    frame_list = range(frames[0], frames[1] + 1)
-    speed_fc, dir_fc = fcurves.get("speed"), fcurves.get("direction")
-    speeds = [max(0.0, speed_fc.evaluate(f)) if speed_fc else params.wind.speed for f in frame_list]
-    dirs = [math.degrees(dir_fc.evaluate(f)) if dir_fc else params.wind.direction for f in frame_list]
-    return tuple(((f - r.frame_start) / r.fps, float(s), float(d)) for f, s, d in zip(frame_list, speeds, dirs))
-
-
-def field_params(scene, item, previous: FieldRuntime | None = None):
-    """(params, wind_keys, wind_fingerprint, digest) of the field now."""
-    from . import properties
-
-    params = properties.params_from_settings(item, scene)
-    fcurves = wind_fcurves(scene, item) if scene.animation_data is not None else {}
+def _wind_curves(scene, item, params) -> tuple[dict, str]:
+    """The field's animated wind F-curves ({} when none) and their fingerprint."""
+    fcurves = animation.wind_fcurves(scene, item) if scene.animation_data is not None else {}
     if not fcurves:
-        return params, None, "", params.digest()
-    # The animated values change every frame; the keys carry them, so the digest must not.
-    from .. import schema
-
-    stable = {f"wind.{role}": schema.BY_NAME[f"wind.{role}"].default for role in fcurves}
-    stable_params = params.replace(stable)
-    frames = sample_range(scene, params)
-    h = hashlib.sha1(repr(frames).encode())
-    for role in sorted(fcurves):
-        h.update(role.encode())
-        h.update(_fcurve_fingerprint(fcurves[role]))
-    fingerprint = h.hexdigest()
-    if previous is not None and previous.wind_fingerprint == fingerprint and previous.wind_keys is not None:
-        keys = previous.wind_keys
-    else:
-        keys = sample_wind_keys(fcurves, params, frames)
-    digest = hashlib.sha1((stable_params.digest() + fingerprint).encode()).hexdigest()
-    return stable_params, keys, fingerprint, digest
+        return {}, ""
+    return fcurves, animation.fingerprint(fcurves, animation.sample_range(scene, params))
 
 
-def ensure_runtime(scene, item) -> FieldRuntime:
-    """The field's runtime, rebuilt when its parameters (or animated wind) or its terrain changed.
+def _wind(scene, item, params, previous: FieldRuntime | None):
+    """(params without the animated values, wind keys, fingerprint) of the field's wind now."""
+    fcurves, fingerprint = _wind_curves(scene, item, params)
+    if not fcurves:
+        return params, None, ""
+    # The animated values change every frame; the keys carry them, so the parameters must not.
+    stable = params.replace({f"wind.{role}": schema.BY_NAME[f"wind.{role}"].default for role in fcurves})
+    if previous is not None and previous.wind_fingerprint == fingerprint:
+        return stable, previous.wind_keys, fingerprint
+    frames = animation.sample_range(scene, params)
+    return stable, animation.sample_wind_keys(fcurves, params, frames), fingerprint
 
-    The terrain is sampled once per build (never per frame): the samples are kept while the
-    terrain object and the grid stay the same; Rebuild (``scene.build_field``) drops the runtime,
-    so an edited terrain mesh is sampled again. The digest includes the heights' fingerprint."""
-    from ..field import GrassField
 
-    key = runtime_key(scene, item)
-    rt = RUNTIMES.get(key)
-    if rt is None:
-        _forget_stale_runtimes()
-    params, keys, fingerprint, digest = field_params(scene, item, rt)
+def resolve(scene, item) -> FieldRuntime:
+    """The field's runtime for its settings now: the registered one when nothing it depends on
+    changed, else a new one (the engine is rebuilt; the terrain re-sampled only when its object
+    or grid changed). Never touches the field's objects; raises WindgrassError on bad settings."""
+    key = key_of(scene, item)
+    previous = REGISTRY.fields.get(key)
+    if previous is None:
+        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes if hasattr(s, "windgrass")
+                                 for f in s.windgrass.fields})
+    params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     t_key = field_scene.terrain_key(scene, item, params)
-    if rt is not None and rt.params_digest == digest and rt.terrain_key == t_key:
-        return rt
-    if rt is not None and rt.terrain_key == t_key:
-        heightfield, centre = rt.heightfield, rt.terrain_centre
+    if previous is not None and previous.terrain_key == t_key:
+        heightfield, centre = previous.heightfield, previous.terrain_centre
     else:
         heightfield, centre = field_scene.sample_terrain(scene, item, params)
-    full_digest = digest if heightfield is None else hashlib.sha1(
-        (digest + heightfield.fingerprint()).encode()).hexdigest()
-    rt = FieldRuntime(field=GrassField(params, wind_keys=keys, terrain=heightfield), params=params,
-                      digest=full_digest, wind_fingerprint=fingerprint, wind_keys=keys, params_digest=digest,
-                      terrain_key=t_key, heightfield=heightfield, terrain_centre=centre)
-    RUNTIMES[key] = rt
+    digest = hashlib.sha1((params.digest() + fingerprint
+                           + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
+    if previous is not None and previous.digest == digest:
+        previous.dirty = False
+        previous.clock = _clock(scene)
+        return previous
+    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield)
+    blade_shape, card_shape = slots.pool_shapes(field.layout, params)
+    rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
+                      wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
+                      field=field, blades=pools.blade_pool(field, blade_shape),
+                      cards=pools.card_pool(field, card_shape),
+                      topology=slots.topology_key(field.layout, params))
+    REGISTRY.fields[key] = rt
     if item.collection is not None:
         field_scene.update_field_materials(item, params)
     return rt
 
 
-# --------------------------------------------------------------------------------------------
-# Camera
-
-
-def blender_camera(scene, to_field=None, depsgraph=None):
-    """``lod.Camera`` of the scene camera in the field's frame, or None without a camera.
-
-    With ``depsgraph`` the evaluated camera is used (its animation at this frame)."""
-    from ..lod import Camera
-
-    cam = scene.camera
-    if cam is None or cam.type != "CAMERA":
-        return None
-    if depsgraph is not None:
-        cam = cam.evaluated_get(depsgraph)
-    matrix = cam.matrix_world
-    if to_field is not None:
-        matrix = to_field @ matrix
-    rot = np.array(matrix.to_3x3(), dtype=np.float64)
-    position = np.array(matrix.translation, dtype=np.float64)
-    forward = -rot[:, 2]  # a Blender camera looks down its local -Z
-    up = rot[:, 1]
-    forward /= max(np.linalg.norm(forward), 1e-12)
-    up /= max(np.linalg.norm(up), 1e-12)
-    r = scene.render
-    aspect = (r.resolution_x * r.pixel_aspect_x) / max(r.resolution_y * r.pixel_aspect_y, 1e-9)
-    data = cam.data
-    if data.type == "ORTHO":
-        # No perspective: take the angle that shows the ortho width from the camera's distance
-        # to the field centre (LOD distances still come from the camera position).
-        dist = max(float(np.linalg.norm(position)), 1e-3)
-        fov_x = 2.0 * math.atan(0.5 * data.ortho_scale / dist)
-    else:
-        fit = data.sensor_fit
-        if fit == "AUTO":
-            # The sensor width spans the larger image side.
-            fov_x = data.angle_x if aspect >= 1.0 else 2.0 * math.atan(math.tan(0.5 * data.angle_x) * aspect)
-        elif fit == "HORIZONTAL":
-            fov_x = data.angle_x
-        else:
-            fov_x = 2.0 * math.atan(math.tan(0.5 * data.angle_y) * aspect)
-    fov_x = min(max(fov_x, 1e-3), math.radians(179.0))
-    return Camera(position=position.astype(np.float32), forward=forward.astype(np.float32),
-                  up=up.astype(np.float32), fov_x=float(fov_x), aspect=float(aspect))
+def _current(scene, item) -> FieldRuntime:
+    """The runtime a frame handler uses: the registered one unless the scene's clock or the
+    animated wind changed under it (then resolved again, numpy only) or there is none yet."""
+    rt = REGISTRY.fields.get(key_of(scene, item))
+    if rt is None:
+        return resolve(scene, item)
+    if rt.dirty:  # an edit is settling: its update (not a frame handler) applies it
+        return rt
+    if rt.clock != _clock(scene) or _wind_curves(scene, item, rt.params)[1] != rt.wind_fingerprint:
+        return resolve(scene, item)
+    if rt.terrain_key and field_scene.terrain_key(scene, item, rt.params) != rt.terrain_key:
+        warn_once(f"the terrain of field '{item.name}' is gone or changed; the grass keeps the ground it "
+                  "was built on until Rebuild (on flat ground without a terrain)")
+    return rt
 
 
 # --------------------------------------------------------------------------------------------
-# Slot assignment and writes
+# Building and removing (operators, edits, scripts: never from a frame handler)
 
 
-def assign_slots(n_slots: int, chosen: np.ndarray) -> np.ndarray:
-    """Block shown at every slot position: the chosen blocks in block order, then FREE.
-
-    Canonical on purpose: what each slot object holds is a function of the frame (and camera)
-    alone, not of the frames visited before, so a render farm rendering frames 3-4 alone gets
-    the same objects, hence the same pixels, as a run over frames 1-4 (the state at frame N is
-    a function of the parameters, the seed and N). Colours are rewritten only for objects where a position's
-    block changed. The shown blocks fill positions 0 .. len(chosen) - 1, FREE the rest."""
-    out = np.full(n_slots, FREE, dtype=np.int32)
-    blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_slots]
-    out[: len(blocks)] = blocks
-    return out
-
-
-def nearest_blocks(candidates: np.ndarray, distance: np.ndarray, count: int) -> np.ndarray:
-    """Up to ``count`` candidate blocks, nearest first (stable for equal distances)."""
-    idx = np.flatnonzero(candidates)
-    order = np.argsort(distance[idx], kind="stable")
-    return idx[order[:count]].astype(np.int32)
-
-
-def _choose_positions(state: np.ndarray, n_positions: int, needs: np.ndarray,
-                      block_distance: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(current, previous, chosen) block of every pool position: the nearest blocks that ``need``
-    this LOD, in block order in the first positions (``assign_slots``), the rest FREE. ``previous``
-    is UNKNOWN everywhere when the pool was resized (forces a full write)."""
-    previous = state if len(state) == n_positions else np.full(n_positions, UNKNOWN, dtype=np.int32)
-    chosen = nearest_blocks(needs, block_distance, n_positions)
-    return assign_slots(n_positions, chosen), previous, chosen
-
-
-def _write_position(mesh, verts: np.ndarray) -> None:
-    """Write float32 positions in bulk and tell Blender they changed.
-
-    The bulk write goes to the ``position`` attribute (about 10x faster than
-    ``vertices.foreach_set("co")``), but that path does not tag the positions as changed, so
-    Blender would keep the bounds of an earlier frame and a render would depend on the frames
-    rendered before it. Assigning one vertex through ``MeshVertex.co`` runs Blender's
-    positions-changed update (bounds and normals recomputed) for the whole mesh.
-    """
-    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
-    if len(mesh.vertices):
-        first = mesh.vertices[0]
-        first.co = first.co
-
-
-def _slot_writes(current: np.ndarray, previous: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(write, changed) per slot object: write unless all its k positions are FREE now and were
-    FREE before (it stays collapsed); changed where some position shows another block."""
-    cur, prev = current.reshape(-1, k), previous.reshape(-1, k)
-    write = ~((cur == FREE).all(axis=1) & (prev == FREE).all(axis=1))
-    return write, (cur != prev).any(axis=1)
-
-
-def _slot_meshes(item, role: str, write: np.ndarray):
-    """(slot index, mesh) of every slot object to write this frame; a slot object the user
-    deleted is skipped with a one-time warning (its blocks are not drawn until a Rebuild)."""
-    slots = field_scene.slot_objects(item, role)
-    for slot in np.flatnonzero(write).tolist():
-        obj = slots.get(slot)
-        if obj is None:
-            _warn_once(f"{role[:-1]} slot {slot} of field '{item.name}' was deleted; its blocks are not drawn "
-                       "(rebuild the field to restore it)")
-            continue
-        yield slot, obj.data
-
-
-def _position_buffer(buffer: np.ndarray | None, rows: int) -> np.ndarray:
-    if buffer is None or len(buffer) != rows:
-        return np.zeros((rows, 3), dtype=np.float32)
-    return buffer
-
-
-def _blade_colours(layout, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(RGBA (V*4,), shade (V,)) float32 per vertex of the blocks at k positions (FREE: zeros)."""
-    per_blade = (layout.segments + 1) * 2
-    bpb = layout.blades_per_block
-    shown = blocks >= 0
-    rgba = np.zeros((len(blocks), bpb, 4), dtype=np.float32)
-    shade = np.zeros((len(blocks), bpb), dtype=np.float32)
-    blades = blocks[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
-    rgba[shown, :, :3] = layout.species_color[layout.blade_species[blades]]
-    rgba[shown, :, 3] = 1.0
-    shade[shown] = layout.blade_shade[blades]
-    return np.repeat(rgba.reshape(-1, 4), per_blade, axis=0).ravel(), np.repeat(shade.ravel(), per_blade)
-
-
-def _write_blades(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
-    layout = rt.field.layout
-    n_positions = field_scene.position_counts(layout, rt.params)[0]
-    k = field_scene.blocks_per_slot(layout, rt.params)[0]
-    # A block needs blades where some cell has N > 0 (eq 9).
-    needs = (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    current, previous, chosen = _choose_positions(rt.blade_position_block, n_positions, needs, block_distance)
-    rt.blade_position_block, rt.blade_blocks = current, np.sort(chosen)
-    verts_per_block = field_scene.blade_vertex_count(layout)
-    shown = len(chosen) * verts_per_block  # shown blocks fill the first positions (assign_slots)
-    rt.blade_buffer = buffer = _position_buffer(rt.blade_buffer, n_positions * verts_per_block)
-    if len(chosen):
-        rt.field.blade_vertices(current[: len(chosen)], lod=lod, out=buffer[:shown])
-    buffer[shown:] = 0.0  # FREE positions: collapsed to a point, zero area, nothing drawn
-    write, changed = _slot_writes(current, previous, k)
-    rows = k * verts_per_block
-    for slot, mesh in _slot_meshes(item, field_scene.ROLE_BLADES, write):  # one position write each
-        _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
-        if changed[slot]:
-            # Another block at some position: its blades' colours (FREE positions cleared, so the
-            # data is the same whatever the object showed before: a function of the frame alone).
-            rgba, shade = _blade_colours(layout, current[slot * k:(slot + 1) * k])
-            mesh.attributes[materials.ATTR_COLOR].data.foreach_set("color", rgba)
-            mesh.attributes[materials.ATTR_SHADE].data.foreach_set("value", shade)
-        mesh.update()
-
-
-def _write_cards(rt: FieldRuntime, item, lod, block_distance: np.ndarray) -> None:
-    layout = rt.field.layout
-    n_positions = field_scene.position_counts(layout, rt.params)[1]
-    k = field_scene.blocks_per_slot(layout, rt.params)[1]
-    k_b = lod.k_billboard  # opacity of the cards, K_b of eq 7 / K'_b of eq 11
-    needs = (k_b[layout.block_cells] > 0).any(axis=1) & lod.block_visible
-    current, previous, chosen = _choose_positions(rt.card_position_block, n_positions, needs, block_distance)
-    rt.card_position_block, rt.card_blocks = current, np.sort(chosen)
-    verts_per_block = field_scene.card_vertex_count(layout)
-    shown = len(chosen) * verts_per_block
-    rt.card_buffer = buffer = _position_buffer(rt.card_buffer, n_positions * verts_per_block)
-    # one card per cell, 4 vertices each, cells in block order; FREE positions fully transparent
-    opacity = np.zeros(n_positions * verts_per_block, dtype=np.float32)
-    if len(chosen):
-        rt.field.card_vertices(current[: len(chosen)], out=buffer[:shown])
-        opacity[:shown] = np.repeat(k_b[layout.block_cells[current[: len(chosen)]]].astype(np.float32),
-                                    4, axis=1).ravel()
-    buffer[shown:] = 0.0
-    write, _ = _slot_writes(current, previous, k)
-    rows = k * verts_per_block
-    for slot, mesh in _slot_meshes(item, field_scene.ROLE_CARDS, write):
-        _write_position(mesh, buffer[slot * rows:(slot + 1) * rows])
-        # K_b follows the camera every frame, not only when a position changes block.
-        mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", opacity[slot * rows:(slot + 1) * rows])
-        mesh.update()
-
-
-def _camera_signature(camera) -> tuple | None:
-    if camera is None:
-        return None
-    return (tuple(np.round(camera.position, 6)), tuple(np.round(camera.forward, 6)),
-            tuple(np.round(camera.up, 6)), round(camera.fov_x, 6), round(camera.aspect, 6))
-
-
-def _field_camera(scene, item, depsgraph=None):
-    """The scene camera in the field's frame (the ground object's inverse world matrix)."""
-    ground = field_scene.ground_object(item)
-    if ground is not None and depsgraph is not None:
-        ground = ground.evaluated_get(depsgraph)
-    to_field = ground.matrix_world.inverted_safe() if ground is not None else None
-    return blender_camera(scene, to_field, depsgraph)
-
-
-def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
-    """Write the field ``item`` of ``scene`` for ``scene.frame_current``. Returns its runtime, or
-    None when the field has no collection (not built, or deleted by hand).
-
-    ``camera_moved_only``: skip the write when this frame was written with the same camera
-    (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
-    frame = scene.frame_current
-    if camera_moved_only:
-        rt = get_runtime(scene, item)
-        if rt is None or rt.frame != frame or item.collection is None:
-            return rt  # not written at this frame yet: the frame handlers will do it
-        camera = _field_camera(scene, item, depsgraph)
-        if rt.camera_signature == _camera_signature(camera):
-            return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
-    rt = ensure_runtime(scene, item)
+def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
+    """Resolve the field and (re)build its objects when their topology changed (always with
+    ``force``: Rebuild, which also re-samples the terrain), then write the current frame."""
+    if getattr(item, "terrain", None) is not None:
+        try:  # the terrain's matrix and modifiers as they are now
+            bpy.context.view_layer.update()
+        except Exception:
+            pass
+    field_scene.separate_copy(item)
+    if force:
+        reset_field(scene, item)
+    rt = resolve(scene, item)
     coll = item.collection
-    if coll is None:
-        _warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
-        return None
-    layout = rt.field.layout
-    if coll.get("wg_topology") != field_scene.topology_key(layout, rt.params):
-        field_scene.build_slots(scene, item, layout, rt.params)
-        rt.blade_position_block = np.zeros(0, np.int32)
-        rt.card_position_block = np.zeros(0, np.int32)
-    camera = _field_camera(scene, item, depsgraph)
-    signature = _camera_signature(camera)
-    if rt.frame != frame or getattr(rt.field, "cells", None) is None:
+    if force or coll is None or coll.get("wg_topology") != rt.topology:
+        coll = field_scene.build_slots(scene, item, rt.field.layout, rt.params, rt.terrain_centre, rt.topology)
+        rt.blades.state.forget()
+        rt.cards.state.forget()
+    # The frame handler edits meshes while a render runs: keep the interface locked then.
+    scene.render.use_lock_interface = True
+    _write(scene, item, rt)
+    return coll
+
+
+def remove_field(scene, item) -> None:
+    """Delete everything the field made (``scene.remove_datablocks``) and forget its runtime."""
+    reset_field(scene, item)
+    field_scene.remove_datablocks(item)
+
+
+def reset_field(scene, item) -> None:
+    """Forget the runtime of ``item``: the next update resolves it from its settings again."""
+    key = key_of(scene, item)
+    REGISTRY.fields.pop(key, None)
+    REGISTRY.errors.pop(key, None)
+
+
+# --------------------------------------------------------------------------------------------
+# One frame
+
+
+def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
+    """wind -> solver -> cell data (seek), LOD from the camera, slot pools, writes."""
+    frame = scene.frame_current
+    camera = field_camera.field_camera(scene, item, depsgraph)
+    if rt.frame != frame or rt.field.cells is None:
         rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
     lod = rt.field.lod(camera)
     if camera is None:
-        # No camera: every block is geometry (lod_weights(None)); the pool takes the blocks
+        # No camera: every block is geometry (lod_weights(None)); the pools take the blocks
         # nearest the field centre.
-        centre = 0.5 * (layout.block_bounds[:, :2] + layout.block_bounds[:, 2:])
+        bounds = rt.field.layout.block_bounds
+        centre = 0.5 * (bounds[:, :2] + bounds[:, 2:])
         block_distance = np.hypot(centre[:, 0], centre[:, 1]).astype(np.float32)
     else:
         block_distance = np.asarray(lod.block_distance, dtype=np.float32)
-    _write_blades(rt, item, lod, block_distance)
-    _write_cards(rt, item, lod, block_distance)
-    rt.frame = frame
-    rt.lod = lod
-    rt.camera_signature = signature
+    rt.blades.write(item, lod, block_distance)
+    rt.cards.write(item, lod, block_distance)
+    rt.frame, rt.lod, rt.camera_signature = frame, lod, field_camera.signature(camera)
+
+
+def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
+    """Write the field ``item`` of ``scene`` for ``scene.frame_current`` (a frame handler's work).
+    Returns its runtime, or None when the field has no objects (not built, or deleted by hand).
+
+    ``camera_moved_only``: skip the write when this frame was written with the same camera
+    (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
+    if item.collection is None:
+        warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
+        return None
+    if camera_moved_only:
+        rt = get_runtime(scene, item)
+        if rt is None or rt.frame != scene.frame_current:
+            return rt  # not written at this frame yet: the frame handlers will do it
+        if rt.camera_signature == field_camera.signature(field_camera.field_camera(scene, item, depsgraph)):
+            return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
+    rt = _current(scene, item)
+    if item.collection.get("wg_topology") != rt.topology:
+        if rt.dirty:
+            return rt  # the edit that changed the objects' topology is still settling
+        raise WindgrassError(f"the objects of field '{item.name}' do not match its settings; press Rebuild")
+    _write(scene, item, rt, depsgraph)
     return rt
 
 
@@ -497,89 +252,88 @@ def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None
     if settings is None:
         return
     for item in settings.fields:
-        _update_guarded(scene, item, depsgraph, camera_moved_only)
+        _guarded(update_field, scene, item, depsgraph, camera_moved_only=camera_moved_only)
 
 
-def _update_guarded(scene, item, depsgraph=None, camera_moved_only: bool = False) -> None:
-    """update_field, never raising: a field that cannot be simulated (a setting out of range, a
-    failure) records the error for the panel and for scripts (``field_error``) and hides its
-    grass, so no frame shows the grass of another frame."""
-    key = runtime_key(scene, item)
+def _guarded(work, scene, item, *args, camera_moved_only: bool = False) -> None:
+    """``work(scene, item, ...)``, never raising: a field that cannot be simulated (a setting
+    out of range, a failure) records the error for the panel and for scripts (``field_error``)
+    and hides its grass, so no frame shows the grass of another frame."""
+    key = key_of(scene, item)
     try:
-        update_field(scene, item, depsgraph, camera_moved_only)
+        if camera_moved_only:
+            work(scene, item, *args, camera_moved_only=True)
+        else:
+            work(scene, item, *args)
     except Exception as exc:  # a handler must not break playback or rendering
         message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
-        ERRORS[key] = message
-        _warn_once(f"field '{item.name}' cannot be simulated, its grass is hidden: {message}")
+        REGISTRY.errors[key] = message
+        warn_once(f"field '{item.name}' cannot be simulated, its grass is hidden: {message}")
         try:
-            _hide_field(scene, item)
+            _hide(scene, item)
         except Exception as hide_exc:  # pragma: no cover (objects gone mid-render)
-            _warn_once(f"field '{item.name}' could not be hidden: {hide_exc}")
+            warn_once(f"field '{item.name}' could not be hidden: {hide_exc}")
+        REGISTRY.fields.pop(key, None)  # resolved again (and checked again) at the next update
     else:
         if not camera_moved_only:  # (that pass skips fields not written at this frame)
-            ERRORS.pop(key, None)
+            REGISTRY.errors.pop(key, None)
 
 
-def _hide_field(scene, item) -> None:
+def _hide(scene, item) -> None:
     """Collapse every slot of the field to a point (nothing drawn) and forget what they showed."""
-    for role in (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS):
-        for obj in field_scene.slot_objects(item, role).values():
-            mesh = obj.data
-            if len(mesh.vertices):
-                _write_position(mesh, np.zeros((len(mesh.vertices), 3), np.float32))
-                mesh.update()
     rt = get_runtime(scene, item)
     if rt is not None:
-        rt.blade_position_block = np.zeros(0, np.int32)
-        rt.card_position_block = np.zeros(0, np.int32)
+        rt.blades.collapse(item)
+        rt.cards.collapse(item)
         rt.frame = None
+        return
+    for role in (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS):
+        for obj in field_scene.slot_objects(item, role).values():
+            if len(obj.data.vertices):
+                pools.write_positions(obj.data, np.zeros((len(obj.data.vertices), 3), np.float32))
+                obj.data.update()
 
 
-# Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
-# for this long, so dragging a slider on a large field does not re-simulate at every step.
-_EDIT_SETTLE_S = 0.15
-_PENDING: dict[tuple[str, str], float] = {}
+# --------------------------------------------------------------------------------------------
+# Edits
 
 
 def mark_dirty(scene, item, defer: bool | None = None) -> None:
-    """Parameters of ``item`` changed: rewrite it (the digest decides what is rebuilt).
-
-    Scripts and background renders (``bpy.app.background``) get the update at once; in the UI
-    (``defer``) it waits until the edits settle (a timer), so interactive edits stay fluid.
+    """Settings of ``item`` changed: resolve and write it again (the digest decides what is
+    rebuilt). Scripts and background renders (``bpy.app.background``) get the update at once; in
+    the UI (``defer``) it waits until the edits settle (a timer), so interactive edits stay fluid.
     """
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = True
     if not (defer if defer is not None else not bpy.app.background):
-        _update_now(scene, item)
+        _apply_edit(scene, item)
         return
-    _PENDING[runtime_key(scene, item)] = time.monotonic()
+    REGISTRY.pending[key_of(scene, item)] = time.monotonic()
     if not bpy.app.timers.is_registered(_flush_pending):
-        bpy.app.timers.register(_flush_pending, first_interval=_EDIT_SETTLE_S)
+        bpy.app.timers.register(_flush_pending, first_interval=EDIT_SETTLE_S)
 
 
-def _update_now(scene, item) -> None:
+def _apply_edit(scene, item) -> None:
     if item.collection is not None:
-        _update_guarded(scene, item)
+        _guarded(build_field, scene, item)
 
 
 def _flush_pending() -> float | None:
     """Timer: apply settled edits; run again shortly while the user is still dragging."""
-    latest = max(_PENDING.values(), default=0.0)
-    wait = latest + _EDIT_SETTLE_S - time.monotonic()
+    latest = max(REGISTRY.pending.values(), default=0.0)
+    wait = latest + EDIT_SETTLE_S - time.monotonic()
     if wait > 0:
         return wait
-    pending = list(_PENDING)
-    _PENDING.clear()
+    pending = list(REGISTRY.pending)
+    REGISTRY.pending.clear()
     scenes = {s.session_uid: s for s in bpy.data.scenes}
     for scene_uid, uid in pending:
         scene = scenes.get(scene_uid)
         item = next((f for f in scene.windgrass.fields if f.uid == uid), None) if scene else None
         if item is not None:
-            _update_now(scene, item)
+            _apply_edit(scene, item)
     return None
-
-
-def reset_field(scene, item) -> None:
-    """Forget the runtime of ``item`` so it is re-simulated from its parameters."""
-    RUNTIMES.pop(runtime_key(scene, item), None)
 
 
 # --------------------------------------------------------------------------------------------
@@ -588,7 +342,7 @@ def reset_field(scene, item) -> None:
 
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
-    """Simulate and write the new frame (the contract's handler)."""
+    """Simulate and write the new frame."""
     update_scene(scene)
 
 
@@ -605,26 +359,23 @@ def on_depsgraph_update_post(scene, depsgraph=None):
     """The camera was moved in the viewport (no frame change): follow it with the LOD. Only
     fields already written at this frame are touched, and only when the camera moved, so the
     mesh edits made here (which trigger another update) end the chain at once."""
-    if not RUNTIMES or bpy.app.is_job_running("RENDER"):
+    if not REGISTRY.fields or bpy.app.is_job_running("RENDER"):
         return
     update_scene(scene, depsgraph, camera_moved_only=True)
 
 
 @persistent
 def on_load_post(*_args):
-    RUNTIMES.clear()
-    ERRORS.clear()
-    _WARNED.clear()
-    _PENDING.clear()
+    REGISTRY.clear()
 
 
 @persistent
 def on_undo_redo_post(*_args):
     """Undo and redo bring back older mesh data: forget what the slots show, so the next
     update rewrites every slot (positions and colours) instead of trusting stale state."""
-    for rt in RUNTIMES.values():
-        rt.blade_position_block = np.zeros(0, np.int32)
-        rt.card_position_block = np.zeros(0, np.int32)
+    for rt in REGISTRY.fields.values():
+        rt.blades.state.forget()
+        rt.cards.state.forget()
 
 
 _HANDLERS = (
@@ -642,11 +393,13 @@ def _same(a, b) -> bool:
 
 
 def register() -> None:
-    """Add the handlers exactly once (also after a reload of the add-on)."""
+    """Add the handlers exactly once (also after a reload of the add-on); settings edits reach
+    ``mark_dirty`` through ``properties.on_edit``."""
     for handlers, func in _HANDLERS:
         for existing in [h for h in handlers if _same(h, func)]:
             handlers.remove(existing)
         handlers.append(func)
+    properties.on_edit = mark_dirty
 
 
 def unregister() -> None:
@@ -655,7 +408,5 @@ def unregister() -> None:
             handlers.remove(existing)
     if bpy.app.timers.is_registered(_flush_pending):
         bpy.app.timers.unregister(_flush_pending)
-    _PENDING.clear()
-    RUNTIMES.clear()
-    ERRORS.clear()
-    _WARNED.clear()
+    properties.on_edit = None
+    REGISTRY.clear()

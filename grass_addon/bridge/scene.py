@@ -1,46 +1,41 @@
-"""Build and remove a grass field in the Blender scene.
+"""The Blender datablocks of a grass field: collection, ground, slot objects, materials, terrain.
 
 One collection per field holds:
   * a ground plane the size of the field (far LOD, paper III.C); every other object of the
     field is parented to it, so moving the ground moves the field;
-  * a pool of blade "slots": meshes with the topology of k blocks of blades (every block has
-    the same topology, so a slot is k copies of one block's faces, ``blocks_per_slot``). The
-    pool has ``slots * k`` block "positions"; each frame ``runtime.py`` gives the nearest
-    visible blocks that need blades to positions and writes their vertices; an unused
-    position collapses to a point;
-  * a pool of card slots, k blocks of cards (paper III.B) each, handled the same way.
+  * the blade slot objects: meshes of k copies of one block's topology (``slots.py`` sizes the
+    pools from the LOD distances and assigns blocks to positions; ``pools.py`` writes them);
+  * the card slot objects (paper III.B), likewise.
 
-Pools are sized from the LOD distances (d_g2 for blades, d_s2 for cards), not from the field
-size, so memory and per-frame cost follow what is near the camera. Several blocks per object
-cut Blender's per-object cost (one write, one update and one depsgraph evaluation per object).
+Terrain: when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a heightfield grid
+(``grass_addon/terrain.py``) over its evaluated surface in world space, the field is centred on the
+mesh's XY bounding-box centre, the blades are rooted on the surface and the ground becomes a grid
+mesh following it. The user's mesh is never changed or removed.
 
-Terrain: when ``item.terrain`` is a mesh of the scene, ``sample_terrain`` drapes a
-heightfield grid (``grass_addon/terrain.py``) over its evaluated surface in world space, the field is
-centred on the mesh's XY bounding-box centre, the blades are rooted on the surface and the ground
-becomes a grid mesh following it. The user's mesh is never changed or removed.
-
-What belongs to a field is recorded on its settings item: the custom property ``wg_objects`` holds ID
-pointers to its ground, slot objects, materials and card image (Blender keeps them valid through
+What belongs to a field is recorded on its settings item: the custom property ``wg_objects`` holds
+ID pointers to its ground, slot objects, materials and card image (Blender keeps them valid through
 renames, save and reopen, and points a Full Copy of the scene at the copies; on the collection
-itself such pointers crash Blender 4.2's Full Copy). Rebuild and Remove
-touch only those, so a user's Shift+D copy of a grass object (tags and all) is never taken for a
-slot, never taken over and never deleted, and a copied scene's field never touches the original's.
-Every datablock also carries ``wg_uid`` and ``wg_role`` custom properties (files of 0.1 are found
-through them, inside the field's collection only).
-Slot meshes are modifier-free; a later "bake to PC2 + Mesh Cache modifier" can replace the
-per-frame writes on the same objects.
+itself such pointers crash Blender 4.2's Full Copy). Rebuild and Remove touch only those, so a
+user's Shift+D copy of a grass object (tags and all) is never taken for a slot, never taken over and
+never deleted, and a copied scene's field never touches the original's. Every datablock also carries
+``wg_uid`` and ``wg_role`` custom properties (files of 0.1 are found through them, inside the
+field's collection only).
+
+This module builds and removes datablocks; when to build is ``runtime.py``'s business.
 """
 
 from __future__ import annotations
 
 import json
-import math
 
 import bpy
 import numpy as np
 
+from .. import kinematics as kin
+from .. import slots
 from .. import terrain as terrain_core
 from . import materials, textures
+from .registry import warn_once
 
 # The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
 # the user's terrain mesh where both coincide; blade roots stay on the surface (hidden by 2 mm).
@@ -57,9 +52,6 @@ ROLE_GROUND_MATERIAL = "ground_material"
 ROLE_CARD_IMAGE = "card_image"
 
 CARD_TEXTURE_SIZE = 256
-# Vertices a slot object aims at: k = SLOT_VERTEX_BUDGET // vertices per block blocks share one
-# object (default blades 6144 vertices per block: k = 4; cards 1024: k = 24).
-SLOT_VERTEX_BUDGET = 24576
 
 
 def owner_tag(scene, item) -> str:
@@ -137,88 +129,6 @@ def _slot_key(role: str, index: int) -> str:
 def field_objects(item) -> list:
     """The field's own objects (never a user's tagged copies elsewhere)."""
     return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
-
-
-# --------------------------------------------------------------------------------------------
-# Pool sizes
-
-
-def slot_count(layout, distance: float, lod_enabled: bool) -> int:
-    """Blocks whose nearest point can lie within ``distance`` of a camera, capped at n_blocks.
-
-    A block (edge s) with a point within d of the camera has its centre within d + s/sqrt(2);
-    every such block lies inside the disc of radius d + s*sqrt(2) (d + block diagonal), so
-    their number is at most that disc's area over the block's area. LOD off: every block.
-    """
-    if not lod_enabled:
-        return layout.n_blocks
-    edge = layout.cells_per_block * layout.cell_size
-    radius = distance + edge * math.sqrt(2.0)
-    return int(min(layout.n_blocks, math.ceil(math.pi * radius * radius / (edge * edge))))
-
-
-def pool_sizes(layout, params) -> tuple[int, int]:
-    """(blade blocks, card blocks) the pools must show at once (block positions, not objects:
-    see ``slot_counts``). Blades need d < d_g2 (eq 7), cards d < d_s2 (eq 10);
-    with the LOD off every block is geometry and no card is ever drawn."""
-    lod = params.lod
-    blades = slot_count(layout, lod.blade_far, lod.enabled)
-    cards = slot_count(layout, lod.card_far, True) if lod.enabled else 0
-    if layout.blades_per_block == 0:
-        blades = 0
-    return blades, cards
-
-
-def _per_slot(verts_per_block: int, positions: int) -> int:
-    k = max(1, SLOT_VERTEX_BUDGET // max(1, verts_per_block))
-    return max(1, min(k, positions))  # never more positions per object than the pool needs
-
-
-def blocks_per_slot(layout, params) -> tuple[int, int]:
-    """(k blades, k cards): blocks held by one blade / card slot object."""
-    blades, cards = pool_sizes(layout, params)
-    return _per_slot(blade_vertex_count(layout), blades), _per_slot(card_vertex_count(layout), cards)
-
-
-def slot_counts(layout, params) -> tuple[int, int]:
-    """(blade objects, card objects) = ceil(block positions needed / k)."""
-    blades, cards = pool_sizes(layout, params)
-    k_blades, k_cards = blocks_per_slot(layout, params)
-    return -(-blades // k_blades), -(-cards // k_cards)
-
-
-def position_counts(layout, params) -> tuple[int, int]:
-    """(blade positions, card positions) = objects * k: blocks the pools can show at once."""
-    k_blades, k_cards = blocks_per_slot(layout, params)
-    blades, cards = slot_counts(layout, params)
-    return blades * k_blades, cards * k_cards
-
-
-def tiled_topology(faces: np.ndarray, uvs: np.ndarray, verts_per_block: int, k: int):
-    """(faces, uvs) of k copies of one block's topology: copy i uses vertices from
-    i * verts_per_block on; UVs repeat per copy."""
-    offsets = (np.arange(k, dtype=np.int32) * verts_per_block)[:, None, None]
-    tiled = (faces.astype(np.int32)[None] + offsets).reshape(-1, 4)
-    return np.ascontiguousarray(tiled), np.ascontiguousarray(np.tile(uvs, (k, 1)), dtype=np.float32)
-
-
-def blade_vertex_count(layout) -> int:
-    """Vertices of one block of blades: per blade n + 1 joints, each [left, right]."""
-    return layout.blades_per_block * (layout.segments + 1) * 2
-
-
-def card_vertex_count(layout) -> int:
-    """Vertices of one block of cards: one quad per cell."""
-    return layout.cells_per_block_total * 4
-
-
-def topology_key(layout, params) -> str:
-    """What the slot meshes depend on; the runtime rebuilds them when it changes."""
-    blades, cards = pool_sizes(layout, params)
-    ground = getattr(layout, "terrain", None)
-    return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block,
-                       blades, cards, list(blocks_per_slot(layout, params)), [round(float(v), 6) for v in layout.size],
-                       ground.fingerprint() if ground is not None else "flat"])
 
 
 # --------------------------------------------------------------------------------------------
@@ -305,8 +215,6 @@ def terrain_key(scene, item, params) -> str:
 
 def _world_triangles(obj) -> np.ndarray:
     """(T, 3, 3) float64 world-space triangles of the mesh as evaluated (modifiers, shape keys)."""
-    from . import runtime
-
     def extract(mesh, matrix) -> np.ndarray:
         mesh.calc_loop_triangles()
         co = np.empty(len(mesh.vertices) * 3, np.float32)
@@ -326,7 +234,7 @@ def _world_triangles(obj) -> np.ndarray:
             finally:
                 evaluated.to_mesh_clear()
         except Exception as exc:  # no depsgraph here (e.g. mid-render): the mesh without modifiers
-            runtime._warn_once(f"terrain '{obj.name}': modifiers not applied ({type(exc).__name__}: {exc})")
+            warn_once(f"terrain '{obj.name}': modifiers not applied ({type(exc).__name__}: {exc})")
     return extract(obj.data, obj.matrix_world)
 
 
@@ -338,20 +246,18 @@ def sample_terrain(scene, item, params):
     downward ray cast per sample done as one vectorised pass (``terrain.drape``); samples off the
     mesh take the nearest hit's height. Deterministic: a function of the mesh and the params.
     """
-    from . import runtime
-
     obj = terrain_object(scene, item)
     coll = item.collection
     if obj is None:
         lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
         if lost:
             name = coll.get("wg_terrain") if coll is not None and coll.get("wg_terrain") else item.terrain.name
-            runtime._warn_once(f"terrain '{name}' of field '{item.name}' is gone or not a mesh in this scene; "
+            warn_once(f"terrain '{name}' of field '{item.name}' is gone or not a mesh in this scene; "
                                "the grass grows on flat ground")
         return None, None
     tris = _world_triangles(obj)
     if len(tris) == 0:
-        runtime._warn_once(f"terrain '{obj.name}' of field '{item.name}' has no faces; the grass grows on flat ground")
+        warn_once(f"terrain '{obj.name}' of field '{item.name}' has no faces; the grass grows on flat ground")
         return None, None
     lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
     centre = 0.5 * (lo[:2] + hi[:2])
@@ -425,15 +331,11 @@ def _remove_objects(objects) -> None:
             bpy.data.meshes.remove(mesh)
 
 
-def build_slots(scene, item, layout, params) -> bpy.types.Collection:
-    """(Re)create the ground and the blade/card slot objects for ``layout``; idempotent.
-
-    Called by ``build_field`` and by the runtime when the topology (segments, blades per block,
-    pool sizes, field size) changed.
+def build_slots(scene, item, layout, params, terrain_centre=None, topology: str = "") -> bpy.types.Collection:
+    """(Re)create the ground and the blade/card slot objects for ``layout`` (``slots.pool_shapes``);
+    idempotent. ``terrain_centre``: world XY of the field over a terrain; ``topology``: the
+    ``slots.topology_key`` recorded on the collection. Called by ``runtime.build_field`` only.
     """
-    from .. import kinematics as kin  # numpy topology of one block
-    from . import runtime
-
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
     base = coll.name
@@ -452,8 +354,7 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
     _tag(ground.data, uid, ROLE_GROUND)
     _link(coll, ground, None)
     _register(item, ROLE_GROUND, ground)
-    rt = runtime.get_runtime(scene, item)
-    centre = getattr(rt, "terrain_centre", None) if heightfield is not None else None
+    centre = terrain_centre if heightfield is not None else None
     if centre is not None:
         # On a terrain the mesh places the field: centred on it, heights in world Z.
         from mathutils import Matrix
@@ -466,24 +367,23 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
         if "wg_terrain" in coll and heightfield is None and terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    n_blade_slots, n_card_slots = slot_counts(layout, params)
-    k_blades, k_cards = blocks_per_slot(layout, params)
-    if n_blade_slots:
-        blade_verts = blade_vertex_count(layout)
-        faces, uvs = tiled_topology(kin.blade_faces(layout), kin.blade_uvs(layout), blade_verts, k_blades)
-        for i in range(n_blade_slots):  # once per build, not per frame
-            mesh = quad_mesh(f"{base} blades {i:03d}", k_blades * blade_verts, faces, uvs, blade_mat,
+    blade_shape, card_shape = slots.pool_shapes(layout, params)
+    if blade_shape.objects:
+        faces, uvs = slots.tiled_topology(kin.blade_faces(layout), kin.blade_uvs(layout),
+                                          blade_shape.verts_per_block, blade_shape.k)
+        for i in range(blade_shape.objects):  # once per build, not per frame
+            mesh = quad_mesh(f"{base} blades {i:03d}", blade_shape.verts_per_object, faces, uvs, blade_mat,
                              {materials.ATTR_COLOR: "FLOAT_COLOR", materials.ATTR_SHADE: "FLOAT"})
             obj = bpy.data.objects.new(mesh.name, mesh)
             _tag(obj, uid, ROLE_BLADES, i)
             _tag(mesh, uid, ROLE_BLADES, i)
             _link(coll, obj, ground)
             _register(item, _slot_key(ROLE_BLADES, i), obj)
-    if n_card_slots:
-        card_verts = card_vertex_count(layout)
-        faces, uvs = tiled_topology(kin.card_faces(layout), kin.card_uvs(layout), card_verts, k_cards)
-        for i in range(n_card_slots):
-            mesh = quad_mesh(f"{base} cards {i:03d}", k_cards * card_verts, faces, uvs, card_mat,
+    if card_shape.objects:
+        faces, uvs = slots.tiled_topology(kin.card_faces(layout), kin.card_uvs(layout),
+                                          card_shape.verts_per_block, card_shape.k)
+        for i in range(card_shape.objects):
+            mesh = quad_mesh(f"{base} cards {i:03d}", card_shape.verts_per_object, faces, uvs, card_mat,
                              {materials.ATTR_OPACITY: "FLOAT"})
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
@@ -491,7 +391,7 @@ def build_slots(scene, item, layout, params) -> bpy.types.Collection:
             _tag(mesh, uid, ROLE_CARDS, i)
             _link(coll, obj, ground)
             _register(item, _slot_key(ROLE_CARDS, i), obj)
-    coll["wg_topology"] = topology_key(layout, params)
+    coll["wg_topology"] = topology or slots.topology_key(layout, params)
     update_field_materials(item, params)
     return coll
 
@@ -550,32 +450,9 @@ def separate_copy(item) -> bool:
     return True
 
 
-def build_field(scene, item) -> bpy.types.Collection:
-    """Create (or rebuild) the field's collection, ground, slot pools and materials, then write
-    the current frame. Returns the collection (also stored in ``item.collection``)."""
-    from . import runtime
-
-    if getattr(item, "terrain", None) is not None:
-        try:  # the terrain's matrix and modifiers as they are now (never from a frame handler)
-            bpy.context.view_layer.update()
-        except Exception:
-            pass
-    separate_copy(item)  # (never from a frame handler: it edits materials of objects)
-    runtime.reset_field(scene, item)
-    rt = runtime.ensure_runtime(scene, item)
-    coll = build_slots(scene, item, rt.field.layout, rt.params)
-    # The frame handler edits meshes while a render runs: keep the interface locked then.
-    scene.render.use_lock_interface = True
-    runtime.update_field(scene, item)
-    return coll
-
-
-def remove_field(scene, item) -> None:
+def remove_datablocks(item) -> None:
     """Delete the field's objects, their meshes, its materials, image and collection (what its
-    collection records, nothing else), and its runtime; no orphan data is left behind."""
-    from . import runtime
-
-    runtime.reset_field(scene, item)
+    settings item records, nothing else); no orphan data is left behind."""
     coll = item.collection
     if coll is not None:
         reg = registered(item)

@@ -94,7 +94,7 @@ def test_renaming_a_scene_keeps_one_runtime(bridge):
         scene.name = f"Meadow {i}"
         scene.frame_set(3 + i)
     assert runtime.get_runtime(scene, item) is rt
-    assert len(runtime.RUNTIMES) == 1
+    assert len(runtime.REGISTRY.fields) == 1
 
 
 def test_a_deleted_scene_leaves_no_runtime(bridge):
@@ -105,7 +105,7 @@ def test_a_deleted_scene_leaves_no_runtime(bridge):
     bpy.context.window.scene = other if bpy.context.window else None
     bpy.data.scenes.remove(scene)
     assert bpy.ops.windgrass.field_add(blocks_x=1, blocks_y=1, cells_per_block=4) == {"FINISHED"}
-    assert len(runtime.RUNTIMES) == 1
+    assert len(runtime.REGISTRY.fields) == 1
 
 
 def test_a_setting_that_cannot_be_simulated_hides_the_grass_and_says_why(bridge):

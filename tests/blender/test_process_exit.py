@@ -18,12 +18,12 @@ import addon_loader
 addon = addon_loader.load_addon()
 from importlib import import_module
 props = import_module(addon.__name__ + ".grass_addon.bridge.properties")
-scene_mod = import_module(addon.__name__ + ".grass_addon.bridge.scene")
+runtime = import_module(addon.__name__ + ".grass_addon.bridge.runtime")
 schema = import_module(addon.__name__ + ".grass_addon.schema")
 params = schema.defaults().replace({{"field.blocks_x": 1, "field.blocks_y": 1, "field.cells_per_block": 4}})
 scene = bpy.context.scene
 item = props.add_field(scene, params)
-scene_mod.build_field(scene, item)
+runtime.build_field(scene, item)
 scene.frame_set(3)
 print("windgrass ready", flush=True)
 raise SystemExit({status})

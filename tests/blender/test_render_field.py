@@ -468,14 +468,14 @@ def test_a_field_that_cannot_be_simulated_fails_the_batch_render(addon):
     import render_field
 
     properties = import_module(f"{addon.__name__}.grass_addon.bridge.properties")
-    field_scene = import_module(f"{addon.__name__}.grass_addon.bridge.scene")
+    runtime = import_module(f"{addon.__name__}.grass_addon.bridge.runtime")
     schema = import_module(f"{addon.__name__}.grass_addon.schema")
     import bpy
 
     scene = bpy.context.scene
     params = schema.defaults().replace({"field.blocks_x": 1, "field.blocks_y": 1, "field.cells_per_block": 4})
     item = properties.add_field(scene, params, name="Meadow")
-    field_scene.build_field(scene, item)
+    runtime.build_field(scene, item)
     scene.frame_set(2)
     render_field.check_fields(scene)  # fine
     item.lod.blade_far = 1.0  # nearer than blade_near: cannot be simulated

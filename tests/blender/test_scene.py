@@ -111,71 +111,6 @@ def test_card_texture_is_a_clump_of_blades_rooted_at_the_bottom(with_bridge):
     assert not np.array_equal(img, textures.draw_grass_clump(size=128, blades=40, seed=4))
 
 
-def test_pool_size_bounds_every_camera_position(bridge):
-    """The slot pool must hold every block whose nearest point is within blade_far of the camera,
-    wherever the camera stands; check against brute force over many camera positions."""
-    field_scene, _ = bridge
-    from windgrass.grass_addon import layout as layout_mod
-    from windgrass.grass_addon import schema
-
-    params = schema.defaults().replace({"field.blocks_x": 40, "field.blocks_y": 40, "field.cells_per_block": 4,
-                                        "field.blades_per_cell": 1, "lod.blade_near": 2.0, "lod.blade_far": 3.0})
-    layout = layout_mod.build_layout(params)
-    pool = field_scene.slot_count(layout, params.lod.blade_far, True)
-    assert pool < layout.n_blocks  # the pool follows the LOD distance, not the field size
-    b = layout.block_bounds
-    rng = np.random.default_rng([0, 99])
-    worst = 0
-    for x, y in rng.uniform(-8.0, 8.0, (200, 2)):
-        dx = np.maximum(np.maximum(b[:, 0] - x, x - b[:, 2]), 0.0)
-        dy = np.maximum(np.maximum(b[:, 1] - y, y - b[:, 3]), 0.0)
-        worst = max(worst, int((np.hypot(dx, dy) <= params.lod.blade_far).sum()))
-    assert worst <= pool
-    lod_off = params.replace({"lod.enabled": False})
-    assert field_scene.pool_sizes(layout, lod_off) == (layout.n_blocks, 0)
-
-
-def test_slot_objects_hold_k_blocks_and_cover_the_pool(bridge):
-    """A slot object holds k blocks (k from the vertices per block, fewer objects means less
-    per-object cost in Blender); objects * k positions still hold every block the pool needs."""
-    field_scene, _ = bridge
-    from windgrass.grass_addon import layout as layout_mod
-    from windgrass.grass_addon import schema
-
-    params = schema.defaults().replace({"field.blocks_x": 14, "field.blocks_y": 14})
-    layout = layout_mod.build_layout(params)
-    for p in (params, params.replace({"lod.enabled": False})):
-        pool = field_scene.pool_sizes(layout, p)
-        k = field_scene.blocks_per_slot(layout, p)
-        objects = field_scene.slot_counts(layout, p)
-        positions = field_scene.position_counts(layout, p)
-        verts = (field_scene.blade_vertex_count(layout), field_scene.card_vertex_count(layout))
-        for i in range(2):
-            if pool[i] == 0:
-                assert objects[i] == 0
-                continue
-            # k blocks per object, within the vertex budget (one block at least) and the pool.
-            assert k[i] == max(1, min(field_scene.SLOT_VERTEX_BUDGET // verts[i], pool[i]))
-            assert positions[i] == objects[i] * k[i]
-            assert positions[i] - k[i] < pool[i] <= positions[i]  # no object more than needed
-    # Defaults: 512 blades of 12 vertices (6144) per block: 4 blocks per object; LOD off, the
-    # 196 blocks of the field take 49 objects instead of 196.
-    lod_off = params.replace({"lod.enabled": False})
-    assert field_scene.blocks_per_slot(layout, lod_off)[0] == 4
-    assert field_scene.slot_counts(layout, lod_off) == (49, 0)
-    faces, uvs = field_scene.tiled_topology(np.array([[0, 1, 3, 2]]), np.zeros((4, 2), np.float32), 6, 3)
-    assert faces.tolist() == [[0, 1, 3, 2], [6, 7, 9, 8], [12, 13, 15, 14]] and uvs.shape == (12, 2)
-
-
-def test_slot_assignment_is_a_function_of_the_chosen_blocks(bridge):
-    """Which slot shows which block must not depend on earlier frames (frames rendered apart
-    must equal frames rendered in one run)."""
-    _, runtime = bridge
-    out = runtime.assign_slots(5, np.array([9, 3, 5], dtype=np.int32))
-    assert out.tolist() == [3, 5, 9, runtime.FREE, runtime.FREE]
-    assert runtime.assign_slots(5, np.array([5, 9, 3], dtype=np.int32)).tolist() == out.tolist()
-
-
 # --------------------------------------------------------------------------------------------
 # Building and per-frame updates
 
@@ -196,7 +131,7 @@ def test_field_add_builds_collection_ground_and_slot_pools(bridge):
     assert len(blades) == 1 and len(cards) == 1
     rt = runtime.get_runtime(scene, item)
     layout = rt.field.layout
-    assert field_scene.blocks_per_slot(layout, rt.params) == (4, 4)
+    assert (rt.blades.shape.k, rt.cards.shape.k) == (4, 4)
     per_block_verts = layout.blades_per_block * (layout.segments + 1) * 2
     assert all(len(o.data.vertices) == 4 * per_block_verts for o in blades)
     assert all(len(o.data.polygons) == 4 * layout.blades_per_block * layout.segments for o in blades)
@@ -261,7 +196,7 @@ def test_ui_edits_are_coalesced_until_they_settle(bridge):
         runtime.mark_dirty(scene, item, defer=True)
     assert runtime.get_runtime(scene, item).digest == before  # nothing rebuilt while dragging
     assert runtime._flush_pending() is not None  # still settling: the timer runs again
-    time.sleep(runtime._EDIT_SETTLE_S + 0.05)
+    time.sleep(runtime.EDIT_SETTLE_S + 0.05)
     assert runtime._flush_pending() is None
     assert runtime.get_runtime(scene, item).digest != before
     assert runtime.get_runtime(scene, item).field.sim.params.wind.turbulence == pytest.approx(1.5)
@@ -312,9 +247,9 @@ def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
     scene.frame_set(7)
     rt = runtime.get_runtime(scene, item)
     layout = rt.field.layout
-    k = field_scene.blocks_per_slot(layout, rt.params)[0]
-    assert k == 4 and rt.blade_blocks.tolist() == [0, 1, 2, 3, 4, 5]
-    assert rt.blade_position_block.tolist() == [0, 1, 2, 3, 4, 5, runtime.FREE, runtime.FREE]
+    k = rt.blades.shape.k
+    assert k == 4 and rt.blades.blocks.tolist() == [0, 1, 2, 3, 4, 5]
+    assert rt.blades.state.shown.tolist() == [0, 1, 2, 3, 4, 5, -1, -1]  # then FREE
     second = _owned(item, "blades")[1]  # positions 4..7: blocks 4, 5, then two FREE
     rows = _positions(second).reshape(k, -1, 3)
     expected = rt.field.blade_vertices(np.array([4, 5], dtype=np.int32), lod=rt.lod).reshape(2, -1, 3)
@@ -368,23 +303,23 @@ def test_camera_moves_change_lod(bridge):
     layout = rt.field.layout
     corner_block = 0  # block (0, 0) holds the camera's ground point (-3.5, -3.5)
     far_block = layout.n_blocks - 1
-    assert corner_block in rt.blade_blocks.tolist()
-    assert far_block not in rt.blade_blocks.tolist()  # its nearest point is 3.5 m > d_g2 away
+    assert corner_block in rt.blades.blocks.tolist()
+    assert far_block not in rt.blades.blocks.tolist()  # its nearest point is 3.5 m > d_g2 away
     opacity_near = _card_opacity(item, rt)
     _aim(cam, (3.5, 3.5, 1.0), (0.0, 0.0, 0.0))
     # Moving the camera without a frame change (viewport): the depsgraph update follows it.
     bpy.context.view_layer.update()
-    assert far_block in rt.blade_blocks.tolist() and corner_block not in rt.blade_blocks.tolist()
+    assert far_block in rt.blades.blocks.tolist() and corner_block not in rt.blades.blocks.tolist()
     assert not np.array_equal(opacity_near, _card_opacity(item, rt))
     scene.frame_set(3)
-    assert far_block in rt.blade_blocks.tolist() and corner_block not in rt.blade_blocks.tolist()
+    assert far_block in rt.blades.blocks.tolist() and corner_block not in rt.blades.blocks.tolist()
     # Positions without a block collapse to one point (zero area: nothing drawn).
-    k = field_scene.blocks_per_slot(layout, rt.params)[0]
+    k = rt.blades.shape.k
     for obj in _owned(item, "blades"):
         rows = _positions(obj).reshape(k, -1, 3)
         for i, pos in enumerate(rows):
             spread = float(np.ptp(pos, axis=0).max())
-            assert (spread > 0.0) == (int(rt.blade_position_block[obj["wg_slot"] * k + i]) >= 0)
+            assert (spread > 0.0) == (int(rt.blades.state.shown[obj["wg_slot"] * k + i]) >= 0)
 
 
 def _slot_data(item) -> dict[str, np.ndarray]:
@@ -417,9 +352,9 @@ def test_animated_camera_lod_and_frames_independent_of_history(bridge):
     for frame in (1, 2, 3, 4):
         scene.frame_set(frame)
     rt = runtime.get_runtime(scene, item)
-    assert rt.blade_blocks.tolist() == [3]  # only the block under the camera at frame 4
+    assert rt.blades.blocks.tolist() == [3]  # only the block under the camera at frame 4
     visited = _slot_data(item)
-    field_scene.build_field(scene, item)  # a fresh runtime straight at frame 4
+    runtime.build_field(scene, item)  # a fresh runtime straight at frame 4
     fresh = _slot_data(item)
     assert visited.keys() == fresh.keys()
     for key, data in visited.items():
@@ -427,15 +362,14 @@ def test_animated_camera_lod_and_frames_independent_of_history(bridge):
 
 
 def _card_opacity(item, rt):
-    from windgrass.grass_addon.bridge import scene as field_scene
 
-    k = field_scene.blocks_per_slot(rt.field.layout, rt.params)[1]
+    k = rt.cards.shape.k
     out = {}
     for obj in _owned(item, "cards"):
         data = np.empty(len(obj.data.vertices), dtype=np.float32)
         obj.data.attributes["wg_opacity"].data.foreach_get("value", data)
         for i, rows in enumerate(data.reshape(k, -1)):
-            block = int(rt.card_position_block[obj["wg_slot"] * k + i])
+            block = int(rt.cards.state.shown[obj["wg_slot"] * k + i])
             if block >= 0:
                 out[block] = rows
     return np.concatenate([out[b] for b in sorted(out)]) if out else np.zeros(0)
@@ -503,7 +437,7 @@ def test_save_and_reopen_gives_the_same_frame(bridge, tmp_path):
     path = tmp_path / "field.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    assert not runtime.RUNTIMES  # load_post dropped every runtime
+    assert not runtime.REGISTRY.fields  # load_post dropped every runtime
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     scene.frame_set(3)  # somewhere else first, so frame 12 really is recomputed
@@ -529,7 +463,7 @@ def test_remove_leaves_no_orphans_and_undo_restores(bridge):
     assert bpy.ops.windgrass.field_remove("EXEC_DEFAULT") == {"FINISHED"}
     assert _counts() == before
     assert not [m for m in bpy.data.meshes if m.users == 0]
-    assert not runtime.RUNTIMES
+    assert not runtime.REGISTRY.fields
     # Undo works headless once an undo step exists: the field comes back with its objects.
     bpy.ops.ed.undo_push(message="field removed")
     assert bpy.ops.ed.undo() == {"FINISHED"}

@@ -59,11 +59,10 @@ def _blade_joints_world(scene, item, runtime) -> np.ndarray:
     rt = runtime.get_runtime(scene, item)
     n = rt.field.layout.segments
     slots = {o["wg_slot"]: o for o in item.collection.objects if o.get("wg_role") == "blades"}
-    from windgrass.grass_addon.bridge import scene as field_scene
 
-    k = field_scene.blocks_per_slot(rt.field.layout, rt.params)[0]  # blocks per slot object
+    k = rt.blades.shape.k  # blocks per slot object
     out = []
-    for position in np.flatnonzero(rt.blade_position_block >= 0):
+    for position in np.flatnonzero(rt.blades.state.shown >= 0):
         obj = slots[int(position) // k]
         m = np.array(obj.matrix_world)
         local = _positions(obj).reshape(k, -1, 3)[int(position) % k]
@@ -150,7 +149,7 @@ def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_pa
     path = tmp_path / "terrain.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    assert not runtime.RUNTIMES
+    assert not runtime.REGISTRY.fields
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     scene.frame_set(2)
@@ -159,7 +158,7 @@ def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_pa
     np.testing.assert_allclose(_blade_joints_world(scene, item, runtime), expected, atol=1e-6)
 
 
-def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_falls_back_to_flat(bridge, capsys):
+def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_waits_for_rebuild(bridge, capsys):
     field_scene, runtime = bridge
     terrain = _slope_mesh()
     mesh_name, verts = terrain.data.name, len(terrain.data.vertices)
@@ -168,7 +167,8 @@ def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_falls_back_t
     assert bpy.data.objects.get("Grid") is terrain and terrain.name in scene.objects
     assert bpy.data.meshes.get(mesh_name) is not None and len(terrain.data.vertices) == verts
 
-    # A field whose terrain is deleted keeps working on flat ground (one warning, no exception).
+    # A field whose terrain is deleted keeps the ground it was built on (one warning, no exception,
+    # no objects rebuilt by a frame handler); Rebuild puts it on flat ground.
     terrain.select_set(True)
     bpy.context.view_layer.objects.active = terrain
     scene, item = _add_field()
@@ -178,7 +178,12 @@ def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_falls_back_t
     scene.frame_set(3)
     scene.frame_set(4)
     out = capsys.readouterr().out
-    assert out.count("terrain 'Grid'") == 1 and "flat ground" in out
+    assert out.count("terrain of field 'Grass'") == 1 and "until Rebuild" in out
+    assert runtime.get_runtime(scene, item).heightfield is not None
+    assert runtime.field_error(scene, item) is None
+    assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
+    out = capsys.readouterr().out
+    assert "terrain 'Grid'" in out and "flat ground" in out
     rt = runtime.get_runtime(scene, item)
     assert rt.heightfield is None
     ground = field_scene.ground_object(item)

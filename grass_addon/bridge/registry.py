@@ -1,0 +1,48 @@
+"""The one piece of module-level state of the add-on: every field's runtime, by key.
+
+A key is ``(scene.session_uid, field uid)``: Blender keeps a scene's session uid through renames
+and undo and gives a copied scene a new one. Nothing in the .blend refers to a runtime: the
+registry is emptied on file load and each field is resolved again from its stored settings (the
+state at frame N is a function of the parameters, the seed and N).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+Key = tuple[int, str]
+
+
+def key_of(scene, item) -> Key:
+    return scene.session_uid, str(item.uid)
+
+
+@dataclass
+class Registry:
+    fields: dict[Key, Any] = field(default_factory=dict)  # Key -> runtime.FieldRuntime
+    errors: dict[Key, str] = field(default_factory=dict)  # why a field cannot be simulated now
+    pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
+    warned: set[str] = field(default_factory=set)  # console messages already printed
+
+    def clear(self) -> None:
+        self.fields.clear()
+        self.errors.clear()
+        self.pending.clear()
+        self.warned.clear()
+
+    def forget_missing(self, alive: set[Key]) -> None:
+        """Drop the runtimes of scenes or fields that no longer exist."""
+        for table in (self.fields, self.errors, self.pending):
+            for key in [k for k in table if k not in alive]:
+                del table[key]
+
+
+REGISTRY = Registry()
+
+
+def warn_once(text: str) -> None:
+    """Report a problem in the console once; a frame handler must never raise into Blender."""
+    if text not in REGISTRY.warned:
+        REGISTRY.warned.add(text)
+        print(f"Windgrass: {text}")

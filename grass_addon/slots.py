@@ -1,0 +1,157 @@
+"""Slot pools: which block each mesh object of a field shows this frame (numpy only).
+
+Blender holds a field as two pools of mesh objects, one for blade strips and one for cards. Every
+block has the same topology, so one object ("slot") is k copies of one block's topology and shows
+k blocks at its k "positions": object s holds positions s*k .. s*k + k - 1. A pool is sized from the
+LOD distances (blades need d < d_g2 of eq 7, cards d < d_s2 of eq 10), not from the field's size,
+so memory and per-frame cost follow what is near the camera.
+
+Each frame the nearest visible blocks that need the pool's level of detail go to the first
+positions in block order (canonical: a frame's assignment depends on the frame and the camera
+alone, never on the frames visited before); the other positions are FREE (collapsed to a point).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+FREE = -1  # a position that shows nothing
+UNKNOWN = -2  # what a position shows is not known (new pool, undo, reopened file): write it
+# Vertices a slot object aims at: k = SLOT_VERTEX_BUDGET // vertices per block blocks share one
+# object (default blades 6144 vertices per block: k = 4; cards 1024: k = 24). Fewer, larger
+# objects cut Blender's per-object cost (one write, one update, one evaluation per object).
+SLOT_VERTEX_BUDGET = 24576
+
+
+def blade_vertex_count(layout) -> int:
+    """Vertices of one block of blades: per blade n + 1 joints, each [left, right]."""
+    return layout.blades_per_block * (layout.segments + 1) * 2
+
+
+def card_vertex_count(layout) -> int:
+    """Vertices of one block of cards: one quad per cell."""
+    return layout.cells_per_block_total * 4
+
+
+def blocks_within(layout, distance: float) -> int:
+    """Blocks whose nearest point can lie within ``distance`` of a camera, at most n_blocks.
+
+    A block (edge s) with a point within d of the camera has its centre within d + s/sqrt(2);
+    every such block lies inside the disc of radius d + s*sqrt(2) (d + block diagonal), so their
+    number is at most that disc's area over the block's area.
+    """
+    edge = layout.cells_per_block * layout.cell_size
+    radius = distance + edge * math.sqrt(2.0)
+    return int(min(layout.n_blocks, math.ceil(math.pi * radius * radius / (edge * edge))))
+
+
+def pool_blocks(layout, params) -> tuple[int, int]:
+    """(blade blocks, card blocks) the two pools must show at once. LOD off: every block is
+    geometry and no card is drawn."""
+    lod = params.lod
+    if not lod.enabled:
+        return (layout.n_blocks if layout.blades_per_block else 0), 0
+    blades = blocks_within(layout, lod.blade_far) if layout.blades_per_block else 0
+    return blades, blocks_within(layout, lod.card_far)
+
+
+@dataclass(frozen=True)
+class PoolShape:
+    """The objects of one pool: ``objects`` objects of ``k`` block positions of ``verts_per_block``."""
+
+    verts_per_block: int
+    k: int
+    objects: int
+
+    @classmethod
+    def of(cls, verts_per_block: int, blocks: int) -> PoolShape:
+        if blocks <= 0:
+            return cls(verts_per_block, 1, 0)
+        k = max(1, min(SLOT_VERTEX_BUDGET // max(1, verts_per_block), blocks))  # never more than needed
+        return cls(verts_per_block, k, -(-blocks // k))
+
+    @property
+    def positions(self) -> int:
+        return self.objects * self.k
+
+    @property
+    def verts_per_object(self) -> int:
+        return self.k * self.verts_per_block
+
+
+def pool_shapes(layout, params) -> tuple[PoolShape, PoolShape]:
+    """(blades, cards) pool shapes of a field."""
+    blades, cards = pool_blocks(layout, params)
+    return PoolShape.of(blade_vertex_count(layout), blades), PoolShape.of(card_vertex_count(layout), cards)
+
+
+def topology_key(layout, params) -> str:
+    """What a field's slot objects are built for; they are rebuilt when it changes."""
+    blades, cards = pool_shapes(layout, params)
+    ground = getattr(layout, "terrain", None)
+    return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block,
+                       [blades.objects, blades.k], [cards.objects, cards.k],
+                       [round(float(v), 6) for v in layout.size],
+                       ground.fingerprint() if ground is not None else "flat"])
+
+
+def tiled_topology(faces: np.ndarray, uvs: np.ndarray, verts_per_block: int, k: int):
+    """(faces, uvs) of k copies of one block's topology: copy i uses vertices from
+    i * verts_per_block on; UVs repeat per copy."""
+    offsets = (np.arange(k, dtype=np.int32) * verts_per_block)[:, None, None]
+    tiled = (faces.astype(np.int32)[None] + offsets).reshape(-1, 4)
+    return np.ascontiguousarray(tiled), np.ascontiguousarray(np.tile(uvs, (k, 1)), dtype=np.float32)
+
+
+def nearest_blocks(candidates: np.ndarray, distance: np.ndarray, count: int) -> np.ndarray:
+    """Up to ``count`` candidate blocks, nearest first (stable for equal distances)."""
+    idx = np.flatnonzero(candidates)
+    order = np.argsort(distance[idx], kind="stable")
+    return idx[order[:count]].astype(np.int32)
+
+
+def assign_positions(n_positions: int, chosen: np.ndarray) -> np.ndarray:
+    """Block shown at every position: the chosen blocks in block order, then FREE."""
+    out = np.full(n_positions, FREE, dtype=np.int32)
+    blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_positions]
+    out[: len(blocks)] = blocks
+    return out
+
+
+@dataclass
+class Assignment:
+    """One frame of a pool: ``shown`` block per position (FREE after the first ``count``),
+    ``write`` and ``changed`` per object (``changed``: some position shows another block)."""
+
+    shown: np.ndarray
+    count: int
+    write: np.ndarray
+    changed: np.ndarray
+
+
+class PoolState:
+    """What each position of a pool shows, frame to frame (the writes skip what did not change)."""
+
+    def __init__(self, shape: PoolShape):
+        self.shape = shape
+        self.shown = np.full(shape.positions, UNKNOWN, dtype=np.int32)
+
+    def forget(self) -> None:
+        """The objects' data may be anything now (undo, a reopened file): write everything next."""
+        self.shown.fill(UNKNOWN)
+
+    def assign(self, needs: np.ndarray, block_distance: np.ndarray) -> Assignment:
+        """This frame's assignment: the nearest blocks that ``need`` the pool (bool per block)."""
+        chosen = nearest_blocks(needs, block_distance, self.shape.positions)
+        shown = assign_positions(self.shape.positions, chosen)
+        k = self.shape.k
+        cur, prev = shown.reshape(-1, k), self.shown.reshape(-1, k)
+        # an object whose positions are all FREE now and were FREE before stays collapsed
+        write = ~((cur == FREE).all(axis=1) & (prev == FREE).all(axis=1))
+        changed = (cur != prev).any(axis=1)
+        self.shown = shown
+        return Assignment(shown, len(chosen), write, changed)

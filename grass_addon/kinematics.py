@@ -27,9 +27,9 @@ height, moved by the deformation vector M' of eq 34 (CellData.card_offset) and t
 vertical axis by the cell's total twist.
 
 Every block has the same topology, so the output for blocks [b0, b1, ...] is the concatenation of
-per-block arrays. The work runs over chunks of blocks with preallocated scratch arrays, on a
-2-thread pool (numpy releases the GIL) whose workers take chunks from a shared queue; each output
-row is written by exactly one chunk, so results do not depend on the threading. The kernel is
+per-block arrays. The work runs over chunks of blocks with preallocated scratch arrays, on the
+engine's shared thread pool (workers.py; numpy releases the GIL), whose lanes take chunks from a
+shared queue; each output row is written by exactly one chunk, so results do not depend on the threading. The kernel is
 blade-major like the output (blade, joint): per-(blade, joint) work is contiguous passes and the
 vertices are written straight into `out`. Cell data comes joint-major from the solver
 (CellData.bend_t/twist_t) and is gathered per chunk, one strided copy per run of blocks of a
@@ -40,26 +40,15 @@ from __future__ import annotations
 
 import threading
 import weakref
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from . import blade
+from . import blade, workers
 
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
-THREADS = 2
+THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
 
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _pool() -> ThreadPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None:
-            _POOL = ThreadPoolExecutor(max_workers=THREADS, thread_name_prefix="windgrass-kin")
-        return _POOL
 
 
 # --------------------------------------------------------------------------------------------
@@ -321,14 +310,7 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
             _blade_chunk(layout, const, s, ids, bend, twist, counts, view[start:start + len(ids)])
 
     with const.call_lock:  # the scratch arrays serve one call at a time
-        if len(chunks) == 1 or THREADS < 2:
-            work(0)
-        else:
-            future = _pool().submit(work, 1)
-            try:
-                work(0)
-            finally:
-                future.result()
+        workers.run_lanes(work, min(THREADS, len(chunks)))
     return result
 
 

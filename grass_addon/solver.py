@@ -15,38 +15,44 @@ State (rest = all zeros), angles in radians, relative to the rest shape of eqs 1
   segment ``j``'s face normal points to azimuth ``cell_facing + sum_{k<=j} twist[c, k]``.
 * ``bend_vel``, ``twist_vel``: their rates in rad/s.
 
-One solver step (``step``, once per frame; the wind is sampled once per frame):
+One solver step (``step``, once per frame; the wind is sampled once per frame) runs four phases on
+each chunk of cells (``_step_chunk``), each with named inputs and outputs:
 
-1. eqs 16-20: wind torques of the shape of the equilibrium estimate E (a state array, relaxed
-   towards the reconfigured statics by one fixed-point iteration per step);
-2. eqs 21-24: the equilibrium bend M / mu(t) along the wind, and E moves towards it;
-3. eq 28: n_boundary from the blade's swing amplitude about the equilibrium;
-4. joints at or below n_boundary: the smooth three-step update towards E (eqs 25-27);
-   joints above it: the oscillator about E (eqs 29-32, ``substeps`` symplectic Euler steps).
-   Joints too stiff to show a sway at the frame rate always take the smooth update.
+1. ``_forcing`` (eqs 14-20) -> ``_Forcing``: the wind's bend and twist torques on the shape of the
+   equilibrium estimate E (a state array, relaxed towards the reconfigured statics by one
+   fixed-point iteration per step);
+2. ``_equilibrium`` (eqs 21-24) -> ``_Equilibrium``: mu(t), the equilibrium bend M / mu(t) along the
+   wind and twist, E moved towards them, the gaps E - theta and the swing amplitudes;
+3. ``_boundary`` (eq 28) -> ``_Split``: n_boundary, and the joints above it that oscillate;
+4. ``_smooth_fractions`` + ``_smooth_update`` (eqs 25-27) for the joints at or below n_boundary,
+   ``_oscillate`` (eqs 29-32, ``substeps`` symplectic Euler steps) for those above it. Joints too
+   stiff to show a sway at the frame rate always take the smooth update.
 The twist follows the same split with a self-limiting equilibrium (the face turns towards
-broadside to the wind, never past it; see ``_step_chunk``).
+broadside to the wind, never past it; see ``_equilibrium``).
+
+``tests/core/solver_reference.py`` states the same step plainly (float64, per cell, per joint);
+the tests hold this one to it.
 
 Performance: the work runs on joint-major arrays (component, joint, cell) so every numpy call
 covers a long contiguous row of cells; loops only run over the n segments, never over cells. The
-cells are cut into chunks processed by two threads (numpy releases the GIL); every operation is
-element-wise per cell, so the result is bitwise identical however the cells are chunked. Each
-pass over the chunk's joints costs about as much as the next, so the step is written to make few
-passes: preallocated scratch (shared by phases whose values are dead), ``out=`` everywhere,
-float32 scalars, constants folded at construction (l_length into the wind area), the oscillator
-integrated in place on the state, and with one sub-step the smooth update folded into the
-oscillator's per-joint coefficients instead of computed beside it and blended.
+cells are cut into chunks processed by the engine's two lanes (``workers.py``; numpy releases the
+GIL); every operation is element-wise per cell, so the result is bitwise identical however the
+cells are chunked. Each pass over the chunk's joints costs about as much as the next, so the step
+makes few passes: preallocated scratch buffers (one quantity each, named after it), ``out=``
+everywhere, float32 scalars, constants folded at construction (l_length into the wind area), the
+oscillator integrated in place on the gaps, and with one sub-step the smooth update folded into
+the oscillator's per-joint coefficients instead of computed beside it and blended.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import blade
+from . import blade, workers
 
 RHO_AIR = 1.225  # rho_wind of eqs 15-17, kg/m^3 (air at sea level, 15 C)
 REFERENCE_DT = 1.0 / 24.0  # dt_ref: the paper's frame (24 fps) in which eq 26's rate M/gamma is given
@@ -203,6 +209,45 @@ def _clip(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
     np.maximum(x, lo, out=x)
 
 
+@dataclass
+class _Forcing:
+    """Phase 1, eqs 14-20: the wind's loads on a chunk of cells, joint-major (n, m)."""
+
+    w_hat: np.ndarray  # (2, m) horizontal unit wind direction (zero without wind)
+    speed: np.ndarray  # (m,) |v| m/s, at least 1e-6
+    delta0: np.ndarray | None  # (m,) angle from the rest face normal to the wind line
+    force: np.ndarray  # F_j of eq 17 times l_length
+    force_above: np.ndarray  # S_i = sum_{j>=i} F_j
+    cos_tilt: np.ndarray  # cos |T_j|
+    bend_torque: np.ndarray  # M_i of eq 18, N m, along w_hat
+    twist_torque: np.ndarray  # M_t,i of eq 20, N m
+
+
+@dataclass
+class _Equilibrium:
+    """Phase 2, eqs 21-24: stiffness, equilibria and the gaps to them, joint-major (n, m)."""
+
+    mu: np.ndarray  # mu_i(t) of eqs 22-23
+    k_over_i: np.ndarray  # K / I = w^2 of the joint's swing
+    twist_eq: np.ndarray  # the equilibrium twist
+    gap: np.ndarray  # (n, 2, m) E - theta (the oscillator integrates it in place)
+    gap_size: np.ndarray  # |E - theta|
+    twist_gap: np.ndarray  # phi_eq - phi
+    twist_gap_size: np.ndarray  # |phi_eq - phi|
+    swing: np.ndarray  # swing amplitude |dtheta_i| + |dphi_i| of eq 28
+
+
+@dataclass
+class _Split:
+    """Phase 3, eq 28: rows [j0, j1) hold every oscillating joint of the chunk; ``swinging``
+    ((j1 - j0, m), 1 where the joint oscillates) and ``steady`` (1 - swinging), or None."""
+
+    j0: int
+    j1: int
+    swinging: np.ndarray | None
+    steady: np.ndarray | None
+
+
 class BladeSolver:
     """Bending/twisting of every cell's representative blade (paper V.A). See the module doc."""
 
@@ -269,7 +314,6 @@ class BladeSolver:
         lanes = min(self.threads, len(self._chunks))
         self._lanes = [self._chunks[i::lanes] for i in range(lanes)]
         self._scratch = [_Scratch() for _ in range(lanes)]
-        self._pool = ThreadPoolExecutor(max_workers=lanes) if lanes > 1 else None
         self._allowed_cache: dict[tuple[float, float], np.ndarray] = {}
         self._allowed_rows: dict[int, int] = {}  # chunk start -> j1 for the cached allowed
         self._quasi_cache: tuple[float | None, np.ndarray | None] = (None, None)
@@ -286,15 +330,7 @@ class BladeSolver:
         self.n_boundary.fill(self.n)
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=False)
-            self._pool = None
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:
-            pass
+        """Nothing to release: the lanes run on the engine's shared pool (workers.py)."""
 
     def stable_substeps(self, frame_dt: float) -> int:
         """Sub-steps per frame that keep eq 32 stable (>= simulation.sub_steps).
@@ -332,7 +368,7 @@ class BladeSolver:
         out = np.empty((self.n, self.n_cells), dtype=F32)
         for a, b in self._chunks:
             forcing = self._forcing(a, b, wind, scratch, twist=False)
-            np.divide(forcing["Mb"], self._mu_base[:, a:b], out=out[:, a:b])
+            np.divide(forcing.bend_torque, self._mu_base[:, a:b], out=out[:, a:b])
         return np.ascontiguousarray(out.T)
 
     def step(self, wind: np.ndarray, dt: float, substeps: int = 1) -> None:
@@ -354,16 +390,11 @@ class BladeSolver:
             fast = self._omega2 > self._visible_omega2(dt)
             self._quasi_static = np.where(fast, F32(QUASI_RATE), F32(0.0)).astype(F32)
             self._quasi_cache = (dt, self._quasi_static)
-        if self._pool is None:
-            for lane, chunks in enumerate(self._lanes):
-                for a, b in chunks:
-                    self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
-        else:
-            def run(lane: int) -> None:
-                for a, b in self._lanes[lane]:
-                    self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
-            for _ in self._pool.map(run, range(len(self._lanes))):  # waits; re-raises a lane's error
-                pass
+        def run(lane: int) -> None:
+            for a, b in self._lanes[lane]:
+                self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
+
+        workers.run_lanes(run, len(self._lanes))
         self.state.changed()
 
     # ---------------------------------------------------------------------------- internals
@@ -403,93 +434,85 @@ class BladeSolver:
             self._allowed_rows[a] = j1
         return j1
 
-    def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch,
-                 twist: bool = True) -> dict[str, np.ndarray]:
-        """Wind torques on cells [a, b) for the current shape (eqs 16-20), joint-major (n, m).
+    # ------------------------------------------------------------------ phase 1: eqs 14-20
 
-        Returns Mb (bend torque along the wind, N m), Mt (twist torque, N m), w_hat, speed, and
-        (twist=True) delta0, plus F, Fs, CT for _aero_q. Scratch buffers: valid until the next
-        call with the same S.
-        """
+    def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch, twist: bool = True) -> _Forcing:
+        """Wind loads on cells [a, b) for the shape of the equilibrium estimate E (eqs 14-20)."""
         n, m = self.n, b - a
-        # the loads act on the shape of the equilibrium estimate E, not on the swinging blade
-        bend = self.state.bend_eq_t[:, :, a:b]
+        eq_bend = self.state.bend_eq_t[:, :, a:b]  # the loads act on E, not on the swinging blade
 
-        W = S.get("W", (2, m))
+        W = S.get("wind", (2, m))
         np.copyto(W, wind[a:b].T)
-        v2 = S.get("v2", (m,))
-        tmp = S.get("tmp", (m,))
+        v2 = S.get("wind_speed2", (m,))
+        wy2 = S.get("wind_y2", (m,))
         np.multiply(W[0], W[0], out=v2)
-        np.multiply(W[1], W[1], out=tmp)
-        v2 += tmp
-        speed = S.get("speed", (m,))
+        np.multiply(W[1], W[1], out=wy2)
+        v2 += wy2
+        speed = S.get("wind_speed", (m,))
         np.sqrt(v2, out=speed)
         np.maximum(speed, S.const("tiny_speed", 1e-6, m), out=speed)
-        w_hat = S.get("w_hat", (2, m))  # horizontal unit wind direction w (zero without wind)
+        w_hat = S.get("wind_direction", (2, m))  # horizontal unit wind direction (zero without wind)
         np.divide(W, speed, out=w_hat)
-        out = {"w_hat": w_hat, "speed": speed}
+        delta0 = None
         if twist:
-            # delta0: angle from the rest face normal (a line: both sides face) to the wind line,
-            # in [-pi/2, pi/2) (twist, eqs 19-20)
-            # = arctan2(cross * dot, dot^2) of the rest face normal f and the wind w (0 without wind)
-            delta0 = S.get("delta0", (m,))
-            dot, cross = S.get("dot", (m,)), S.get("cross", (m,))
+            # delta0: angle from the rest face normal (a line: both sides face) to the wind line, in
+            # [-pi/2, pi/2): arctan2(cross * dot, dot^2) of the rest face normal and the wind
+            delta0 = S.get("face_to_wind", (m,))
+            dot, cross = S.get("face_dot_wind", (m,)), S.get("face_cross_wind", (m,))
             face = self._face[:, a:b]
             np.multiply(face[0], W[0], out=dot)
-            np.multiply(face[1], W[1], out=tmp)
-            dot += tmp
+            np.multiply(face[1], W[1], out=wy2)
+            dot += wy2
             np.multiply(face[0], W[1], out=cross)
-            np.multiply(face[1], W[0], out=tmp)
-            cross -= tmp
+            np.multiply(face[1], W[0], out=wy2)
+            cross -= wy2
             cross *= dot
             dot *= dot
             np.arctan2(cross, dot, out=delta0)
-            out["delta0"] = delta0
         # v^2 rho_wind l_length l_width, times l_length: the lever unit of eq 18 (see below)
-        Av = S.get("Av", (n, m))
-        np.multiply(self._area_seg[:, a:b], v2, out=Av)
+        area = S.get("wind_area", (n, m))
+        np.multiply(self._area_seg[:, a:b], v2, out=area)
 
-        # Absolute tilt vectors T_j = rest_j + sum_{k<=j} bend_k of every segment (n, 2, m); the
+        # Absolute tilt vectors T_j = rest_j + sum_{k<=j} E_k of every segment (n, 2, m); the
         # running sum is the only loop over joints, the rest runs on all joints at once.
-        T = S.get("T", (n, 2, m), pad=True)
-        np.copyto(T[0], bend[0])
+        T = S.get("tilt_vector", (n, 2, m), pad=True)
+        np.copyto(T[0], eq_bend[0])
         for j in range(1, n):
-            np.add(T[j - 1], bend[j], out=T[j])
+            np.add(T[j - 1], eq_bend[j], out=T[j])
         T += self._rest[:, :, a:b]
-        TT = S.get("BB", (n, 2, m))
+        products = S.get("tilt_vector_products", (n, 2, m))
         tilt = S.get("tilt", (n, m))
         sin_tilt = S.get("sin_tilt", (n, m))
-        cos_phi = S.get("cos_phi", (n, m), pad=True)
-        F = S.get("F", (n, m))  # F_i^bend of eq 17 (times l_length)
-        CT = S.get("CT", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
+        cos_phi = S.get("cos_phi", (n, m))
+        force = S.get("force", (n, m))  # F_i^bend of eq 17 (times l_length)
+        cos_tilt = S.get("cos_tilt", (n, m))  # cos |T_j|: vertical extent of segment j / l_length
 
-        np.multiply(T, T, out=TT)
-        np.add(TT[:, 0], TT[:, 1], out=tilt)
+        np.multiply(T, T, out=products)
+        np.add(products[:, 0], products[:, 1], out=tilt)
         np.sqrt(tilt, out=tilt)  # |T_j|
         np.sin(tilt, out=sin_tilt)
-        np.cos(tilt, out=CT)
+        np.cos(tilt, out=cos_tilt)
         # eq 16: cos(phi) = a_j . w with the axis a_j = (sin|T| T/|T|, cos|T|), w horizontal
-        np.multiply(T, w_hat[None, :, :], out=TT)
-        np.add(TT[:, 0], TT[:, 1], out=cos_phi)
+        np.multiply(T, w_hat[None, :, :], out=products)
+        np.add(products[:, 0], products[:, 1], out=cos_phi)
         np.maximum(tilt, S.const("eps", EPS, m), out=tilt)
         np.divide(cos_phi, tilt, out=cos_phi)
         cos_phi *= sin_tilt
-        sin_phi = F
+        sin_phi = S.get("sin_phi", (n, m))
         np.multiply(cos_phi, cos_phi, out=sin_phi)
         np.subtract(F32(1.0), sin_phi, out=sin_phi)
         np.maximum(sin_phi, S.const("zero", 0.0, m), out=sin_phi)
         np.sqrt(sin_phi, out=sin_phi)
         # eq 17: F = v^2 rho l_length l_width sin(phi); a segment bent along the wind shows it
         # less area (sin phi -> 0), which bounds the bend physically (reconfiguration).
-        F *= Av
+        np.multiply(area, sin_phi, out=force)
         # eqs 19-20: F_twist = v^2 rho l l_w cos(phi) on the lever l sin(theta + theta_base),
         # theta + theta_base = the segment's absolute tilt |T_j| (its size; the direction is set
-        # in _step_chunk). |cos(phi) sin|T||: a lever is a distance (|T| passes pi only in
-        # absurd storms).
-        G = cos_phi  # per-segment twist torque, eq 20
-        G *= sin_tilt
-        np.abs(G, out=G)
-        G *= Av
+        # in _equilibrium). |cos(phi) sin|T||: a lever is a distance.
+        twist_torque = S.get("twist_torque", (n, m), pad=True)
+        np.multiply(cos_phi, sin_tilt, out=twist_torque)  # per segment, summed over joints below
+        np.abs(twist_torque, out=twist_torque)
+        twist_torque *= area
 
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),
@@ -497,71 +520,47 @@ class BladeSolver:
         # M_i = M_{i+1} + z_i (S_{i+1} + F_i / 2). The factor l_length of z_i is already in F
         # (area_seg), so the running sums below come out in N m.
         last = n - 1
-        Fs = S.get("Fs", (n, m), pad=True)  # S_i = sum_{j>=i} F_j
-        np.copyto(Fs[last], F[last])
+        force_above = S.get("force_above", (n, m), pad=True)  # S_i = sum_{j>=i} F_j
+        np.copyto(force_above[last], force[last])
         for i in range(last - 1, -1, -1):
-            np.add(Fs[i + 1], F[i], out=Fs[i])
-        H = S.get("tilt", (n, m))  # z_i (S_{i+1} + F_i / 2)
-        np.multiply(F, F32(0.5), out=H)
-        H[:last] += Fs[1:]
-        H *= CT
-        Mb = S.get("Mb", (n, m), pad=True)
-        np.copyto(Mb[last], H[last])
+            np.add(force_above[i + 1], force[i], out=force_above[i])
+        lever_load = S.get("lever_load", (n, m))  # z_i (S_{i+1} + F_i / 2)
+        np.multiply(force, F32(0.5), out=lever_load)
+        lever_load[:last] += force_above[1:]
+        lever_load *= cos_tilt
+        bend_torque = S.get("bend_torque", (n, m), pad=True)
+        np.copyto(bend_torque[last], lever_load[last])
         for i in range(last - 1, -1, -1):
-            np.add(Mb[i + 1], H[i], out=Mb[i])
-        Mt = G  # twisting joint i turns every segment above: M_t,i = sum_{j>=i} F_twist,j
+            np.add(bend_torque[i + 1], lever_load[i], out=bend_torque[i])
+        # twisting joint i turns every segment above: M_t,i = sum_{j>=i} F_twist,j
         for i in range(last - 1, -1, -1):
-            np.add(Mt[i + 1], Mt[i], out=Mt[i])
-        out.update(Mb=Mb, Mt=Mt, F=F, Fs=Fs, CT=CT)
-        return out
+            np.add(twist_torque[i + 1], twist_torque[i], out=twist_torque[i])
+        return _Forcing(w_hat, speed, delta0, force, force_above, cos_tilt, bend_torque, twist_torque)
 
-    def _aero_q(self, forcing: dict[str, np.ndarray], j0: int, S: _Scratch) -> np.ndarray:
-        """Q_i = sum_{j>=i} F_j h_ij^2 for joints i >= j0 (rows below j0 are not written), in
-        N m^2: the aerodynamic damping of the oscillating joints in _step_chunk.
+    # ------------------------------------------------------------------ phase 2: eqs 21-27
 
-        Q_i = Q_{i+1} + z_i (2 M_{i+1} + z_i (S_{i+1} + F_i / 4)), with F, S, M from _forcing
-        (one factor l_length already in F), so a last factor l_length is applied by the caller.
-        """
-        F, Fs, CT, Mb = forcing["F"], forcing["Fs"], forcing["CT"], forcing["Mb"]
-        n, m = self.n, F.shape[1]
-        last = n - 1
-        Q = S.get("T", (n, m), pad=True)  # (T is not needed any more)
-        rows = slice(j0, n)
-        np.multiply(F[rows], F32(0.25), out=Q[rows])
-        Q[j0:last] += Fs[j0 + 1:]
-        Q[rows] *= CT[rows]
-        Q[j0:last] += Mb[j0 + 1:]
-        Q[j0:last] += Mb[j0 + 1:]
-        Q[rows] *= CT[rows]
-        for i in range(last - 1, j0 - 1, -1):
-            Q[i] += Q[i + 1]
-        return Q
-
-    def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
-                    allowed: np.ndarray, S: _Scratch) -> None:
+    def _equilibrium(self, a: int, b: int, forcing: _Forcing, dt: float, S: _Scratch) -> _Equilibrium:
+        """mu_i(t) (eqs 22-23), the equilibrium bend and twist (eqs 21, 24), E relaxed towards
+        the reconfigured statics, and the gaps E - theta, phi_eq - phi."""
         n, m = self.n, b - a
         st = self.state
         bend, vel = st.bend_t[:, :, a:b], st.bend_vel_t[:, :, a:b]
-        twist, twist_vel = st.twist_t[:, a:b], st.twist_vel_t[:, a:b]
+        twist = st.twist_t[:, a:b]
         E = st.bend_eq_t[:, :, a:b]
-        forcing = self._forcing(a, b, wind, S)
-        Mb, Mt, w_hat = forcing["Mb"], forcing["Mt"], forcing["w_hat"]
-        bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
-        twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
-        BB = S.get("BB", (n, 2, m))
+        products = S.get("bend_products", (n, 2, m))
 
         # eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)
-        mu = S.get("mu", (n, m))
-        np.multiply(bend, bend, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=mu)
+        mu = S.get("stiffness", (n, m))
+        np.multiply(bend, bend, out=products)
+        np.add(products[:, 0], products[:, 1], out=mu)
         np.sqrt(mu, out=mu)
         np.minimum(mu, S.const("stiffen", self.stiffen_limit, m), out=mu)
         mu *= F32(self.k)
         mu += self._mu_base[:, a:b]
         # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)
-        e = S.get("Av", (n, m))
-        np.divide(Mb, mu, out=e)
-        _clip(e, bend_lo, bend_hi)  # |w_hat| <= 1, so each component of e w_hat stays in bounds
+        e = S.get("equilibrium_bend", (n, m))
+        np.divide(forcing.bend_torque, mu, out=e)
+        _clip(e, S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m))
         # Twisting: the same process with stiffness K_t = twist_stiffness * mu_i(t). The paper
         # gives the twisting torque's size (eq 20) but not its direction: it turns the face
         # towards broadside to the wind and vanishes there, like M_t sin(2 (delta - phi)) with
@@ -571,16 +570,16 @@ class BladeSolver:
         # Self-limiting (the face never turns past broadside) and independent of the current
         # twist, so it needs no fixed-point iteration (a twist-dependent torque on cumulative
         # joints flutters).
-        EQt = S.get("EQt", (n, m))
-        np.multiply(mu, F32(0.5 * self.twist_ratio), out=EQt)  # K_t / 2
-        EQt += Mt  # > 0: mu >= mu_base > 0 (root_stiffness >= 1e-7), M_t >= 0
-        np.divide(Mt, EQt, out=EQt)  # s_i
-        left = S.get("left", (m,))
-        np.copyto(left, forcing["delta0"])
+        twist_eq = S.get("equilibrium_twist", (n, m))
+        np.multiply(mu, F32(0.5 * self.twist_ratio), out=twist_eq)  # K_t / 2
+        twist_eq += forcing.twist_torque  # > 0: mu >= mu_base > 0, M_t >= 0
+        np.divide(forcing.twist_torque, twist_eq, out=twist_eq)  # s_i
+        left = S.get("twist_left", (m,))
+        np.copyto(left, forcing.delta0)
         for i in range(n):
-            EQt[i] *= left
-            left -= EQt[i]
-        _clip(EQt, twist_lo, twist_hi)
+            twist_eq[i] *= left
+            left -= twist_eq[i]
+        _clip(twist_eq, S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m))
 
         # Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
         # a bent segment catches less wind, on a shorter lever). Evaluated on the swinging blade
@@ -594,48 +593,54 @@ class BladeSolver:
         # r = 1 / (1 + RELAX_GAIN sum_j |eq_j|) per reference frame (scaled by dt / dt_ref for
         # shorter steps): a full step when the wind drops (eq = 0, the blade is released at once
         # and swings back), short steps in a storm. Written E = E (1 - r) + (e r) w_hat.
-        # (The twist's equilibrium does not depend on the twist: no iteration needed.)
         relax = S.get("relax", (m,))
-        e_abs = S.get("sin_tilt", (n, m))
-        np.abs(e, out=e_abs)
-        np.add.reduce(e_abs, axis=0, out=relax)
+        e_size = S.get("equilibrium_bend_size", (n, m))
+        np.abs(e, out=e_size)
+        np.add.reduce(e_size, axis=0, out=relax)
         relax *= F32(RELAX_GAIN)
         relax += F32(1.0)
         np.divide(F32(min(1.0, dt / REFERENCE_DT)), relax, out=relax)
         e *= relax
-        np.multiply(e[:, None, :], w_hat[None, :, :], out=BB)
+        np.multiply(e[:, None, :], forcing.w_hat[None, :, :], out=products)
         np.subtract(F32(1.0), relax, out=relax)
         E *= relax
-        E += BB
+        E += products
 
-        # Deviation from the equilibrium position E: the angles "relative to the equilibrium
-        # position" of eq 28. A joint swinging through its equilibrium is not at equilibrium, so
-        # we take its swing amplitude, sqrt(dtheta^2 + (theta'/w)^2) with w^2 = K / I (equal to
-        # |dtheta| for a joint at rest); otherwise eq 28 would stop a swing at every crossing.
-        # (The twist, a small effect, counts with |dphi| alone.)
-        DEV = S.get("DEV", (n, 2, m))
-        np.subtract(E, bend, out=DEV)
-        dev = S.get("dev", (n, m))  # |E - theta|: also drives the smooth update (eq 26)
-        np.multiply(DEV, DEV, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=dev)
-        kI = S.get("kI", (n, m))  # K / I = w^2
-        np.multiply(mu, self._inv_inertia[:, a:b], out=kI)
-        amp = S.get("Av", (n, m))  # swing amplitude
-        np.multiply(vel, vel, out=BB)
-        np.add(BB[:, 0], BB[:, 1], out=amp)
-        amp /= kI
-        amp += dev
-        np.sqrt(amp, out=amp)
-        np.sqrt(dev, out=dev)
-        DEVt = S.get("DEVt", (n, m))
-        np.subtract(EQt, twist, out=DEVt)
-        devt = S.get("devt", (n, m))
-        np.abs(DEVt, out=devt)
-        amp += devt  # |dtheta_i| + |dphi_i| of eq 28
+        # The gaps to the equilibrium position E: the angles "relative to the equilibrium
+        # position" of eq 28, and what the smooth update (eq 26) and the oscillator close.
+        gap = S.get("gap", (n, 2, m))
+        np.subtract(E, bend, out=gap)
+        gap_size = S.get("gap_size", (n, m))
+        np.multiply(gap, gap, out=products)
+        np.add(products[:, 0], products[:, 1], out=gap_size)  # squared until the swing is known
+        k_over_i = S.get("stiffness_per_inertia", (n, m))  # K / I = w^2
+        np.multiply(mu, self._inv_inertia[:, a:b], out=k_over_i)
+        # A joint swinging through its equilibrium is not at equilibrium, so eq 28 takes its swing
+        # amplitude, sqrt(dtheta^2 + (theta'/w)^2) (equal to |dtheta| for a joint at rest);
+        # otherwise it would stop a swing at every crossing. (The twist counts with |dphi|.)
+        swing = S.get("swing", (n, m))
+        np.multiply(vel, vel, out=products)
+        np.add(products[:, 0], products[:, 1], out=swing)
+        swing /= k_over_i
+        swing += gap_size
+        np.sqrt(swing, out=swing)
+        np.sqrt(gap_size, out=gap_size)
+        twist_gap = S.get("twist_gap", (n, m))
+        np.subtract(twist_eq, twist, out=twist_gap)
+        twist_gap_size = S.get("twist_gap_size", (n, m))
+        np.abs(twist_gap, out=twist_gap_size)
+        swing += twist_gap_size  # |dtheta_i| + |dphi_i| of eq 28
+        return _Equilibrium(mu, k_over_i, twist_eq, gap, gap_size, twist_gap, twist_gap_size, swing)
 
-        # eq 28: n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
+    # ------------------------------------------------------------------ phase 3: eq 28
+
+    def _boundary(self, a: int, b: int, eqm: _Equilibrium, allowed: np.ndarray, S: _Scratch) -> _Split:
+        """n_boundary (eq 28) of every cell, and which joints oscillate: those above it where
+        eq 32 is allowed. They are the top ones of each cell, so rows [j0, j1) hold them all."""
+        n, m = self.n, b - a
+        # n_boundary = n exp(-((1/2n) sum_i (|dtheta_i| + |dphi_i|) - k) lambda), in [0, n]
         nb = self.n_boundary[a:b]
-        np.add.reduce(amp, axis=0, out=nb)
+        np.add.reduce(eqm.swing, axis=0, out=nb)
         nb *= F32(0.5 / n)
         nb -= F32(self.boundary_k)
         nb *= F32(-self.boundary_lambda)
@@ -643,142 +648,184 @@ class BladeSolver:
         np.exp(nb, out=nb)
         nb *= F32(n)
         np.minimum(nb, S.const("n", n, m), out=nb)
-        # joints above n_boundary oscillate (eq 29) where eq 32 is allowed; they are the top
-        # ones of each cell, so rows [j0, j1) hold every oscillating joint of the chunk
         j1 = self._oscillating_rows(allowed, a, b)
-        j0 = j1
-        if j1 > 0:
-            osc = S.get("osc", (j1, m), dtype=np.bool_)
-            np.greater(self._level[:j1], nb, out=osc)
-            np.logical_and(osc, allowed[:j1, a:b], out=osc)
-            rows = osc.any(axis=1)
-            j0 = int(np.argmax(rows)) if rows.any() else j1
-        if j0 < j1:
-            sel = S.get("sel", (j1 - j0, m))  # 1 where the joint oscillates
-            np.copyto(sel, osc[j0:j1])
-            keep = S.get("keep", (j1 - j0, m))
-            np.subtract(F32(1.0), sel, out=keep)
+        if j1 == 0:
+            return _Split(0, 0, None, None)
+        oscillates = S.get("oscillates", (j1, m), dtype=np.bool_)
+        np.greater(self._level[:j1], nb, out=oscillates)
+        np.logical_and(oscillates, allowed[:j1, a:b], out=oscillates)
+        rows = oscillates.any(axis=1)
+        if not rows.any():
+            return _Split(j1, j1, None, None)
+        j0 = int(np.argmax(rows))
+        swinging = S.get("swinging", (j1 - j0, m))  # 1 where the joint oscillates
+        np.copyto(swinging, oscillates[j0:j1])
+        steady = S.get("steady", (j1 - j0, m))
+        np.subtract(F32(1.0), swinging, out=steady)
+        return _Split(j0, j1, swinging, steady)
 
-        # eqs 25-27, the smooth three-step update: theta += (theta_eq - theta) * f, theta_eq = E.
-        # Eq 26 makes the fraction per frame M/gamma, which overshoots once M > gamma; the sound
-        # reading is a rate: d(theta)/dt = (theta_eq - theta) * M / (gamma dt_ref), integrated
-        # exactly over dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate
-        # independent. M is the unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|:
-        # it equals M_bend when starting from rest and stays non-zero when the wind stops, so
-        # the lower part recovers too. As the gap closes M -> 0 and the return would crawl
-        # (hyperbolically: a blade that looks frozen a few degrees off); a linear spring returns
-        # at a rate independent of the gap, so below SMOOTH_MIN_ANGLE the rate is held at its
-        # value there: M = mu max(|theta_eq - theta|, SMOOTH_MIN_ANGLE).
-        # Joints too stiff to show a sway at this frame rate (see stable_substeps) are in their
-        # quasi-static limit: they follow theta_eq within the step (f = 1, via exp(-huge)).
-        # (f = 1: murate - QUASI_RATE makes exp underflow to 0 for bend and twist alike).
+    # ------------------------------------------------------------------ phase 2b: eqs 25-27
+
+    def _smooth_fractions(self, a: int, b: int, eqm: _Equilibrium, split: _Split, dt: float, S: _Scratch):
+        """(x, xt) = -f of the smooth three-step update of the bend and the twist, (n, m).
+
+        Eq 26 makes the fraction per frame M/gamma, which overshoots once M > gamma; the sound
+        reading is a rate: d(theta)/dt = (theta_eq - theta) * M / (gamma dt_ref), integrated
+        exactly over dt: f = 1 - exp(-(M / gamma) dt / dt_ref), stable and frame-rate
+        independent. M is the unbalanced torque |M_bend - mu theta| = mu |theta_eq - theta|: it
+        equals M_bend when starting from rest and stays non-zero when the wind stops, so the
+        lower part recovers too. As the gap closes M -> 0 and the return would crawl
+        (hyperbolically: a blade that looks frozen a few degrees off); a linear spring returns at
+        a rate independent of the gap, so below SMOOTH_MIN_ANGLE the rate is held at its value
+        there: M = mu max(|theta_eq - theta|, SMOOTH_MIN_ANGLE). Joints too stiff to show a sway
+        at this frame rate (see stable_substeps) are in their quasi-static limit: they follow
+        theta_eq within the step (f = 1: the rate minus QUASI_RATE makes exp underflow to 0).
+        The oscillating joints take no smooth step (x = 0)."""
+        n, m = self.n, b - a
         floor = S.const("smooth_min", SMOOTH_MIN_ANGLE, m)
-        murate = S.get("sin_tilt", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
-        np.multiply(mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=murate)
-        murate -= self._quasi_static[:, a:b]
-        if j0 < j1:
-            murate[j0:j1] *= keep  # the oscillating joints take no smooth step (x = f = 0)
-        x = dev  # (dev is not needed any more)
-        np.maximum(dev, floor, out=x)
-        x *= murate
+        rate = S.get("smooth_rate", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
+        np.multiply(eqm.mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=rate)
+        rate -= self._quasi_static[:, a:b]
+        if split.swinging is not None:
+            rate[split.j0:split.j1] *= split.steady
+        x = S.get("smooth_fraction", (n, m))
+        np.maximum(eqm.gap_size, floor, out=x)
+        x *= rate
         np.expm1(x, out=x)  # -f
-        xt = devt  # the twist's, with K_t = twist_stiffness * mu
-        np.maximum(devt, floor, out=xt)
-        xt *= murate
+        xt = S.get("smooth_fraction_twist", (n, m))  # with K_t = twist_stiffness * mu
+        np.maximum(eqm.twist_gap_size, floor, out=xt)
+        xt *= rate
         xt *= F32(self.twist_ratio)
         np.expm1(xt, out=xt)
+        return x, xt
 
-        # Joints without an oscillator in this chunk: the smooth step alone, theta -= (E - theta) x,
-        # and its rate d theta / dt = -(E - theta) x / dt. (It stays within bounds by itself:
-        # it moves between two bounded angles.)
+    def _smooth_update(self, a: int, b: int, rows: slice, eqm: _Equilibrium, x, xt, dt: float) -> None:
+        """Joints ``rows`` (none oscillating): theta -= (E - theta) x, and its rate
+        d theta / dt = -(E - theta) x / dt (eq 27). It stays within bounds by itself: it moves
+        between two bounded angles. (The gap buffers hold the step afterwards.)"""
+        st = self.state
         inv_dt = F32(-1.0 / dt)
-        for rows in (slice(0, j0), slice(j1, n)):
-            if rows.start < rows.stop:
-                D = DEV[rows]
-                D *= x[rows, None, :]
-                bend[rows] -= D
-                np.multiply(D, inv_dt, out=vel[rows])
-                Dt = DEVt[rows]
-                Dt *= xt[rows]
-                twist[rows] -= Dt
-                np.multiply(Dt, inv_dt, out=twist_vel[rows])
-        if j0 < j1:
-            self._oscillate(forcing, j0, j1, dt, substeps, osc, mu, kI, x, xt, S, a, b)
+        step = eqm.gap[rows]
+        step *= x[rows, None, :]
+        st.bend_t[rows, :, a:b] -= step
+        np.multiply(step, inv_dt, out=st.bend_vel_t[rows, :, a:b])
+        twist_step = eqm.twist_gap[rows]
+        twist_step *= xt[rows]
+        st.twist_t[rows, a:b] -= twist_step
+        np.multiply(twist_step, inv_dt, out=st.twist_vel_t[rows, a:b])
 
-    def _oscillate(self, forcing, j0, j1, dt, substeps, osc, mu, kI, x, xt, S, a, b) -> None:
-        """Rows [j0, j1) of cells [a, b): eqs 29-32 for the joints above n_boundary (``osc``),
-        the smooth update (x, xt from _step_chunk) for the others. Scratch of _step_chunk:
-        DEV, DEVt (y = E - theta) and EQt hold this step's values."""
-        m = b - a
+    def _step_chunk(self, a: int, b: int, wind: np.ndarray, dt: float, substeps: int,
+                    allowed: np.ndarray, S: _Scratch) -> None:
+        """One step of cells [a, b): forcing, equilibrium, boundary, smooth update, oscillator."""
+        forcing = self._forcing(a, b, wind, S)
+        eqm = self._equilibrium(a, b, forcing, dt, S)
+        split = self._boundary(a, b, eqm, allowed, S)
+        x, xt = self._smooth_fractions(a, b, eqm, split, dt, S)
+        for rows in (slice(0, split.j0), slice(split.j1, self.n)):
+            if rows.start < rows.stop:
+                self._smooth_update(a, b, rows, eqm, x, xt, dt)
+        if split.swinging is not None:
+            self._oscillate(a, b, forcing, eqm, split, x, xt, dt, substeps, S)
+
+    # ------------------------------------------------------------------ phase 4: eqs 29-32
+
+    def _aero_q(self, forcing: _Forcing, j0: int, S: _Scratch) -> np.ndarray:
+        """Q_i = sum_{j>=i} F_j h_ij^2 for joints i >= j0 (rows below j0 are not written), in
+        N m^2 / l_length: the aerodynamic damping of the oscillating joints.
+
+        Q_i = Q_{i+1} + z_i (2 M_{i+1} + z_i (S_{i+1} + F_i / 4)), with F, S, M of the forcing
+        (one factor l_length already in F), so a last factor l_length is applied by the caller.
+        """
+        F, Fs, CT, Mb = forcing.force, forcing.force_above, forcing.cos_tilt, forcing.bend_torque
+        n, m = self.n, F.shape[1]
+        last = n - 1
+        Q = S.get("aero_q", (n, m), pad=True)
+        rows = slice(j0, n)
+        np.multiply(F[rows], F32(0.25), out=Q[rows])
+        Q[j0:last] += Fs[j0 + 1:]
+        Q[rows] *= CT[rows]
+        Q[j0:last] += Mb[j0 + 1:]
+        Q[j0:last] += Mb[j0 + 1:]
+        Q[rows] *= CT[rows]
+        for i in range(last - 1, j0 - 1, -1):
+            Q[i] += Q[i + 1]
+        return Q
+
+    def _oscillate(self, a: int, b: int, forcing: _Forcing, eqm: _Equilibrium, split: _Split,
+                   x, xt, dt: float, substeps: int, S: _Scratch) -> None:
+        """Rows [j0, j1) of cells [a, b): eqs 29-32 for the joints above n_boundary, the smooth
+        update (x, xt) for the others of those rows.
+
+        I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
+        (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held for
+        the frame, so we integrate y = theta_eq - theta (the gap, in place). Eq 32 (symplectic
+        Euler): acceleration, then velocity v += h a, then angle y -= h v; here v = p v + q y
+        with q = h K/I and p = 1 - h C/I.
+        Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on the
+        speed of the wind relative to the segment, v - u with u = theta' h_ij, and linearising
+        F = rho (v - u)^2 A sin(phi) in u gives the damping torque (2 / v) sum_j F_j h_ij^2
+        theta' = (2 Q_i / v) theta'. It is what keeps real grass from resonating with gusts,
+        while it sways freely once the wind stops (v = 0). It is integrated implicitly,
+        v_new = (p v + q y) / (1 + h c_aero / I): stable at any v.
+        """
+        m, j0, j1 = b - a, split.j0, split.j1
         st = self.state
         js = slice(j0, j1)
         nj = j1 - j0
         bend, vel = st.bend_t[js, :, a:b], st.bend_vel_t[js, :, a:b]
         twist, twist_vel = st.twist_t[js, a:b], st.twist_vel_t[js, a:b]
         E = st.bend_eq_t[js, :, a:b]
-        Y, Yt = S.get("DEV", (self.n, 2, m))[js], S.get("DEVt", (self.n, m))[js]
-        EQt = S.get("EQt", (self.n, m))[js]
-        x, xt, kI = x[js], xt[js], kI[js]
+        Y, Yt = eqm.gap[js], eqm.twist_gap[js]
+        twist_eq = eqm.twist_eq[js]
+        x, xt, kI = x[js], xt[js], eqm.k_over_i[js]
         bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
         twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
-        sel, keep = S.get("sel", (nj, m)), S.get("keep", (nj, m))  # osc as 1/0 and 0/1
+        swinging, steady = split.swinging, split.steady  # 1/0 and 0/1 per joint
         h = dt / substeps
-        # I theta'' + C theta' + K (theta - theta_eq) = 0 with K = mu_i(t), C = alpha I + beta K
-        # (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held
-        # for the frame, so we integrate y = theta_eq - theta (= DEV, in place). Eq 32
-        # (symplectic Euler): acceleration, then velocity v += h a, then angle y -= h v;
-        # here v = p v + q y with q = h K/I and p = 1 - h C/I.
-        # Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on
-        # the speed of the wind relative to the segment, v - u with u = theta' h_ij, and
-        # linearising F = rho (v - u)^2 A sin(phi) in u gives the damping torque
-        # (2 / v) sum_j F_j h_ij^2 theta' = (2 Q_i / v) theta'. It is what keeps real grass
-        # from resonating with gusts, while it sways freely once the wind stops (v = 0). It
-        # is integrated implicitly, v_new = (p v + q y) / (1 + h c_aero / I): stable at any v.
         Q = self._aero_q(forcing, j0, S)
-        hs = S.get("hs", (m,))  # 2 h l_length / |v|: the last factor l_length of Q
-        np.divide(F32(2.0 * h), forcing["speed"], out=hs)
+        hs = S.get("aero_lever", (m,))  # 2 h l_length / |v|: the last factor l_length of Q
+        np.divide(F32(2.0 * h), forcing.speed, out=hs)
         hs *= self._seg[a:b]
-        rc = S.get("cos_phi", (nj, m))  # 1 / (1 + h c_aero / I)
+        rc = S.get("aero_factor", (nj, m))  # 1 / (1 + h c_aero / I)
         np.multiply(Q[js], self._inv_inertia[js, a:b], out=rc)
         rc *= hs
         rc += F32(1.0)
         np.divide(F32(1.0), rc, out=rc)
-        # (the forcing's buffers are free once Q is known)
-        q, p = S.get("F", (nj, m)), S.get("CT", (nj, m))
-        qt, pt = S.get("Fs", (nj, m)), S.get("Mb", (nj, m))
-        TMP, TMPt = S.get("BB", (nj, 2, m)), S.get("tilt", (nj, m))
+        q, p = S.get("osc_q", (nj, m)), S.get("osc_p", (nj, m))
+        qt, pt = S.get("osc_q_twist", (nj, m)), S.get("osc_p_twist", (nj, m))
+        delta, delta_t = S.get("osc_delta", (nj, 2, m)), S.get("osc_delta_twist", (nj, m))
         if substeps == 1:
             # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
             # is its rate, theta += h v its step), so each joint takes its own coefficients:
-            # the oscillator's times sel plus the smooth ones (x = -f is 0 where sel is 1).
-            rc *= sel
+            # the oscillator's times swinging plus the smooth ones (x = -f is 0 where it swings).
+            rc *= swinging
             np.multiply(kI, rc, out=q)
             q *= F32(h)
             rc *= F32(1.0 - h * self.alpha)
             np.multiply(q, F32(self.beta), out=p)
             np.subtract(rc, p, out=p)
-            np.multiply(x, F32(-1.0 / h), out=TMPt)
-            q += TMPt
+            np.multiply(x, F32(-1.0 / h), out=delta_t)
+            q += delta_t
             # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning
             # in the wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
-            np.multiply(kI, sel, out=qt)
+            np.multiply(kI, swinging, out=qt)
             qt *= F32(h * self.twist_ratio)
-            np.multiply(sel, F32(1.0 - h * self.alpha), out=pt)
-            np.multiply(qt, F32(self.beta), out=TMPt)
-            pt -= TMPt
-            np.multiply(xt, F32(-1.0 / h), out=TMPt)
-            qt += TMPt
-            np.multiply(Y, q[:, None, :], out=TMP)
+            np.multiply(swinging, F32(1.0 - h * self.alpha), out=pt)
+            np.multiply(qt, F32(self.beta), out=delta_t)
+            pt -= delta_t
+            np.multiply(xt, F32(-1.0 / h), out=delta_t)
+            qt += delta_t
+            np.multiply(Y, q[:, None, :], out=delta)
             vel *= p[:, None, :]
-            vel += TMP
-            np.multiply(vel, F32(h), out=TMP)
-            bend += TMP
+            vel += delta
+            np.multiply(vel, F32(h), out=delta)
+            bend += delta
             _clip(bend, bend_lo, bend_hi)  # a forced swing can overshoot its target
-            np.multiply(Yt, qt, out=TMPt)
+            np.multiply(Yt, qt, out=delta_t)
             twist_vel *= pt
-            twist_vel += TMPt
-            np.multiply(twist_vel, F32(h), out=TMPt)
-            twist += TMPt
+            twist_vel += delta_t
+            np.multiply(twist_vel, F32(h), out=delta_t)
+            twist += delta_t
             _clip(twist, twist_lo, twist_hi)
             return
 
@@ -787,50 +834,48 @@ class BladeSolver:
         rc *= F32(1.0 - h * self.alpha)
         np.multiply(q, F32(self.beta), out=p)
         np.subtract(rc, p, out=p)
-        # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning in the
-        # wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
         np.multiply(kI, F32(h * self.twist_ratio), out=qt)
         np.multiply(qt, F32(-self.beta), out=pt)
         pt += F32(1.0 - h * self.alpha)
-        # Joints that do not oscillate (sel = 0) take no sub-steps (v = 0, y held): they may be
-        # stiffer than the sub-step can integrate, and their discarded values must stay finite.
+        # Joints that do not oscillate take no sub-steps (v = 0, y held): they may be stiffer
+        # than the sub-step can integrate, and their discarded values must stay finite.
         for coefficient in (q, p, qt, pt):
-            coefficient *= sel
-        # Several sub-steps: the smooth step (as in _step_chunk) and the oscillator, blended.
-        D = S.get("T", (nj, 2, m))
-        np.multiply(Y, x[:, None, :], out=D)
-        Dt = S.get("sin_tilt", (nj, m))
-        np.multiply(Yt, xt, out=Dt)
+            coefficient *= swinging
+        # Several sub-steps: the smooth step and the oscillator, blended.
+        smooth, smooth_t = S.get("smooth_step", (nj, 2, m)), S.get("smooth_step_twist", (nj, m))
+        np.multiply(Y, x[:, None, :], out=smooth)
+        np.multiply(Yt, xt, out=smooth_t)
         qb, pb = q[:, None, :], p[:, None, :]
         for _ in range(substeps):
-            np.multiply(Y, qb, out=TMP)
+            np.multiply(Y, qb, out=delta)
             vel *= pb
-            vel += TMP
-            np.multiply(vel, F32(h), out=TMP)
-            Y -= TMP
-            np.multiply(Yt, qt, out=TMPt)
+            vel += delta
+            np.multiply(vel, F32(h), out=delta)
+            Y -= delta
+            np.multiply(Yt, qt, out=delta_t)
             twist_vel *= pt
-            twist_vel += TMPt
-            np.multiply(twist_vel, F32(h), out=TMPt)
-            Yt -= TMPt
-        selb, keepb = sel[:, None, :], keep[:, None, :]
-        np.subtract(E, Y, out=TMP)
-        _clip(TMP, bend_lo, bend_hi)  # a forced swing can overshoot its target
-        bend -= D
-        bend *= keepb
-        TMP *= selb
-        bend += TMP
-        np.subtract(EQt, Yt, out=TMPt)
-        _clip(TMPt, twist_lo, twist_hi)
-        twist -= Dt
-        twist *= keep
-        TMPt *= sel
-        twist += TMPt
-        # rates: the oscillating joints keep their own (already in vel), the others -D / dt
-        keep *= F32(-1.0 / dt)
-        D *= keepb
-        vel *= selb
-        vel += D
-        Dt *= keep
-        twist_vel *= sel
-        twist_vel += Dt
+            twist_vel += delta_t
+            np.multiply(twist_vel, F32(h), out=delta_t)
+            Yt -= delta_t
+        swing_b, steady_b = swinging[:, None, :], steady[:, None, :]
+        np.subtract(E, Y, out=delta)
+        _clip(delta, bend_lo, bend_hi)  # a forced swing can overshoot its target
+        bend -= smooth
+        bend *= steady_b
+        delta *= swing_b
+        bend += delta
+        np.subtract(twist_eq, Yt, out=delta_t)
+        _clip(delta_t, twist_lo, twist_hi)
+        twist -= smooth_t
+        twist *= steady
+        delta_t *= swinging
+        twist += delta_t
+        # rates: the oscillating joints keep their own (already in vel), the others -step / dt
+        rate = S.get("smooth_rate_factor", (nj, m))
+        np.multiply(steady, F32(-1.0 / dt), out=rate)
+        smooth *= rate[:, None, :]
+        vel *= swing_b
+        vel += smooth
+        smooth_t *= rate
+        twist_vel *= swinging
+        twist_vel += smooth_t

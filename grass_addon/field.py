@@ -7,6 +7,8 @@ Everything heavy is built once in ``__init__``; the per-frame path (``seek``, ``
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from . import kinematics
@@ -16,6 +18,8 @@ from .lod import Camera, LodWeights, lod_weights
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
+
+RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
 
 
 class GrassField:
@@ -29,6 +33,7 @@ class GrassField:
         self.sim = Simulation(self.layout, params, self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._blocks = np.arange(self.layout.n_blocks, dtype=np.int64)
+        self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
 
     # ------------------------------------------------------------------ time
 
@@ -41,6 +46,48 @@ class GrassField:
         self.sim.seek(int(frame))
         self.cells = cell_data(self.layout, self.sim)
         return self.cells
+
+    def cells_at(self, frame: int) -> CellData:
+        """Cell data of ``frame`` from its own copy of the state, kept with those of the few frames
+        around it (motion blur reads frames N - 1, N and N + 1); deterministic like ``seek``."""
+        frame = int(frame)
+        cells = self._recent.get(frame)
+        if cells is None:
+            self.sim.seek(frame)
+            state = self.sim.state.copy()
+            cells = CellData(wind=self.sim.cell_wind.copy(), bend_t=state.bend_t, twist_t=state.twist_t,
+                             state=state, card_height=self.layout.card_height)
+            self._recent[frame] = cells
+            while len(self._recent) > RECENT_FRAMES:
+                self._recent.popitem(last=False)
+        return cells
+
+    def motion(self, frame: int, subframe: float, fps: float, vertices, out: np.ndarray, velocity: np.ndarray) -> None:
+        """Vertices at ``frame + subframe`` and their velocity in m/s, for motion blur.
+
+        ``vertices(cells, out)`` writes the vertices of some blocks for cell data ``cells``. The path
+        through the frames' poses is piecewise linear: between frames the vertices move at the
+        slope of their segment; at a whole frame the velocity is the central difference
+        (P(N + 1) - P(N - 1)) fps / 2. Frames are computed in ascending order (cheap seeks)."""
+        frame = int(frame)
+        if subframe == 0.0:
+            wanted = (frame - 1, frame, frame + 1)
+        else:
+            wanted = (frame, frame + 1)
+        cells = [self.cells_at(f) for f in wanted]
+        ahead = np.empty_like(out)
+        if subframe == 0.0:
+            vertices(cells[0], velocity)  # P(N - 1)
+            vertices(cells[2], ahead)  # P(N + 1)
+            vertices(cells[1], out)  # P(N)
+            np.subtract(ahead, velocity, out=velocity)
+            velocity *= np.float32(0.5 * fps)
+        else:
+            vertices(cells[0], out)  # P(N)
+            vertices(cells[1], ahead)  # P(N + 1)
+            np.subtract(ahead, out, out=velocity)  # one frame's motion
+            out += velocity * np.float32(subframe)
+            velocity *= np.float32(fps)
 
     def _current(self) -> CellData:
         if self.cells is None:

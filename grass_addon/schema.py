@@ -240,6 +240,10 @@ PARAMS: tuple[Param, ...] = (
        minimum=1, maximum=240),
     _p("render", "frame_start", "int", 1, "First frame", minimum=0, maximum=1_000_000),
     _p("render", "frame_end", "int", 48, "Last frame", minimum=0, maximum=1_000_000),
+    _p("render", "motion_blur", "bool", False,
+       "Motion blur of the grass (and the camera) along its simulated motion; in Blender the scene's "
+       "own motion blur setting rules"),
+    _p("render", "shutter", "float", 0.5, "Motion blur shutter time, in frames", minimum=0.01, maximum=2.0),
     _p("render", "sun_elevation", "float", 35.0, "Sun elevation above the horizon", unit="deg",
        minimum=-10.0, maximum=90.0),
     _p("render", "sun_azimuth", "float", 140.0, "Sun azimuth from +X, counter-clockwise", unit="deg",

@@ -20,6 +20,7 @@ import bpy
 ATTR_COLOR = "wg_color"
 ATTR_SHADE = "wg_shade"
 ATTR_OPACITY = "wg_opacity"
+ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
 
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .. import slots
+from .. import kinematics, slots
 from . import materials
 from . import scene as field_scene
 from .registry import warn_once
@@ -33,11 +33,19 @@ def write_positions(mesh, verts: np.ndarray) -> None:
         first.co = first.co
 
 
+def write_velocity(mesh, velocity: np.ndarray) -> None:
+    """The per-point ``velocity`` attribute (m/s) Cycles and EEVEE blur a rewritten mesh by."""
+    attribute = mesh.attributes.get(materials.ATTR_VELOCITY)
+    if attribute is None:
+        attribute = mesh.attributes.new(materials.ATTR_VELOCITY, "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", velocity.ravel())
+
+
 class SlotPool:
     """The objects of one role (``blades`` or ``cards``) of a field and what they show.
 
     needs(lod) -> (n_blocks,) bool: blocks that need this level of detail (visible ones);
-    fill(blocks, lod, out): their vertices into ``out``;
+    fill(cells, blocks, lod, out): their vertices for cell data ``cells`` into ``out``;
     attributes(mesh, blocks, lod, changed): per-vertex attributes of one object showing ``blocks``
     (FREE where nothing); ``changed``: some position of it shows another block than before.
     """
@@ -48,19 +56,36 @@ class SlotPool:
         self.state = slots.PoolState(shape)
         self._needs, self._fill, self._attributes = needs, fill, attributes
         self.buffer = np.zeros((shape.positions * shape.verts_per_block, 3), dtype=np.float32)
+        self.velocity: np.ndarray | None = None  # m/s per vertex, made when motion blur asks for it
         self.blocks = np.zeros(0, np.int32)  # the blocks shown at the last write, sorted
 
-    def write(self, item, lod, block_distance: np.ndarray) -> None:
-        """Assign this frame's blocks to positions and write every object that needs it."""
+    def write(self, item, field, lod, block_distance: np.ndarray, motion=None) -> None:
+        """Assign this frame's blocks to positions and write every object that needs it.
+
+        ``motion``: None, or (frame, subframe, fps) for motion blur: the vertices at that instant
+        and a ``velocity`` attribute (m/s) from the same blocks' poses at the neighbouring frames
+        (``GrassField.motion``), so a position that shows another block than on the neighbouring
+        frame never smears across the image."""
         assignment = self.state.assign(self._needs(lod), block_distance)
         shown, count = assignment.shown, assignment.count
         self.blocks = shown[:count].copy()
-        rows_per_block = self.shape.verts_per_block
-        if count:
-            self._fill(shown[:count], lod, self.buffer[: count * rows_per_block])
-        self.buffer[count * rows_per_block:] = 0.0
+        rows = count * self.shape.verts_per_block
+        if motion is None:
+            if count:
+                self._fill(field.cells, shown[:count], lod, self.buffer[:rows])
+        else:
+            if self.velocity is None:
+                self.velocity = np.zeros_like(self.buffer)
+            frame, subframe, fps = motion
+            if count:
+                field.motion(frame, subframe, fps, lambda cells, out: self._fill(cells, shown[:count], lod, out),
+                             self.buffer[:rows], self.velocity[:rows])
+            self.velocity[rows:] = 0.0
+        self.buffer[rows:] = 0.0
         objects = field_scene.slot_objects(item, self.role)
         k, rows = self.shape.k, self.shape.verts_per_object
+        if motion is not None:  # every object carries this frame's velocities (FREE: zero)
+            assignment.write[:] = True
         for index in np.flatnonzero(assignment.write).tolist():
             obj = objects.get(index)
             if obj is None:
@@ -69,6 +94,8 @@ class SlotPool:
                 continue
             mesh = obj.data
             write_positions(mesh, self.buffer[index * rows:(index + 1) * rows])
+            if motion is not None:
+                write_velocity(mesh, self.velocity[index * rows:(index + 1) * rows])
             self._attributes(mesh, shown[index * k:(index + 1) * k], lod, bool(assignment.changed[index]))
             mesh.update()
 
@@ -92,8 +119,8 @@ def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
     def needs(lod):
         return (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
 
-    def fill(blocks, lod, out):
-        field.blade_vertices(blocks, lod=lod, out=out)
+    def fill(cells, blocks, lod, out):
+        kinematics.blade_vertices(layout, cells, blocks, lod.blade_count, out)
 
     def attributes(mesh, blocks, lod, changed):
         if not changed:
@@ -120,8 +147,8 @@ def card_pool(field, shape: slots.PoolShape) -> SlotPool:
     def needs(lod):
         return (lod.k_billboard[layout.block_cells] > 0).any(axis=1) & lod.block_visible
 
-    def fill(blocks, lod, out):
-        field.card_vertices(blocks, out=out)
+    def fill(cells, blocks, lod, out):
+        kinematics.card_vertices(layout, cells, blocks, out)
 
     def attributes(mesh, blocks, lod, changed):
         opacity = np.zeros((len(blocks), layout.cells_per_block_total), dtype=np.float32)

@@ -65,6 +65,7 @@ class FieldRuntime:
     topology: str  # slots.topology_key: what the slot objects must be built for
     dirty: bool = False  # the settings were edited since: resolve again
     frame: int | None = None  # the frame last written
+    subframe: float = 0.0  # and its sub-frame (motion-blur steps)
     lod: object = None  # its LOD weights
     camera_signature: tuple | None = None
     error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
@@ -203,8 +204,11 @@ def reset_field(scene, item) -> None:
 
 
 def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
-    """wind -> solver -> cell data (seek), LOD from the camera, slot pools, writes."""
-    frame = scene.frame_current
+    """wind -> solver -> cell data (seek), LOD from the camera, slot pools, writes.
+
+    With the scene's motion blur on, or at a sub-frame (Blender evaluates frame + subframe for
+    each motion-blur step), the vertices are those of that instant and carry their velocity."""
+    frame, subframe = scene.frame_current, float(scene.frame_subframe)
     camera = field_camera.field_camera(scene, item, depsgraph)
     if rt.frame != frame or rt.field.cells is None:
         rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
@@ -217,9 +221,13 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
         block_distance = np.hypot(centre[:, 0], centre[:, 1]).astype(np.float32)
     else:
         block_distance = np.asarray(lod.block_distance, dtype=np.float32)
-    rt.blades.write(item, lod, block_distance)
-    rt.cards.write(item, lod, block_distance)
-    rt.frame, rt.lod, rt.camera_signature = frame, lod, field_camera.signature(camera)
+    motion = None
+    if scene.render.use_motion_blur or subframe != 0.0:
+        motion = (frame, subframe, float(rt.params.render.fps))
+    rt.blades.write(item, rt.field, lod, block_distance, motion)
+    rt.cards.write(item, rt.field, lod, block_distance, motion)
+    rt.frame, rt.subframe, rt.lod = frame, subframe, lod
+    rt.camera_signature = field_camera.signature(camera)
 
 
 def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
@@ -233,8 +241,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         return None
     if camera_moved_only:
         rt = get_runtime(scene, item)
-        if rt is None or rt.frame != scene.frame_current:
-            return rt  # not written at this frame yet: the frame handlers will do it
+        if rt is None or rt.frame != scene.frame_current or rt.subframe != float(scene.frame_subframe):
+            return rt  # not written at this instant yet: the frame handlers will do it
         if rt.camera_signature == field_camera.signature(field_camera.field_camera(scene, item, depsgraph)):
             return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
     rt = _current(scene, item)

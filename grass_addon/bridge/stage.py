@@ -192,7 +192,8 @@ def setup_render(scene, params) -> None:
     render.fps_base = 1.0
     scene.frame_start = r.frame_start
     scene.frame_end = r.frame_end
-    render.use_motion_blur = False  # blur would sample sub-frames the handler never writes
+    render.use_motion_blur = r.motion_blur  # the frame handler answers every sub-frame step
+    render.motion_blur_shutter = r.shutter
     render.film_transparent = False
     settings = render.image_settings
     if hasattr(settings, "media_type"):

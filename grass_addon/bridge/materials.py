@@ -5,10 +5,13 @@ sockets are looked up through ``_socket`` so a renamed socket fails with a clear
 All three materials work in EEVEE and in Cycles. Values that depend on the parameters (LOD
 distances, colours) live in named nodes and are refreshed by ``update_materials``.
 
-Attributes written by the runtime (``runtime.py``), point domain:
-  ``wg_color``   FLOAT_COLOR  species tip colour of the blade (blades)
-  ``wg_shade``   FLOAT        per-blade 0..1 variation of hue and value (blades)
-  ``wg_opacity`` FLOAT        K_b of eqs 7/11, the card's opacity (cards)
+Per-frame data written by the runtime (``pools.py``) as UV maps (corner domain), which Alembic
+caches keep per frame (a bake replays them in a Blender without Windgrass), read by the shaders
+through Attribute nodes:
+  ``wg_tint_rg``  (r, g)       species tip colour of the blade, red and green (blades)
+  ``wg_tint_bs``  (b, shade)   its blue, and the per-blade 0..1 variation of hue and value (blades)
+  ``wg_fade``     (K_b, K_b)   K_b of eqs 7/11, the card's opacity (cards)
+and the point attribute ``velocity`` (m/s, motion blur).
 """
 
 from __future__ import annotations
@@ -17,9 +20,9 @@ import warnings
 
 import bpy
 
-ATTR_COLOR = "wg_color"
-ATTR_SHADE = "wg_shade"
-ATTR_OPACITY = "wg_opacity"
+UV_TINT_RG = "wg_tint_rg"
+UV_TINT_BS = "wg_tint_bs"
+UV_FADE = "wg_fade"
 ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
 
 # Node names that ``update_materials`` looks up.
@@ -125,7 +128,7 @@ class _Tree:
 
 def blade_material(name: str, uid: str):
     """Blades: UV v gives a root-to-tip gradient from a dark base to the species colour
-    (``wg_color``); ``wg_shade`` varies hue and value per blade; partly translucent."""
+    (``wg_tint_rg``, ``wg_tint_bs``); the shade varies hue and value per blade; partly translucent."""
     mat = _new_material(name, uid)
     t = _Tree(mat)
     uv = t.add("ShaderNodeTexCoord", -1400, 200)
@@ -136,19 +139,25 @@ def blade_material(name: str, uid: str):
     _set(grad, 0.0, "From Min")
     _set(grad, 0.7, "From Max")
     t.link(sep, "Y", grad, "Value")
-    tip = t.attribute(ATTR_COLOR, -1000, -100)
+    rg = t.add("ShaderNodeSeparateXYZ", -1000, -50)
+    t.link(t.attribute(UV_TINT_RG, -1200, -50), "Vector", rg, "Vector")
+    bs = t.add("ShaderNodeSeparateXYZ", -1000, -300)
+    t.link(t.attribute(UV_TINT_BS, -1200, -300), "Vector", bs, "Vector")
+    tip = t.add("ShaderNodeCombineXYZ", -850, -100)
+    t.link(rg, "X", tip, "X")
+    t.link(rg, "Y", tip, "Y")
+    t.link(bs, "X", tip, "Z")
     mix = t.mix_rgb(-750, 100, a=BLADE_BASE_COLOUR)
     t.link(grad, "Result", mix, "Factor_Float")
-    t.link(tip, "Color", mix, "B_Color")
-    shade = t.attribute(ATTR_SHADE, -1000, -400)
+    t.link(tip, "Vector", mix, "B_Color")
     hue = t.add("ShaderNodeMapRange", -750, -300)  # shade 0..1 -> hue shift +-0.02
     _set(hue, 0.48, "To Min")
     _set(hue, 0.52, "To Max")
     value = t.add("ShaderNodeMapRange", -750, -550)  # shade 0..1 -> value x0.7 .. x1.3
     _set(value, 0.7, "To Min")
     _set(value, 1.3, "To Max")
-    t.link(shade, "Fac", hue, "Value")
-    t.link(shade, "Fac", value, "Value")
+    t.link(bs, "Y", hue, "Value")
+    t.link(bs, "Y", value, "Value")
     hsv = t.add("ShaderNodeHueSaturation", -500, 0)
     t.link(hue, "Result", hsv, "Hue")
     t.link(value, "Result", hsv, "Value")
@@ -167,7 +176,7 @@ def set_card_image(mat, image) -> None:
 
 
 def card_material(name: str, uid: str, image):
-    """Cards (paper III.B): the grass-clump texture; its alpha times ``wg_opacity`` (K_b of
+    """Cards (paper III.B): the grass-clump texture; its alpha times ``wg_fade`` (K_b of
     eqs 7 and 11) mixes the foliage shader with a Transparent BSDF."""
     mat = _new_material(name, uid)
     _transparent(mat)
@@ -180,10 +189,12 @@ def card_material(name: str, uid: str, image):
     colour = t.mix_rgb(-800, 0, blend="MULTIPLY")
     t.link(tex, "Color", colour, "A_Color")
     t.link(tint, "Color", colour, "B_Color")
-    opacity = t.attribute(ATTR_OPACITY, -1100, -400)
+    fade = t.attribute(UV_FADE, -1300, -400)
+    opacity = t.add("ShaderNodeSeparateXYZ", -1100, -400)
+    t.link(fade, "Vector", opacity, "Vector")
     alpha = t.add("ShaderNodeMath", -800, -300, operation="MULTIPLY", use_clamp=True)
     t.link(tex, "Alpha", alpha, alpha.inputs[0])
-    t.link(opacity, "Fac", alpha, alpha.inputs[1])
+    t.link(opacity, "X", alpha, alpha.inputs[1])
     shader = t.foliage(colour, "Result_Color", -500, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 150, 0)

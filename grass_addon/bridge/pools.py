@@ -109,11 +109,15 @@ class SlotPool:
         self.blocks = np.zeros(0, np.int32)
 
 
+def _write_uv(mesh, name: str, uv: np.ndarray) -> None:
+    mesh.uv_layers[name].data.foreach_set("uv", np.ascontiguousarray(uv, dtype=np.float32).ravel())
+
+
 def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
     """Blade strips: blocks where some cell has N > 0 (eq 9); colours rewritten where a position
     changed block (FREE positions cleared, so an object's data is a function of the frame alone)."""
     layout = field.layout
-    per_blade = (layout.segments + 1) * 2
+    corners = layout.segments * 4  # per blade: n quads
     bpb = layout.blades_per_block
 
     def needs(lod):
@@ -126,15 +130,15 @@ def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
         if not changed:
             return
         shown = blocks >= 0
-        rgba = np.zeros((len(blocks), bpb, 4), dtype=np.float32)
-        shade = np.zeros((len(blocks), bpb), dtype=np.float32)
+        rg = np.zeros((len(blocks), bpb, 2), dtype=np.float32)
+        bs = np.zeros((len(blocks), bpb, 2), dtype=np.float32)
         blades = blocks[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
-        rgba[shown, :, :3] = layout.species_color[layout.blade_species[blades]]
-        rgba[shown, :, 3] = 1.0
-        shade[shown] = layout.blade_shade[blades]
-        mesh.attributes[materials.ATTR_COLOR].data.foreach_set(
-            "color", np.repeat(rgba.reshape(-1, 4), per_blade, axis=0).ravel())
-        mesh.attributes[materials.ATTR_SHADE].data.foreach_set("value", np.repeat(shade.ravel(), per_blade))
+        colour = layout.species_color[layout.blade_species[blades]]
+        rg[shown] = colour[..., :2]
+        bs[shown, :, 0] = colour[..., 2]
+        bs[shown, :, 1] = layout.blade_shade[blades]
+        _write_uv(mesh, materials.UV_TINT_RG, np.repeat(rg.reshape(-1, 2), corners, axis=0))
+        _write_uv(mesh, materials.UV_TINT_BS, np.repeat(bs.reshape(-1, 2), corners, axis=0))
 
     return SlotPool(field_scene.ROLE_BLADES, shape, needs, fill, attributes)
 
@@ -154,6 +158,6 @@ def card_pool(field, shape: slots.PoolShape) -> SlotPool:
         opacity = np.zeros((len(blocks), layout.cells_per_block_total), dtype=np.float32)
         shown = blocks >= 0
         opacity[shown] = lod.k_billboard[layout.block_cells[blocks[shown]]]
-        mesh.attributes[materials.ATTR_OPACITY].data.foreach_set("value", np.repeat(opacity.ravel(), 4))
+        _write_uv(mesh, materials.UV_FADE, np.repeat(opacity.ravel(), 8))  # (K_b, K_b) at 4 corners
 
     return SlotPool(field_scene.ROLE_CARDS, shape, needs, fill, attributes)

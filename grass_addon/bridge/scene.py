@@ -136,9 +136,10 @@ def field_objects(item) -> list:
 
 
 def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, material,
-              attributes: dict[str, str]) -> bpy.types.Mesh:
+              attributes: dict[str, str], data_uvs: tuple[str, ...] = ()) -> bpy.types.Mesh:
     """A mesh of quads from topology arrays: faces (F, 4) local vertex ids, uvs (F*4, 2) per
-    corner, every vertex at the origin (collapsed) until the runtime writes positions."""
+    corner, every vertex at the origin (collapsed) until the runtime writes positions. ``data_uvs``:
+    more UV maps, after the texture's "UVMap", that carry per-frame data (materials.py)."""
     faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 4)
     mesh = bpy.data.meshes.new(name)
     n_faces = len(faces)
@@ -150,6 +151,8 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     mesh.polygons.foreach_set("use_smooth", np.ones(n_faces, dtype=bool))
     uv = mesh.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", np.ascontiguousarray(uvs, dtype=np.float32).ravel())
+    for data_uv in data_uvs:
+        mesh.uv_layers.new(name=data_uv, do_init=False)
     for attr_name, attr_type in attributes.items():
         mesh.attributes.new(attr_name, attr_type, "POINT")
     mesh.update(calc_edges=True)
@@ -373,7 +376,8 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
                                           blade_shape.verts_per_block, blade_shape.k)
         for i in range(blade_shape.objects):  # once per build, not per frame
             mesh = quad_mesh(f"{base} blades {i:03d}", blade_shape.verts_per_object, faces, uvs, blade_mat,
-                             {materials.ATTR_COLOR: "FLOAT_COLOR", materials.ATTR_SHADE: "FLOAT"})
+                             {materials.ATTR_VELOCITY: "FLOAT_VECTOR"},
+                             (materials.UV_TINT_RG, materials.UV_TINT_BS))
             obj = bpy.data.objects.new(mesh.name, mesh)
             _tag(obj, uid, ROLE_BLADES, i)
             _tag(mesh, uid, ROLE_BLADES, i)
@@ -384,7 +388,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
                                           card_shape.verts_per_block, card_shape.k)
         for i in range(card_shape.objects):
             mesh = quad_mesh(f"{base} cards {i:03d}", card_shape.verts_per_object, faces, uvs, card_mat,
-                             {materials.ATTR_OPACITY: "FLOAT"})
+                             {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}, (materials.UV_FADE,))
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
             _tag(obj, uid, ROLE_CARDS, i)

@@ -255,14 +255,16 @@ def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
     expected = rt.field.blade_vertices(np.array([4, 5], dtype=np.int32), lod=rt.lod).reshape(2, -1, 3)
     np.testing.assert_array_equal(rows[:2], expected)
     assert np.abs(rows[2:]).max() == 0.0  # FREE: every vertex at the origin (zero area)
-    colour = np.empty(len(second.data.vertices) * 4, dtype=np.float32)
-    second.data.attributes["wg_color"].data.foreach_get("color", colour)
-    colour = colour.reshape(k, layout.blades_per_block, -1, 4)  # (position, blade, vertex, rgba)
+    # (position, blade, corner, (r, g) | (b, shade)): the species colour and shade of each blade
+    rg, bs = (_uv(second, name).reshape(k, layout.blades_per_block, -1, 2) for name in ("wg_tint_rg", "wg_tint_bs"))
     for i, block in enumerate((4, 5)):
-        species = layout.blade_species[layout.block_blades(block)]
-        np.testing.assert_allclose(colour[i, :, 0, :3], layout.species_color[species], atol=1e-6)
-        assert (colour[i, ..., 3] == 1.0).all()
-    assert np.abs(colour[2:]).max() == 0.0
+        blades = layout.block_blades(block)
+        colour = layout.species_color[layout.blade_species[blades]]
+        np.testing.assert_allclose(rg[i, :, 0], colour[:, :2], atol=1e-6)
+        np.testing.assert_allclose(bs[i, :, 0, 0], colour[:, 2], atol=1e-6)
+        np.testing.assert_allclose(bs[i, :, 0, 1], layout.blade_shade[blades], atol=1e-6)
+        assert (rg[i] == rg[i, :, :1]).all()  # one colour per blade, at every corner
+    assert np.abs(rg[2:]).max() == 0.0 and np.abs(bs[2:]).max() == 0.0
     # The first object holds blocks 0..3 in order.
     first = _positions(_owned(item, "blades")[0]).reshape(k, -1, 3)
     np.testing.assert_array_equal(first, rt.field.blade_vertices(np.arange(4, dtype=np.int32), lod=rt.lod)
@@ -322,16 +324,22 @@ def test_camera_moves_change_lod(bridge):
             assert (spread > 0.0) == (int(rt.blades.state.shown[obj["wg_slot"] * k + i]) >= 0)
 
 
+def _uv(obj, name) -> np.ndarray:
+    data = np.empty(len(obj.data.loops) * 2, dtype=np.float32)
+    obj.data.uv_layers[name].data.foreach_get("uv", data)
+    return data
+
+
 def _slot_data(item) -> dict[str, np.ndarray]:
     out = {}
     for obj in item.collection.objects:
         mesh = obj.data
-        for name, prop, width in (("position", "vector", 3), ("wg_opacity", "value", 1), ("wg_shade", "value", 1),
-                                  ("wg_color", "color", 4)):
-            if name in mesh.attributes:
-                data = np.empty(len(mesh.vertices) * width, dtype=np.float32)
-                mesh.attributes[name].data.foreach_get(prop, data)
-                out[f"{obj.name}/{name}"] = data
+        if obj.get("wg_role") not in ("blades", "cards"):
+            continue
+        out[f"{obj.name}/position"] = _positions(obj).ravel()
+        for layer in mesh.uv_layers:
+            if layer.name.startswith("wg_"):
+                out[f"{obj.name}/{layer.name}"] = _uv(obj, layer.name)
     return out
 
 
@@ -366,8 +374,7 @@ def _card_opacity(item, rt):
     k = rt.cards.shape.k
     out = {}
     for obj in _owned(item, "cards"):
-        data = np.empty(len(obj.data.vertices), dtype=np.float32)
-        obj.data.attributes["wg_opacity"].data.foreach_get("value", data)
+        data = _uv(obj, "wg_fade")[::2]  # (K_b, K_b) per corner; corners and vertices match on cards
         for i, rows in enumerate(data.reshape(k, -1)):
             block = int(rt.cards.state.shown[obj["wg_slot"] * k + i])
             if block >= 0:

@@ -120,6 +120,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="render K scenes with seeds seed+i and wind types cycling through "
                           f"{', '.join(schema.WIND_TYPES)}, each in OUT/variant_XX/")
     job.add_argument("--save-blend", action="store_true", help="also save the scene as OUT/scene.blend")
+    job.add_argument("--bake", action="store_true",
+                     help="bake the grass of the frames into OUT/scene_windgrass/ (Alembic) and save "
+                          "OUT/scene.blend playing it: that file renders the grass in a Blender without "
+                          "Windgrass; the frames are then rendered from the bake")
     job.add_argument("--video", action="store_true",
                      help="also encode the frames as OUT/animation.mp4 (Blender's FFmpeg)")
     schema.add_cli_arguments(parser)
@@ -429,7 +433,18 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
           f"{params.wind.speed:g} m/s, seed {f.seed}, {params.render.engine} {params.render.samples} spp "
           f"{params.render.resolution_x}x{params.render.resolution_y}, camera {params.camera.mode}",
           flush=True)
-    if args.save_blend:
+    if args.bake:
+        runtime = addon_module("grass_addon.bridge.runtime")
+        blend = out / "scene.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)  # the cache goes beside it
+        t_bake = time.perf_counter()
+        cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[1])
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
+        blend.with_suffix(".blend1").unlink(missing_ok=True)  # Blender's backup of the first save
+        per_frame = cache.stat().st_size / (frames[1] - frames[0] + 1)
+        print(f"baked {cache} in {time.perf_counter() - t_bake:.1f} s ({per_frame / 1e6:.2f} MB per frame); "
+              f"saved {blend}", flush=True)
+    elif args.save_blend:
         blend = out / "scene.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         print(f"saved {blend}", flush=True)

@@ -4,6 +4,7 @@ import bpy
 
 from . import (
     field_add,
+    field_bake,
     field_rebuild,
     field_remove,
     row_add,
@@ -13,7 +14,7 @@ from . import (
     wind_preset,
 )
 
-_MODULES = (field_add, field_rebuild, field_remove, simulation_reset, wind_preset, species_preset,
+_MODULES = (field_add, field_rebuild, field_remove, field_bake, simulation_reset, wind_preset, species_preset,
             row_add, row_remove)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 

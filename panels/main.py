@@ -75,6 +75,15 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 box.label(text="Grass hidden: this field cannot be simulated", icon="ERROR")
                 for line in textwrap.wrap(error, 48):
                     box.label(text=line)
+            status = runtime.bake_status(context.scene, item)
+            row = layout.row(align=True)
+            row.operator("windgrass.field_bake", text="Bake", icon="FILE_CACHE")
+            row.operator("windgrass.field_bake_free", text="Free Bake", icon="TRASH")
+            if status:
+                box = layout.box()
+                box.alert = "stale" in status
+                for line in textwrap.wrap(status, 48):
+                    box.label(text=line)
             layout.prop(item, "collection")
             layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 

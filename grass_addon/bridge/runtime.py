@@ -36,7 +36,7 @@ from bpy.app.handlers import persistent
 from .. import schema, slots
 from ..errors import WindgrassError
 from ..field import GrassField
-from . import animation, pools, properties
+from . import animation, bake, pools, properties
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
@@ -165,7 +165,12 @@ def _current(scene, item) -> FieldRuntime:
 
 def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     """Resolve the field and (re)build its objects when their topology changed (always with
-    ``force``: Rebuild, which also re-samples the terrain), then write the current frame."""
+    ``force``: Rebuild, which also re-samples the terrain and frees a bake), then write the
+    current frame. A baked field is left as baked (an edit makes its bake stale, see bake.status)."""
+    if bake.is_baked(item):
+        if not force:
+            return item.collection
+        bake.free_bake(scene, item)
     if getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()
@@ -183,12 +188,70 @@ def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     scene.render.use_lock_interface = True
     _write(scene, item, rt)
+    write_read_me()
     return coll
 
 
+def bake_field(scene, item, first: int, last: int):
+    """Bake frames ``first``-``last`` of the field into an Alembic cache beside the .blend and play
+    the field from it (``bake.py``); BakeError or ParameterError on what prevents it."""
+    properties.params_from_settings(item, scene)  # a setting out of range stops here, named
+    if bake.is_baked(item):
+        free_bake(scene, item)
+    rt = resolve(scene, item)
+    if item.collection is None or item.collection.get("wg_topology") != rt.topology:
+        build_field(scene, item)
+    path = bake.bake_field(scene, item, first, last, params_digest(scene, item))
+    write_read_me()
+    return path
+
+
+def free_bake(scene, item) -> None:
+    """Back to the live simulation."""
+    if bake.free_bake(scene, item):
+        build_field(scene, item)
+    write_read_me()
+
+
+def bake_status(scene, item) -> str | None:
+    """What the field's bake holds and whether it is stale (None: live)."""
+    return bake.status(scene, item, params_digest(scene, item)) if bake.is_baked(item) else None
+
+
+def params_digest(scene, item) -> str | None:
+    """Digest of the field's settings now (None when a setting is out of range)."""
+    try:
+        return properties.params_from_settings(item, scene).digest()
+    except WindgrassError:
+        return None
+
+
+READ_ME = "Windgrass - read me"
+
+
+def write_read_me() -> None:
+    """A text block that says, in a Blender without Windgrass, what the grass needs."""
+    live, baked = [], []
+    for s in bpy.data.scenes:
+        for item in getattr(s, "windgrass", None).fields if hasattr(s, "windgrass") else ():
+            (baked if bake.is_baked(item) else live).append(f"{s.name} / {item.name}")
+    text = bpy.data.texts.get(READ_ME) or bpy.data.texts.new(READ_ME)
+    lines = ["This file has grass fields of the Windgrass extension for Blender.", ""]
+    if live:
+        lines += ["Live fields: their grass is simulated by the Windgrass add-on every frame. Without the",
+                  "add-on they stay frozen at the last pose written. Install Windgrass, or bake them",
+                  "(Grass tab > Bake) to play and render them in any Blender:"] + [f"  {n}" for n in live] + [""]
+    if baked:
+        lines += ["Baked fields: they play an Alembic cache beside this file (folder <file>_windgrass)",
+                  "in any Blender; keep that folder with the file:"] + [f"  {n}" for n in baked]
+    text.from_string("\n".join(lines) + "\n")
+
+
 def remove_field(scene, item) -> None:
-    """Delete everything the field made (``scene.remove_datablocks``) and forget its runtime."""
+    """Delete everything the field made (``scene.remove_datablocks``, its bake) and forget its
+    runtime."""
     reset_field(scene, item)
+    bake.free_bake(scene, item)
     field_scene.remove_datablocks(item)
 
 
@@ -239,6 +302,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
     if item.collection is None:
         warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
         return None
+    if bake.is_baked(item):
+        return None  # its objects play the cache
     if camera_moved_only:
         rt = get_runtime(scene, item)
         if rt is None or rt.frame != scene.frame_current or rt.subframe != float(scene.frame_subframe):

@@ -1,0 +1,177 @@
+"""Bake: a field's animation over a frame range into an Alembic cache beside the .blend.
+
+The field's slot objects then play the cache through Mesh Sequence Cache modifiers, stock Blender,
+so the saved .blend plays and renders frame for frame like the live field in a Blender without
+Windgrass (render farms, other departments). What is baked is what the scene camera saw over the
+range: the LOD followed the camera while the frames were written. Every per-frame datum of a slot
+is in its positions and UV maps (materials.py), which Alembic keeps per frame.
+
+The record ``item["wg_bake"]`` says what the bake was made from (parameters digest, camera), so a
+later edit or camera move is reported as a stale bake. Free Bake returns to the live simulation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from ..errors import WindgrassError
+from . import scene as field_scene
+
+RECORD = "wg_bake"
+MODIFIER = "Windgrass bake"
+ROLES = (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS)
+
+
+class BakeError(WindgrassError):
+    """A bake cannot be made (unsaved file, no camera, frames outside the scene, folder not writable)."""
+
+
+def is_baked(item) -> bool:
+    return item.get(RECORD) is not None
+
+
+def cache_file_path(item) -> Path:
+    """``<blend folder>/<blend name>_windgrass/<field uid>.abc``; BakeError for an unsaved file."""
+    if not bpy.data.filepath:
+        raise BakeError("bake: save the .blend first (the cache is written beside it)")
+    blend = Path(bpy.data.filepath)
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(item.uid))
+    return blend.parent / f"{blend.stem}_windgrass" / f"{safe}.abc"
+
+
+def camera_fingerprint(scene) -> str:
+    """What the scene camera's path depends on: which camera, its lens, placement and keys."""
+    cam = scene.camera
+    if cam is None:
+        return ""
+    h = hashlib.sha1(cam.name.encode())
+    h.update(np.array(cam.matrix_basis, dtype=np.float32).tobytes())
+    if cam.type == "CAMERA":
+        h.update(repr((round(cam.data.lens, 6), round(cam.data.sensor_width, 6), cam.data.type)).encode())
+    action = cam.animation_data.action if cam.animation_data is not None else None
+    if action is not None:
+        h.update(action.name.encode())
+        for fcurve in getattr(action, "fcurves", ()):
+            keys = np.empty(len(fcurve.keyframe_points) * 2, np.float32)
+            fcurve.keyframe_points.foreach_get("co", keys)
+            h.update(fcurve.data_path.encode() + keys.tobytes())
+    return h.hexdigest()
+
+
+def check(scene, item, first: int, last: int) -> Path:
+    """The cache's path, once everything a bake needs is there; BakeError naming what is not."""
+    if item.collection is None or not field_scene.slot_objects(item, field_scene.ROLE_BLADES) and \
+            not field_scene.slot_objects(item, field_scene.ROLE_CARDS):
+        raise BakeError(f"bake: field '{item.name}' has no objects; add or rebuild it first")
+    if scene.camera is None:
+        raise BakeError("bake: the scene has no camera (the bake holds what the camera sees; set Scene > Camera)")
+    if not (scene.frame_start <= first <= last <= scene.frame_end):
+        raise BakeError(f"bake: frames {first}-{last} are not within the scene's frames "
+                        f"{scene.frame_start}-{scene.frame_end} (valid: start <= first <= last <= end)")
+    path = cache_file_path(item)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".windgrass-probe-"):
+            pass
+    except OSError as exc:
+        raise BakeError(f"bake: cannot write into {path.parent}: {exc.strerror or exc}") from None
+    return path
+
+
+def _slots(item) -> list:
+    return [obj for role in ROLES for obj in field_scene.slot_objects(item, role).values()]
+
+
+def _abc_name(name: str) -> str:
+    """A name as Alembic writes it (spaces, dots and colons become underscores)."""
+    return "".join("_" if c in " .:" else c for c in name)
+
+
+def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
+    """Write frames ``first``-``last`` of the field into its cache and play the field from it.
+
+    The cache is written under a temporary name and renamed when complete; on any failure the
+    field stays live and no partial file is left. Returns the cache's path."""
+    path = check(scene, item, first, last)
+    free_bake(scene, item)
+    objects = _slots(item)
+    partial = path.with_name(f".{path.stem}.partial.abc")
+    frame = scene.frame_current
+    # A mesh rewritten from Python exports as static unless it carries a modifier: a no-op one
+    # makes the exporter write every frame. With motion blur on, each frame carries its velocities
+    # (Alembic ".velocities"), which the cache gives Cycles back in any Blender.
+    for obj in objects:
+        obj.modifiers.new(MODIFIER, "DISPLACE").strength = 0.0
+    blur = scene.render.use_motion_blur
+    scene.render.use_motion_blur = True
+    try:
+        result = bpy.ops.wm.alembic_export(
+            filepath=str(partial), start=first, end=last, selected=False, collection=item.collection.name,
+            flatten=True, uvs=True, normals=False, face_sets=False, export_hair=False, export_particles=False,
+            as_background_job=False, init_scene_frame_range=False, evaluation_mode="RENDER")
+        if "FINISHED" not in result or not partial.is_file() or partial.stat().st_size == 0:
+            raise BakeError(f"bake: Blender did not write the cache {path} ({result})")
+        os.replace(partial, path)
+    finally:
+        scene.render.use_motion_blur = blur
+        for obj in objects:
+            modifier = obj.modifiers.get(MODIFIER)
+            if modifier is not None:
+                obj.modifiers.remove(modifier)
+        if partial.exists():
+            partial.unlink()
+    cache = bpy.data.cache_files.get(path.name)
+    if cache is None or bpy.path.abspath(cache.filepath) != str(path):
+        bpy.ops.cachefile.open(filepath=str(path))
+        cache = bpy.data.cache_files[-1]
+    cache.filepath = bpy.path.relpath(str(path))
+    cache["wg_uid"] = item.collection.get("wg_uid", "")
+    for obj in objects:
+        modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
+        modifier.cache_file = cache
+        modifier.object_path = f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
+        modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
+    item[RECORD] = {"file": cache.filepath, "first": int(first), "last": int(last), "digest": digest,
+                    "camera": camera_fingerprint(scene), "cache": cache.name}
+    scene.frame_set(frame)
+    return path
+
+
+def free_bake(scene, item) -> bool:
+    """Remove the bake (modifiers, cache datablock and file); returns whether there was one. The
+    runtime then writes the field live again (``runtime.free_bake``)."""
+    record = item.get(RECORD)
+    if record is None:
+        return False
+    for obj in _slots(item):
+        modifier = obj.modifiers.get(MODIFIER)
+        if modifier is not None:
+            obj.modifiers.remove(modifier)
+    cache = bpy.data.cache_files.get(record.get("cache", ""))
+    if cache is not None:
+        file = Path(bpy.path.abspath(cache.filepath))
+        bpy.data.batch_remove([cache])  # (bpy.data.cache_files has no remove)
+        if file.is_file():
+            file.unlink()
+    del item[RECORD]
+    return True
+
+
+def status(scene, item, digest: str | None) -> str | None:
+    """``digest``: of the field's parameters now (None: unknown, e.g. a setting out of range)."""
+    record = item.get(RECORD)
+    if record is None:
+        return None
+    text = f"Baked frames {record['first']}-{record['last']}: what the scene camera saw"
+    stale = []
+    if digest is not None and digest != record.get("digest"):
+        stale.append("parameters changed")
+    if camera_fingerprint(scene) != record.get("camera"):
+        stale.append("camera changed")
+    return text + (f"; stale: {', '.join(stale)} since (bake again)" if stale else "")

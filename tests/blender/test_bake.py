@@ -1,0 +1,130 @@
+"""Bake: the field's animation into an Alembic cache beside the .blend, played by Mesh Sequence
+Cache modifiers; the saved file renders the same grass in a Blender without Windgrass."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+W, H = 80, 45
+
+
+@pytest.fixture
+def bridge(with_bridge):
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, runtime, stage
+
+    return schema, properties, runtime, stage
+
+
+def _scene(bridge):
+    schema, properties, runtime, stage = bridge
+    params = schema.defaults().replace({
+        "field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 8, "field.blades_per_cell": 3,
+        "wind.type": "moderate_breeze", "wind.speed": 9.0, "camera.mode": "fixed",
+        "camera.position": (0.0, -1.4, 0.45), "camera.target": (0.0, 0.2, 0.1), "lod.blade_near": 1.2,
+        "lod.blade_far": 1.6, "lod.card_near": 2.0, "lod.card_far": 2.6,
+        "render.samples": 4, "render.resolution_x": W, "render.resolution_y": H, "render.frame_end": 8})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    stage.pose_camera(scene, params, 1)
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    return scene, item
+
+
+def _pixels(path: Path) -> np.ndarray:
+    image = bpy.data.images.load(str(path))
+    try:
+        return np.array(image.pixels[:], dtype=np.float32).reshape(H, W, 4)[..., :3]
+    finally:
+        bpy.data.images.remove(image)
+
+
+RENDER_WITHOUT_WINDGRASS = textwrap.dedent("""
+    import sys
+    import bpy
+    blend, out = sys.argv[-2], sys.argv[-1]
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    assert "windgrass" not in sys.modules and not hasattr(bpy.types.Scene, "windgrass")
+    scene = bpy.context.scene
+    for frame in (3, 4, 5):
+        scene.frame_set(frame)
+        scene.render.filepath = f"{out}/frame_{frame}.png"
+        bpy.ops.render.render(write_still=True)
+    print("read me:", bpy.data.texts["Windgrass - read me"].as_string().splitlines()[0])
+""")
+
+
+def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path):
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    read_me = bpy.data.texts["Windgrass - read me"].as_string()
+    assert "Live fields" in read_me and f"{scene.name} / {item.name}" in read_me  # says what it needs
+    blend = tmp_path / "meadow.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    live = tmp_path / "live.png"
+    scene.frame_set(4)
+    scene.render.filepath = str(live)
+    bpy.ops.render.render(write_still=True)
+
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    cache = tmp_path / "meadow_windgrass"
+    files = list(cache.iterdir())
+    assert len(files) == 1 and files[0].suffix == ".abc" and files[0].stat().st_size > 10_000
+    assert b".velocities" in files[0].read_bytes()  # motion blur from the cache too
+    status = runtime.bake_status(scene, item)
+    assert "Baked frames 1-6" in status and "stale" not in status
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
+    out = tmp_path / "without"
+    out.mkdir()
+    proc = subprocess.run([sys.executable, "-c", RENDER_WITHOUT_WINDGRASS, str(blend), str(out)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "read me: This file has grass fields of the Windgrass extension" in proc.stdout
+    baked = {f: _pixels(out / f"frame_{f}.png") for f in (3, 4, 5)}
+    assert np.abs(baked[4] - _pixels(live)).mean() < 2.0 / 255.0
+    assert np.abs(baked[3] - baked[5]).mean() > 0.003  # the grass moves between frames
+
+
+def test_bake_reports_what_prevents_it(bridge, tmp_path):
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    with pytest.raises(RuntimeError, match="save the .blend first"):
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "f.blend"))
+    with pytest.raises(RuntimeError, match=r"frames 1-99 are not within the scene's frames 1-8"):
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=99)
+    camera = scene.camera
+    scene.camera = None
+    with pytest.raises(RuntimeError, match="no camera"):
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+    scene.camera = camera
+    assert not (tmp_path / "f_windgrass").exists() or not any((tmp_path / "f_windgrass").iterdir())
+
+
+def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "g.blend"))
+    assert bpy.ops.windgrass.field_bake(frame_start=2, frame_end=3) == {"FINISHED"}
+    item.wind.speed = 3.0
+    assert "stale: parameters changed" in runtime.bake_status(scene, item)
+    scene.camera.location.x += 0.5
+    assert "camera changed" in runtime.bake_status(scene, item)
+    assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
+    assert runtime.bake_status(scene, item) is None
+    assert not any((tmp_path / "g_windgrass").iterdir())
+    assert not bpy.data.cache_files
+    scene.frame_set(5)
+    assert runtime.get_runtime(scene, item).frame == 5  # written live again

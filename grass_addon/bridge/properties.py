@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import schema
 from ..errors import ParameterError
+from .registry import REGISTRY
 
 # The runtime samples the F-curves of these parameters (WindField keys: time, speed, direction);
 # keyframes on any other parameter would silently do nothing, so only these are animatable.
@@ -113,9 +114,6 @@ def description(p: schema.Param) -> str:
     return f"{p.help}{unit}. Valid: {p.range_text()}"
 
 
-_batch_depth = 0  # > 0 while ``batch`` writes many settings: one runtime update at the end
-
-
 # Called with (scene, item) when a field's settings change; the runtime sets it (runtime.mark_dirty)
 # when the add-on registers, so this module needs no import of the runtime.
 on_edit = None
@@ -132,19 +130,18 @@ def notify(item: Any) -> None:
 def batch(item: Any) -> Iterator[None]:
     """Write many settings of ``item`` with a single runtime update at the end (the runtime
     rebuilds on each update; intermediate states may also break relations such as lod order)."""
-    global _batch_depth
-    _batch_depth += 1
+    REGISTRY.batch_depth += 1
     try:
         yield
     finally:
-        _batch_depth -= 1
-    if _batch_depth == 0:
+        REGISTRY.batch_depth -= 1
+    if REGISTRY.batch_depth == 0:
         notify(item)
 
 
 def _on_update(self: bpy.types.PropertyGroup, context: Any) -> None:
     """Update callback of every generated property: the owning field is dirty."""
-    if _batch_depth or not isinstance(self.id_data, bpy.types.Scene):
+    if REGISTRY.batch_depth or not isinstance(self.id_data, bpy.types.Scene):
         return
     match = _FIELD_PATH.match(self.path_from_id())
     if match is None:

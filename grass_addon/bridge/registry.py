@@ -24,6 +24,7 @@ class Registry:
     errors: dict[Key, str] = field(default_factory=dict)  # why a field cannot be simulated now
     pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
     warned: set[str] = field(default_factory=set)  # console messages already printed
+    batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
     def clear(self) -> None:
         self.fields.clear()

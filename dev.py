@@ -6,6 +6,7 @@
                                                          # Blender tests on 4.2 LTS (.venv-4.2)
     python3.11 dev.py simulate [simulate.py options]     # numpy-only simulation summary
     python3.11 dev.py bench [bench.py options]           # benchmark JSON
+    python3.11 dev.py lod [lod_compare.py options]       # LOD against all-geometry renders (JSON)
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ def main(argv: list[str]) -> int:
         "render": ["headless/render_field.py"],
         "simulate": ["headless/simulate.py"],
         "bench": ["headless/bench.py"],
+        "lod": ["headless/lod_compare.py"],
         "test": ["-m", "pytest", "tests"],
     }
     if not argv or argv[0] not in jobs:

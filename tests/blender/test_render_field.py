@@ -492,3 +492,23 @@ def test_bake_flag_writes_a_cache_and_a_blend_that_plays_it(env, tiny_config, tm
     assert (tmp_path / "scene.blend").is_file() and not (tmp_path / "scene.blend1").exists()
     assert "baked" in proc.stdout and "MB per frame" in proc.stdout
     assert frames_in(tmp_path) == ["frame_0001.png", "frame_0002.png"]
+
+
+def test_lod_comparison_script_measures_rows_images_and_flicker(env, tiny_config, tmp_path):
+    import json
+
+    proc = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--config", str(tiny_config),
+                           "--resolution", "48x27", "--samples", "1", "--lights", "sun", "overcast",
+                           "--presets", "default", "--flythrough-frames", "2", "--out", str(tmp_path), "--json"],
+                          env=env, cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    for case in ("default_sun", "default_overcast"):
+        figures = result["cases"][case]
+        assert 0.0 <= figures["mean_abs_diff"] <= 1.0 and 0.0 <= figures["row_diff_max"] <= 1.0
+    assert result["flythrough"]["flicker_geometry"] > 0.0 and result["flythrough"]["ratio"] > 0.0
+    assert sorted(p.name for p in tmp_path.glob("default_sun_*.png")) == [
+        "default_sun_geometry_0001.png", "default_sun_lod_0001.png"]
+    bad = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--presets", "prairie"],
+                         env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "presets" in bad.stderr and "meadow" in bad.stderr

@@ -1,0 +1,166 @@
+#!/usr/bin/env python3
+"""Measure how well the levels of detail stand for the grass they replace (paper VI: "little
+perceivable loss in image quality"): the LOD render against the all-geometry render of the same
+frame, in calm air, and the frame-to-frame change of a slow fly-through with and without LOD.
+
+    python headless/lod_compare.py [--config scenes/default.toml] [--resolution 320x180]
+                                   [--samples 16] [--lights sun overcast] [--presets default meadow]
+                                   [--out renders/lod_compare] [--json]
+    python3.11 dev.py lod ...      # the same, inside the project's .venv
+
+Prints one JSON object: for every light and species preset, ``row_diff_max`` (the largest
+difference of an image row's mean colour, linear RGB 0-1, LOD against all geometry) and
+``mean_abs_diff`` (of the whole image), and for the fly-through ``flicker_lod`` and
+``flicker_geometry`` (mean absolute change between consecutive frames) and their ratio. The
+images (PNG, display colours) are written to --out for a look. Exit status 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+HEADLESS = Path(__file__).resolve().parent
+REPO = HEADLESS.parent
+if str(HEADLESS) not in sys.path:
+    sys.path.insert(0, str(HEADLESS))
+
+import addon_loader  # noqa: E402
+
+addon_loader.load_package()
+from windgrass.grass_addon import presets, schema  # noqa: E402
+from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+
+OVERCAST = (0.55, 0.58, 0.62)  # uniform grey sky (linear RGB)
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(prog="lod_compare.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--config", type=Path, default=REPO / "scenes" / "default.toml")
+    parser.add_argument("--resolution", default="320x180", help="WIDTHxHEIGHT in pixels")
+    parser.add_argument("--samples", type=int, default=16)
+    parser.add_argument("--lights", nargs="+", default=["sun", "overcast"], choices=["sun", "overcast"])
+    parser.add_argument("--presets", nargs="+", default=["default", "meadow"],
+                        help=f"species presets: default (the scene's) or one of {', '.join(presets.PRESET_NAMES)}")
+    parser.add_argument("--flythrough-frames", type=int, default=3, help="frames of the slow fly-through (0: none)")
+    parser.add_argument("--out", type=Path, default=REPO / "renders" / "lod_compare")
+    parser.add_argument("--json", action="store_true", help="one line of JSON (default: indented)")
+    return parser.parse_args(argv)
+
+
+def scene_params(args, preset: str, fixed: bool):
+    params = schema.load_toml(args.config)
+    try:
+        w, h = (int(v) for v in args.resolution.lower().split("x"))
+    except ValueError:
+        raise ParameterError("resolution", f"{args.resolution!r} is not WIDTHxHEIGHT, e.g. 320x180") from None
+    if args.samples < 1:
+        raise ParameterError("samples", f"{args.samples} must be >= 1")
+    size_y = params.field.blocks_y * params.field.cells_per_block * params.field.cell_size
+    changes = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0, "render.engine": "cycles",
+               "render.samples": args.samples, "render.resolution_x": w, "render.resolution_y": h,
+               "render.motion_blur": False}
+    if fixed:
+        changes.update({"camera.mode": "fixed", "camera.position": (0.0, -0.4 * size_y, params.camera.height),
+                        "camera.target": (0.0, 0.5 * size_y, 0.0)})
+    else:
+        changes.update({"camera.mode": "flythrough", "camera.speed": 0.5})
+    params = params.replace(changes)
+    if preset != "default":
+        if preset not in presets.PRESET_NAMES:
+            valid = ", ".join(("default", *presets.PRESET_NAMES))
+            raise ParameterError("presets", f"unknown preset {preset!r} (valid: {valid})")
+        params = presets.apply_preset(params, preset)
+    return params
+
+
+def render(params, lod: bool, light: str, frames, out: Path, tag: str):
+    """Linear RGB images (H, W, 3) of ``frames`` with the LOD on or off."""
+    import bpy
+    import numpy as np
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_loader.load_addon()
+    from windgrass.grass_addon.bridge import properties, runtime, stage
+
+    params = params.replace({"lod.enabled": lod})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    if light == "overcast":
+        for obj in scene.objects:
+            if obj.type == "LIGHT":
+                obj.hide_render = True
+        background = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+        for link in list(background.inputs["Color"].links):
+            scene.world.node_tree.links.remove(link)
+        background.inputs["Color"].default_value = (*OVERCAST, 1.0)
+        background.inputs["Strength"].default_value = 1.0
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    images = []
+    for frame in frames:
+        stage.pose_camera(scene, params, frame)
+        scene.frame_set(frame)
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        exr = out / f"{tag}_{'lod' if lod else 'geometry'}_{frame:04d}.exr"
+        scene.render.filepath = str(exr)
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(str(exr))
+        w, h = image.size
+        images.append(np.array(image.pixels[:], dtype=np.float32).reshape(h, w, 4)[::-1, :, :3])
+        scene.render.image_settings.file_format = "PNG"
+        image.save_render(str(exr.with_suffix(".png")), scene=scene)
+        bpy.data.images.remove(image)
+        exr.unlink()
+    return images
+
+
+def compare(args) -> dict:
+    import numpy as np
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    result = {"resolution": args.resolution, "samples": args.samples, "cases": {}}
+    for preset in args.presets:
+        for light in args.lights:
+            tag = f"{preset}_{light}"
+            t0 = time.perf_counter()
+            params = scene_params(args, preset, fixed=True)
+            lod, = render(params, True, light, [1], args.out, tag)
+            geo, = render(params, False, light, [1], args.out, tag)
+            rows = np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max()
+            case = {"row_diff_max": round(float(rows), 4),
+                    "mean_abs_diff": round(float(np.abs(lod - geo).mean()), 4),
+                    "worst_row_from_top": int(np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max(axis=1).argmax()),
+                    "seconds": round(time.perf_counter() - t0, 1)}
+            result["cases"][tag] = case
+            print(f"{tag}: {case}", file=sys.stderr, flush=True)
+    if args.flythrough_frames > 1:
+        params = scene_params(args, args.presets[0], fixed=False)
+        frames = list(range(1, args.flythrough_frames + 1))
+        flicker = {}
+        for lod in (True, False):
+            images = render(params, lod, args.lights[0], frames, args.out, "flythrough")
+            flicker[lod] = float(np.mean([np.abs(a - b).mean() for a, b in zip(images, images[1:])]))
+        result["flythrough"] = {"frames": len(frames), "flicker_lod": round(flicker[True], 4),
+                                "flicker_geometry": round(flicker[False], 4),
+                                "ratio": round(flicker[True] / max(flicker[False], 1e-9), 3)}
+    return result
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    try:
+        scene_params(args, args.presets[0], fixed=True)  # bad input before anything renders
+        result = compare(args)
+    except ParameterError as exc:
+        print(f"lod_compare.py: error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=2), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -439,7 +439,19 @@ def on_depsgraph_update_post(scene, depsgraph=None):
 
 @persistent
 def on_load_post(*_args):
+    """A new file: forget every runtime, and rebuild the objects of fields saved with another
+    topology than their settings give now (files of earlier versions), here rather than in a
+    frame handler."""
     REGISTRY.clear()
+    for scene in bpy.data.scenes:
+        for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+            if item.collection is not None and not bake.is_baked(item):
+                _guarded(_rebuild_if_outdated, scene, item)
+
+
+def _rebuild_if_outdated(scene, item) -> None:
+    if item.collection.get("wg_topology") != resolve(scene, item).topology:
+        build_field(scene, item)
 
 
 @persistent

@@ -139,3 +139,21 @@ def test_a_field_without_a_record_is_found_by_its_tags(bridge):
     bpy.ops.windgrass.field_remove()
     assert not [d for d in (*bpy.data.objects, *bpy.data.meshes, *bpy.data.materials, *bpy.data.images)
                 if d.get("wg_uid")]
+
+
+def test_a_file_saved_with_another_topology_is_rebuilt_on_load(bridge, tmp_path):
+    """Files of earlier versions record another slot topology: opening one rebuilds the objects
+    (not a frame handler), and the grass shows."""
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    item.collection["wg_topology"] = "written by an earlier version"
+    path = tmp_path / "old.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(3)
+    assert runtime.field_error(scene, item) is None
+    assert item.collection["wg_topology"] != "written by an earlier version"
+    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    assert np.abs(_positions(blades)).max() > 0.0

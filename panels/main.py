@@ -84,6 +84,11 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 box.alert = "stale" in status
                 for line in textwrap.wrap(status, 48):
                     box.label(text=line)
+            f = item.field
+            cells = f.blocks_x * f.blocks_y * f.cells_per_block ** 2
+            size_x = f.blocks_x * f.cells_per_block * f.cell_size
+            size_y = f.blocks_y * f.cells_per_block * f.cell_size
+            layout.label(text=f"{size_x:.4g} x {size_y:.4g} m, {cells * f.blades_per_cell:,} blades", icon="INFO")
             layout.prop(item, "collection")
             layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 

@@ -441,8 +441,8 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
         cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[1])
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
         blend.with_suffix(".blend1").unlink(missing_ok=True)  # Blender's backup of the first save
-        per_frame = cache.stat().st_size / (frames[1] - frames[0] + 1)
-        print(f"baked {cache} in {time.perf_counter() - t_bake:.1f} s ({per_frame / 1e6:.2f} MB per frame); "
+        per_frame = addon_module("grass_addon.bridge.bake").cache_size(cache) / (frames[1] - frames[0] + 1)
+        print(f"baked {cache}/ in {time.perf_counter() - t_bake:.1f} s ({per_frame / 1e6:.2f} MB per frame); "
               f"saved {blend}", flush=True)
     elif args.save_blend:
         blend = out / "scene.blend"

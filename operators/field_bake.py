@@ -3,7 +3,8 @@ beside the .blend (it then plays in any Blender), and back to the live simulatio
 
 import bpy
 
-from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.bridge import bake, properties, runtime
+from ..grass_addon.errors import WindgrassError
 from ._common import has_active_field, reported
 
 
@@ -22,28 +23,71 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
     def poll(cls, context):
         return has_active_field(context)
 
-    def invoke(self, context, event):
-        scene = context.scene
+    def _range(self, scene) -> None:
         if not self.properties.is_property_set("frame_start"):
             self.frame_start = scene.frame_start
         if not self.properties.is_property_set("frame_end"):
             self.frame_end = scene.frame_end
-        return self.execute(context)
+
+    def invoke(self, context, event):
+        """In the UI: one group of objects per step, the progress in the cursor, Esc to stop."""
+        scene = context.scene
+        self._range(scene)
+        try:
+            self._baker = runtime.start_bake(scene, properties.active_field(scene), self.frame_start, self.frame_end)
+        except WindgrassError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.modal_handler_add(self)
+        self.report({"INFO"}, "Baking the grass (Esc to stop)")
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        wm = context.window_manager
+        if event.type == "ESC":
+            self._end(context)
+            self._baker.cancel()
+            self.report({"WARNING"}, "Bake stopped: nothing was kept, the grass is live")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            done = self._baker.step()
+        except WindgrassError as exc:
+            self._end(context)
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm.progress_update(int(100 * self._baker.progress))
+        if not done:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        folder = self._baker.finish()
+        runtime.write_read_me()
+        self._done(properties.active_field(context.scene), folder)
+        return {"FINISHED"}
+
+    def _end(self, context) -> None:
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+
+    def _done(self, item, folder) -> None:
+        frames = self.frame_end - self.frame_start + 1
+        size = bake.cache_size(folder)
+        self.report({"INFO"}, f"Baked '{item.name}' frames {self.frame_start}-{self.frame_end} into {folder.name}/ "
+                              f"({size / frames / 1e6:.2f} MB per frame)")
 
     @reported
     def execute(self, context):
+        """From scripts: the whole bake at once."""
         scene = context.scene
+        self._range(scene)
         item = properties.active_field(scene)
-        wm = context.window_manager
-        wm.progress_begin(0, 1)
-        try:
-            path = runtime.bake_field(scene, item, self.frame_start, self.frame_end)
-        finally:
-            wm.progress_end()
-        frames = self.frame_end - self.frame_start + 1
-        size = path.stat().st_size
-        self.report({"INFO"}, f"Baked '{item.name}' frames {self.frame_start}-{self.frame_end} to {path.name} "
-                              f"({size / frames / 1e6:.2f} MB per frame)")
+        folder = runtime.bake_field(scene, item, self.frame_start, self.frame_end)
+        self._done(item, folder)
         return {"FINISHED"}
 
 

@@ -36,13 +36,13 @@ def is_baked(item) -> bool:
     return item.get(RECORD) is not None
 
 
-def cache_file_path(item) -> Path:
-    """``<blend folder>/<blend name>_windgrass/<field uid>.abc``; BakeError for an unsaved file."""
+def cache_folder(item) -> Path:
+    """``<blend folder>/<blend name>_windgrass/<field uid>/``; BakeError for an unsaved file."""
     if not bpy.data.filepath:
         raise BakeError("bake: save the .blend first (the cache is written beside it)")
     blend = Path(bpy.data.filepath)
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(item.uid))
-    return blend.parent / f"{blend.stem}_windgrass" / f"{safe}.abc"
+    return blend.parent / f"{blend.stem}_windgrass" / safe
 
 
 def camera_fingerprint(scene) -> str:
@@ -65,7 +65,7 @@ def camera_fingerprint(scene) -> str:
 
 
 def check(scene, item, first: int, last: int) -> Path:
-    """The cache's path, once everything a bake needs is there; BakeError naming what is not."""
+    """The cache's folder, once everything a bake needs is there; BakeError naming what is not."""
     if item.collection is None or not field_scene.slot_objects(item, field_scene.ROLE_BLADES) and \
             not field_scene.slot_objects(item, field_scene.ROLE_CARDS):
         raise BakeError(f"bake: field '{item.name}' has no objects; add or rebuild it first")
@@ -74,14 +74,14 @@ def check(scene, item, first: int, last: int) -> Path:
     if not (scene.frame_start <= first <= last <= scene.frame_end):
         raise BakeError(f"bake: frames {first}-{last} are not within the scene's frames "
                         f"{scene.frame_start}-{scene.frame_end} (valid: start <= first <= last <= end)")
-    path = cache_file_path(item)
+    folder = cache_folder(item)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".windgrass-probe-"):
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".windgrass-probe-"):
             pass
     except OSError as exc:
-        raise BakeError(f"bake: cannot write into {path.parent}: {exc.strerror or exc}") from None
-    return path
+        raise BakeError(f"bake: cannot write into {folder}: {exc.strerror or exc}") from None
+    return folder
 
 
 def _slots(item) -> list:
@@ -93,54 +93,107 @@ def _abc_name(name: str) -> str:
     return "".join("_" if c in " .:" else c for c in name)
 
 
-def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
-    """Write frames ``first``-``last`` of the field into its cache and play the field from it.
+class Baker:
+    """One bake, step by step: each ``step`` exports one group of slot objects (all the frames)
+    into its own Alembic file, so a long bake shows its progress and can stop between groups
+    (``cancel``: nothing is left, the field stays live). ``finish`` plays the field from the files.
 
-    The cache is written under a temporary name and renamed when complete; on any failure the
-    field stays live and no partial file is left. Returns the cache's path."""
-    path = check(scene, item, first, last)
-    free_bake(scene, item)
-    objects = _slots(item)
-    partial = path.with_name(f".{path.stem}.partial.abc")
-    frame = scene.frame_current
-    # A mesh rewritten from Python exports as static unless it carries a modifier: a no-op one
-    # makes the exporter write every frame. With motion blur on, each frame carries its velocities
-    # (Alembic ".velocities"), which the cache gives Cycles back in any Blender.
-    for obj in objects:
-        obj.modifiers.new(MODIFIER, "DISPLACE").strength = 0.0
-    blur = scene.render.use_motion_blur
-    scene.render.use_motion_blur = True
-    try:
-        result = bpy.ops.wm.alembic_export(
-            filepath=str(partial), start=first, end=last, selected=False, collection=item.collection.name,
-            flatten=True, uvs=True, normals=False, face_sets=False, export_hair=False, export_particles=False,
-            as_background_job=False, init_scene_frame_range=False, evaluation_mode="RENDER")
-        if "FINISHED" not in result or not partial.is_file() or partial.stat().st_size == 0:
-            raise BakeError(f"bake: Blender did not write the cache {path} ({result})")
-        os.replace(partial, path)
-    finally:
-        scene.render.use_motion_blur = blur
+    A mesh rewritten from Python exports as static unless it carries a modifier: a no-op one makes
+    the exporter write every frame. With motion blur forced on meanwhile, each frame carries its
+    velocities (Alembic ".velocities"), which the cache gives Cycles back in any Blender."""
+
+    GROUPS = 8  # at most this many exports (each one simulates every frame again)
+
+    def __init__(self, scene, item, first: int, last: int, digest: str):
+        self.folder = check(scene, item, first, last)
+        free_bake(scene, item)
+        self.scene, self.item, self.first, self.last, self.digest = scene, item, int(first), int(last), digest
+        objects = _slots(item)
+        size = max(1, -(-len(objects) // self.GROUPS))
+        self.groups = [objects[i:i + size] for i in range(0, len(objects), size)]
+        self.done: list[Path] = []
+        self.frame = scene.frame_current
+        self.blur = scene.render.use_motion_blur
         for obj in objects:
-            modifier = obj.modifiers.get(MODIFIER)
-            if modifier is not None:
-                obj.modifiers.remove(modifier)
-        if partial.exists():
-            partial.unlink()
-    cache = bpy.data.cache_files.get(path.name)
-    if cache is None or bpy.path.abspath(cache.filepath) != str(path):
-        bpy.ops.cachefile.open(filepath=str(path))
-        cache = bpy.data.cache_files[-1]
-    cache.filepath = bpy.path.relpath(str(path))
-    cache["wg_uid"] = item.collection.get("wg_uid", "")
-    for obj in objects:
-        modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
-        modifier.cache_file = cache
-        modifier.object_path = f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
-        modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
-    item[RECORD] = {"file": cache.filepath, "first": int(first), "last": int(last), "digest": digest,
-                    "camera": camera_fingerprint(scene), "cache": cache.name}
-    scene.frame_set(frame)
-    return path
+            obj.modifiers.new(MODIFIER, "DISPLACE").strength = 0.0
+        scene.render.use_motion_blur = True
+
+    @property
+    def progress(self) -> float:
+        return len(self.done) / max(1, len(self.groups))
+
+    def step(self) -> bool:
+        """Export the next group; True when every group is written."""
+        index = len(self.done)
+        if index == len(self.groups):
+            return True
+        path = self.folder / f"group_{index:02d}.abc"
+        partial = path.with_name(f".{path.stem}.partial.abc")
+        group = bpy.data.collections.new(f".windgrass bake {index}")
+        self.scene.collection.children.link(group)
+        try:
+            for obj in self.groups[index]:
+                group.objects.link(obj)
+            result = bpy.ops.wm.alembic_export(
+                filepath=str(partial), start=self.first, end=self.last, selected=False, collection=group.name,
+                flatten=True, uvs=True, normals=False, face_sets=False, export_hair=False,
+                export_particles=False, as_background_job=False, init_scene_frame_range=False,
+                evaluation_mode="RENDER")
+            if "FINISHED" not in result or not partial.is_file() or partial.stat().st_size == 0:
+                raise BakeError(f"bake: Blender did not write the cache {path} ({result})")
+            os.replace(partial, path)
+        except BaseException:
+            self.cancel()
+            raise
+        finally:
+            bpy.data.collections.remove(group)
+            if partial.exists():
+                partial.unlink()
+        self.done.append(path)
+        return len(self.done) == len(self.groups)
+
+    def _restore(self) -> None:
+        self.scene.render.use_motion_blur = self.blur
+        for objects in self.groups:
+            for obj in objects:
+                modifier = obj.modifiers.get(MODIFIER)
+                if modifier is not None:
+                    obj.modifiers.remove(modifier)
+
+    def cancel(self) -> None:
+        """Stop: the files written so far are deleted and the field stays live."""
+        self._restore()
+        for path in self.done:
+            path.unlink(missing_ok=True)
+        self.done.clear()
+        self.scene.frame_set(self.frame)
+
+    def finish(self) -> Path:
+        """Play the field from the written files (after the last ``step``); returns the folder."""
+        while not self.step():
+            pass
+        self._restore()
+        caches = []
+        for path, objects in zip(self.done, self.groups):
+            bpy.ops.cachefile.open(filepath=str(path))
+            cache = bpy.data.cache_files[-1]
+            cache.filepath = bpy.path.relpath(str(path))
+            cache["wg_uid"] = self.item.collection.get("wg_uid", "")
+            caches.append(cache.name)
+            for obj in objects:
+                modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
+                modifier.cache_file = cache
+                modifier.object_path = f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
+                modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
+        self.item[RECORD] = {"folder": bpy.path.relpath(str(self.folder)), "first": self.first, "last": self.last,
+                             "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches}
+        self.scene.frame_set(self.frame)
+        return self.folder
+
+
+def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
+    """Bake frames ``first``-``last`` in one go (scripts); returns the cache folder."""
+    return Baker(scene, item, first, last, digest).finish()
 
 
 def free_bake(scene, item) -> bool:
@@ -153,12 +206,15 @@ def free_bake(scene, item) -> bool:
         modifier = obj.modifiers.get(MODIFIER)
         if modifier is not None:
             obj.modifiers.remove(modifier)
-    cache = bpy.data.cache_files.get(record.get("cache", ""))
-    if cache is not None:
-        file = Path(bpy.path.abspath(cache.filepath))
-        bpy.data.batch_remove([cache])  # (bpy.data.cache_files has no remove)
-        if file.is_file():
-            file.unlink()
+    for name in record.get("caches", ()):
+        cache = bpy.data.cache_files.get(name)
+        if cache is not None:
+            Path(bpy.path.abspath(cache.filepath)).unlink(missing_ok=True)
+            bpy.data.batch_remove([cache])  # (bpy.data.cache_files has no remove)
+    folder = Path(bpy.path.abspath(record.get("folder", "")))
+    for empty in (folder, folder.parent):  # the field's folder, then <blend>_windgrass, when empty
+        if record.get("folder") and empty.is_dir() and not any(empty.iterdir()):
+            empty.rmdir()
     del item[RECORD]
     return True
 
@@ -175,3 +231,8 @@ def status(scene, item, digest: str | None) -> str | None:
     if camera_fingerprint(scene) != record.get("camera"):
         stale.append("camera changed")
     return text + (f"; stale: {', '.join(stale)} since (bake again)" if stale else "")
+
+
+def cache_size(folder: Path) -> int:
+    """Bytes of the Alembic files of a bake."""
+    return sum(f.stat().st_size for f in Path(folder).glob("*.abc"))

@@ -192,18 +192,24 @@ def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     return coll
 
 
-def bake_field(scene, item, first: int, last: int):
-    """Bake frames ``first``-``last`` of the field into an Alembic cache beside the .blend and play
-    the field from it (``bake.py``); BakeError or ParameterError on what prevents it."""
+def start_bake(scene, item, first: int, last: int) -> bake.Baker:
+    """A bake of frames ``first``-``last`` of the field, ready to step (``bake.Baker``); BakeError or
+    ParameterError on what prevents it."""
     properties.params_from_settings(item, scene)  # a setting out of range stops here, named
     if bake.is_baked(item):
         free_bake(scene, item)
     rt = resolve(scene, item)
     if item.collection is None or item.collection.get("wg_topology") != rt.topology:
         build_field(scene, item)
-    path = bake.bake_field(scene, item, first, last, params_digest(scene, item))
+    return bake.Baker(scene, item, first, last, params_digest(scene, item))
+
+
+def bake_field(scene, item, first: int, last: int):
+    """Bake frames ``first``-``last`` of the field into Alembic caches beside the .blend and play
+    the field from them (``bake.py``); returns the cache folder."""
+    folder = start_bake(scene, item, first, last).finish()
     write_read_me()
-    return path
+    return folder
 
 
 def free_bake(scene, item) -> None:

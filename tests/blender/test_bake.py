@@ -77,10 +77,9 @@ def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path)
     bpy.ops.render.render(write_still=True)
 
     assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=6) == {"FINISHED"}
-    cache = tmp_path / "meadow_windgrass"
-    files = list(cache.iterdir())
-    assert len(files) == 1 and files[0].suffix == ".abc" and files[0].stat().st_size > 10_000
-    assert b".velocities" in files[0].read_bytes()  # motion blur from the cache too
+    files = sorted((tmp_path / "meadow_windgrass").rglob("*.abc"))
+    assert len(files) == 2 and all(f.stat().st_size > 10_000 for f in files)  # blades, cards
+    assert all(b".velocities" in f.read_bytes() for f in files)  # motion blur from the cache too
     status = runtime.bake_status(scene, item)
     assert "Baked frames 1-6" in status and "stale" not in status
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
@@ -110,7 +109,10 @@ def test_bake_reports_what_prevents_it(bridge, tmp_path):
     with pytest.raises(RuntimeError, match="no camera"):
         bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
     scene.camera = camera
-    assert not (tmp_path / "f_windgrass").exists() or not any((tmp_path / "f_windgrass").iterdir())
+    (tmp_path / "f_windgrass").write_text("a file where the cache folder goes")
+    with pytest.raises(RuntimeError, match="cannot write into"):
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+    assert runtime.bake_status(scene, item) is None  # still live, nothing half-made
 
 
 def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
@@ -124,7 +126,25 @@ def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
     assert "camera changed" in runtime.bake_status(scene, item)
     assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
     assert runtime.bake_status(scene, item) is None
-    assert not any((tmp_path / "g_windgrass").iterdir())
+    assert not (tmp_path / "g_windgrass").exists()
     assert not bpy.data.cache_files
     scene.frame_set(5)
     assert runtime.get_runtime(scene, item).frame == 5  # written live again
+
+
+def test_a_stopped_bake_leaves_nothing_and_the_grass_live(bridge, tmp_path):
+    """What Esc does in the panel: the bake runs a group of objects per step; stopping after the
+    first deletes what was written and the field stays live."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "h.blend"))
+    baker = runtime.start_bake(scene, item, 1, 4)
+    assert len(baker.groups) == 2 and baker.progress == 0.0
+    assert baker.step() is False and baker.progress == 0.5
+    assert len(list((tmp_path / "h_windgrass").rglob("*.abc"))) == 1
+    baker.cancel()
+    assert not list((tmp_path / "h_windgrass").rglob("*.abc"))
+    assert runtime.bake_status(scene, item) is None
+    assert not any(m.name.startswith("Windgrass") for o in item.collection.objects for m in o.modifiers)
+    scene.frame_set(6)
+    assert runtime.get_runtime(scene, item).frame == 6

@@ -7,6 +7,10 @@ from ..grass_addon.bridge import bake, properties, runtime
 from ..grass_addon.errors import WindgrassError
 from ._common import has_active_field, reported
 
+# Steps of a bake in the panel: each exports a part of the field's objects (progress and Esc
+# between steps); each also simulates every frame again, so a few, not many.
+UI_STEPS = 4
+
 
 class WINDGRASS_OT_field_bake(bpy.types.Operator):
     """Bake the active grass field over a frame range into an Alembic cache beside the .blend, as the
@@ -34,7 +38,8 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         scene = context.scene
         self._range(scene)
         try:
-            self._baker = runtime.start_bake(scene, properties.active_field(scene), self.frame_start, self.frame_end)
+            self._baker = runtime.start_bake(scene, properties.active_field(scene), self.frame_start,
+                                             self.frame_end, groups=UI_STEPS)
         except WindgrassError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

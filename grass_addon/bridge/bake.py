@@ -95,21 +95,23 @@ def _abc_name(name: str) -> str:
 
 class Baker:
     """One bake, step by step: each ``step`` exports one group of slot objects (all the frames)
-    into its own Alembic file, so a long bake shows its progress and can stop between groups
-    (``cancel``: nothing is left, the field stays live). ``finish`` plays the field from the files.
+    into its own Alembic file, so a long bake in the panel shows its progress and can stop between
+    groups (``cancel``: nothing is left, the field stays live). ``finish`` plays the field from
+    the files.
 
     A mesh rewritten from Python exports as static unless it carries a modifier: a no-op one makes
     the exporter write every frame. With motion blur forced on meanwhile, each frame carries its
     velocities (Alembic ".velocities"), which the cache gives Cycles back in any Blender."""
 
-    GROUPS = 8  # at most this many exports (each one simulates every frame again)
-
-    def __init__(self, scene, item, first: int, last: int, digest: str):
+    def __init__(self, scene, item, first: int, last: int, digest: str, groups: int = 1):
+        """``groups``: how many exports (and files) to split the objects into: more steps to show
+        progress and stop between, but each export simulates every frame again and the files
+        share less data (scripts: 1; the panel: a few)."""
         self.folder = check(scene, item, first, last)
         free_bake(scene, item)
         self.scene, self.item, self.first, self.last, self.digest = scene, item, int(first), int(last), digest
         objects = _slots(item)
-        size = max(1, -(-len(objects) // self.GROUPS))
+        size = max(1, -(-len(objects) // max(1, int(groups))))
         self.groups = [objects[i:i + size] for i in range(0, len(objects), size)]
         self.done: list[Path] = []
         self.frame = scene.frame_current
@@ -192,7 +194,7 @@ class Baker:
 
 
 def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
-    """Bake frames ``first``-``last`` in one go (scripts); returns the cache folder."""
+    """Bake frames ``first``-``last`` in one go, one file (scripts); returns the cache folder."""
     return Baker(scene, item, first, last, digest).finish()
 
 

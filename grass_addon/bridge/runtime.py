@@ -192,16 +192,16 @@ def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     return coll
 
 
-def start_bake(scene, item, first: int, last: int) -> bake.Baker:
-    """A bake of frames ``first``-``last`` of the field, ready to step (``bake.Baker``); BakeError or
-    ParameterError on what prevents it."""
+def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Baker:
+    """A bake of frames ``first``-``last`` of the field in ``groups`` steps, ready to step
+    (``bake.Baker``); BakeError or ParameterError on what prevents it."""
     properties.params_from_settings(item, scene)  # a setting out of range stops here, named
     if bake.is_baked(item):
         free_bake(scene, item)
     rt = resolve(scene, item)
     if item.collection is None or item.collection.get("wg_topology") != rt.topology:
         build_field(scene, item)
-    return bake.Baker(scene, item, first, last, params_digest(scene, item))
+    return bake.Baker(scene, item, first, last, params_digest(scene, item), groups)
 
 
 def bake_field(scene, item, first: int, last: int):

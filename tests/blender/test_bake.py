@@ -78,7 +78,7 @@ def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path)
 
     assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=6) == {"FINISHED"}
     files = sorted((tmp_path / "meadow_windgrass").rglob("*.abc"))
-    assert len(files) == 2 and all(f.stat().st_size > 10_000 for f in files)  # blades, cards
+    assert len(files) == 1 and files[0].stat().st_size > 10_000
     assert all(b".velocities" in f.read_bytes() for f in files)  # motion blur from the cache too
     status = runtime.bake_status(scene, item)
     assert "Baked frames 1-6" in status and "stale" not in status
@@ -138,7 +138,7 @@ def test_a_stopped_bake_leaves_nothing_and_the_grass_live(bridge, tmp_path):
     _, _, runtime, _ = bridge
     scene, item = _scene(bridge)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "h.blend"))
-    baker = runtime.start_bake(scene, item, 1, 4)
+    baker = runtime.start_bake(scene, item, 1, 4, groups=2)
     assert len(baker.groups) == 2 and baker.progress == 0.0
     assert baker.step() is False and baker.progress == 0.5
     assert len(list((tmp_path / "h_windgrass").rglob("*.abc"))) == 1

@@ -5,6 +5,7 @@ import bpy
 from . import (
     field_add,
     field_bake,
+    field_bake_free,
     field_rebuild,
     field_remove,
     row_add,
@@ -14,8 +15,8 @@ from . import (
     wind_preset,
 )
 
-_MODULES = (field_add, field_rebuild, field_remove, field_bake, simulation_reset, wind_preset, species_preset,
-            row_add, row_remove)
+_MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
+            species_preset, row_add, row_remove)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

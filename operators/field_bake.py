@@ -1,5 +1,5 @@
-"""windgrass.field_bake and windgrass.field_bake_free: bake the active field to an Alembic cache
-beside the .blend (it then plays in any Blender), and back to the live simulation."""
+"""windgrass.field_bake: bake the active field to Alembic caches beside the .blend (it then plays
+and renders in any Blender)."""
 
 import bpy
 
@@ -96,25 +96,4 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class WINDGRASS_OT_field_bake_free(bpy.types.Operator):
-    """Free the bake of the active grass field (its cache file too): back to the live simulation"""
-
-    bl_idname = "windgrass.field_bake_free"
-    bl_label = "Free Grass Bake"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        item = properties.active_field(context.scene) if context.scene is not None else None
-        return item is not None and item.get("wg_bake") is not None
-
-    @reported
-    def execute(self, context):
-        scene = context.scene
-        item = properties.active_field(scene)
-        runtime.free_bake(scene, item)
-        self.report({"INFO"}, f"Freed the bake of '{item.name}': live again")
-        return {"FINISHED"}
-
-
-CLASSES = (WINDGRASS_OT_field_bake, WINDGRASS_OT_field_bake_free)
+CLASSES = (WINDGRASS_OT_field_bake,)

@@ -17,7 +17,7 @@ import numpy as np
 EXTEND_FRAMES = 240
 
 
-def _action_fcurves(anim_data):
+def action_fcurves(anim_data):
     """F-curves of the animation data's action; Blender 4.4+ layered actions use channelbags
     (``action.fcurves`` is gone in 5.0)."""
     action = anim_data.action if anim_data is not None else None
@@ -40,7 +40,7 @@ def wind_fcurves(scene, item) -> dict[str, object]:
     base = item.path_from_id("wind")
     wanted = {f"{base}.speed": "speed", f"{base}.direction": "direction"}
     out = {}
-    for fc in _action_fcurves(scene.animation_data):
+    for fc in action_fcurves(scene.animation_data):
         role = wanted.get(fc.data_path)
         if role is not None and not fc.mute:
             out[role] = fc

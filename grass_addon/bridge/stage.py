@@ -17,9 +17,11 @@ from __future__ import annotations
 import math
 
 import bpy
+import numpy as np
 from mathutils import Euler, Vector
 
 from ..errors import ParameterError
+from . import animation
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here
 
@@ -350,14 +352,30 @@ def setup_camera(scene, params) -> bpy.types.Object:
     scene.collection.objects.link(obj)
     scene.camera = obj
     obj.rotation_mode = "XYZ"
-    for frame in range(scene.frame_start, scene.frame_end + 1):
-        location, rotation = camera_pose(params, frame)
-        obj.location = location
-        obj.rotation_euler = Euler(rotation, "XYZ")
-        obj.keyframe_insert("location", frame=frame)
-        obj.keyframe_insert("rotation_euler", frame=frame)
+    key_camera_path(obj, params, scene.frame_start, scene.frame_end)
     pose_camera(scene, params, scene.frame_current)
     return obj
+
+
+def key_camera_path(obj, params, first: int, last: int) -> None:
+    """A key on every frame from ``first`` to ``last`` for the camera's location and rotation,
+    written in bulk (a 10,000-frame range keys in a fraction of a second)."""
+    frames = np.arange(first, last + 1, dtype=np.float32)
+    poses = [camera_pose(params, int(f)) for f in frames]
+    values = {"location": np.array([p[0] for p in poses], np.float32),
+              "rotation_euler": np.array([p[1] for p in poses], np.float32)}
+    obj.location, obj.rotation_euler = poses[0][0], Euler(poses[0][1], "XYZ")
+    obj.keyframe_insert("location", frame=first)
+    obj.keyframe_insert("rotation_euler", frame=first)
+    for fcurve in animation.action_fcurves(obj.animation_data):
+        column = values.get(fcurve.data_path)
+        if column is None:
+            continue
+        points = fcurve.keyframe_points
+        points.clear()
+        points.add(len(frames))
+        points.foreach_set("co", np.stack([frames, column[:, fcurve.array_index]], axis=1).ravel())
+        fcurve.update()  # sort, and the automatic handles of the new keys
 
 
 def pose_camera(scene, params, frame: int) -> None:

@@ -512,3 +512,19 @@ def test_lod_comparison_script_measures_rows_images_and_flicker(env, tiny_config
     bad = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--presets", "prairie"],
                          env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "presets" in bad.stderr and "meadow" in bad.stderr
+
+
+def test_a_long_range_keys_the_camera_on_every_frame(stage, tiny_params, scene):
+    """10,000 frames of camera path are keyed in bulk; the evaluated camera follows the pose
+    function on any of them."""
+    params = tiny_params.replace({"render.frame_end": 10_000})
+    stage.setup_render(scene, params)
+    camera = stage.setup_camera(scene, params)
+    from windgrass.grass_addon.bridge import animation
+
+    curves = animation.action_fcurves(camera.animation_data)
+    assert len(curves) == 6 and all(len(fc.keyframe_points) == 10_000 for fc in curves)
+    for frame in (1, 4321, 10_000):
+        scene.frame_set(frame)
+        location, _ = stage.camera_pose(params, frame)
+        assert tuple(camera.matrix_world.translation) == pytest.approx(location, abs=1e-4)

@@ -14,11 +14,14 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from .solver import BladeSolver, SolverState
 
 MAX_CHECKPOINT_BYTES = 1 << 30  # 1 GiB of saved states at most
+PROGRESS_INTERVAL_S = 1.0
 
 
 class Simulation:
@@ -41,6 +44,9 @@ class Simulation:
         self._wind_frame: int | None = None
         self._pos = self.start_frame  # the frame the solver's state belongs to
         self.frame = self.start_frame  # the frame last asked for (may be before the start)
+        # progress(done, total) of a long seek: at most every PROGRESS_INTERVAL_S seconds, and
+        # (total, total) at its end when it reported at all
+        self.progress = None
         self.cell_wind = self._sample(self.frame)
 
     # ---------------------------------------------------------------------------- public API
@@ -67,8 +73,15 @@ class Simulation:
                 else:
                     self.solver.state.assign(self._checkpoints[best])
                     self._pos = best
+            begin, total, last_report = self._pos, target - self._pos, time.monotonic()
+            reported = False
             while self._pos < target:
                 self._step()
+                if self.progress is not None and time.monotonic() - last_report >= PROGRESS_INTERVAL_S:
+                    last_report, reported = time.monotonic(), True
+                    self.progress(self._pos - begin, total)
+            if reported:
+                self.progress(total, total)  # the end of a seek that reported
         self.frame = frame
         if self._wind_frame != frame:
             self.cell_wind = self._sample(frame)

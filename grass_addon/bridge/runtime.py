@@ -131,6 +131,7 @@ def resolve(scene, item) -> FieldRuntime:
         previous.clock = _clock(scene)
         return previous
     field = GrassField(params, wind_keys=wind_keys, terrain=heightfield)
+    field.sim.progress = _seek_progress(item.name)
     blade_shape, card_shape = slots.pool_shapes(field.layout, params)
     rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
                       wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
@@ -141,6 +142,23 @@ def resolve(scene, item) -> FieldRuntime:
     if item.collection is not None:
         field_scene.update_field_materials(item, params)
     return rt
+
+
+def _seek_progress(name: str):
+    """A long seek reports itself: a line a second in scripts and background renders, the
+    progress cursor in the UI."""
+    def report(done: int, total: int) -> None:
+        if bpy.app.background:
+            print(f"Windgrass: simulating '{name}': {done}/{total} frames", flush=True)
+            return
+        wm = bpy.context.window_manager
+        if done >= total:
+            wm.progress_end()
+        else:
+            wm.progress_begin(0, total)
+            wm.progress_update(done)
+
+    return report
 
 
 def _current(scene, item) -> FieldRuntime:

@@ -153,3 +153,21 @@ def test_card_offset_at_rest_and_at_a_right_angle():
     s, c = math.sin(GROUND_TILT), math.cos(GROUND_TILT)
     assert np.allclose(flat, [[0.0, 0.3 * s, 0.3 * c - 0.3], [0.5 * s, 0.0, 0.5 * c - 0.5]], atol=1e-6)
     assert np.all(L + flat[:, 2] > 0.0)
+
+
+def test_a_long_seek_reports_its_progress(monkeypatch):
+    from windgrass.grass_addon import simulation as simulation_mod
+
+    params = schema.defaults().replace({"field.blocks_x": 1, "field.blocks_y": 1, "field.cells_per_block": 4})
+    layout = build_layout(params)
+    sim = Simulation(layout, params, WindField(layout, params))
+    calls = []
+    sim.progress = lambda done, total: calls.append((done, total))
+    monkeypatch.setattr(simulation_mod, "PROGRESS_INTERVAL_S", 0.0)  # report at every step
+    sim.seek(30)
+    total = 30 - sim.start_frame
+    assert calls[-1] == (total, total) and [d for d, _ in calls[:-1]] == list(range(1, total + 1))
+    calls.clear()
+    monkeypatch.setattr(simulation_mod, "PROGRESS_INTERVAL_S", 3600.0)  # a short seek says nothing
+    sim.seek(31)
+    assert calls == []

@@ -24,7 +24,6 @@ import importlib
 import os
 import signal
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -66,6 +65,7 @@ def addon_module(name: str):
 
 schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
+ensure_writable = addon_module("grass_addon.folders").ensure_writable
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
@@ -216,9 +216,7 @@ def prepare_out(out: Path) -> Path:
     if out.exists() and not out.is_dir():
         raise BadInputError(f"--out: {out} is a file; give a folder (it is created if missing)")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out, prefix=".windgrass-probe-"):
-            pass
+        ensure_writable(out)
     except OSError as exc:
         raise BadInputError(f"--out: cannot write into {out}: {exc.strerror or exc}") from None
     return out

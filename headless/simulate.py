@@ -31,6 +31,7 @@ addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, 
 from windgrass.grass_addon import kinematics, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.field import GrassField  # noqa: E402
+from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
 
 MAX_TRACE_BLADES = 100_000  # blade_tip is stored for fields up to this many blades
 SUMMARY_BLADES = 100_000  # tip statistics of larger fields use evenly spread blocks up to this many
@@ -163,8 +164,7 @@ def check_trace_path(path: Path) -> Path:
     if not folder.is_dir():
         raise ParameterError("trace", f"folder {folder} of {path} does not exist")
     try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".windgrass-probe-"):
-            pass
+        ensure_writable(folder, create=False)
     except OSError as exc:
         raise ParameterError("trace", f"cannot write into {folder}: {exc.strerror or exc}") from None
     return path

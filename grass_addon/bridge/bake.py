@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from pathlib import Path
 
 import bpy
 import numpy as np
 
 from ..errors import WindgrassError
+from ..folders import ensure_writable
 from . import scene as field_scene
 
 RECORD = "wg_bake"
@@ -76,9 +76,7 @@ def check(scene, item, first: int, last: int) -> Path:
                         f"{scene.frame_start}-{scene.frame_end} (valid: start <= first <= last <= end)")
     folder = cache_folder(item)
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".windgrass-probe-"):
-            pass
+        ensure_writable(folder)
     except OSError as exc:
         raise BakeError(f"bake: cannot write into {folder}: {exc.strerror or exc}") from None
     return folder

@@ -62,10 +62,12 @@ class GrassField:
                 self._recent.popitem(last=False)
         return cells
 
-    def motion(self, frame: int, subframe: float, fps: float, vertices, out: np.ndarray, velocity: np.ndarray) -> None:
+    def motion(self, frame: int, subframe: float, fps: float, vertices, out: np.ndarray, velocity: np.ndarray,
+               ahead: np.ndarray) -> None:
         """Vertices at ``frame + subframe`` and their velocity in m/s, for motion blur.
 
-        ``vertices(cells, out)`` writes the vertices of some blocks for cell data ``cells``. The path
+        ``vertices(cells, out)`` writes the vertices of some blocks for cell data ``cells``; ``ahead``
+        (shaped as ``out``) is scratch space for the later pose. The path
         through the frames' poses is piecewise linear: between frames the vertices move at the
         slope of their segment; at a whole frame the velocity is the central difference
         (P(N + 1) - P(N - 1)) fps / 2. Frames are computed in ascending order (cheap seeks)."""
@@ -75,7 +77,6 @@ class GrassField:
         else:
             wanted = (frame, frame + 1)
         cells = [self.cells_at(f) for f in wanted]
-        ahead = np.empty_like(out)
         if subframe == 0.0:
             vertices(cells[0], velocity)  # P(N - 1)
             vertices(cells[2], ahead)  # P(N + 1)

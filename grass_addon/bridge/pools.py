@@ -57,6 +57,7 @@ class SlotPool:
         self._needs, self._fill, self._attributes = needs, fill, attributes
         self.buffer = np.zeros((shape.positions * shape.verts_per_block, 3), dtype=np.float32)
         self.velocity: np.ndarray | None = None  # m/s per vertex, made when motion blur asks for it
+        self.ahead: np.ndarray | None = None  # the later pose, scratch space of GrassField.motion
         self.blocks = np.zeros(0, np.int32)  # the blocks shown at the last write, sorted
 
     def write(self, item, field, lod, block_distance: np.ndarray, motion=None) -> None:
@@ -76,10 +77,11 @@ class SlotPool:
         else:
             if self.velocity is None:
                 self.velocity = np.zeros_like(self.buffer)
+                self.ahead = np.empty_like(self.buffer)
             frame, subframe, fps = motion
             if count:
                 field.motion(frame, subframe, fps, lambda cells, out: self._fill(cells, shown[:count], lod, out),
-                             self.buffer[:rows], self.velocity[:rows])
+                             self.buffer[:rows], self.velocity[:rows], self.ahead[:rows])
             self.velocity[rows:] = 0.0
         self.buffer[rows:] = 0.0
         objects = field_scene.slot_objects(item, self.role)

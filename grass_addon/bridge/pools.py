@@ -103,12 +103,17 @@ class SlotPool:
 
     def collapse(self, item) -> None:
         """Every object to a point (nothing drawn); the next write rewrites everything."""
-        for obj in field_scene.slot_objects(item, self.role).values():
-            if len(obj.data.vertices):
-                write_positions(obj.data, np.zeros((len(obj.data.vertices), 3), np.float32))
-                obj.data.update()
+        collapse_objects(field_scene.slot_objects(item, self.role).values())
         self.state.forget()
         self.blocks = np.zeros(0, np.int32)
+
+
+def collapse_objects(objects) -> None:
+    """Every vertex of each object's mesh to the origin (nothing drawn)."""
+    for obj in objects:
+        if len(obj.data.vertices):
+            write_positions(obj.data, np.zeros((len(obj.data.vertices), 3), np.float32))
+            obj.data.update()
 
 
 def _write_uv(mesh, name: str, uv: np.ndarray) -> None:

@@ -385,10 +385,7 @@ def _hide(scene, item) -> None:
         rt.frame = None
         return
     for role in (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS):
-        for obj in field_scene.slot_objects(item, role).values():
-            if len(obj.data.vertices):
-                pools.write_positions(obj.data, np.zeros((len(obj.data.vertices), 3), np.float32))
-                obj.data.update()
+        pools.collapse_objects(field_scene.slot_objects(item, role).values())
 
 
 # --------------------------------------------------------------------------------------------

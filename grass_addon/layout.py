@@ -1,8 +1,12 @@
-"""The field's layout: blocks (patches) of square cells, blades in cells, one card per cell (paper III).
+"""The layout of a set of blocks (paper III): blades in cells, one card per cell, as flat arrays.
 
-Everything here is computed once per parameter set. Blade arrays are ordered block-major, then cell
-(row-major inside the block), then slot, so the blades of block ``b`` are one contiguous slice and every
+A ``FieldLayout`` holds the blocks a frame works on: the whole field (``build_layout``, small
+fields and tests) or the window of blocks around the camera (``window_layout``). Its arrays are
+the blocks' data (``blocks.py``, generated on demand) laid end to end: blade arrays block-major,
+then cell, then slot, so the blades of local block ``i`` are one contiguous slice and every
 block has the same number of blades: one mesh topology serves any block (see DEVELOPERS.md).
+Cells of a whole-field layout are row-major over the field (``c = cy * cells_x + cx``); those of
+a window are block-major (``block_cells`` maps either way).
 """
 
 from __future__ import annotations
@@ -12,19 +16,17 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
-from . import blade
+from .blocks import RNG_BLADES, RNG_CELLS, Block, BlockCache, FieldGrid
 from .schema import Params
-from .terrain import Heightfield, ground_z
+from .terrain import Heightfield
 
-# Purposes of the random streams: np.random.default_rng([seed, PURPOSE]).
-RNG_BLADES = 1
-RNG_CELLS = 2
+__all__ = ["RNG_BLADES", "RNG_CELLS", "FieldLayout", "build_layout", "window_layout"]
 
 
 @dataclass(eq=False)
 class FieldLayout:
     params: Params
-    blocks_x: int
+    blocks_x: int  # the whole field's grid (a window holds fewer blocks: n_blocks)
     blocks_y: int
     cells_per_block: int
     cell_size: float
@@ -68,6 +70,8 @@ class FieldLayout:
     cell_ground: np.ndarray = dc_field(default=None)  # (n_cells,) float32 ground z at each cell centre
     block_z_range: np.ndarray = dc_field(default=None)  # (n_blocks, 2) float32 lowest, highest ground
     blade_ground_slope: np.ndarray | None = None  # (n_blades, 2) float32 dz/dx, dz/dy at each root
+    grid: FieldGrid | None = None  # the whole field's block grid
+    block_ids: np.ndarray | None = None  # (n_blocks,) int64 field-wide id of each local block
 
     @property
     def size(self) -> tuple[float, float]:
@@ -89,121 +93,67 @@ def _block_cells(blocks_x: int, blocks_y: int, cpb: int) -> np.ndarray:
     return (cy * cells_x + cx).astype(np.int32)
 
 
-def _species_arrays(params: Params) -> dict[str, np.ndarray]:
-    rows = params.species()
-    weights = np.array([r["weight"] for r in rows], dtype=np.float64)
-    return {
-        "p": weights / weights.sum(),
-        "length": np.array([r["length"] for r in rows], dtype=np.float64),
-        "length_variation": np.array([r["length_variation"] for r in rows], dtype=np.float64),
-        "width": np.array([r["width"] for r in rows], dtype=np.float64),
-        "stiffness": np.array([r["stiffness"] for r in rows], dtype=np.float64),
-        "color": np.array([r["color"] for r in rows], dtype=np.float32).reshape(-1, 3),
-    }
+_BLADE_ARRAYS = ("blade_root", "blade_facing", "blade_length", "blade_width", "blade_inclination",
+                 "blade_shade", "blade_species", "blade_rest_tilt")  # concatenated block after block
+_CELL_ARRAYS = ("cell_center", "cell_ground", "cell_length", "cell_width", "cell_root_stiffness",
+                "cell_rest_tilt", "cell_facing", "card_height", "card_facing", "card_shade")
 
 
-def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: dict[str, np.ndarray]):
-    """Species, length (l = l_base + lambda*N(0,1), kept positive), width, stiffness, alpha of `count` blades."""
-    kind = rng.choice(len(species["p"]), size=count, p=species["p"]).astype(np.int16)
-    base = species["length"][kind]
-    # paper III.A (1): delta_l = lambda * N(0,1); a blade keeps at least 15 % of the reference length
-    length = np.maximum(base + species["length_variation"][kind] * rng.standard_normal(count), 0.15 * base)
-    width = species["width"][kind] * np.clip(1.0 + 0.12 * rng.standard_normal(count), 0.6, 1.4)
-    stiffness = params.blade.root_stiffness * species["stiffness"][kind]
-    inclination = np.radians(params.blade.inclination) * rng.random(count)  # random initial alpha
-    return kind, length, width, stiffness, inclination
+def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[Block],
+              block_cells: np.ndarray) -> FieldLayout:
+    """The layout of ``blocks`` (ids ``ids``) with their cells placed as ``block_cells`` says."""
+    grid, f = cache.grid, params.field
+    n, num, P = int(params.blade.segments), int(f.blades_per_cell), grid.cells_per_block ** 2
+    nb = len(blocks)
+    order = block_cells.ravel()
 
+    def blades(name: str) -> np.ndarray:
+        if not blocks:
+            shape = {"blade_root": (0, 3), "blade_rest_tilt": (0, n)}.get(name, (0,))
+            return np.zeros(shape, np.int16 if name == "blade_species" else np.float32)
+        return np.ascontiguousarray(np.concatenate([getattr(b, name) for b in blocks]))
 
-def _rest_tilt(params: Params, length, stiffness, inclination) -> np.ndarray:
-    """Absolute rest tilt of each segment from eqs 1-6 (blade.py)."""
-    n = params.blade.segments
-    seg = length / n
-    mu = blade.joint_stiffness(stiffness, seg, n, params.blade.stiffness_offset)  # eq 5
-    theta = blade.rest_angles(inclination, seg, mu, params.blade.density)  # eqs 2-4, 6
-    return blade.rest_tilt(inclination, theta)
+    def cells(name: str) -> np.ndarray:
+        if not blocks:
+            shape = {"cell_center": (0, 2), "cell_rest_tilt": (0, n)}.get(name, (0,))
+            return np.zeros(shape, np.float32)
+        values = np.concatenate([getattr(b, name) for b in blocks])
+        out = np.empty_like(values)
+        out[order] = values
+        return out
 
-
-def build_layout(params: Params, terrain: Heightfield | None = None) -> FieldLayout:
-    """The layout of ``params``; ``terrain`` (a heightfield in the field's frame, None: flat
-    ground) sets the height of every blade root and cell (the x/y layout does not change)."""
-    f = params.field
-    cpb, cs, num, n = f.cells_per_block, f.cell_size, f.blades_per_cell, params.blade.segments
-    cells_x, cells_y = f.blocks_x * cpb, f.blocks_y * cpb
-    n_cells, n_blocks = cells_x * cells_y, f.blocks_x * f.blocks_y
-    origin = -0.5 * np.array([cells_x * cs, cells_y * cs])
-
-    cy, cx = np.divmod(np.arange(n_cells), cells_x)
-    cell_center = (origin + (np.stack([cx, cy], axis=1) + 0.5) * cs).astype(np.float32)
-    block_cells = _block_cells(f.blocks_x, f.blocks_y, cpb)
-    by, bx = np.divmod(np.arange(n_blocks), f.blocks_x)
-    block_size = cpb * cs
-    block_bounds = np.stack([origin[0] + bx * block_size, origin[1] + by * block_size,
-                             origin[0] + (bx + 1) * block_size, origin[1] + (by + 1) * block_size],
-                            axis=1).astype(np.float32)
-
-    species = _species_arrays(params)
-    rng = np.random.default_rng([f.seed, RNG_BLADES])
-    n_blades = n_cells * num
-    blade_cell = np.repeat(block_cells.ravel(), num).astype(np.int32)
-    blade_slot = np.tile(np.arange(num, dtype=np.int32), n_cells)
-    # paper III.A (2): random position inside the cell and random orientation
-    offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
-    root = np.zeros((n_blades, 3), dtype=np.float32)
-    root[:, :2] = cell_center[blade_cell] + offset
-    root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
-    cell_ground = ground_z(terrain, cell_center)
-    if terrain is None:
-        block_z_range = np.zeros((n_blocks, 2), np.float32)
-    else:
-        block_z_range = terrain.box_z_range(block_bounds)
-    facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
-    kind, length, width, stiffness, inclination = _sample_blades(rng, n_blades, params, species)
-    shade = rng.random(n_blades).astype(np.float32)
-    rest_tilt = _rest_tilt(params, length, stiffness, inclination)
-
-    # The cell's representative blade (paper V.B: blades of a cell share the cell's bend and twist):
-    # the mean of its blades, or a sampled virtual blade when cells hold no blades.
-    cell_rng = np.random.default_rng([f.seed, RNG_CELLS])
-    if num > 0:
-        order = block_cells.ravel()
-
-        def per_cell(values: np.ndarray) -> np.ndarray:
-            out = np.empty((n_cells,) + values.shape[1:], dtype=np.float32)
-            out[order] = values.reshape((n_cells, num) + values.shape[1:]).mean(axis=1)
-            return out
-
-        cell_length, cell_width = per_cell(length), per_cell(width)
-        cell_stiffness, cell_rest_tilt = per_cell(stiffness), per_cell(rest_tilt)
-    else:
-        _, c_len, c_wid, c_stiff, c_inc = _sample_blades(cell_rng, n_cells, params, species)
-        cell_length, cell_width = c_len.astype(np.float32), c_wid.astype(np.float32)
-        cell_stiffness = c_stiff.astype(np.float32)
-        cell_rest_tilt = _rest_tilt(params, c_len, c_stiff, c_inc)
-    cell_facing = (cell_rng.random(n_cells) * 2.0 * np.pi).astype(np.float32)
-
-    # paper III.B: card height = reference height + stochastic modifier; random orientation
-    mean_length = float(np.dot(species["p"], species["length"]))
-    mean_variation = float(np.dot(species["p"], species["length_variation"]))
-    card_height = params.lod.card_height * np.maximum(
-        cell_length + 0.5 * mean_variation * cell_rng.standard_normal(n_cells), 0.3 * mean_length)
-    card_facing = cell_rng.random(n_cells) * np.pi
-    card_shade = cell_rng.random(n_cells)
-
-    f32 = np.float32
+    terrain = cache.terrain
+    slope = None if terrain is None else blades("blade_ground_slope")
+    z_range = np.stack([b.z_range for b in blocks]) if blocks else np.zeros((0, 2), np.float32)
     return FieldLayout(
-        params=params, blocks_x=f.blocks_x, blocks_y=f.blocks_y, cells_per_block=cpb, cell_size=cs,
-        segments=n, blades_per_cell=num, cells_x=cells_x, cells_y=cells_y, n_cells=n_cells,
-        n_blocks=n_blocks, cells_per_block_total=cpb * cpb, blades_per_block=cpb * cpb * num,
-        n_blades=n_blades, origin=origin, block_cells=block_cells, block_bounds=block_bounds,
-        cell_center=cell_center, blade_root=root, blade_cell=blade_cell, blade_slot=blade_slot,
-        blade_facing=facing, blade_length=length.astype(f32), blade_width=width.astype(f32),
-        blade_inclination=inclination.astype(f32), blade_shade=shade, blade_species=kind,
-        blade_rest_tilt=np.ascontiguousarray(rest_tilt, dtype=f32),
-        cell_length=cell_length, cell_width=cell_width, cell_root_stiffness=cell_stiffness,
-        cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
-        card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
-        card_shade=card_shade.astype(f32), species_color=species["color"],
-        terrain=terrain, cell_ground=np.ascontiguousarray(cell_ground, dtype=f32),
-        block_z_range=np.ascontiguousarray(block_z_range, dtype=f32),
-        blade_ground_slope=None if terrain is None else terrain.gradient(root[:, :2]),
+        params=params, blocks_x=grid.blocks_x, blocks_y=grid.blocks_y, cells_per_block=grid.cells_per_block,
+        cell_size=grid.cell_size, segments=n, blades_per_cell=num, cells_x=grid.cells_x, cells_y=grid.cells_y,
+        n_cells=nb * P, n_blocks=nb, cells_per_block_total=P, blades_per_block=P * num,
+        n_blades=nb * P * num, origin=grid.origin, block_cells=block_cells,
+        block_bounds=grid.block_bounds(ids).astype(np.float32),
+        blade_cell=np.repeat(order.astype(np.int32), num),
+        blade_slot=np.tile(np.arange(num, dtype=np.int32), nb * P),
+        species_color=cache.species.color, terrain=terrain,
+        block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope,
+        grid=grid, block_ids=np.asarray(ids, dtype=np.int64),
+        **{name: blades(name) for name in _BLADE_ARRAYS},
+        **{name: cells(name) for name in _CELL_ARRAYS},
     )
+
+
+def window_layout(cache: BlockCache, blocks) -> FieldLayout:
+    """The layout of the blocks ``blocks`` (field-wide ids, in that order); cells block-major."""
+    ids = np.asarray(blocks, dtype=np.int64).ravel()
+    P = cache.grid.cells_per_block ** 2
+    block_cells = np.arange(ids.size * P, dtype=np.int32).reshape(ids.size, P)
+    return _assemble(cache.params, cache, ids, cache.get(ids), block_cells)
+
+
+def build_layout(params: Params, terrain: Heightfield | None = None, cache: BlockCache | None = None) -> FieldLayout:
+    """The whole field's layout (cells row-major over the field); ``terrain`` (a heightfield in
+    the field's frame, None: flat ground) sets the height of every blade root and cell."""
+    cache = cache if cache is not None else BlockCache(params, terrain, budget=1 << 62)
+    grid = cache.grid
+    ids = np.arange(grid.n_blocks, dtype=np.int64)
+    block_cells = _block_cells(grid.blocks_x, grid.blocks_y, grid.cells_per_block)
+    return _assemble(params, cache, ids, cache.get(ids), block_cells)

@@ -28,7 +28,7 @@ from .errors import ParameterError
 
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
 KEY_CACHE_SIZE = 6  # smoothed key lattices kept (4 are in use at any time)
-MAX_LATTICE_UNITS = 1 << 21  # above this the units are made coarser (memory: 16 MB per key)
+PATTERN_PERIOD_MAX = 1000.0  # m: gust fronts and the vortex repeat at most this far apart
 STEPS_PER_SEGMENT = 64  # time grid of the advection integral between two mean-wind keys
 MAX_GUST_FRONTS = 256  # blast: at most this many fronts (the most recent) are summed
 VORTEX_INFLOW = 0.2  # whirlwind: radial inflow as a fraction of the tangential speed
@@ -40,6 +40,49 @@ VORTEX_INFLOW = 0.2  # whirlwind: radial inflow as a fraction of the tangential 
 # variance per axis, 36/256 in 2-D, so the std of each component shrinks by 6/16.
 KERNEL_1D = (0.25, 0.5, 0.25)
 KERNEL_STD = 6.0 / 16.0
+KERNEL_LAG1 = 2.0 / 3.0  # correlation of neighbouring units after [1, 2, 1] / 4: 0.25 / 0.375
+
+_MIX1, _MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mix64(x: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser: a bijective scramble of uint64 values (wrapping arithmetic)."""
+    x = (x ^ (x >> np.uint64(30))) * _MIX1
+    x = (x ^ (x >> np.uint64(27))) * _MIX2
+    return x ^ (x >> np.uint64(31))
+
+
+def unit_gaussians(seed: int, key: int, i0: int, j0: int, i1: int, j1: int) -> np.ndarray:
+    """Independent N(0, 1) pairs of lattice units [i0, i1) x [j0, j1) for time key ``key``:
+    (j1 - j0, i1 - i0, 2) float32. A counter-based generator: each unit's pair is a hash of
+    (seed, TURBULENCE_PURPOSE, key, i, j) through Box-Muller, so a unit's value never depends on
+    which other units are drawn with it."""
+    with np.errstate(over="ignore"):
+        base = _mix64(np.uint64(seed % 2**64) * _GOLDEN + np.uint64(TURBULENCE_PURPOSE))
+        base = _mix64(base ^ (np.uint64(key % 2**64) * _MIX1))
+        i = np.arange(i0, i1, dtype=np.int64).astype(np.uint64) * _MIX2
+        j = np.arange(j0, j1, dtype=np.int64).astype(np.uint64) * _GOLDEN
+        h = _mix64(_mix64(base ^ j[:, None]) ^ i[None, :])
+    # two 26-bit uniforms: (0, 1] from the high bits (log stays finite), (0, 1) from the low bits
+    u1 = ((h >> np.uint64(38)).astype(np.float64) + 1.0) * (1.0 / 2**26)
+    u2 = ((h & np.uint64(0x3FFFFFF)).astype(np.float64) + 0.5) * (1.0 / 2**26)
+    r = np.sqrt(-2.0 * np.log(u1))
+    out = np.empty(h.shape + (2,), dtype=np.float32)
+    out[..., 0] = r * np.cos(2.0 * np.pi * u2)
+    out[..., 1] = r * np.sin(2.0 * np.pi * u2)
+    return out
+
+
+def _bilinear_weights(f: np.ndarray, rho: float) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of the two units around fraction f, divided by the std of their blend.
+
+    Between two units the interpolated value has variance (1-f)^2 + f^2 + 2 f (1-f) rho (rho:
+    correlation of neighbouring units); the weights are divided by its square root so that v'
+    keeps its std while the lattice drifts across the cells (no flicker of its strength).
+    """
+    norm = 1.0 / np.sqrt((1 - f) ** 2 + f * f + 2 * f * (1 - f) * rho)
+    return ((1 - f) * norm).astype(np.float32), (f * norm).astype(np.float32)
 
 
 def _catmull_rom(u: float) -> np.ndarray:
@@ -95,13 +138,9 @@ class WindField:
         self.params = params
         self.kind = w.type
         self.seed = int(params.field.seed)
-        self.cells_x, self.cells_y = int(layout.cells_x), int(layout.cells_y)
-        self.n_cells = self.cells_x * self.cells_y
         self.cell_size = float(layout.cell_size)
-        self.size = (self.cells_x * self.cell_size, self.cells_y * self.cell_size)
-        # Cell centres of each column / row (float64), the field centred on the origin.
-        self._col_x = (np.arange(self.cells_x) + 0.5) * self.cell_size - 0.5 * self.size[0]
-        self._row_y = (np.arange(self.cells_y) + 0.5) * self.cell_size - 0.5 * self.size[1]
+        self.size = tuple(float(v) for v in layout.size)  # the whole field's extent (m)
+        self._xy = np.asarray(layout.cell_center, dtype=np.float64)  # default sample points
 
         # Mean wind keys (eq 12): times, speeds, directions in radians (unwrapped).
         table = _parse_keys(keys, params)
@@ -110,26 +149,17 @@ class WindField:
         self._key_dir = np.radians(table[:, 2])
         self._build_advection_table()
 
-        # Turbulence lattice (eq 13).
+        # Turbulence lattice (eq 13): unbounded, units of edge a. Units smaller than half a cell
+        # would only alias into white noise at the cell centres (and cost memory), so a is at
+        # least half a cell; the std of v' is the same.
         self.turbulence_std = float(w.turbulence)
         self.period = float(w.turbulence_period)
-        a = float(w.turbulence_scale)
-        n = [max(3, math.ceil(s / a - 1e-9)) for s in self.size]
-        while n[0] * n[1] > MAX_LATTICE_UNITS:
-            # Memory limit (eq 13 needs one unit per a x a square): on a field too large for
-            # that many units, the units are made coarser; the field then shows the finest
-            # turbulence it can hold, with the same std.
-            a *= math.sqrt(n[0] * n[1] / MAX_LATTICE_UNITS) * 1.001
-            n = [max(3, math.ceil(s / a - 1e-9)) for s in self.size]
-        self.unit = a
-        self.units_x, self.units_y = n
-        # Lattice coordinate of each cell column / row when nothing has moved: unit i has its
-        # centre at edge + (i + 1/2) a, so with a == cell_size unit i is exactly cell i.
-        self._lat_x = (np.arange(self.cells_x) + 0.5) * (self.cell_size / a) - 0.5
-        self._lat_y = (np.arange(self.cells_y) + 0.5) * (self.cell_size / a) - 0.5
-        self._rho_x = self._lag1_correlation(self.units_x)
-        self._rho_y = self._lag1_correlation(self.units_y)
-        self._keys_cache: OrderedDict[int, np.ndarray] = OrderedDict()
+        self.unit = max(float(w.turbulence_scale), 0.5 * self.cell_size)
+        self._rho = KERNEL_LAG1
+        self._keys_cache: OrderedDict[int, tuple[tuple[int, int, int, int], np.ndarray]] = OrderedDict()
+        # Blast fronts and the whirlwind repeat with these periods (m) over very large fields.
+        self.gust_period = min(max(self.size), PATTERN_PERIOD_MAX)
+        self.vortex_period = tuple(min(v, PATTERN_PERIOD_MAX) for v in self.size)
 
     # ------------------------------------------------------------------ mean wind (eq 12)
 
@@ -206,37 +236,35 @@ class WindField:
 
     # ------------------------------------------------------------------ turbulence (eq 13)
 
-    @staticmethod
-    def _lag1_correlation(n: int) -> float:
-        """Correlation of neighbouring units after the periodic [1, 2, 1] / 4 filter (n >= 3)."""
-        k = np.zeros(n)
-        k[0], k[1], k[-1] = KERNEL_1D[1], KERNEL_1D[2], KERNEL_1D[0]
-        return float(np.dot(k, np.roll(k, 1)) / np.dot(k, k))
-
-    def _key_lattice(self, key: int) -> np.ndarray:
-        """Smoothed turbulence lattice of time key ``key``: (units_y, units_x, 2) float32.
+    def _key_patch(self, key: int, i0: int, j0: int, i1: int, j1: int) -> np.ndarray:
+        """Smoothed lattice of time key ``key`` over units [i0, i1) x [j0, j1): (j1-j0, i1-i0, 2) float32.
 
         Eq 13: v'(x_i, y_i) = (sum_B v_0 * lambda / (k d^2) + lambda v_0(x_i, y_i)) / sum of weights
-        with the 1 2 1 / 2 4 2 / 1 2 1 weights, applied as [1, 2, 1] / 4 along each axis, wrapping
-        around the periodic lattice. Input: independent N(0, 1) per unit and component.
+        with the 1 2 1 / 2 4 2 / 1 2 1 weights, applied as [1, 2, 1] / 4 along each axis. The
+        unsmoothed v_0 of a unit is a hash of (seed, key, unit), so any unit of the unbounded
+        lattice has the same value whichever patch computes it.
         """
         cached = self._keys_cache.get(key)
         if cached is not None:
-            self._keys_cache.move_to_end(key)
-            return cached
-        rng = np.random.default_rng([self.seed, TURBULENCE_PURPOSE, key % (1 << 64)])
-        v0 = rng.standard_normal((self.units_y, self.units_x, 2), dtype=np.float32)
-        lo, mid, hi = KERNEL_1D
-        v = mid * v0 + lo * np.roll(v0, 1, axis=0) + hi * np.roll(v0, -1, axis=0)
-        v = mid * v + lo * np.roll(v, 1, axis=1) + hi * np.roll(v, -1, axis=1)
-        v = np.ascontiguousarray(v, dtype=np.float32)
-        self._keys_cache[key] = v
+            (ci0, cj0, ci1, cj1), patch = cached
+            if ci0 <= i0 and cj0 <= j0 and i1 <= ci1 and j1 <= cj1:
+                self._keys_cache.move_to_end(key)
+                return patch[j0 - cj0:j1 - cj0, i0 - ci0:i1 - ci0]
+        # Grow the patch by a margin: the region drifts with the mean wind between calls.
+        mx, my = max(8, (i1 - i0) // 4), max(8, (j1 - j0) // 4)
+        ci0, cj0, ci1, cj1 = i0 - mx, j0 - my, i1 + mx, j1 + my
+        v0 = unit_gaussians(self.seed, key, ci0 - 1, cj0 - 1, ci1 + 1, cj1 + 1)
+        lo, mid, hi = (np.float32(k) for k in KERNEL_1D)
+        v = mid * v0[1:-1] + lo * v0[:-2] + hi * v0[2:]
+        v = mid * v[:, 1:-1] + lo * v[:, :-2] + hi * v[:, 2:]
+        patch = np.ascontiguousarray(v, dtype=np.float32)
+        self._keys_cache[key] = ((ci0, cj0, ci1, cj1), patch)
         while len(self._keys_cache) > KEY_CACHE_SIZE:
             self._keys_cache.popitem(last=False)
-        return v
+        return patch[j0 - cj0:j1 - cj0, i0 - ci0:i1 - ci0]
 
-    def _time_blend(self, t: float) -> np.ndarray:
-        """Turbulence lattice at time t: keys every ``period`` s blended by Catmull-Rom.
+    def _time_blend(self, t: float, region: tuple[int, int, int, int]) -> np.ndarray:
+        """Turbulence lattice at time t over ``region``: keys every ``period`` s blended by Catmull-Rom.
 
         Independent keys blended with weights w keep the variance only if sum(w^2) = 1, so the
         weights are divided by sqrt(sum(w^2)): the std of v' is the same at every instant, and
@@ -251,88 +279,80 @@ class WindField:
         for i, wt in enumerate(weights):
             if wt == 0.0:
                 continue
-            term = self._key_lattice(k - 1 + i)
+            term = self._key_patch(k - 1 + i, *region)
             if lattice is None:
                 lattice = term * np.float32(wt)
             else:
                 lattice += term * np.float32(wt)
         return lattice
 
-    def _axis_weights(self, base: np.ndarray, shift: float, n: int, rho: float):
-        """Bilinear indices and weights along one axis of the periodic lattice.
+    def turbulence(self, t: float, xy: np.ndarray | None = None) -> np.ndarray:
+        """Turbulent wind v' at time t (eq 13): (m, 2) float32, m/s, at the points ``xy`` (m, 2)
+        (default: the layout's cell centres).
 
-        Between two units the interpolated value has variance (1-f)^2 + f^2 + 2 f (1-f) rho (rho:
-        correlation of neighbouring units); the weights are divided by its square root so that
-        v' keeps its std while the lattice drifts across the cells (no flicker of its strength).
-        """
-        pos = (base - shift % n) % n
-        i0 = np.floor(pos)
-        f = pos - i0
-        i0 = i0.astype(np.intp) % n
-        i1 = (i0 + 1) % n
-        norm = 1.0 / np.sqrt((1 - f) ** 2 + f * f + 2 * f * (1 - f) * rho)
-        return i0, i1, ((1 - f) * norm).astype(np.float32), (f * norm).astype(np.float32)
-
-    def turbulence(self, t: float) -> np.ndarray:
-        """Turbulent wind v' of every cell at time t (eq 13): (n_cells, 2) float32, m/s.
-
-        Taylor's frozen turbulence: the lattice travels with the mean wind, so a cell at x sees
-        the lattice at x - D(t), D(t) = integral_0^t v-bar dt' (bilinear, periodic).
+        Taylor's frozen turbulence: the lattice travels with the mean wind, so a point at x sees
+        the lattice at x - D(t), D(t) = integral_0^t v-bar dt' (bilinear). Unit i of the lattice
+        has its centre at (i + 1/2) a. Every point's value depends on that point alone.
         """
         t = float(t)
-        if self.turbulence_std == 0.0:
-            return np.zeros((self.n_cells, 2), dtype=np.float32)
-        lattice = self._time_blend(t)
-        shift = self.displacement(t) / self.unit
-        iy0, iy1, wy0, wy1 = self._axis_weights(self._lat_y, shift[1], self.units_y, self._rho_y)
-        ix0, ix1, wx0, wx1 = self._axis_weights(self._lat_x, shift[0], self.units_x, self._rho_x)
-        # Rows first (cells_y, units_x * 2), then columns; the two components stay interleaved
-        # and weights are repeated per component so every numpy loop runs over long rows.
-        flat = lattice.reshape(self.units_y, self.units_x * 2)
-        rows = flat[iy0]
-        rows *= wy0[:, None]
-        if np.any(wy1):
-            rows += flat[iy1] * wy1[:, None]
-        rows = rows.reshape(self.cells_y, self.units_x, 2)
-        out = np.take(rows, ix0, axis=1).reshape(self.cells_y, self.cells_x * 2)
-        out *= np.repeat(wx0, 2)[None, :]
-        if np.any(wx1):
-            more = np.take(rows, ix1, axis=1).reshape(self.cells_y, self.cells_x * 2)
-            more *= np.repeat(wx1, 2)[None, :]
-            out += more
-        return out.reshape(self.n_cells, 2)
+        xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
+        if self.turbulence_std == 0.0 or xy.shape[0] == 0:
+            return np.zeros((xy.shape[0], 2), dtype=np.float32)
+        shift = self.displacement(t)
+        ux = (xy[:, 0] - shift[0]) / self.unit - 0.5
+        uy = (xy[:, 1] - shift[1]) / self.unit - 0.5
+        fx0, fy0 = np.floor(ux), np.floor(uy)
+        i0, j0 = int(fx0.min()), int(fy0.min())
+        region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
+        lattice = self._time_blend(t, region)
+        ix = (fx0 - i0).astype(np.intp)
+        iy = (fy0 - j0).astype(np.intp)
+        wx0, wx1 = _bilinear_weights(ux - fx0, self._rho)
+        wy0, wy1 = _bilinear_weights(uy - fy0, self._rho)
+        out = lattice[iy, ix] * (wy0 * wx0)[:, None]
+        out += lattice[iy, ix + 1] * (wy0 * wx1)[:, None]
+        out += lattice[iy + 1, ix] * (wy1 * wx0)[:, None]
+        out += lattice[iy + 1, ix + 1] * (wy1 * wx1)[:, None]
+        return out
 
     # ------------------------------------------------------------------ the whole field (eq 12)
 
-    def sample(self, t: float) -> np.ndarray:
-        """Wind v = v-bar + v' of every cell at time t (eq 12), plus the type's gusts or vortex.
+    def sample(self, t: float, xy: np.ndarray | None = None) -> np.ndarray:
+        """Wind v = v-bar + v' at time t (eq 12), plus the type's gusts or vortex, at the points
+        ``xy`` (m, 2) (default: the layout's cell centres, in its cell order).
 
-        (n_cells, 2) float32 C-contiguous, m/s, cell order c = cy * cells_x + cx.
+        (m, 2) float32 C-contiguous, m/s; each point's value depends on that point and t alone.
         """
         t = float(t)
-        out = self.turbulence(t)
-        # Mean wind, uniform over the field (eq 12), added as one interleaved row per cell row.
-        out.reshape(self.cells_y, self.cells_x * 2)[...] += np.tile(
-            self._mean_vector(t).astype(np.float32), self.cells_x)[None, :]
+        xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
+        out = self.turbulence(t, xy)
+        out += self._mean_vector(t).astype(np.float32)  # uniform over the field (eq 12)
         if self.kind == "blast":
-            self._add_gusts(t, out)
+            self._add_gusts(t, xy, out)
         elif self.kind == "whirlwind":
-            self._add_vortex(t, out)
+            self._add_vortex(t, xy, out)
         return out
+
+    def _gust_half(self, direction: float) -> float:
+        """Half the field's extent along the wind, at most half of PATTERN_PERIOD_MAX."""
+        half = 0.5 * (self.size[0] * abs(math.cos(direction)) + self.size[1] * abs(math.sin(direction)))
+        return min(half, 0.5 * PATTERN_PERIOD_MAX)
 
     def gust_fronts(self, t: float) -> np.ndarray:
         """Blast: downwind positions s (m, from the field centre) of the fronts in the field at t.
 
         Front k starts at t_k = k * gust_interval, 3 widths upwind of the upwind field edge, and
         moves downwind at v-bar + gust_speed / 2 (its travel is the integral of that speed, so it
-        follows changes of the mean wind smoothly) until it is 3 widths past the far edge.
+        follows changes of the mean wind smoothly) until it is 3 widths past the far edge. On a
+        field longer than PATTERN_PERIOD_MAX along the wind the fronts repeat every
+        2 half + 6 widths downwind (``half`` capped), so every cell sees them.
         """
         w = self.params.wind
         g, width, interval = float(w.gust_speed), float(w.gust_width), float(w.gust_interval)
         if g == 0.0:
             return np.zeros(0)
         _, direction = self.mean(t)
-        half = 0.5 * (self.size[0] * abs(math.cos(direction)) + self.size[1] * abs(math.sin(direction)))
+        half = self._gust_half(direction)
         start = -half - 3.0 * width
         k_last = math.floor(t / interval)
         t_k = (k_last - np.arange(MAX_GUST_FRONTS, dtype=np.float64)) * interval
@@ -342,12 +362,12 @@ class WindField:
         travel = travel[travel <= 2.0 * half + 6.0 * width]
         return start + travel
 
-    def _add_gusts(self, t: float, out: np.ndarray) -> None:
+    def _add_gusts(self, t: float, xy: np.ndarray, out: np.ndarray) -> None:
         """Blast: extra speed gust_speed * exp(-(s / gust_width)^2) along the wind direction.
 
-        s is the cell's downwind coordinate minus a front's position. The fronts' profile is
+        s is the point's downwind coordinate minus a front's position. The fronts' profile is
         tabulated along s (width / 16 spacing; each front only within 4 widths, where
-        exp(-16) ~ 1e-7 of its peak is left) and interpolated to the cells.
+        exp(-16) ~ 1e-7 of its peak is left) and interpolated to the points.
         """
         fronts = self.gust_fronts(t)
         if fronts.size == 0:
@@ -356,7 +376,7 @@ class WindField:
         g, width = float(w.gust_speed), float(w.gust_width)
         _, direction = self.mean(t)
         c, s = math.cos(direction), math.sin(direction)
-        half = 0.5 * (self.size[0] * abs(c) + self.size[1] * abs(s))
+        half = self._gust_half(direction) + 3.0 * width  # the fronts' whole course, one period
         n = int(min(65536, max(2, math.ceil(2.0 * half / (width / 16.0)) + 1)))
         grid = np.linspace(-half, half, n)
         scale = (n - 1) / (2.0 * half)
@@ -369,9 +389,9 @@ class WindField:
         near = near[inside]
         bumps = np.exp(-(((grid[near] - np.broadcast_to(fronts[:, None], inside.shape)[inside]) / width) ** 2))
         profile = g * np.bincount(near, weights=bumps, minlength=n)
-        row = ((self._row_y * s + half) * scale).astype(np.float32)
-        col = (self._col_x * c * scale).astype(np.float32)
-        pos = row[:, None] + col[None, :]
+        downwind = xy[:, 0] * c + xy[:, 1] * s
+        downwind = np.mod(downwind + half, 2.0 * half)  # one period of the fronts' course
+        pos = (downwind * scale).astype(np.float32)
         np.clip(pos, 0.0, n - 1.0, out=pos)
         i0 = np.minimum(pos.astype(np.intp), n - 2)
         pos -= i0  # fraction between grid points
@@ -379,24 +399,24 @@ class WindField:
         extra = np.take(np.diff(prof), i0)
         extra *= pos
         extra += np.take(prof, i0)
-        extra = extra.reshape(-1)
         out[:, 0] += extra * np.float32(c)
         out[:, 1] += extra * np.float32(s)
 
     def vortex_center(self, t: float) -> np.ndarray:
         """Whirlwind: centre (2,) of the vortex at t, carried by the mean wind from the origin
-        at t = 0 and wrapped into the field, so it keeps coming back."""
+        at t = 0 and wrapped into the field (or into PATTERN_PERIOD_MAX), so it keeps coming back."""
         d = self.displacement(t)
-        size = np.array(self.size)
+        size = np.array(self.vortex_period)
         return (d + 0.5 * size) % size - 0.5 * size
 
-    def _add_vortex(self, t: float, out: np.ndarray) -> None:
+    def _add_vortex(self, t: float, xy: np.ndarray, out: np.ndarray) -> None:
         """Whirlwind: Rankine vortex, counter-clockwise seen from above (+Z), core radius R.
 
         Tangential speed V r / R inside the core, V R / r outside (V = vortex_speed at r = R),
         plus a radial inflow of VORTEX_INFLOW times the tangential speed. Offsets use the
-        nearest periodic image of the centre; past a quarter of the field the far field fades
-        smoothly to zero at half the field, so the wrap-around leaves no seam.
+        nearest periodic image of the centre (period: the field, at most PATTERN_PERIOD_MAX);
+        past a quarter of the period the far field fades smoothly to zero at half of it, so the
+        wrap-around leaves no seam.
         """
         w = self.params.wind
         V, R = float(w.vortex_speed), float(w.vortex_radius)
@@ -410,12 +430,12 @@ class WindField:
             u = np.clip((np.abs(d) - 0.25 * size) / (0.25 * size), 0.0, 1.0)
             return d.astype(np.float32), (1.0 - u * u * (3.0 - 2.0 * u)).astype(np.float32)
 
-        dx, hx = axis(self._col_x, centre[0], self.size[0])
-        dy, hy = axis(self._row_y, centre[1], self.size[1])
-        r2 = dy[:, None] ** 2 + dx[None, :] ** 2
+        dx, hx = axis(xy[:, 0], centre[0], self.vortex_period[0])
+        dy, hy = axis(xy[:, 1], centre[1], self.vortex_period[1])
+        r2 = dy * dy + dx * dx
         # |v_t| / r: V / R inside the core, V R / r^2 outside (no sqrt, finite at r = 0).
         q = np.float32(V * R) / np.maximum(r2, np.float32(R * R))
-        q *= hy[:, None] * hx[None, :]
+        q *= hy * hx
         a = np.float32(VORTEX_INFLOW)
-        out[:, 0] += (q * (-dy[:, None] - a * dx[None, :])).reshape(-1)
-        out[:, 1] += (q * (dx[None, :] - a * dy[:, None])).reshape(-1)
+        out[:, 0] += q * (-dy - a * dx)
+        out[:, 1] += q * (dx - a * dy)

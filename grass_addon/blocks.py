@@ -1,0 +1,288 @@
+"""Blocks on demand: the field's grid, one block's blades and cells, and a bounded cache (paper III).
+
+A field of any size is a grid of ``blocks_x * blocks_y`` square blocks (``FieldGrid``: a few
+numbers, no per-block arrays). Everything inside a block (blade roots, species, lengths, rest
+shapes of eqs 1-6, the representative blade of each cell, the cards) is a pure function of
+(parameters, seed, block id): ``make_block`` draws it from random streams keyed by the block id,
+so a block is the same whenever and wherever it is generated. ``BlockCache`` keeps recently used
+blocks within a memory budget.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import blade
+from .errors import ParameterError
+from .schema import Params
+from .terrain import Heightfield, ground_z
+
+# Purposes of the random streams: np.random.default_rng([seed, PURPOSE, block id]).
+RNG_BLADES = 1
+RNG_CELLS = 2
+DEFAULT_CACHE_BYTES = 1 << 30  # the block cache's budget unless the caller sets one
+
+
+@dataclass(frozen=True)
+class FieldGrid:
+    """The field's block grid: block ``b = by * blocks_x + bx``; cell ``(cx, cy)`` of the field
+    lies in block ``(cx // cpb, cy // cpb)``. The field is centred on the origin."""
+
+    blocks_x: int
+    blocks_y: int
+    cells_per_block: int
+    cell_size: float
+
+    @classmethod
+    def of(cls, params: Params) -> FieldGrid:
+        f = params.field
+        return cls(int(f.blocks_x), int(f.blocks_y), int(f.cells_per_block), float(f.cell_size))
+
+    @property
+    def block_size(self) -> float:
+        return self.cells_per_block * self.cell_size
+
+    @property
+    def n_blocks(self) -> int:
+        return self.blocks_x * self.blocks_y
+
+    @property
+    def cells_x(self) -> int:
+        return self.blocks_x * self.cells_per_block
+
+    @property
+    def cells_y(self) -> int:
+        return self.blocks_y * self.cells_per_block
+
+    @property
+    def size(self) -> tuple[float, float]:
+        return self.cells_x * self.cell_size, self.cells_y * self.cell_size
+
+    @property
+    def origin(self) -> np.ndarray:
+        """(2,) lower-left corner of the field."""
+        return -0.5 * np.array(self.size)
+
+    def block_xy(self, blocks) -> tuple[np.ndarray, np.ndarray]:
+        """(bx, by) int64 of block ids."""
+        by, bx = np.divmod(np.asarray(blocks, dtype=np.int64), self.blocks_x)
+        return bx, by
+
+    def block_bounds(self, blocks) -> np.ndarray:
+        """(m, 4) float64 xmin, ymin, xmax, ymax of each block."""
+        bx, by = self.block_xy(blocks)
+        o, s = self.origin, self.block_size
+        return np.stack([o[0] + bx * s, o[1] + by * s, o[0] + (bx + 1) * s, o[1] + (by + 1) * s], axis=1)
+
+    def blocks_near(self, xy, radius: float) -> np.ndarray:
+        """Ids (int64, ascending) of the blocks whose rectangle comes within ``radius`` of the
+        ground point ``xy``: only the square of blocks around it is looked at."""
+        o, s = self.origin, self.block_size
+        lo = np.floor((np.asarray(xy, dtype=np.float64) - radius - o) / s).astype(np.int64)
+        hi = np.floor((np.asarray(xy, dtype=np.float64) + radius - o) / s).astype(np.int64)
+        bx = np.arange(max(lo[0], 0), min(hi[0], self.blocks_x - 1) + 1, dtype=np.int64)
+        by = np.arange(max(lo[1], 0), min(hi[1], self.blocks_y - 1) + 1, dtype=np.int64)
+        if bx.size == 0 or by.size == 0:
+            return np.zeros(0, np.int64)
+        ids = (by[:, None] * self.blocks_x + bx[None, :]).ravel()
+        b = self.block_bounds(ids)
+        nx = np.clip(xy[0], b[:, 0], b[:, 2]) - xy[0]
+        ny = np.clip(xy[1], b[:, 1], b[:, 3]) - xy[1]
+        return ids[nx * nx + ny * ny <= radius * radius]
+
+    def cell_centers(self, block: int) -> np.ndarray:
+        """(cpb**2, 2) float64 centres of a block's cells, row-major inside the block."""
+        cpb = self.cells_per_block
+        bx, by = self.block_xy(block)
+        ly, lx = np.divmod(np.arange(cpb * cpb), cpb)
+        cx, cy = int(bx) * cpb + lx, int(by) * cpb + ly
+        return self.origin + (np.stack([cx, cy], axis=1) + 0.5) * self.cell_size
+
+
+@dataclass(eq=False)
+class Block:
+    """One block's blades (cell-major, then slot) and cells (row-major inside the block)."""
+
+    blade_root: np.ndarray  # (B, 3) float32
+    blade_facing: np.ndarray
+    blade_length: np.ndarray
+    blade_width: np.ndarray
+    blade_inclination: np.ndarray
+    blade_shade: np.ndarray
+    blade_species: np.ndarray  # (B,) int16
+    blade_rest_tilt: np.ndarray  # (B, n)
+    blade_ground_slope: np.ndarray | None  # (B, 2) or None on flat ground
+    cell_center: np.ndarray  # (P, 2) float32
+    cell_ground: np.ndarray
+    cell_length: np.ndarray
+    cell_width: np.ndarray
+    cell_root_stiffness: np.ndarray
+    cell_rest_tilt: np.ndarray  # (P, n)
+    cell_facing: np.ndarray
+    card_height: np.ndarray
+    card_facing: np.ndarray
+    card_shade: np.ndarray
+    z_range: np.ndarray  # (2,) lowest, highest ground
+
+    @property
+    def nbytes(self) -> int:
+        return sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray))
+
+
+class Species:
+    """The species table as arrays (paper III.A (1))."""
+
+    def __init__(self, params: Params):
+        rows = params.species()
+        weights = np.array([r["weight"] for r in rows], dtype=np.float64)
+        self.p = weights / weights.sum()
+        self.length = np.array([r["length"] for r in rows], dtype=np.float64)
+        self.length_variation = np.array([r["length_variation"] for r in rows], dtype=np.float64)
+        self.width = np.array([r["width"] for r in rows], dtype=np.float64)
+        self.stiffness = np.array([r["stiffness"] for r in rows], dtype=np.float64)
+        self.color = np.array([r["color"] for r in rows], dtype=np.float32).reshape(-1, 3)
+        self.mean_length = float(np.dot(self.p, self.length))
+        self.mean_variation = float(np.dot(self.p, self.length_variation))
+        self.longest = float(np.max(self.length + 4.0 * self.length_variation))
+
+
+def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: Species):
+    """Species, length (l = l_base + lambda*N(0,1), kept positive), width, stiffness, alpha of `count` blades."""
+    kind = rng.choice(len(species.p), size=count, p=species.p).astype(np.int16)
+    base = species.length[kind]
+    # paper III.A (1): delta_l = lambda * N(0,1); a blade keeps at least 15 % of the reference length
+    length = np.maximum(base + species.length_variation[kind] * rng.standard_normal(count), 0.15 * base)
+    width = species.width[kind] * np.clip(1.0 + 0.12 * rng.standard_normal(count), 0.6, 1.4)
+    stiffness = params.blade.root_stiffness * species.stiffness[kind]
+    inclination = np.radians(params.blade.inclination) * rng.random(count)  # random initial alpha
+    return kind, length, width, stiffness, inclination
+
+
+def _rest_tilt(params: Params, length, stiffness, inclination) -> np.ndarray:
+    """Absolute rest tilt of each segment from eqs 1-6 (blade.py)."""
+    n = params.blade.segments
+    seg = length / n
+    mu = blade.joint_stiffness(stiffness, seg, n, params.blade.stiffness_offset)  # eq 5
+    theta = blade.rest_angles(inclination, seg, mu, params.blade.density)  # eqs 2-4, 6
+    return blade.rest_tilt(inclination, theta)
+
+
+def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
+               terrain: Heightfield | None = None) -> Block:
+    """Block ``block``'s blades and cells, from random streams keyed by (seed, purpose, block)."""
+    f = params.field
+    cs, num, P = grid.cell_size, int(f.blades_per_cell), grid.cells_per_block ** 2
+    block = int(block)
+    centre64 = grid.cell_centers(block)
+    cell_center = centre64.astype(np.float32)
+    rng = np.random.default_rng([int(f.seed), RNG_BLADES, block])
+    n_blades = P * num
+    # paper III.A (2): random position inside the cell and random orientation
+    offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
+    root = np.empty((n_blades, 3), dtype=np.float32)
+    root[:, :2] = np.repeat(centre64, num, axis=0) + offset
+    root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
+    facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
+    kind, length, width, stiffness, inclination = _sample_blades(rng, n_blades, params, species)
+    shade = rng.random(n_blades).astype(np.float32)
+    n = int(params.blade.segments)
+    rest_tilt = _rest_tilt(params, length, stiffness, inclination) if n_blades else np.zeros((0, n))
+
+    # The cell's representative blade (paper V.B: blades of a cell share the cell's bend and twist):
+    # the mean of its blades, or a sampled virtual blade when cells hold no blades.
+    cell_rng = np.random.default_rng([int(f.seed), RNG_CELLS, block])
+    if num > 0:
+        def per_cell(values: np.ndarray) -> np.ndarray:
+            return values.reshape((P, num) + values.shape[1:]).mean(axis=1).astype(np.float32)
+
+        cell_length, cell_width = per_cell(length), per_cell(width)
+        cell_stiffness, cell_rest_tilt = per_cell(stiffness), per_cell(rest_tilt)
+    else:
+        _, c_len, c_wid, c_stiff, c_inc = _sample_blades(cell_rng, P, params, species)
+        cell_length, cell_width = c_len.astype(np.float32), c_wid.astype(np.float32)
+        cell_stiffness = c_stiff.astype(np.float32)
+        cell_rest_tilt = _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32)
+    cell_facing = (cell_rng.random(P) * 2.0 * np.pi).astype(np.float32)
+    # paper III.B: card height = reference height + stochastic modifier; random orientation
+    card_height = params.lod.card_height * np.maximum(
+        cell_length + 0.5 * species.mean_variation * cell_rng.standard_normal(P), 0.3 * species.mean_length)
+    card_facing = cell_rng.random(P) * np.pi
+    card_shade = cell_rng.random(P)
+    if terrain is None:
+        z_range = np.zeros(2, np.float32)
+    else:
+        z_range = terrain.box_z_range(grid.block_bounds([block]))[0]
+    f32 = np.float32
+    return Block(
+        blade_root=root, blade_facing=facing, blade_length=length.astype(f32), blade_width=width.astype(f32),
+        blade_inclination=inclination.astype(f32), blade_shade=shade, blade_species=kind,
+        blade_rest_tilt=np.ascontiguousarray(rest_tilt, dtype=f32),
+        blade_ground_slope=None if terrain is None else terrain.gradient(root[:, :2]),
+        cell_center=cell_center, cell_ground=ground_z(terrain, cell_center).astype(f32),
+        cell_length=cell_length, cell_width=cell_width, cell_root_stiffness=cell_stiffness.astype(f32),
+        cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
+        card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
+        card_shade=card_shade.astype(f32), z_range=np.asarray(z_range, dtype=f32))
+
+
+class BlockCache:
+    """Blocks by id, generated on first use and kept within ``budget`` bytes (least recently
+    used first out). ``get`` never drops a block it is returning."""
+
+    def __init__(self, params: Params, terrain: Heightfield | None = None, budget: int = DEFAULT_CACHE_BYTES):
+        self.params = params
+        self.grid = FieldGrid.of(params)
+        self.species = Species(params)
+        self.terrain = terrain
+        self.budget = int(budget)
+        self._blocks: OrderedDict[int, Block] = OrderedDict()
+        self.nbytes = 0
+        self.made = 0  # blocks generated so far (a measure of work)
+
+    def __len__(self) -> int:
+        return len(self._blocks)
+
+    def block_bytes(self) -> int:
+        """Bytes one block takes (every block has the same shapes)."""
+        f, n = self.params.field, int(self.params.blade.segments)
+        P = self.grid.cells_per_block ** 2
+        B = P * int(f.blades_per_cell)
+        per_blade = 4 * (3 + 5 + n + (2 if self.terrain is not None else 0)) + 2
+        per_cell = 4 * (2 + 1 + 3 + n + 1 + 3)
+        return B * per_blade + P * per_cell + 8
+
+    def capacity(self) -> int:
+        """How many blocks the budget holds."""
+        return max(1, self.budget // max(1, self.block_bytes()))
+
+    def get(self, blocks) -> list[Block]:
+        ids = [int(b) for b in np.asarray(blocks, dtype=np.int64).ravel()]
+        if len(ids) > self.capacity():
+            raise ParameterError(
+                "simulation.cache_mb",
+                f"the camera sees {len(ids):,} blocks but the block cache holds {self.capacity():,} "
+                f"({self.budget / 2**20:.0f} MB); raise simulation.cache_mb or shorten lod.card_far")
+        out = []
+        for b in ids:
+            block = self._blocks.get(b)
+            if block is None:
+                block = make_block(self.params, self.grid, self.species, b, self.terrain)
+                self._blocks[b] = block
+                self.nbytes += block.nbytes
+                self.made += 1
+            else:
+                self._blocks.move_to_end(b)
+            out.append(block)
+        keep = set(ids)
+        while self.nbytes > self.budget and len(self._blocks) > len(keep):
+            old, block = next(iter(self._blocks.items()))
+            if old in keep:
+                self._blocks.move_to_end(old)
+                continue
+            del self._blocks[old]
+            self.nbytes -= block.nbytes
+        return out
+

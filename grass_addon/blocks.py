@@ -146,15 +146,18 @@ class Species:
         self.color = np.array([r["color"] for r in rows], dtype=np.float32).reshape(-1, 3)
         self.mean_length = float(np.dot(self.p, self.length))
         self.mean_variation = float(np.dot(self.p, self.length_variation))
-        self.longest = float(np.max(self.length + 4.0 * self.length_variation))
+        self.longest = float(np.max(self.length + 4.0 * self.length_variation))  # no blade is longer
+        self.tallest_card = float(params.lod.card_height) * (self.longest + 2.0 * self.mean_variation)
 
 
 def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: Species):
     """Species, length (l = l_base + lambda*N(0,1), kept positive), width, stiffness, alpha of `count` blades."""
     kind = rng.choice(len(species.p), size=count, p=species.p).astype(np.int16)
     base = species.length[kind]
-    # paper III.A (1): delta_l = lambda * N(0,1); a blade keeps at least 15 % of the reference length
-    length = np.maximum(base + species.length_variation[kind] * rng.standard_normal(count), 0.15 * base)
+    # paper III.A (1): delta_l = lambda * N(0,1); a blade keeps at least 15 % of the reference length,
+    # and N(0,1) is held within +-4 so that the tallest blade is known from the parameters (culling)
+    normal = np.clip(rng.standard_normal(count), -4.0, 4.0)
+    length = np.maximum(base + species.length_variation[kind] * normal, 0.15 * base)
     width = species.width[kind] * np.clip(1.0 + 0.12 * rng.standard_normal(count), 0.6, 1.4)
     stiffness = params.blade.root_stiffness * species.stiffness[kind]
     inclination = np.radians(params.blade.inclination) * rng.random(count)  # random initial alpha
@@ -207,8 +210,9 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         cell_rest_tilt = _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32)
     cell_facing = (cell_rng.random(P) * 2.0 * np.pi).astype(np.float32)
     # paper III.B: card height = reference height + stochastic modifier; random orientation
+    normal = np.clip(cell_rng.standard_normal(P), -4.0, 4.0)
     card_height = params.lod.card_height * np.maximum(
-        cell_length + 0.5 * species.mean_variation * cell_rng.standard_normal(P), 0.3 * species.mean_length)
+        cell_length + 0.5 * species.mean_variation * normal, 0.3 * species.mean_length)
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)
     if terrain is None:

@@ -1,8 +1,12 @@
-"""The engine facade: one grass field = layout + wind + simulation + LOD + kinematics.
+"""The engine facade: one grass field = blocks + wind + simulation + LOD + kinematics.
 
 Used by the add-on's runtime (one ``GrassField`` per field object) and by the headless scripts.
-Everything heavy is built once in ``__init__``; the per-frame path (``seek``, ``lod``,
-``blade_vertices``, ``card_vertices``) writes into caller-provided ``out`` arrays when given.
+The field works on a window of blocks (``layout``): the blocks the camera can see within the card
+range (``view``), or, without a camera, the whole field when it is small enough
+(``WHOLE_FIELD_CELLS``) and else the blocks around its centre (``notice`` says so). Blocks come
+from a cache bounded by ``simulation.cache_mb``; nothing is made for the whole field. The
+per-frame path (``view``, ``seek``, ``lod``, ``blade_vertices``, ``card_vertices``) writes into
+caller-provided ``out`` arrays when given.
 """
 
 from __future__ import annotations
@@ -11,15 +15,20 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import kinematics
+from . import kinematics, slots
+from .blocks import BlockCache, FieldGrid
 from .celldata import CellData, cell_data
-from .layout import FieldLayout, build_layout
-from .lod import Camera, LodWeights, lod_weights
+from .errors import ParameterError
+from .layout import FieldLayout, build_layout, window_layout
+from .lod import Camera, LodWeights, block_reach, block_visible, lod_weights
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
 
 RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
+WHOLE_FIELD_CELLS = 1 << 20  # without a camera (or with LOD off) a field this small is simulated whole
+WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the camera needs
+WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 
 class GrassField:
@@ -28,12 +37,94 @@ class GrassField:
 
     def __init__(self, params: Params, wind_keys=None, terrain=None):
         self.params = params
-        self.layout: FieldLayout = build_layout(params, terrain=terrain)
-        self.wind = WindField(self.layout, params, keys=wind_keys)
-        self.sim = Simulation(self.layout, params, self.wind)
+        self.grid = FieldGrid.of(params)
+        self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20)
+        self._check_budget()
+        self.notice: str | None = None
+        cells = self.grid.n_blocks * self.grid.cells_per_block ** 2
+        self.whole = cells <= WHOLE_FIELD_CELLS
+        if self.whole:
+            layout = build_layout(params, terrain, cache=self.cache)
+        else:
+            layout = window_layout(self.cache, self._centre_blocks())
+            self.notice = (f"the field has {cells:,} cells, too many to simulate whole without a camera; "
+                           f"the blocks within lod.card_far ({params.lod.card_far:g} m) of its centre are used")
+        self.layout: FieldLayout = layout
+        self.wind = WindField(layout, params, keys=wind_keys)
+        self.sim = Simulation(layout, params, self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
-        self._blocks = np.arange(self.layout.n_blocks, dtype=np.int64)
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
+
+    # ------------------------------------------------------------------ the window of blocks
+
+    def _check_budget(self) -> None:
+        """The blocks a camera can see within the card range must fit the cache."""
+        radius = self.params.lod.card_far + block_reach(self.params)[0] + 2 * WINDOW_MARGIN_BLOCKS * \
+            self.grid.block_size
+        need = slots.blocks_within(self.grid, radius)
+        if need > self.cache.capacity():
+            mb = -(-need * self.cache.block_bytes() // 2**20)
+            raise ParameterError(
+                "simulation.cache_mb",
+                f"{self.params.simulation.cache_mb} MB holds {self.cache.capacity():,} blocks, but a camera can see "
+                f"{need:,} within lod.card_far ({self.params.lod.card_far:g} m); valid: at least {mb} MB "
+                "(or a shorter lod.card_far)")
+
+    def _centre_blocks(self) -> np.ndarray:
+        return self.grid.blocks_near(np.zeros(2), self.params.lod.card_far + block_reach(self.params)[0])
+
+    def blocks_for(self, camera: Camera | None, margin: float = 0.0) -> np.ndarray:
+        """Ids (ascending) of the blocks that ``camera`` needs: inside its frustum and within the
+        card range (plus ``margin`` metres); every block when LOD is off or without a camera on a
+        small field."""
+        if camera is None:
+            return (np.arange(self.grid.n_blocks, dtype=np.int64) if self.whole else self._centre_blocks())
+        if not self.params.lod.enabled:
+            if not self.whole:
+                raise ParameterError("lod.enabled", "every blade as geometry needs a field of at most "
+                                     f"{WHOLE_FIELD_CELLS:,} cells; turn LOD on or make the field smaller")
+            return np.arange(self.grid.n_blocks, dtype=np.int64)
+        eye = np.asarray(camera.position, dtype=np.float64)
+        if eye.shape != (3,) or not np.all(np.isfinite(eye)):
+            raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
+        reach = block_reach(self.params)[0]
+        ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far + reach + margin)
+        if ids.size == 0:
+            return ids
+        z = self._z_ranges(ids)
+        # the eye's height above the ground can only add distance: cells past card_far hold no cards
+        seen = block_visible(self.grid.block_bounds(ids), z, camera, self.params, margin)
+        return ids[seen]
+
+    def _z_ranges(self, ids: np.ndarray) -> np.ndarray:
+        terrain = self.cache.terrain
+        if terrain is None:
+            return np.zeros((ids.size, 2))
+        return terrain.box_z_range(self.grid.block_bounds(ids))
+
+    def view(self, camera: Camera | None, frame: int | None = None) -> bool:
+        """Make the window hold the blocks ``camera`` needs (returns True when it changed). With
+        LOD on, the window reaches a block further than needed and is kept while it still holds
+        every needed block and is not much larger, so a moving camera changes it every few frames.
+        ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
+        needed = self.blocks_for(camera)
+        current = self.layout.block_ids
+        if np.array_equal(needed, current):
+            return False
+        windowed = camera is not None and self.params.lod.enabled
+        if windowed and np.isin(needed, current).all() and current.size <= WINDOW_SLACK * needed.size + 16:
+            return False
+        if not windowed and self.whole:
+            layout = build_layout(self.params, self.cache.terrain, cache=self.cache)
+        else:
+            wanted = self.blocks_for(camera, margin=WINDOW_MARGIN_BLOCKS * self.grid.block_size) if windowed \
+                else needed
+            layout = window_layout(self.cache, wanted)
+        self.sim.set_layout(layout, frame=frame)
+        self.layout = layout
+        self.cells = None
+        self._recent.clear()
+        return True
 
     # ------------------------------------------------------------------ time
 
@@ -41,8 +132,11 @@ class GrassField:
     def frame(self) -> int:
         return self.sim.frame
 
-    def seek(self, frame: int) -> CellData:
-        """Deterministic state at `frame` (a function of params, seed and frame only)."""
+    def seek(self, frame: int, camera: Camera | None = None) -> CellData:
+        """Deterministic state at `frame` (a function of params, seed and frame only) of the
+        window's cells; ``camera``: move the window to what it needs first."""
+        if camera is not None:
+            self.view(camera, frame)
         self.sim.seek(int(frame))
         self.cells = cell_data(self.layout, self.sim)
         return self.cells
@@ -102,20 +196,20 @@ class GrassField:
         return lod_weights(self.layout, camera, self.params)
 
     def all_blocks(self) -> np.ndarray:
-        """Every block id, 0 .. n_blocks-1 (read-only; do not modify)."""
-        return self._blocks
+        """Every block of the window, as local ids 0 .. n_blocks-1."""
+        return np.arange(self.layout.n_blocks, dtype=np.int64)
 
     def blade_blocks(self, lod: LodWeights | None) -> np.ndarray:
         """Visible blocks that can hold blade geometry (some cell with N > 0); all when lod is None."""
         if lod is None:
-            return self._blocks
+            return self.all_blocks()
         has_blades = (lod.blade_count[self.layout.block_cells] > 0).any(axis=1)
         return np.flatnonzero(lod.block_visible & has_blades)
 
     def card_blocks(self, lod: LodWeights | None) -> np.ndarray:
         """Visible blocks with some card opacity > 0; none when lod is None (all blades, no cards)."""
         if lod is None:
-            return self._blocks[:0]
+            return self.all_blocks()[:0]
         has_cards = (lod.k_billboard[self.layout.block_cells] > 0).any(axis=1)
         return np.flatnonzero(lod.block_visible & has_cards)
 

@@ -20,7 +20,7 @@ from .blocks import RNG_BLADES, RNG_CELLS, Block, BlockCache, FieldGrid
 from .schema import Params
 from .terrain import Heightfield
 
-__all__ = ["RNG_BLADES", "RNG_CELLS", "FieldLayout", "build_layout", "window_layout"]
+__all__ = ["RNG_BLADES", "RNG_CELLS", "FieldLayout", "build_layout", "subset_layout", "window_layout"]
 
 
 @dataclass(eq=False)
@@ -157,3 +157,27 @@ def build_layout(params: Params, terrain: Heightfield | None = None, cache: Bloc
     ids = np.arange(grid.n_blocks, dtype=np.int64)
     block_cells = _block_cells(grid.blocks_x, grid.blocks_y, grid.cells_per_block)
     return _assemble(params, cache, ids, cache.get(ids), block_cells)
+
+
+def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
+    """The layout of some of ``layout``'s blocks (local ids, in that order); cells block-major."""
+    local = np.asarray(local_blocks, dtype=np.int64).ravel()
+    P, bpb = layout.cells_per_block_total, layout.blades_per_block
+    cells = layout.block_cells[local].ravel()
+    blades = (local[:, None] * bpb + np.arange(bpb)).ravel()
+    values = {name: getattr(layout, name)[blades] for name in _BLADE_ARRAYS}
+    values.update({name: getattr(layout, name)[cells] for name in _CELL_ARRAYS})
+    slope = layout.blade_ground_slope
+    n = local.size
+    return FieldLayout(
+        params=layout.params, blocks_x=layout.blocks_x, blocks_y=layout.blocks_y,
+        cells_per_block=layout.cells_per_block, cell_size=layout.cell_size, segments=layout.segments,
+        blades_per_cell=layout.blades_per_cell, cells_x=layout.cells_x, cells_y=layout.cells_y,
+        n_cells=n * P, n_blocks=n, cells_per_block_total=P, blades_per_block=bpb, n_blades=n * bpb,
+        origin=layout.origin, block_cells=np.arange(n * P, dtype=np.int32).reshape(n, P),
+        block_bounds=layout.block_bounds[local],
+        blade_cell=np.repeat(np.arange(n * P, dtype=np.int32), layout.blades_per_cell),
+        blade_slot=np.tile(np.arange(layout.blades_per_cell, dtype=np.int32), n * P),
+        species_color=layout.species_color, terrain=layout.terrain,
+        block_z_range=layout.block_z_range[local], blade_ground_slope=None if slope is None else slope[blades],
+        grid=layout.grid, block_ids=layout.block_ids[local], **values)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .blocks import Species
 from .errors import ParameterError
 
 
@@ -99,21 +100,22 @@ def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:
     return (d >= np.float32(near)).astype(np.float32)
 
 
-def block_reach(layout) -> tuple[float, float]:
-    """(sideways reach, height) of anything standing in a block: blades bend up to their length
-    in any direction and cards stick out half their width plus their height past the cell."""
-    tallest_blade = float(layout.blade_length.max()) if layout.n_blades else 0.0
-    tallest_card = float(layout.card_height.max()) if layout.n_cells else 0.0
-    card_half = 0.5 * layout.params.lod.card_width * layout.cell_size
-    height = max(tallest_blade, tallest_card)
-    return max(tallest_blade, card_half + tallest_card), height
+def block_reach(params) -> tuple[float, float]:
+    """(sideways reach, height) of anything standing in a block, from the parameters alone (the
+    same for every block and every window): blades bend up to their length in any direction and
+    cards stick out half their width plus their height past the cell."""
+    species = Species(params)
+    tallest_blade = species.longest if params.field.blades_per_cell else 0.0
+    card_half = 0.5 * params.lod.card_width * params.field.cell_size
+    height = max(tallest_blade, species.tallest_card)
+    return max(tallest_blade, card_half + species.tallest_card), height
 
 
 def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
-    """Eqs 7-11 for every cell and frustum culling of every block (vectorised).
+    """Eqs 7-11 for every cell of ``layout`` and frustum culling of its blocks (vectorised).
 
     camera None or ``lod.enabled`` false: every blade is geometry (K_g = 1, N = num, K_b = K_t = 0)
-    and every block is visible.
+    and every block is visible. Each cell's and block's values depend on it and the camera alone.
     """
     params = params if params is not None else layout.params
     lod = params.lod
@@ -130,15 +132,12 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     eye = np.asarray(camera.position, dtype=np.float64)
     if eye.shape != (3,) or not np.all(np.isfinite(eye)):
         raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
-    # d: eye to cell centre on the ground. The cells form a regular grid, so the squared distance
-    # is a column term + a row term (+ the eye height above the cell's ground), by broadcasting.
-    xs = layout.cell_center[: layout.cells_x, 0]
-    ys = layout.cell_center[:: layout.cells_x, 1]
-    dx2 = np.square(xs - np.float32(eye[0]))
-    dy2 = np.square(ys - np.float32(eye[1]))
-    ground = _cell_ground(layout).reshape(layout.cells_y, layout.cells_x)
-    dz2 = np.square(np.float32(eye[2]) - ground)
-    d = np.sqrt(dz2 + dy2[:, None] + dx2[None, :]).ravel()
+    # d: eye to cell centre on the ground (plus the eye's height above the cell's ground)
+    centre = layout.cell_center
+    dx = centre[:, 0] - np.float32(eye[0])
+    dy = centre[:, 1] - np.float32(eye[1])
+    dz = np.float32(eye[2]) - _cell_ground(layout)
+    d = np.sqrt(dx * dx + dy * dy + dz * dz)
 
     k_b = _ramp(d, lod.blade_near, lod.blade_far)  # eq 7
     k_g = 1.0 - k_b  # eq 8
@@ -149,7 +148,8 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     k_card = np.minimum(k_b, k_b2)
     return LodWeights(k_geometry=k_g.astype(np.float32, copy=False), k_billboard=k_card,
                       k_texture=k_t, blade_count=blade_count,
-                      block_visible=_block_visible(layout, camera), block_distance=_block_distance(layout, eye))
+                      block_visible=block_visible(layout.block_bounds, _block_z_range(layout), camera, params),
+                      block_distance=_block_distance(layout, eye))
 
 
 def _cell_ground(layout) -> np.ndarray:
@@ -179,16 +179,18 @@ def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
     return np.sqrt(nx * nx + ny * ny + nz * nz).astype(np.float32)
 
 
-def _block_visible(layout, camera: Camera) -> np.ndarray:
-    """Box-vs-frustum test: a box is out when all 8 corners lie outside one plane.
+def block_visible(bounds, z_range, camera: Camera, params, margin: float = 0.0) -> np.ndarray:
+    """Box-vs-frustum test of blocks (bounds (m, 4), z_range (m, 2)): a box is out when all 8
+    corners lie outside one plane. ``margin`` widens every box by that many metres.
 
     For a plane normal n the corner farthest inside is centre + |n| . half (the "positive
     vertex"), so that single test is exact for the 8 corners.
     """
-    reach, height = block_reach(layout)
-    b = layout.block_bounds.astype(np.float64)
-    z = _block_z_range(layout).astype(np.float64)
-    bottom, top = z[:, 0], z[:, 1] + height  # lowest ground .. tallest blade on the highest ground
+    reach, height = block_reach(params)
+    reach += margin
+    b = np.asarray(bounds, dtype=np.float64)
+    z = np.asarray(z_range, dtype=np.float64)
+    bottom, top = z[:, 0] - margin, z[:, 1] + height + margin  # lowest ground .. tallest blade
     centre = np.stack([(b[:, 0] + b[:, 2]) * 0.5, (b[:, 1] + b[:, 3]) * 0.5,
                        0.5 * (bottom + top)], axis=1) - np.asarray(camera.position, dtype=np.float64)
     half = np.stack([(b[:, 2] - b[:, 0]) * 0.5 + reach, (b[:, 3] - b[:, 1]) * 0.5 + reach,

@@ -45,10 +45,10 @@ def wind_preset(kind: str) -> dict[str, Any]:
     return {"wind.type": kind, **{f"wind.{k}": v for k, v in WIND_TYPE_PRESETS[kind].items()}}
 
 
-# Above these the field would not fit in memory on an ordinary workstation: every blade keeps its
-# rest shape, every cell its solver state (about 2 kB per cell at 12 segments, measured).
-MAX_TOTAL_BLADES = 20_000_000
-MAX_TOTAL_CELLS = 4_194_304  # 2048 x 2048 cells
+# A field's size is bounded by float32 precision, not by memory (blocks are made on demand):
+# vertex positions are float32 in field coordinates, whose spacing stays below a millimetre up to
+# 8192 m from the centre (2**13 m * 2**-23).
+MAX_FIELD_EXTENT = 16384.0  # m along X and along Y
 
 
 @dataclass(frozen=True)
@@ -137,10 +137,10 @@ WIND_KEY_FIELDS: tuple[Param, ...] = (
 
 PARAMS: tuple[Param, ...] = (
     # --- [field] paper III: blocks (patches) of square cells -----------------------------------
-    _p("field", "blocks_x", "int", 32, "Number of blocks (patches) along X", minimum=1, maximum=256,
-       soft_max=64),
-    _p("field", "blocks_y", "int", 32, "Number of blocks (patches) along Y", minimum=1, maximum=256,
-       soft_max=64),
+    _p("field", "blocks_x", "int", 32, "Number of blocks (patches) along X", minimum=1, maximum=1_638_400,
+       soft_max=1024),
+    _p("field", "blocks_y", "int", 32, "Number of blocks (patches) along Y", minimum=1, maximum=1_638_400,
+       soft_max=1024),
     _p("field", "cells_per_block", "int", 16, "Cells along each side of a block", minimum=1, maximum=64,
        soft_max=32),
     _p("field", "cell_size", "float", 0.1, "Edge length of a square cell", unit="m", minimum=0.01,
@@ -251,10 +251,14 @@ PARAMS: tuple[Param, ...] = (
     # --- [simulation] --------------------------------------------------------------------------------
     _p("simulation", "sub_steps", "int", 1, "Solver steps per frame at least (raised for stability)",
        minimum=1, maximum=64),
-    _p("simulation", "preroll", "float", 2.0, "Seconds simulated before the first frame", unit="s",
-       minimum=0.0, maximum=600.0, soft_max=10.0),
-    _p("simulation", "checkpoint_interval", "int", 24,
-       "Frames between saved states, so seeking backwards is cheap", minimum=1, maximum=100000),
+    _p("simulation", "preroll", "float", 3.0,
+       "Warm-up: seconds each stretch of simulation runs from rest before it is shown", unit="s",
+       minimum=0.5, maximum=600.0, soft_max=10.0),
+    _p("simulation", "epoch", "float", 6.0,
+       "Seconds between the starts of the simulated stretches: any frame is at most "
+       "preroll + epoch seconds of simulation away", unit="s", minimum=0.5, maximum=1e6, soft_max=60.0),
+    _p("simulation", "cache_mb", "int", 1024, "Memory for the blocks kept around the camera", unit="MB",
+       minimum=16, maximum=1_000_000),
 )
 
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))
@@ -471,21 +475,24 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
 def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
     """Constraints between parameters, each reported with the parameter that breaks it."""
     f, lod = v["field"], v["lod"]
-    cells = f["blocks_x"] * f["blocks_y"] * f["cells_per_block"] ** 2
-    total = cells * f["blades_per_cell"]
-    if total > MAX_TOTAL_BLADES:
-        raise ParameterError("field.blades_per_cell",
-                             f"the field would hold {total:,} blades; at most {MAX_TOTAL_BLADES:,} are allowed "
-                             "(lower field.blocks_x/blocks_y, field.cells_per_block or field.blades_per_cell)")
-    if cells > MAX_TOTAL_CELLS:
-        raise ParameterError("field.cells_per_block",
-                             f"the field would hold {cells:,} cells; at most {MAX_TOTAL_CELLS:,} are allowed "
-                             "(lower field.blocks_x/blocks_y or field.cells_per_block)")
+    for axis in ("x", "y"):
+        extent = f[f"blocks_{axis}"] * f["cells_per_block"] * f["cell_size"]
+        if extent > MAX_FIELD_EXTENT * (1.0 + 1e-9):
+            limit = int(MAX_FIELD_EXTENT / (f["cells_per_block"] * f["cell_size"]) + 1e-9)
+            raise ParameterError(
+                f"field.blocks_{axis}",
+                f"the field would be {extent:,.0f} m long along {axis.upper()}; float32 vertex positions keep "
+                f"millimetre precision up to {MAX_FIELD_EXTENT:,.0f} m (valid: 1 to {limit:,} blocks of "
+                f"{f['cells_per_block'] * f['cell_size']:g} m)")
     order = ("blade_near", "blade_far", "card_near", "card_far")
     for a, b in zip(order, order[1:]):
         if lod[b] < lod[a]:
             raise ParameterError(f"lod.{b}", f"{lod[b]:g} m must be >= lod.{a} ({lod[a]:g} m): "
                                  "valid: blade_near <= blade_far <= card_near <= card_far")
+    sim = v["simulation"]
+    if sim["epoch"] < sim["preroll"]:
+        raise ParameterError("simulation.epoch", f"{sim['epoch']:g} s must be >= simulation.preroll "
+                             f"({sim['preroll']:g} s)")
     r = v["render"]
     if r["frame_end"] < r["frame_start"]:
         raise ParameterError("render.frame_end",

@@ -1,124 +1,257 @@
-"""Deterministic time: the state at any frame, however it is reached (stepping, seeking, scrubbing).
+"""Deterministic time with bounded history: the state at any frame from a bounded number of steps.
 
 * ``t(frame) = (frame - render.frame_start) / render.fps``.
-* The simulation starts from rest at frame ``s0 = frame_start - round(simulation.preroll * fps)``;
-  any frame ``<= s0`` shows that initial state.
-* Going from frame ``f`` to ``f + 1`` samples the wind once, at ``t(f + 1)``, and runs one solver
-  step of ``1 / fps`` seconds with ``solver.stable_substeps(1 / fps)`` sub-steps. So the state at
-  frame N is a pure function of (params, wind, N): stepping 1..N, seeking straight to N and seeking
-  back to N give bitwise identical arrays.
-* Seeking backwards restores the nearest saved checkpoint ``<= frame`` and steps forward. A
-  checkpoint is saved every ``simulation.checkpoint_interval`` frames from ``s0``; when their total
-  memory passes ``max_checkpoint_bytes`` every other one is dropped (the interval doubles).
+* Time is cut into epochs of ``E = simulation.epoch * fps`` frames from ``frame_start``. Each
+  epoch ``k`` has its own trajectory: the solver started from rest at frame
+  ``s_k = frame_start + k E - W`` (``W = simulation.preroll * fps``, the warm-up) and stepped one
+  frame at a time, with the wind sampled once per frame at ``t(f + 1)`` for the step ``f -> f + 1``.
+* Frame N of epoch k shows trajectory k; over the last ``F = W / 2`` frames of the epoch it
+  cross-fades (smoothstep) into trajectory k + 1, which has run for at least ``W - F`` frames by
+  then. The damped recovery of eqs 29-32 forgets its start within seconds, so the two agree
+  closely and the hand-over does not pop.
+* So the state of a cell at frame N is a pure function of (params, wind, N, cell): a trajectory
+  starts at a fixed frame from rest and every cell is stepped on its own (the solver is per cell),
+  whether the frames were stepped one by one, seeked to, or the cell joined the window later
+  (``set_layout`` catches new cells up on their own). Reaching any frame costs at most
+  ``W + E`` steps of one trajectory plus ``W`` of the next, never N.
+* Seeking backwards within a trajectory restores the nearest saved state (one every
+  ``CHECKPOINT_FRAMES`` frames, while the trajectory and the window live).
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .solver import BladeSolver, SolverState
+from .layout import subset_layout
+from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
-MAX_CHECKPOINT_BYTES = 1 << 30  # 1 GiB of saved states at most
 PROGRESS_INTERVAL_S = 1.0
+CHECKPOINT_FRAMES = 24
+MAX_CHECKPOINT_BYTES = 1 << 29  # 512 MiB of saved states per trajectory at most
+
+
+@dataclass(eq=False)
+class Trajectory:
+    """Epoch ``k``'s solver run: started from rest at frame ``start``; ``state`` is at ``pos``."""
+
+    k: int
+    start: int
+    state: SolverState
+    pos: int
+    checkpoints: dict[int, SolverState] = field(default_factory=dict)
+
+
+def epoch_frames(params) -> tuple[int, int, int]:
+    """(E, W, F): epoch length, warm-up and cross-fade in frames."""
+    fps = int(params.render.fps)
+    warmup = max(1, int(round(params.simulation.preroll * fps)))
+    epoch = max(warmup, int(round(params.simulation.epoch * fps)))
+    return epoch, warmup, max(1, warmup // 2)
+
+
+def fade_weight(r: int, epoch: int, fade: int) -> float:
+    """Weight of the next trajectory at frame ``r`` of an epoch: 0 until the last ``fade``
+    frames, then a smoothstep that reaches 1 at the epoch's end (where the next one takes over)."""
+    u = (r - (epoch - fade) + 1) / (fade + 1)
+    if u <= 0.0:
+        return 0.0
+    u = min(u, 1.0)
+    return u * u * (3.0 - 2.0 * u)
 
 
 class Simulation:
-    """The blade solver driven through time by a wind field (anything with ``sample(t)``)."""
+    """The blade solver driven through time by a wind field (anything with ``sample(t, xy)``)
+    over the cells of ``layout`` (the whole field or a window of blocks; see ``set_layout``)."""
 
-    def __init__(self, layout, params, wind, max_checkpoint_bytes: int = MAX_CHECKPOINT_BYTES,
-                 solver: BladeSolver | None = None):
-        self.layout = layout
+    def __init__(self, layout, params, wind, solver: BladeSolver | None = None):
         self.params = params
         self.wind = wind
         self.fps = int(params.render.fps)
         self.frame_start = int(params.render.frame_start)
         self.frame_dt = 1.0 / self.fps
-        self.start_frame = self.frame_start - int(round(params.simulation.preroll * self.fps))  # s0
+        self.epoch, self.warmup, self.fade = epoch_frames(params)
+        self.layout = layout
         self.solver = solver if solver is not None else BladeSolver(layout, params)
         self.substeps = self.solver.stable_substeps(self.frame_dt)
-        self.interval = int(params.simulation.checkpoint_interval)
-        self.max_checkpoint_bytes = int(max_checkpoint_bytes)
-        self._checkpoints: dict[int, SolverState] = {}
-        self._wind_frame: int | None = None
-        self._pos = self.start_frame  # the frame the solver's state belongs to
-        self.frame = self.start_frame  # the frame last asked for (may be before the start)
+        self._trajectories: dict[int, Trajectory] = {}
+        self._shown = SolverState(layout.n_cells, layout.segments)  # the cross-faded state
+        self.frame = self.frame_start
+        self.state: SolverState = self._shown
+        self.cell_wind = self._sample(self.frame)
+        self._wind_frame = self.frame
+        self.steps = 0  # cell-frames stepped so far (a measure of work)
         # progress(done, total) of a long seek: at most every PROGRESS_INTERVAL_S seconds, and
         # (total, total) at its end when it reported at all
         self.progress = None
-        self.cell_wind = self._sample(self.frame)
 
     # ---------------------------------------------------------------------------- public API
-
-    @property
-    def state(self) -> SolverState:
-        return self.solver.state
 
     def time(self, frame: int) -> float:
         """t(frame) in seconds: 0 at render.frame_start."""
         return (frame - self.frame_start) / self.fps
 
+    def epoch_of(self, frame: int) -> tuple[int, int]:
+        """(k, r): the epoch of ``frame`` and the frame's place in it."""
+        k, r = divmod(int(frame) - self.frame_start, self.epoch)
+        return k, r
+
+    def trajectory_start(self, k: int) -> int:
+        """s_k: the frame where trajectory k starts from rest."""
+        return self.frame_start + k * self.epoch - self.warmup
+
     def seek(self, frame: int) -> None:
-        """Bring the state to ``frame`` (deterministic whichever way it gets there)."""
+        """Bring the shown state to ``frame`` (deterministic whichever way it gets there)."""
         frame = int(frame)
-        target = max(frame, self.start_frame)  # frames before the start show the initial state
-        if target != self._pos:
-            best = max((f for f in self._checkpoints if f <= target), default=None)
-            if target < self._pos or (best is not None and best > self._pos):
-                # Backwards (or a checkpoint is nearer than the current frame): restore.
-                if best is None:
-                    self.solver.reset()
-                    self._pos = self.start_frame
-                else:
-                    self.solver.state.assign(self._checkpoints[best])
-                    self._pos = best
-            begin, total, last_report = self._pos, target - self._pos, time.monotonic()
-            reported = False
-            while self._pos < target:
-                self._step()
-                if self.progress is not None and time.monotonic() - last_report >= PROGRESS_INTERVAL_S:
-                    last_report, reported = time.monotonic(), True
-                    self.progress(self._pos - begin, total)
-            if reported:
-                self.progress(total, total)  # the end of a seek that reported
+        k, r = self.epoch_of(frame)
+        weight = fade_weight(r, self.epoch, self.fade)
+        wanted = [k] + ([k + 1] if frame >= self.trajectory_start(k + 1) else [])
+        for old in [j for j in self._trajectories if j not in wanted]:
+            del self._trajectories[old]
+        self._advance({j: frame for j in wanted})
+        if weight == 0.0:
+            self.state = self._trajectories[k].state
+        else:
+            self._blend(self._trajectories[k].state, self._trajectories[k + 1].state, weight)
+            self.state = self._shown
         self.frame = frame
         if self._wind_frame != frame:
             self.cell_wind = self._sample(frame)
+            self._wind_frame = frame
+
+    def set_layout(self, layout, solver: BladeSolver | None = None, frame: int | None = None) -> None:
+        """Work on the cells of ``layout`` from now on (the whole field or a window of blocks;
+        ``layout.block_ids``).
+
+        Cells of blocks in both layouts keep their states; those of new blocks are stepped on
+        their own from each live trajectory's start to its frame (the steps they would have
+        taken in the window), so a cell's state never depends on when it joined. ``frame``: the
+        frame about to be shown; trajectories it does not need are dropped, not caught up."""
+        if self.layout is layout:
+            return
+        old = self.layout
+        if frame is not None:
+            k, _ = self.epoch_of(frame)
+            for j in [j for j, t in self._trajectories.items() if j not in (k, k + 1) or t.pos > frame]:
+                del self._trajectories[j]
+        where = {int(b): i for i, b in enumerate(old.block_ids)}
+        keep_new = [i for i, b in enumerate(layout.block_ids) if int(b) in where]
+        keep_old = [where[int(layout.block_ids[i])] for i in keep_new]
+        fresh = [i for i, b in enumerate(layout.block_ids) if int(b) not in where]
+        new_cols = layout.block_cells[keep_new].ravel()
+        old_cols = old.block_cells[keep_old].ravel()
+        fresh_cols = layout.block_cells[fresh].ravel()
+        self.layout = layout
+        caught = self._catch_up(layout, fresh) if fresh and self._trajectories else {}
+        for traj in self._trajectories.values():
+            state = SolverState(layout.n_cells, layout.segments)
+            for name in STATE_ARRAYS:
+                dst, src = getattr(state, name), getattr(traj.state, name)
+                dst[..., new_cols] = src[..., old_cols]
+                if fresh:
+                    dst[..., fresh_cols] = getattr(caught[traj.k], name)
+            state.changed()
+            traj.state = state
+            traj.checkpoints.clear()
+        self.solver = solver if solver is not None else BladeSolver(layout, self.params)
+        self._shown = SolverState(layout.n_cells, layout.segments)
+        self.state = self._shown
+        self._wind_frame = None
+        self.cell_wind = self._sample(self.frame)
+        self._wind_frame = self.frame
 
     # ---------------------------------------------------------------------------- internals
 
+    def _catch_up(self, layout, fresh: list[int]) -> dict[int, SolverState]:
+        """States of the cells of ``layout``'s local blocks ``fresh`` in every live trajectory,
+        each stepped from the trajectory's start on its own."""
+        sub = subset_layout(layout, fresh)
+        runner = Simulation(sub, self.params, self.wind)
+        out = {}
+        for k, traj in self._trajectories.items():
+            runner._trajectories.clear()
+            runner._advance({k: traj.pos})
+            out[k] = runner._trajectories[k].state
+        self.steps += runner.steps
+        return out
+
     def _sample(self, frame: int) -> np.ndarray:
-        wind = np.ascontiguousarray(self.wind.sample(self.time(frame)), dtype=np.float32)
-        self._wind_frame = frame
-        return wind
+        return np.ascontiguousarray(self.wind.sample(self.time(frame), self.layout.cell_center), dtype=np.float32)
 
-    def _step(self) -> None:
-        """One frame forward: wind at t(frame + 1), then the solver's sub-steps."""
-        nxt = self._pos + 1
-        self.cell_wind = self._sample(nxt)
-        self.solver.step(self.cell_wind, self.frame_dt, self.substeps)
-        self._pos = nxt
-        if (nxt - self.start_frame) % self.interval == 0 and nxt not in self._checkpoints:
-            self._save_checkpoint(nxt)
+    def _trajectory(self, k: int, frame: int) -> Trajectory:
+        """Trajectory k at a frame <= ``frame`` (restarted or restored when it is past it)."""
+        traj = self._trajectories.get(k)
+        if traj is not None and traj.pos <= frame:
+            return traj
+        start = self.trajectory_start(k)
+        if traj is None:
+            traj = Trajectory(k, start, SolverState(self.layout.n_cells, self.layout.segments), start)
+            self._trajectories[k] = traj
+        best = max((f for f in traj.checkpoints if f <= frame), default=None)
+        if best is None:
+            traj.state.reset()
+            traj.pos = start
+        else:
+            traj.state.assign(traj.checkpoints[best])
+            traj.pos = best
+        return traj
 
-    def _save_checkpoint(self, frame: int) -> None:
-        step = self.interval
-        # Thinning: keep only multiples of the (doubled) spacing until the memory fits.
-        size = self.solver.state.nbytes
-        while (len(self._checkpoints) + 1) * size > self.max_checkpoint_bytes and self._checkpoints:
-            step *= 2
-            keep = {f: s for f, s in self._checkpoints.items() if (f - self.start_frame) % step == 0}
-            if len(keep) == len(self._checkpoints):
+    def _advance(self, targets: dict[int, int]) -> None:
+        """Step trajectories ``k`` to frames ``targets[k]`` together: one wind sample per frame."""
+        trajs = [self._trajectory(k, f) for k, f in targets.items()]
+        frames = [max(f, t.start) for t, f in zip(trajs, targets.values())]
+        total = sum(f - t.pos for t, f in zip(trajs, frames))
+        done, last_report, reported = 0, time.monotonic(), False
+        while True:
+            behind = [t for t, f in zip(trajs, frames) if t.pos < f]
+            if not behind:
                 break
-            self._checkpoints = keep
-            self.interval = step
-        if (frame - self.start_frame) % self.interval != 0:
-            return
-        if (len(self._checkpoints) + 1) * size > self.max_checkpoint_bytes:
-            return
-        self._checkpoints[frame] = self.solver.state.copy()
+            nxt = min(t.pos for t in behind) + 1
+            wind = self._sample(nxt)
+            self._wind_frame = nxt
+            self.cell_wind = wind
+            for traj in behind:
+                if traj.pos == nxt - 1:
+                    self._step(traj, wind)
+                    done += 1
+            if self.progress is not None and time.monotonic() - last_report >= PROGRESS_INTERVAL_S:
+                last_report, reported = time.monotonic(), True
+                self.progress(done, total)
+        if reported:
+            self.progress(total, total)
+
+    def _step(self, traj: Trajectory, wind: np.ndarray) -> None:
+        self.solver.state = traj.state
+        self.solver.step(wind, self.frame_dt, self.substeps)
+        traj.pos += 1
+        self.steps += self.layout.n_cells
+        if (traj.pos - traj.start) % CHECKPOINT_FRAMES == 0 and traj.pos not in traj.checkpoints:
+            if (len(traj.checkpoints) + 1) * traj.state.nbytes <= MAX_CHECKPOINT_BYTES:
+                traj.checkpoints[traj.pos] = traj.state.copy()
+
+    def _blend(self, a: SolverState, b: SolverState, weight: float) -> None:
+        """The shown state: (1 - w) a + w b, array by array."""
+        w = np.float32(weight)
+        for name in STATE_ARRAYS:
+            out = getattr(self._shown, name)
+            np.subtract(getattr(b, name), getattr(a, name), out=out)
+            out *= w
+            out += getattr(a, name)
+        self._shown.changed()
 
     @property
     def checkpoint_frames(self) -> list[int]:
-        return sorted(self._checkpoints)
+        return sorted(f for t in self._trajectories.values() for f in t.checkpoints)
+
+    @property
+    def live_trajectories(self) -> list[int]:
+        return sorted(self._trajectories)
+
+
+def seek_cost_bound(params) -> int:
+    """Most trajectory-frames a seek to any frame steps: W + E of one trajectory, W of the next."""
+    epoch, warmup, _ = epoch_frames(params)
+    return warmup + epoch + warmup
+

@@ -38,7 +38,7 @@ def card_vertex_count(layout) -> int:
 
 
 def blocks_within(layout, distance: float) -> int:
-    """Blocks whose nearest point can lie within ``distance`` of a camera, at most n_blocks.
+    """Blocks whose nearest point can lie within ``distance`` of a camera, at most the field's.
 
     A block (edge s) with a point within d of the camera has its centre within d + s/sqrt(2);
     every such block lies inside the disc of radius d + s*sqrt(2) (d + block diagonal), so their
@@ -46,7 +46,7 @@ def blocks_within(layout, distance: float) -> int:
     """
     edge = layout.cells_per_block * layout.cell_size
     radius = distance + edge * math.sqrt(2.0)
-    return int(min(layout.n_blocks, math.ceil(math.pi * radius * radius / (edge * edge))))
+    return int(min(layout.blocks_x * layout.blocks_y, math.ceil(math.pi * radius * radius / (edge * edge))))
 
 
 def pool_blocks(layout, params) -> tuple[int, int]:
@@ -54,7 +54,7 @@ def pool_blocks(layout, params) -> tuple[int, int]:
     geometry and no card is drawn."""
     lod = params.lod
     if not lod.enabled:
-        return (layout.n_blocks if layout.blades_per_block else 0), 0
+        return (layout.blocks_x * layout.blocks_y if layout.blades_per_block else 0), 0
     blades = blocks_within(layout, lod.blade_far) if layout.blades_per_block else 0
     return blades, blocks_within(layout, lod.card_far)
 
@@ -111,13 +111,13 @@ def nearest_blocks(candidates: np.ndarray, distance: np.ndarray, count: int) -> 
     """Up to ``count`` candidate blocks, nearest first (stable for equal distances)."""
     idx = np.flatnonzero(candidates)
     order = np.argsort(distance[idx], kind="stable")
-    return idx[order[:count]].astype(np.int32)
+    return idx[order[:count]].astype(np.int64)
 
 
 def assign_positions(n_positions: int, chosen: np.ndarray) -> np.ndarray:
     """Block shown at every position: the chosen blocks in block order, then FREE."""
-    out = np.full(n_positions, FREE, dtype=np.int32)
-    blocks = np.sort(np.asarray(chosen, dtype=np.int32))[:n_positions]
+    out = np.full(n_positions, FREE, dtype=np.int64)
+    blocks = np.sort(np.asarray(chosen, dtype=np.int64))[:n_positions]
     out[: len(blocks)] = blocks
     return out
 
@@ -138,15 +138,19 @@ class PoolState:
 
     def __init__(self, shape: PoolShape):
         self.shape = shape
-        self.shown = np.full(shape.positions, UNKNOWN, dtype=np.int32)
+        self.shown = np.full(shape.positions, UNKNOWN, dtype=np.int64)
 
     def forget(self) -> None:
         """The objects' data may be anything now (undo, a reopened file): write everything next."""
         self.shown.fill(UNKNOWN)
 
-    def assign(self, needs: np.ndarray, block_distance: np.ndarray) -> Assignment:
-        """This frame's assignment: the nearest blocks that ``need`` the pool (bool per block)."""
+    def assign(self, needs: np.ndarray, block_distance: np.ndarray, block_ids: np.ndarray | None = None) -> Assignment:
+        """This frame's assignment: the nearest blocks that ``need`` the pool (bool per block).
+        ``block_ids``: the field-wide id of each block (ascending; a window of the field), which
+        the positions then hold; None: the blocks are the field's own."""
         chosen = nearest_blocks(needs, block_distance, self.shape.positions)
+        if block_ids is not None:
+            chosen = np.asarray(block_ids, dtype=np.int64)[chosen]
         shown = assign_positions(self.shape.positions, chosen)
         k = self.shape.k
         cur, prev = shown.reshape(-1, k), self.shown.reshape(-1, k)

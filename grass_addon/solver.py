@@ -72,7 +72,7 @@ F32 = np.float32
 ROW_PAD = 16  # floats between the rows of a scratch buffer (see _Scratch)
 
 
-_STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t")
+STATE_ARRAYS = ("bend_t", "bend_vel_t", "twist_t", "twist_vel_t", "bend_eq_t")
 
 
 class SolverState:
@@ -146,23 +146,23 @@ class SolverState:
 
     def assign(self, other: SolverState) -> None:
         """Copy ``other``'s values into this state (bitwise)."""
-        for name in _STATE_ARRAYS:
+        for name in STATE_ARRAYS:
             np.copyto(getattr(self, name), getattr(other, name))
         self.changed()
 
     def reset(self) -> None:
-        for name in _STATE_ARRAYS:
+        for name in STATE_ARRAYS:
             getattr(self, name).fill(0.0)
         self.changed()
 
     def equals(self, other: SolverState) -> bool:
         """Bitwise equality of every array."""
         return all(np.array_equal(getattr(self, k).view(np.uint32), getattr(other, k).view(np.uint32))
-                   for k in _STATE_ARRAYS)
+                   for k in STATE_ARRAYS)
 
     @property
     def nbytes(self) -> int:
-        return sum(getattr(self, k).nbytes for k in _STATE_ARRAYS)
+        return sum(getattr(self, k).nbytes for k in STATE_ARRAYS)
 
 
 class _Scratch:
@@ -336,8 +336,8 @@ class BladeSolver:
         """Sub-steps per frame that keep eq 32 stable (>= simulation.sub_steps).
 
         Symplectic Euler on theta'' + c theta' + w^2 theta = 0 is stable for h c < 2 and
-        h^2 w^2 + 2 h c < 4. We ask for half of each bound (h c <= 1, h^2 w^2 + 2 h c <= 2) at
-        the stiffest, lightest oscillating joint, with eq 23's stiffening at its bound. A joint
+        h^2 w^2 + 2 h c < 4. We ask for half of each bound (h c <= 1, h^2 w^2 + 2 h c <= 2) for
+        the fastest joint that may oscillate at this frame rate. A joint
         whose natural period is shorter than FRAMES_PER_SWAY frames cannot show a sway at this rate
         (it would flicker or alias); such a joint (the short tip segment,
         typically) follows the smooth update of eqs 25-27 instead of eq 32, which is
@@ -346,16 +346,15 @@ class BladeSolver:
         frame_dt = float(frame_dt)
         if not (frame_dt > 0.0 and math.isfinite(frame_dt)):
             raise ValueError(f"frame_dt must be a positive number of seconds, got {frame_dt!r}")
-        visible = self._omega2 <= self._visible_omega2(frame_dt)
-        need = 1
-        if visible.any():
-            w2 = float(self._omega2[visible].max())
-            c = float(self._damp[visible].max())
-            # positive root of w2 h^2 + 2 c h - 2 = 0 (grows with w2 and c: the worst joint rules)
-            h = (-c + math.sqrt(c * c + 2.0 * w2)) / w2 if w2 > 0 else math.inf
-            if c > 0:
-                h = min(h, 1.0 / c)
-            need = max(1, math.ceil(frame_dt / h - 1e-9))
+        # The bound uses the fastest joint the rate can show (w^2 = the visible limit) and its
+        # damping, not the cells at hand: the count is a function of the parameters alone, the
+        # same for the whole field and for any window of it.
+        w2 = self._visible_omega2(frame_dt)
+        c = self.alpha + self.beta * w2
+        h = (-c + math.sqrt(c * c + 2.0 * w2)) / w2
+        if c > 0:
+            h = min(h, 1.0 / c)
+        need = max(1, math.ceil(frame_dt / h - 1e-9))
         return max(self.min_substeps, min(need, AUTO_MAX_SUBSTEPS))
 
     def equilibrium_bend(self, wind: np.ndarray) -> np.ndarray:

@@ -44,10 +44,13 @@ def write_velocity(mesh, velocity: np.ndarray) -> None:
 class SlotPool:
     """The objects of one role (``blades`` or ``cards``) of a field and what they show.
 
-    needs(lod) -> (n_blocks,) bool: blocks that need this level of detail (visible ones);
-    fill(cells, blocks, lod, out): their vertices for cell data ``cells`` into ``out``;
-    attributes(mesh, blocks, lod, changed): per-vertex attributes of one object showing ``blocks``
-    (FREE where nothing); ``changed``: some position of it shows another block than before.
+    needs(layout, lod) -> (n_blocks,) bool: blocks of the field's window that need this level of
+    detail (visible ones); fill(layout, cells, blocks, lod, out): their vertices for cell data
+    ``cells`` into ``out``; attributes(layout, mesh, blocks, lod, changed): per-vertex attributes
+    of one object showing ``blocks`` (FREE where nothing); ``changed``: some position of it shows
+    another block than before. ``blocks`` are the window's local ids; positions record
+    field-wide ids (``self.blocks``, ``state.shown``), so what an object shows never depends
+    on the window.
     """
 
     def __init__(self, role: str, shape: slots.PoolShape, needs: Callable, fill: Callable, attributes: Callable):
@@ -58,7 +61,7 @@ class SlotPool:
         self.buffer = np.zeros((shape.positions * shape.verts_per_block, 3), dtype=np.float32)
         self.velocity: np.ndarray | None = None  # m/s per vertex, made when motion blur asks for it
         self.ahead: np.ndarray | None = None  # the later pose, scratch space of GrassField.motion
-        self.blocks = np.zeros(0, np.int32)  # the blocks shown at the last write, sorted
+        self.blocks = np.zeros(0, np.int64)  # the blocks (field-wide ids) shown at the last write, sorted
 
     def write(self, item, field, lod, block_distance: np.ndarray, motion=None) -> None:
         """Assign this frame's blocks to positions and write every object that needs it.
@@ -67,20 +70,23 @@ class SlotPool:
         and a ``velocity`` attribute (m/s) from the same blocks' poses at the neighbouring frames
         (``GrassField.motion``), so a position that shows another block than on the neighbouring
         frame never smears across the image."""
-        assignment = self.state.assign(self._needs(lod), block_distance)
+        layout = field.layout
+        assignment = self.state.assign(self._needs(layout, lod), block_distance, layout.block_ids)
         shown, count = assignment.shown, assignment.count
         self.blocks = shown[:count].copy()
+        local = np.full(shown.shape, slots.FREE, dtype=np.int64)
+        local[:count] = np.searchsorted(layout.block_ids, shown[:count])
         rows = count * self.shape.verts_per_block
         if motion is None:
             if count:
-                self._fill(field.cells, shown[:count], lod, self.buffer[:rows])
+                self._fill(layout, field.cells, local[:count], lod, self.buffer[:rows])
         else:
             if self.velocity is None:
                 self.velocity = np.zeros_like(self.buffer)
                 self.ahead = np.empty_like(self.buffer)
             frame, subframe, fps = motion
             if count:
-                field.motion(frame, subframe, fps, lambda cells, out: self._fill(cells, shown[:count], lod, out),
+                field.motion(frame, subframe, fps, lambda cells, out: self._fill(layout, cells, local[:count], lod, out),
                              self.buffer[:rows], self.velocity[:rows], self.ahead[:rows])
             self.velocity[rows:] = 0.0
         self.buffer[rows:] = 0.0
@@ -98,14 +104,14 @@ class SlotPool:
             write_positions(mesh, self.buffer[index * rows:(index + 1) * rows])
             if motion is not None:
                 write_velocity(mesh, self.velocity[index * rows:(index + 1) * rows])
-            self._attributes(mesh, shown[index * k:(index + 1) * k], lod, bool(assignment.changed[index]))
+            self._attributes(layout, mesh, local[index * k:(index + 1) * k], lod, bool(assignment.changed[index]))
             mesh.update()
 
     def collapse(self, item) -> None:
         """Every object to a point (nothing drawn); the next write rewrites everything."""
         collapse_objects(field_scene.slot_objects(item, self.role).values())
         self.state.forget()
-        self.blocks = np.zeros(0, np.int32)
+        self.blocks = np.zeros(0, np.int64)
 
 
 def collapse_objects(objects) -> None:
@@ -123,19 +129,18 @@ def _write_uv(mesh, name: str, uv: np.ndarray) -> None:
 def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
     """Blade strips: blocks where some cell has N > 0 (eq 9); colours rewritten where a position
     changed block (FREE positions cleared, so an object's data is a function of the frame alone)."""
-    layout = field.layout
-    corners = layout.segments * 4  # per blade: n quads
-    bpb = layout.blades_per_block
 
-    def needs(lod):
+    def needs(layout, lod):
         return (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
 
-    def fill(cells, blocks, lod, out):
+    def fill(layout, cells, blocks, lod, out):
         kinematics.blade_vertices(layout, cells, blocks, lod.blade_count, out)
 
-    def attributes(mesh, blocks, lod, changed):
+    def attributes(layout, mesh, blocks, lod, changed):
         if not changed:
             return
+        corners = layout.segments * 4  # per blade: n quads
+        bpb = layout.blades_per_block
         shown = blocks >= 0
         rg = np.zeros((len(blocks), bpb, 2), dtype=np.float32)
         bs = np.zeros((len(blocks), bpb, 2), dtype=np.float32)
@@ -153,15 +158,14 @@ def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
 def card_pool(field, shape: slots.PoolShape) -> SlotPool:
     """Cards: blocks where some card has opacity K_b > 0 (eqs 7, 11); the opacity follows the
     camera every frame, not only when a position changes block."""
-    layout = field.layout
 
-    def needs(lod):
+    def needs(layout, lod):
         return (lod.k_billboard[layout.block_cells] > 0).any(axis=1) & lod.block_visible
 
-    def fill(cells, blocks, lod, out):
+    def fill(layout, cells, blocks, lod, out):
         kinematics.card_vertices(layout, cells, blocks, out)
 
-    def attributes(mesh, blocks, lod, changed):
+    def attributes(layout, mesh, blocks, lod, changed):
         opacity = np.zeros((len(blocks), layout.cells_per_block_total), dtype=np.float32)
         shown = blocks >= 0
         opacity[shown] = lod.k_billboard[layout.block_cells[blocks[shown]]]

@@ -297,6 +297,7 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
     each motion-blur step), the vertices are those of that instant and carry their velocity."""
     frame, subframe = scene.frame_current, float(scene.frame_subframe)
     camera = field_camera.field_camera(scene, item, depsgraph)
+    rt.field.view(camera, frame)  # the window of blocks this camera needs (same window: no work)
     if rt.frame != frame or rt.field.cells is None:
         rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
     lod = rt.field.lod(camera)

@@ -292,8 +292,9 @@ def test_params_round_trip_through_the_settings(scene):
     (lambda item: setattr(item.lod, "blade_far", 1.0), "lod.blade_far"),  # below blade_near (6 m)
     (lambda item: [setattr(r, "weight", 0.0) for r in item.blade.species], "blade.species"),
     (lambda item: setattr(item.render, "frame_end", 0), "render.frame_end"),
-    (lambda item: (setattr(item.field, "blocks_x", 256), setattr(item.field, "blocks_y", 256),
-                   setattr(item.field, "blades_per_cell", 64)), "field.blades_per_cell"),
+    (lambda item: (setattr(item.field, "blocks_x", 20000), setattr(item.field, "cells_per_block", 64)),
+     "field.blocks_x"),  # 20000 blocks of 64 cells: past float32's millimetre range
+    (lambda item: setattr(item.simulation, "epoch", 1.0), "simulation.epoch"),  # below the preroll (3 s)
 ])
 def test_bad_settings_raise_parameter_error_naming_the_key(scene, setting, key):
     from windgrass.grass_addon import presets

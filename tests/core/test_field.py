@@ -11,7 +11,7 @@ from windgrass.grass_addon.lod import Camera
 
 def small_params(**values):
     base = {"field.blocks_x": 3, "field.blocks_y": 2, "field.cells_per_block": 4, "field.blades_per_cell": 2,
-            "blade.segments": 4, "simulation.preroll": 0.5, "simulation.checkpoint_interval": 4}
+            "blade.segments": 4, "simulation.preroll": 0.5}
     base.update(values)
     return schema.defaults().replace(base)
 

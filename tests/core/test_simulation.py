@@ -1,4 +1,4 @@
-"""Deterministic time (seek, preroll, checkpoints) and the shared cell data of eqs 33-34."""
+"""Deterministic time with bounded history (epochs, warm-up, cross-fade) and the shared cell data of eqs 33-34."""
 
 import math
 
@@ -8,11 +8,11 @@ from windgrass.grass_addon import schema
 from windgrass.grass_addon.blade import GROUND_TILT
 from windgrass.grass_addon.celldata import card_offset, cell_data
 from windgrass.grass_addon.layout import build_layout
-from windgrass.grass_addon.simulation import Simulation
+from windgrass.grass_addon.simulation import Simulation, fade_weight, seek_cost_bound
 from windgrass.grass_addon.wind import WindField
 
 BASE = {"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4, "render.fps": 24,
-        "render.frame_start": 1, "simulation.preroll": 0.5, "simulation.checkpoint_interval": 6}
+        "render.frame_start": 1, "simulation.preroll": 0.5}
 
 
 class GustyWind:
@@ -22,7 +22,7 @@ class GustyWind:
     def __init__(self, n_cells):
         self.phase = np.linspace(0.0, 3.0, n_cells)
 
-    def sample(self, t):
+    def sample(self, t, xy=None):
         speed = 5.0 + 3.0 * np.sin(2.0 * t + self.phase)
         out = np.zeros((self.phase.size, 2), dtype=np.float32)
         out[:, 0] = speed
@@ -37,23 +37,25 @@ def make(overrides=None, wind="field", **kw):
     return layout, params, Simulation(layout, params, field, **kw)
 
 
-def test_time_and_preroll_start():
-    _, params, sim = make({"render.frame_start": 10, "render.fps": 25, "simulation.preroll": 2.0})
+def test_time_epochs_and_trajectory_starts():
+    _, params, sim = make({"render.frame_start": 10, "render.fps": 25, "simulation.preroll": 2.0,
+                           "simulation.epoch": 4.0})
     assert sim.time(10) == 0.0 and sim.time(35) == pytest.approx(1.0) and sim.time(5) == pytest.approx(-0.2)
-    assert sim.start_frame == 10 - 50
-    assert sim.time(sim.start_frame) == pytest.approx(-2.0)  # starts from rest at t = -preroll
+    assert (sim.epoch, sim.warmup, sim.fade) == (100, 50, 25)
+    assert sim.epoch_of(10) == (0, 0) and sim.epoch_of(109) == (0, 99) and sim.epoch_of(110) == (1, 0)
+    assert sim.epoch_of(9) == (-1, 99)  # frames before the first have epochs too
+    assert sim.trajectory_start(0) == 10 - 50  # from rest at t = -preroll
+    assert sim.trajectory_start(3) == 10 + 300 - 50
 
 
-def test_frames_before_the_start_show_the_initial_state():
-    _, _, sim = make(wind="gusty")
-    sim.seek(30)
-    assert sim.state.bend.any()
-    for frame in (sim.start_frame, sim.start_frame - 100):
-        sim.seek(frame)
-        assert sim.frame == frame
-        assert not sim.state.bend.any() and not sim.state.twist.any()
-    sim.seek(sim.start_frame + 1)
-    assert sim.state.bend.any()
+def test_the_cross_fade_is_smooth_and_complete():
+    epoch, fade = 100, 25
+    weights = [fade_weight(r, epoch, fade) for r in range(epoch)]
+    assert weights[: epoch - fade] == [0.0] * (epoch - fade)
+    assert all(0.0 < w < 1.0 for w in weights[epoch - fade:])
+    assert np.all(np.diff(weights) >= 0.0)
+    assert max(np.diff(weights)) < 2.0 / fade  # no jump: a smoothstep over the fade
+    assert weights[-1] > 0.9  # and the next epoch's frame 0 shows the next trajectory alone
 
 
 def test_preroll_bends_the_grass_before_the_first_frame():
@@ -64,58 +66,48 @@ def test_preroll_bends_the_grass_before_the_first_frame():
 
 @pytest.mark.parametrize("wind", ["field", "gusty"])
 def test_state_is_the_same_whichever_path_reaches_a_frame(wind):
-    _, _, stepped = make(wind=wind)
-    target = 40
-    for frame in range(stepped.start_frame, target + 1):
+    """Stepping frame by frame through two epoch hand-overs, seeking straight to the frame, and
+    seeking there after jumps back and forth give bitwise the same state."""
+    overrides = {"simulation.preroll": 0.5, "simulation.epoch": 1.0}  # 12 and 24 frames
+    _, _, stepped = make(overrides, wind=wind)
+    target = 69  # epoch 2, frame 20: inside its cross-fade (frames 18-23 of 24)
+    assert stepped.epoch_of(target)[1] >= stepped.epoch - stepped.fade
+    for frame in range(-30, target + 1):
         stepped.seek(frame)
     reference = stepped.state.copy()
     reference_wind = stepped.cell_wind.copy()
 
-    _, _, direct = make(wind=wind)
+    _, _, direct = make(overrides, wind=wind)
     direct.seek(target)
     assert direct.state.equals(reference)
     assert np.array_equal(direct.cell_wind, reference_wind)
 
-    # backwards (restores a checkpoint and steps on), to before the start, and forwards again
-    for frame in (target + 17, 13, target, -500, 5, target):
+    for frame in (target + 17, 13, target, -500, 5, target - 1, target):
         stepped.seek(frame)
     assert stepped.frame == target
     assert stepped.state.equals(reference)
     assert np.array_equal(stepped.state.bend, reference.bend)  # the public arrays too
 
 
-def test_seeking_back_uses_checkpoints():
-    _, _, sim = make(wind="gusty")
+def test_any_frame_costs_a_bounded_number_of_steps():
+    """Reaching frame 100,000 steps no more than W + E + W frames, like frame 1; a seek back
+    inside the same trajectory restores a saved state instead of starting again."""
+    layout, params, sim = make(wind="gusty")
+    bound = seek_cost_bound(params)
+    for frame in (1, 100_000, 100_000 + sim.epoch - 1, -7_777):
+        fresh = Simulation(layout, params, GustyWind(layout.n_cells))
+        fresh.seek(frame)
+        assert fresh.steps <= bound * layout.n_cells, frame
     sim.seek(60)
-    saved = sim.checkpoint_frames
-    interval = 6
-    assert saved and all((f - sim.start_frame) % interval == 0 for f in saved)
-    steps = []
-    original = sim.solver.step
-    sim.solver.step = lambda *a, **k: (steps.append(1), original(*a, **k))
-    sim.seek(45)
-    nearest = max(f for f in saved if f <= 45)
-    assert len(steps) == 45 - nearest  # stepped from the nearest checkpoint, not from the start
-
-
-def test_checkpoint_memory_is_capped_by_thinning():
-    _, _, free = make(wind="gusty")
-    free.seek(100)
-    size = free.state.nbytes
-    _, _, capped = make(wind="gusty", max_checkpoint_bytes=4 * size)
-    capped.seek(100)
-    assert len(capped.checkpoint_frames) * size <= 4 * size
-    assert len(capped.checkpoint_frames) >= 2
-    assert capped.state.equals(free.state)
-    capped.seek(37)
-    free.seek(37)
-    assert capped.state.equals(free.state)
+    before = sim.steps
+    sim.seek(50)
+    assert sim.steps - before < (50 - sim.trajectory_start(sim.epoch_of(50)[0])) * layout.n_cells
 
 
 def test_cell_wind_is_the_wind_of_the_current_frame():
     layout, params, sim = make()
     other = WindField(layout, params)
-    for frame in (12, 3, 30, sim.start_frame - 5):
+    for frame in (12, 3, 30, -80):
         sim.seek(frame)
         assert np.array_equal(sim.cell_wind, other.sample(sim.time(frame)))
         assert sim.cell_wind.shape == (layout.n_cells, 2) and sim.cell_wind.dtype == np.float32
@@ -167,7 +159,7 @@ def test_a_long_seek_reports_its_progress(monkeypatch):
     sim.progress = lambda done, total: calls.append((done, total))
     monkeypatch.setattr(simulation_mod, "PROGRESS_INTERVAL_S", 0.0)  # report at every step
     sim.seek(30)
-    total = 30 - sim.start_frame
+    total = 30 - sim.trajectory_start(0)
     assert calls[-1] == (total, total) and [d for d, _ in calls[:-1]] == list(range(1, total + 1))
     calls.clear()
     monkeypatch.setattr(simulation_mod, "PROGRESS_INTERVAL_S", 3600.0)  # a short seek says nothing

@@ -86,8 +86,11 @@ class SlotPool:
                 self.ahead = np.empty_like(self.buffer)
             frame, subframe, fps = motion
             if count:
-                field.motion(frame, subframe, fps, lambda cells, out: self._fill(layout, cells, local[:count], lod, out),
-                             self.buffer[:rows], self.velocity[:rows], self.ahead[:rows])
+                def vertices(cells, out):
+                    self._fill(layout, cells, local[:count], lod, out)
+
+                field.motion(frame, subframe, fps, vertices, self.buffer[:rows], self.velocity[:rows],
+                             self.ahead[:rows])
             self.velocity[rows:] = 0.0
         self.buffer[rows:] = 0.0
         objects = field_scene.slot_objects(item, self.role)

@@ -45,10 +45,11 @@ class GrassField:
         self.whole = cells <= WHOLE_FIELD_CELLS
         if self.whole:
             layout = build_layout(params, terrain, cache=self.cache)
-        else:
-            layout = window_layout(self.cache, self._centre_blocks())
+        else:  # blocks are made when the first view (a camera, or none: the centre) asks for them
+            layout = window_layout(self.cache, [])
             self.notice = (f"the field has {cells:,} cells, too many to simulate whole without a camera; "
                            f"the blocks within lod.card_far ({params.lod.card_far:g} m) of its centre are used")
+        self._viewed = self.whole
         self.layout: FieldLayout = layout
         self.wind = WindField(layout, params, keys=wind_keys)
         self.sim = Simulation(layout, params, self.wind)
@@ -107,6 +108,7 @@ class GrassField:
         LOD on, the window reaches a block further than needed and is kept while it still holds
         every needed block and is not much larger, so a moving camera changes it every few frames.
         ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
+        self._viewed = True
         needed = self.blocks_for(camera)
         current = self.layout.block_ids
         if np.array_equal(needed, current):
@@ -135,7 +137,7 @@ class GrassField:
     def seek(self, frame: int, camera: Camera | None = None) -> CellData:
         """Deterministic state at `frame` (a function of params, seed and frame only) of the
         window's cells; ``camera``: move the window to what it needs first."""
-        if camera is not None:
+        if camera is not None or not self._viewed:
             self.view(camera, frame)
         self.sim.seek(int(frame))
         self.cells = cell_data(self.layout, self.sim)

@@ -26,7 +26,7 @@ from .simulation import Simulation
 from .wind import WindField
 
 RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
-WHOLE_FIELD_CELLS = 1 << 20  # without a camera (or with LOD off) a field this small is simulated whole
+WHOLE_FIELD_CELLS = 1 << 18  # without a camera (or with LOD off) fields this small (51 m) are simulated whole
 WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the camera needs
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 

@@ -1,6 +1,7 @@
 """Benchmark of one frame update of the engine (numpy only); prints ONE JSON object.
 
     python headless/bench.py [--blades N] [--segments S] [--frames F] [--json] [--peers]
+    python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
 
 Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks as give about
 N blades, laid out near-square (default 524,288 blades = 32 x 32 blocks). Each timed frame runs
@@ -200,7 +201,15 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=10, help="timed frames after warm-up (default 10)")
     parser.add_argument("--json", action="store_true", help="compact one-line JSON (default: indented)")
     parser.add_argument("--peers", action="store_true", help="also time the Blender peers (bench_peers.py)")
+    parser.add_argument("--scale", action="store_true",
+                        help="cost against field size: 25.6 m to 10 km (bench_scale.py); other flags ignored")
     args = parser.parse_args(argv)
+    if args.scale:
+        import bench_scale
+
+        result = bench_scale.run_scale()
+        print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=1))
+        return 0
     try:
         if args.frames < 1:
             raise ParameterError("frames", f"{args.frames} is out of range (valid: >= 1; flag --frames)")

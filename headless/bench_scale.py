@@ -1,0 +1,206 @@
+"""Cost against field size: ``python headless/bench.py --scale [--json]``; prints ONE JSON object.
+
+For fields of 25.6 m, 100 m, 1 km and 10 km (default layout, default LOD distances), each in a
+process of its own so that its peak memory is its own:
+
+* build_s: ``GrassField(params)`` and the first window for the fixed camera (blocks made);
+* frame_ms: median engine frame at the fixed camera: seek (wind, solver on the window), LOD,
+  blade and card vertices of the blocks the pools would show, into preallocated arrays;
+* flythrough_ms: mean engine frame of a camera flying at 1.5 m/s (new blocks join the window and
+  are caught up: the mean includes those frames);
+* seek_1_s, seek_10000_s: from a built field, straight to frame 1 and to frame 10,000;
+* frame_set_ms: median ``scene.frame_set`` in Blender with the add-on (when ``bpy`` imports);
+* peak_rss_mb: the process's peak resident memory.
+
+Ratios against the 25.6 m field of the same run (and against the 100.8 m field, the smallest that
+fills the card range of the fixed camera: a 25.6 m field shows a third of that grass), and the
+goals, are printed with them. Wall-clock numbers on a shared machine: compare ratios taken in one run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+SIZES_M = (25.6, 100.8, 1000.0, 10000.0)
+BLOCK_M = 1.6  # default blocks: 16 cells of 0.1 m
+FRAMES = 24
+FLY_FRAMES = 48
+FLY_SPEED = 1.5  # m/s
+GOALS = {"frame_ratio_max": 1.3, "build_s_max": 3.0, "peak_rss_mb_max": 3072, "seek_ratio_max": 1.5,
+         "flythrough_ratio_max": 2.0}
+
+
+def _params(size_m: float):
+    from windgrass.grass_addon import schema
+
+    blocks = max(1, round(size_m / BLOCK_M))
+    return schema.defaults().replace({"field.blocks_x": blocks, "field.blocks_y": blocks})
+
+
+def _camera(params, t: float = 0.0, speed: float = 0.0):
+    from windgrass.grass_addon.lod import Camera
+
+    c = params.camera
+    position = np.array(c.position, dtype=np.float64)
+    target = np.array(c.target, dtype=np.float64)
+    heading = (target - position)[:2] / np.linalg.norm((target - position)[:2])
+    shift = np.append(heading * speed * t, 0.0)
+    aspect = params.render.resolution_x / params.render.resolution_y
+    return Camera.look_at(position + shift, target + shift, math.radians(c.fov), aspect)
+
+
+def _frame(field, frame: int, camera, blades_out: np.ndarray, cards_out: np.ndarray) -> None:
+    """One frame as the add-on does it, without Blender: window, seek, LOD, vertices."""
+    from windgrass.grass_addon import kinematics
+
+    field.seek(frame, camera)
+    lod = field.lod(camera)
+    blades, cards = field.blade_blocks(lod), field.card_blocks(lod)
+    rows = kinematics.blade_vertex_count(field.layout, len(blades))
+    if rows:
+        field.blade_vertices(blades, lod, blades_out[:rows] if rows <= len(blades_out) else None)
+    rows = kinematics.card_vertex_count(field.layout, len(cards))
+    if rows:
+        field.card_vertices(cards, cards_out[:rows] if rows <= len(cards_out) else None)
+
+
+def engine_run(size_m: float) -> dict:
+    from windgrass.grass_addon.field import GrassField
+
+    params = _params(size_m)
+    camera = _camera(params)
+    clock = time.perf_counter
+    t0 = clock()
+    field = GrassField(params)
+    field.view(camera, 1)
+    build_s = clock() - t0
+    blades_out = np.empty((4_000_000, 3), np.float32)
+    cards_out = np.empty((2_000_000, 3), np.float32)
+    t0 = clock()
+    field.seek(1, camera)
+    seek_1 = clock() - t0
+    times = []
+    for frame in range(2, 2 + FRAMES):
+        t0 = clock()
+        _frame(field, frame, camera, blades_out, cards_out)
+        times.append(clock() - t0)
+    window_blocks = int(field.layout.n_blocks)
+    fly = []
+    for i in range(FLY_FRAMES):
+        frame = 2 + FRAMES + i
+        cam = _camera(params, (frame - 1) / params.render.fps, FLY_SPEED)
+        t0 = clock()
+        _frame(field, frame, cam, blades_out, cards_out)
+        fly.append(clock() - t0)
+    far = GrassField(params)
+    far.view(camera, 10_000)
+    t0 = clock()
+    far.seek(10_000, camera)
+    seek_far = clock() - t0
+    f = params.field
+    return {
+        "size_m": round(field.grid.size[0], 1), "blocks": field.grid.n_blocks,
+        "blades": field.grid.n_blocks * f.cells_per_block ** 2 * f.blades_per_cell,
+        "build_s": round(build_s, 3), "frame_ms": round(1e3 * statistics.median(times), 2),
+        "flythrough_ms": round(1e3 * statistics.mean(fly), 2),
+        "flythrough_max_ms": round(1e3 * max(fly), 2),
+        "seek_1_s": round(seek_1, 3), "seek_10000_s": round(seek_far, 3),
+        "window_blocks": window_blocks, "blocks_made": field.cache.made,
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+    }
+
+
+def blender_run(size_m: float) -> dict:
+    """Median ``scene.frame_set`` of the field in Blender, the scene camera at the fixed view."""
+    import bench_peers
+    import bpy
+    from addon_loader import load_addon
+    from mathutils import Vector
+
+    params = _params(size_m)
+    scene = bench_peers._fresh_scene()
+    load_addon()
+    result = bpy.ops.windgrass.field_add(blocks_x=params.field.blocks_x, blocks_y=params.field.blocks_y)
+    if "FINISHED" not in result:
+        raise RuntimeError(f"windgrass.field_add returned {result}")
+    cam_data = bpy.data.cameras.new("bench camera")
+    cam = bpy.data.objects.new("bench camera", cam_data)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    c = params.camera
+    cam.location = Vector(c.position)
+    cam.rotation_euler = (Vector(c.target) - Vector(c.position)).to_track_quat("-Z", "Y").to_euler()
+    cam_data.angle = math.radians(c.fov)
+    scene.render.resolution_x, scene.render.resolution_y = params.render.resolution_x, params.render.resolution_y
+    clock = time.perf_counter
+    t0 = clock()
+    scene.frame_set(1)
+    first = clock() - t0
+    times = []
+    for frame in range(2, 2 + FRAMES):
+        t0 = clock()
+        scene.frame_set(frame)
+        times.append(clock() - t0)
+    return {"frame_set_ms": round(1e3 * statistics.median(times), 2), "first_frame_set_s": round(first, 3),
+            "peak_rss_mb_blender": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+
+
+def _child(kind: str, size_m: float) -> dict:
+    """Run one measurement in a fresh process (its own memory peak): ``bench_scale.py KIND SIZE``."""
+    proc = subprocess.run([sys.executable, str(Path(__file__)), kind, repr(size_m)], capture_output=True,
+                          text=True, cwd=str(HERE.parent))
+    for line in proc.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])
+    return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [f"exit {proc.returncode}"]}
+
+
+def run_scale(blender: bool = True) -> dict:
+    try:
+        import bpy  # noqa: F401
+    except ImportError:
+        blender = False
+    rows = []
+    for size in SIZES_M:
+        row = _child("engine", size)
+        if blender:
+            row.update(_child("blender", size))
+        rows.append(row)
+    base, full = rows[0], rows[1]  # 25.6 m; 100.8 m: the smallest field that fills the card range
+    for row in rows:
+        if "error" in row or "error" in base or "error" in full:
+            continue
+        row["frame_ratio"] = round(row["frame_ms"] / base["frame_ms"], 2)
+        row["frame_ratio_to_100m"] = round(row["frame_ms"] / full["frame_ms"], 2)
+        row["flythrough_ratio"] = round(row["flythrough_ms"] / row["frame_ms"], 2)
+        row["seek_ratio"] = round(row["seek_10000_s"] / row["seek_1_s"], 2)
+        if "frame_set_ms" in row and "frame_set_ms" in base:
+            row["frame_set_ratio"] = round(row["frame_set_ms"] / base["frame_set_ms"], 2)
+    return {"fields": rows, "goals": GOALS, "frames": FRAMES, "flythrough_frames": FLY_FRAMES,
+            "flythrough_speed_m_s": FLY_SPEED}
+
+
+if __name__ == "__main__":  # one measurement of run_scale: bench_scale.py engine|blender SIZE_M
+    import addon_loader
+
+    kind, size = sys.argv[1], float(sys.argv[2])
+    if kind == "blender":
+        import bench_peers
+
+        bench_peers._prepare_blender_env()
+    addon_loader.load_package()
+    measure = {"engine": engine_run, "blender": blender_run}[kind]
+    print("RESULT " + json.dumps(measure(size)), flush=True)

@@ -46,6 +46,8 @@ def parse_args(argv):
     parser.add_argument("--presets", nargs="+", default=["default", "meadow"],
                         help=f"species presets: default (the scene's) or one of {', '.join(presets.PRESET_NAMES)}")
     parser.add_argument("--flythrough-frames", type=int, default=3, help="frames of the slow fly-through (0: none)")
+    parser.add_argument("--blocks", type=int, default=24,
+                        help="blocks per side of the compared field (all geometry must fit: default 24, 38.4 m)")
     parser.add_argument("--out", type=Path, default=REPO / "renders" / "lod_compare")
     parser.add_argument("--json", action="store_true", help="one line of JSON (default: indented)")
     return parser.parse_args(argv)
@@ -59,6 +61,7 @@ def scene_params(args, preset: str, fixed: bool):
         raise ParameterError("resolution", f"{args.resolution!r} is not WIDTHxHEIGHT, e.g. 320x180") from None
     if args.samples < 1:
         raise ParameterError("samples", f"{args.samples} must be >= 1")
+    params = params.replace({"field.blocks_x": args.blocks, "field.blocks_y": args.blocks})
     size_y = params.field.blocks_y * params.field.cells_per_block * params.field.cell_size
     changes = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0, "render.engine": "cycles",
                "render.samples": args.samples, "render.resolution_x": w, "render.resolution_y": h,

@@ -298,6 +298,8 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
     frame, subframe = scene.frame_current, float(scene.frame_subframe)
     camera = field_camera.field_camera(scene, item, depsgraph)
     rt.field.view(camera, frame)  # the window of blocks this camera needs (same window: no work)
+    if camera is None and rt.field.notice:
+        warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     if rt.frame != frame or rt.field.cells is None:
         rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
     lod = rt.field.lod(camera)

@@ -30,7 +30,7 @@ import addon_loader  # noqa: E402
 addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, no Blender)
 from windgrass.grass_addon import kinematics, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
-from windgrass.grass_addon.field import GrassField  # noqa: E402
+from windgrass.grass_addon.field import WHOLE_FIELD_CELLS, GrassField  # noqa: E402
 from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
 
 MAX_TRACE_BLADES = 100_000  # blade_tip is stored for fields up to this many blades
@@ -74,6 +74,10 @@ def _tips(layout, cells, blocks, out) -> np.ndarray:
 def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
     t0 = time.perf_counter()
     field = GrassField(params)
+    if not field.whole:
+        cells = field.grid.n_blocks * field.grid.cells_per_block ** 2
+        raise ParameterError("field.blocks_x", f"simulate.py traces every cell of the field, which has {cells:,}; "
+                             f"valid: at most {WHOLE_FIELD_CELLS:,} cells (fewer blocks or cells per block)")
     build_s = time.perf_counter() - t0
     layout, n = field.layout, field.layout.segments
     ny, nx = layout.cells_y, layout.cells_x

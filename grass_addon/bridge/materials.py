@@ -1,4 +1,4 @@
-"""Materials of a grass field: blade strips, billboard cards and the ground (paper III.A-D).
+"""Materials of a grass field: blade strips, billboard cards, the ground and the far canopy (paper III.A-D).
 
 Node trees are built from node type ids and socket names that exist from Blender 4.2 to 5.x;
 sockets are looked up through ``_socket`` so a renamed socket fails with a clear message.
@@ -20,6 +20,8 @@ import warnings
 
 import bpy
 
+from .. import impostor
+
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
 UV_FADE = "wg_fade"
@@ -28,13 +30,16 @@ ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten fro
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
 NODE_CARD_TINT = "wg_card_tint"  # RGB: mean species colour of the cards
-NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the ground
+NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (impostor.sward_colour)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
-BLADE_BASE_COLOUR = (0.018, 0.03, 0.008, 1.0)
-# Ground under near grass: dark olive thatch and shaded soil (the sward's floor, not bare earth).
-SOIL_COLOUR_A = (0.026, 0.030, 0.012, 1.0)
-SOIL_COLOUR_B = (0.020, 0.034, 0.010, 1.0)
+BLADE_BASE_COLOUR = (*impostor.BLADE_BASE_COLOUR, 1.0)
+# Ground under near grass: the floor of a meadow, dry thatch and green litter in the sward's shade
+# (not bare earth, not a grey floor); matte (no specular sheen).
+THATCH_COLOUR = (0.050, 0.042, 0.016, 1.0)
+LITTER_COLOUR = (0.022, 0.040, 0.010, 1.0)
+# Seen from afar a sward is darker than its blades' colour: the blades shade one another.
+SWARD_SHADE = 0.6
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
@@ -137,7 +142,7 @@ def blade_material(name: str, uid: str):
     # Smooth gradient: the lower 70 % of the blade darkens towards the root.
     grad = t.add("ShaderNodeMapRange", -1000, 200, interpolation_type="SMOOTHSTEP")
     _set(grad, 0.0, "From Min")
-    _set(grad, 0.7, "From Max")
+    _set(grad, impostor.GRADIENT_END, "From Max")
     t.link(sep, "Y", grad, "Value")
     rg = t.add("ShaderNodeSeparateXYZ", -1000, -50)
     t.link(t.attribute(UV_TINT_RG, -1200, -50), "Vector", rg, "Vector")
@@ -207,19 +212,36 @@ def card_material(name: str, uid: str, image):
 
 
 def ground_material(name: str, uid: str):
-    """Ground (paper III.C): soil under the near grass; a procedural grass texture whose weight
-    K_t (eq 10) = clamp((d - d_s1) / (d_s2 - d_s1)) is computed from the Camera Data node's
-    View Distance, so the texture appears where the cards fade (K'_b = 1 - K_t, eq 11)."""
+    """Ground under the grass: the floor of a meadow (thatch and green litter in noise), matte.
+    The far grass is the canopy's (``canopy_material``), on a plane above this one."""
     mat = _new_material(name, uid)
     t = _Tree(mat)
+    coord = t.add("ShaderNodeTexCoord", -1100, 0)
+    noise = t.add("ShaderNodeTexNoise", -900, 0)
+    _set(noise, 9.0, "Scale")
+    _set(noise, 6.0, "Detail")
+    t.link(coord, "Object", noise, "Vector")
+    floor = t.mix_rgb(-650, 0, a=THATCH_COLOUR, b=LITTER_COLOUR)
+    t.link(noise, "Fac", floor, "Factor_Float")
+    bsdf = t.add("ShaderNodeBsdfPrincipled", -400, 0)
+    _set(bsdf, 1.0, "Roughness")
+    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+    t.link(floor, "Result_Color", bsdf, "Base Color")
+    out = t.add("ShaderNodeOutputMaterial", 0, 0)
+    t.link(bsdf, "BSDF", out, "Surface")
+    return mat
+
+
+def canopy_material(name: str, uid: str):
+    """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
+    (``impostor.canopy_height``). Its colour is the blades' (``impostor.sward_colour``, darkened
+    by SWARD_SHADE) with fine streaks; its opacity is K_t of eq 10 = clamp((d - d_s1) /
+    (d_s2 - d_s1)) from the Camera Data node's View Distance, so it appears where the cards fade
+    (K'_b = 1 - K_t, eq 11) and is clear near the camera. It casts no shadow."""
+    mat = _new_material(name, uid)
+    _transparent(mat)
+    t = _Tree(mat)
     coord = t.add("ShaderNodeTexCoord", -1400, 0)
-    soil_noise = t.add("ShaderNodeTexNoise", -1150, 300)
-    _set(soil_noise, 6.0, "Scale")
-    _set(soil_noise, 8.0, "Detail")
-    t.link(coord, "Object", soil_noise, "Vector")
-    soil = t.mix_rgb(-900, 300, a=SOIL_COLOUR_A, b=SOIL_COLOUR_B)
-    t.link(soil_noise, "Fac", soil, "Factor_Float")
-    # Far grass: fine streaky noise between a dark and a light shade of the species colour.
     grass_noise = t.add("ShaderNodeTexNoise", -1150, -50)
     _set(grass_noise, 40.0, "Scale")
     _set(grass_noise, 4.0, "Detail")
@@ -228,29 +250,34 @@ def ground_material(name: str, uid: str):
     grass_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
     grass = t.mix_rgb(-900, -150, blend="MULTIPLY")
     t.link(grass_colour, "Color", grass, "A_Color")
-    ramp = t.add("ShaderNodeMapRange", -900, -400)  # noise 0..1 -> brightness 0.6 .. 1.2
-    _set(ramp, 0.6, "To Min")
+    ramp = t.add("ShaderNodeMapRange", -900, -400)  # noise 0..1 -> brightness 0.8 .. 1.2 (mean 1)
+    _set(ramp, 0.8, "To Min")
     _set(ramp, 1.2, "To Max")
     t.link(grass_noise, "Fac", ramp, "Value")
     bright = t.add("ShaderNodeCombineXYZ", -700, -400)
     for axis in "XYZ":
         t.link(ramp, "Result", bright, axis)
     t.link(bright, "Vector", grass, "B_Color")
+    bsdf = t.add("ShaderNodeBsdfPrincipled", -450, 0)
+    _set(bsdf, 1.0, "Roughness")
+    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+    t.link(grass, "Result_Color", bsdf, "Base Color")
     camera = t.add("ShaderNodeCameraData", -900, -650)
     kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
     t.link(camera, "View Distance", kt, "Value")
     _set(kt, 0.0, "To Min")
     _set(kt, 1.0, "To Max")
-    colour = t.mix_rgb(-450, 0)
-    t.link(kt, "Result", colour, "Factor_Float")
-    t.link(soil, "Result_Color", colour, "A_Color")
-    t.link(grass, "Result_Color", colour, "B_Color")
-    bsdf = t.add("ShaderNodeBsdfPrincipled", -200, 0)
-    _set(bsdf, 0.9, "Roughness")
-    _set(bsdf, 0.2, "Specular IOR Level", "Specular")
-    t.link(colour, "Result_Color", bsdf, "Base Color")
-    out = t.add("ShaderNodeOutputMaterial", 150, 0)
-    t.link(bsdf, "BSDF", out, "Surface")
+    light_path = t.add("ShaderNodeLightPath", -700, -900)
+    opacity = t.add("ShaderNodeMath", -450, -700, operation="SUBTRACT", use_clamp=True)
+    t.link(kt, "Result", opacity, opacity.inputs[0])
+    t.link(light_path, "Is Shadow Ray", opacity, opacity.inputs[1])  # no shadow: clear to shadow rays
+    clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
+    cut = t.add("ShaderNodeMixShader", 50, 0)
+    t.link(opacity, "Value", cut, "Fac")
+    t.link(clear, "BSDF", cut, cut.inputs[1])
+    t.link(bsdf, "BSDF", cut, cut.inputs[2])
+    out = t.add("ShaderNodeOutputMaterial", 300, 0)
+    t.link(cut, "Shader", out, "Surface")
     return mat
 
 
@@ -261,11 +288,11 @@ def mean_species_colour(params) -> tuple[float, float, float]:
     return tuple(sum(r["weight"] * r["color"][i] for r in rows) / total for i in range(3))
 
 
-def update_materials(params, ground=None, cards=None, card_tip_colour=(0.16, 0.36, 0.07)) -> None:
+def update_materials(params, canopy=None, cards=None, card_tip_colour=(0.16, 0.36, 0.07)) -> None:
     """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the species colours."""
     colour = mean_species_colour(params)
-    if ground is not None and ground.node_tree is not None:
-        kt = ground.node_tree.nodes.get(NODE_KT)
+    if canopy is not None and canopy.node_tree is not None:
+        kt = canopy.node_tree.nodes.get(NODE_KT)
         if kt is not None:
             near, far = params.lod.card_near, params.lod.card_far
             if not params.lod.enabled:
@@ -273,10 +300,10 @@ def update_materials(params, ground=None, cards=None, card_tip_colour=(0.16, 0.3
             far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
             _set(kt, near, "From Min")
             _set(kt, far, "From Max")
-        grass = ground.node_tree.nodes.get(NODE_GROUND_GRASS)
+        grass = canopy.node_tree.nodes.get(NODE_GROUND_GRASS)
         if grass is not None:
-            # Seen from afar a sward is darker than one sunlit blade (self-shadowing): 0.6 x.
-            grass.outputs[0].default_value = (*[0.6 * c for c in colour], 1.0)
+            sward = impostor.sward_colour(params)
+            grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in sward], 1.0)
     if cards is not None and cards.node_tree is not None:
         tint = cards.node_tree.nodes.get(NODE_CARD_TINT)
         if tint is not None:

@@ -31,8 +31,8 @@ import json
 import bpy
 import numpy as np
 
+from .. import impostor, slots
 from .. import kinematics as kin
-from .. import slots
 from .. import terrain as terrain_core
 from . import materials, textures
 from .registry import warn_once
@@ -49,6 +49,7 @@ ROLE_CARDS = "cards"
 ROLE_BLADE_MATERIAL = "blade_material"
 ROLE_CARD_MATERIAL = "card_material"
 ROLE_GROUND_MATERIAL = "ground_material"
+ROLE_CANOPY_MATERIAL = "canopy_material"
 ROLE_CARD_IMAGE = "card_image"
 
 CARD_TEXTURE_SIZE = 256
@@ -160,35 +161,37 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     return mesh
 
 
-def ground_mesh(name: str, size: tuple[float, float], heightfield=None) -> bpy.types.Mesh:
-    """A plane covering the field, centred on the origin; over a terrain (``heightfield``, in the
-    field's frame) a grid of one quad per heightfield cell following its heights."""
-    hx, hy = 0.5 * size[0], 0.5 * size[1]
+def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0) -> bpy.types.Mesh:
+    """Two layers covering the field, centred on the origin: the ground (material 0) and, ``canopy``
+    metres above it, the plane of the far grass (material 1, ``materials.canopy_material``). Flat
+    ground: one quad each; over a terrain (``heightfield``, in the field's frame) a grid of one
+    quad per heightfield cell following its heights."""
     if heightfield is not None:
-        return _ground_grid(name, size, heightfield)
-    verts = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
-    uvs = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
-    mesh = quad_mesh(name, 4, np.array([[0, 1, 2, 3]]), uvs, None, {})
+        nx, ny = heightfield.nx, heightfield.ny
+        u, v = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
+        xy = np.stack([(u - 0.5) * size[0], (v - 0.5) * size[1]], axis=-1)  # exactly the field's extent
+        floor = np.empty((ny + 1, nx + 1, 3), np.float32)
+        floor[..., :2] = xy
+        floor[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT)
+        floor = floor.reshape(-1, 3)
+        corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
+        faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
+        uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
+        smooth = True
+    else:
+        hx, hy = 0.5 * size[0], 0.5 * size[1]
+        floor = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
+        faces = np.array([[0, 1, 2, 3]])
+        uv_of_vertex = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
+        smooth = False
+    top = floor + np.array([0.0, 0.0, canopy], dtype=np.float32)
+    verts = np.concatenate([floor, top])
+    layer_faces = np.concatenate([faces, faces + len(floor)])
+    uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2)
+    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {})
     mesh.materials.clear()
-    mesh.polygons.foreach_set("use_smooth", np.zeros(1, dtype=bool))
-    mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
-    mesh.update()
-    return mesh
-
-
-def _ground_grid(name: str, size: tuple[float, float], heightfield) -> bpy.types.Mesh:
-    nx, ny = heightfield.nx, heightfield.ny
-    u, v = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
-    xy = np.stack([(u - 0.5) * size[0], (v - 0.5) * size[1]], axis=-1)  # exactly the field's extent
-    verts = np.empty((ny + 1, nx + 1, 3), np.float32)
-    verts[..., :2] = xy
-    verts[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT)
-    corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
-    faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
-    uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
-    mesh = quad_mesh(name, (nx + 1) * (ny + 1), faces, uv_of_vertex[faces.ravel()], None, {})
-    mesh.materials.clear()
-    mesh.polygons.foreach_set("use_smooth", np.ones(len(faces), dtype=bool))
+    mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
+    mesh.polygons.foreach_set("material_index", np.repeat(np.arange(2, dtype=np.int32), len(faces)))
     mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
     mesh.update()
     return mesh
@@ -299,7 +302,7 @@ def _material(item, role: str, make):
 
 
 def field_materials(item):
-    """(blade, card, ground) materials of the field, created once and recorded on ``item``."""
+    """(blade, card, ground, canopy) materials of the field, created once and recorded on ``item``."""
     uid, base_name = item.collection["wg_uid"], item.collection.name
     image = registered(item).get(ROLE_CARD_IMAGE)
     if not isinstance(image, bpy.types.Image):
@@ -309,13 +312,14 @@ def field_materials(item):
     blade = _material(item, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
     card = _material(item, ROLE_CARD_MATERIAL, lambda: materials.card_material(f"{base_name} cards", uid, image))
     ground = _material(item, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
-    return blade, card, ground
+    canopy = _material(item, ROLE_CANOPY_MATERIAL, lambda: materials.canopy_material(f"{base_name} canopy", uid))
+    return blade, card, ground, canopy
 
 
 def update_field_materials(item, params) -> None:
     """Refresh the parameter-dependent values (eq 10 distances, colours) of the materials."""
     reg = registered(item)
-    materials.update_materials(params, reg.get(ROLE_GROUND_MATERIAL), reg.get(ROLE_CARD_MATERIAL),
+    materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL), reg.get(ROLE_CARD_MATERIAL),
                                tuple(float(c) for c in textures.TIP_COLOUR))
 
 
@@ -342,7 +346,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
     base = coll.name
-    blade_mat, card_mat, ground_mat = field_materials(item)
+    blade_mat, card_mat, ground_mat, canopy_mat = field_materials(item)
     # Where the user placed the field (the ground carries it) survives the rebuild.
     old_ground = ground_object(item)
     placement = (old_ground.matrix_basis.copy(), old_ground.parent) if old_ground is not None else None
@@ -351,8 +355,10 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
         del item[REGISTRY][key]
 
     heightfield = getattr(layout, "terrain", None)
-    ground = bpy.data.objects.new(f"{base} ground", ground_mesh(f"{base} ground", layout.size, heightfield))
-    ground.data.materials.append(ground_mat)
+    mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params))
+    ground = bpy.data.objects.new(f"{base} ground", mesh)
+    mesh.materials.append(ground_mat)
+    mesh.materials.append(canopy_mat)
     _tag(ground, uid, ROLE_GROUND)
     _tag(ground.data, uid, ROLE_GROUND)
     _link(coll, ground, None)

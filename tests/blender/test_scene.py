@@ -148,14 +148,23 @@ def test_field_add_builds_collection_ground_and_slot_pools(bridge):
     assert all(not m.use_backface_culling for m in (blades[0].active_material, card_mat))
 
 
-def test_ground_material_follows_the_lod_distances(bridge):
-    """K_t of eq 10 is computed in the ground shader from the view distance: its Map Range goes
-    from d_s1 to d_s2 and follows the settings; with the LOD off the ground texture never shows."""
-    from windgrass.grass_addon.bridge import materials
+def test_canopy_material_follows_the_lod_distances(bridge):
+    """K_t of eq 10 is computed in the far canopy's shader from the view distance: its Map Range
+    goes from d_s1 to d_s2 and follows the settings; with the LOD off the far texture never shows.
+    The canopy lies above the ground at the sward's height."""
+    from windgrass.grass_addon import impostor
+    from windgrass.grass_addon.bridge import materials, properties
 
+    field_scene, _ = bridge
     scene, item = _add_field()
-    ground = [m for m in bpy.data.materials if m.get("wg_role") == "ground_material"][0]
-    kt = ground.node_tree.nodes[materials.NODE_KT]
+    canopy = [m for m in bpy.data.materials if m.get("wg_role") == "canopy_material"][0]
+    ground = field_scene.ground_object(item)
+    assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
+    z = _positions(ground)[:, 2]
+    height = impostor.canopy_height(properties.params_from_settings(item, scene))
+    assert 0.05 < height < 0.5  # a sward of 0.32 m blades
+    np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height], atol=1e-5)
+    kt = canopy.node_tree.nodes[materials.NODE_KT]
     assert kt.clamp
     assert (kt.inputs["From Min"].default_value, kt.inputs["From Max"].default_value) == (25.0, 40.0)
     item.lod.card_near = 30.0  # the property update rewrites the field and its materials

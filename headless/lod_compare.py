@@ -12,7 +12,8 @@ Prints one JSON object: for every light and species preset, ``row_diff_max`` (th
 difference of an image row's mean colour, linear RGB 0-1, LOD against all geometry) and
 ``mean_abs_diff`` (of the whole image), and for the fly-through ``flicker_lod`` and
 ``flicker_geometry`` (mean absolute change between consecutive frames) and their ratio. The
-images (PNG, display colours) are written to --out for a look. Exit status 2 on bad input.
+images (PNG, display colours) and each case's row means (``<case>_rows.npz``, linear RGB) are
+written to --out for a look. Exit status 2 on bad input.
 """
 
 from __future__ import annotations
@@ -133,6 +134,7 @@ def compare(args) -> dict:
             params = scene_params(args, preset, fixed=True)
             lod, = render(params, True, light, [1], args.out, tag)
             geo, = render(params, False, light, [1], args.out, tag)
+            np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1))
             rows = np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max()
             case = {"row_diff_max": round(float(rows), 4),
                     "mean_abs_diff": round(float(np.abs(lod - geo).mean()), 4),

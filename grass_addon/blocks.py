@@ -147,7 +147,7 @@ class Species:
         self.mean_length = float(np.dot(self.p, self.length))
         self.mean_variation = float(np.dot(self.p, self.length_variation))
         self.longest = float(np.max(self.length + 4.0 * self.length_variation))  # no blade is longer
-        self.tallest_card = float(params.lod.card_height) * (self.longest + 2.0 * self.mean_variation)
+        self.tallest_card = float(params.lod.card_height) * self.longest  # a tip is no higher than its length
 
 
 def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: Species):
@@ -209,10 +209,15 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         cell_stiffness = c_stiff.astype(np.float32)
         cell_rest_tilt = _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32)
     cell_facing = (cell_rng.random(P) * 2.0 * np.pi).astype(np.float32)
-    # paper III.B: card height = reference height + stochastic modifier; random orientation
-    normal = np.clip(cell_rng.standard_normal(P), -4.0, 4.0)
-    card_height = params.lod.card_height * np.maximum(
-        cell_length + 0.5 * species.mean_variation * normal, 0.3 * species.mean_length)
+    # paper III.B: card height = reference height + stochastic modifier; random orientation. The
+    # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
+    # (the blades' own lengths are the stochastic part), times lod.card_height.
+    if num > 0:
+        tips = (length[:, None] / n * np.cos(rest_tilt)).sum(axis=1)
+        tallest = tips.reshape(P, num).max(axis=1)
+    else:
+        tallest = cell_length * np.cos(cell_rest_tilt).mean(axis=1)
+    card_height = params.lod.card_height * tallest
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)
     if terrain is None:

@@ -25,7 +25,7 @@ from .schema import Params
 
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (linear RGB)
 GRADIENT_END = 0.7  # the blade material darkens the lower 70 % of the blade towards the root
-CANOPY_SHARE = 0.75  # a grazing view sees the sward down to three quarters of the tips' height
+CANOPY_SHARE = 0.9  # a grazing view sees the sward down to nine tenths of the tips' mean height
 VISIBLE_FROM = 0.35  # of a blade's length: the part below is hidden by the sward from afar
 
 
@@ -65,3 +65,106 @@ def sward_colour(params: Params) -> tuple[float, float, float]:
     ramp = blade_colour_ramp(species.color.astype(np.float64), v)  # (species, 64, 3)
     per_species = (ramp * width[None, :, None]).sum(axis=1) / width.sum()
     return tuple(float(c) for c in species.p @ per_species)
+
+
+CARD_VARIANTS = 8  # cards of a block take variants p % CARD_VARIANTS of the atlas (p: cell in block)
+CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many pixels
+
+
+def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
+    """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
+    row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of
+    the blades of cell k of the sample block, at their rest shape, in their own colours.
+
+    A card is ``lod.card_width`` cells wide and stands for its cell's blades, so the atlas holds
+    exactly those: their coverage (alpha), colour ramp (the blade material's, with each blade's
+    shade) and shape are the blades'. Each blade keeps its full width: seen from a direction v, a
+    blade shows w |sin(v - facing)| and the card |cos(v - card normal)| of its area; averaged over
+    the directions both are 2/pi, so the full width matches the blades' mean silhouette (drawing
+    the width projected onto the card would count that foreshortening twice and leave the cards
+    1.57 times too sparse). The variant's height spans its card's height (``card_height``)."""
+    block = sample_blades(params)
+    n, num = int(params.blade.segments), int(params.field.blades_per_cell)
+    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    species = Species(params)
+    rgb = np.zeros((size, variants * size, 3), np.float64)
+    alpha = np.zeros((size, variants * size), np.float64)
+    ys = (np.arange(size) + 0.5) / size
+    for k in range(variants):
+        cell = k % block.cell_center.shape[0]
+        height = float(block.card_height[cell])
+        axis = float(block.card_facing[cell])
+        a = np.array([np.cos(axis), np.sin(axis)])
+        blades = range(cell * num, (cell + 1) * num) if num else []
+        for b in blades:
+            facing = float(block.blade_facing[b])
+            d = np.array([np.cos(facing), np.sin(facing)])
+            seg = float(block.blade_length[b]) / n
+            tilt = block.blade_rest_tilt[b].astype(np.float64)
+            along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * float(d @ a)
+            up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
+            root = float((block.blade_root[b, :2] - block.cell_center[cell]) @ a)
+            u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
+            v = up / height
+            taper = 1.0 - (1.0 - params.blade.tip_width) * np.arange(n + 1) / n
+            half = 0.5 * float(block.blade_width[b]) * taper / card_w
+            tip = species.color[int(block.blade_species[b])].astype(np.float64)
+            colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
+            _draw_strip(rgb, alpha, k * size, size, ys, u, v, half, colour)
+    covered = alpha > 1e-6
+    rgb[covered] /= alpha[covered][:, None]
+    # Where no blade covers the card, the colour is the variant's coverage-weighted mean colour of
+    # that row (or of the whole variant): a renderer that stops at a card after many transparent
+    # layers (``materials.card_material``) shows grass there, not black.
+    for k in range(variants):
+        cols = slice(k * size, (k + 1) * size)
+        w = alpha[:, cols]
+        total = w.sum()
+        fallback = (rgb[:, cols] * w[..., None]).sum(axis=(0, 1)) / total if total > 0 else np.zeros(3)
+        row_w = w.sum(axis=1)
+        row_mean = (rgb[:, cols] * w[..., None]).sum(axis=1) / np.maximum(row_w, 1e-9)[:, None]
+        row = np.where(row_w[:, None] > 1e-3, row_mean, fallback)
+        empty = w <= 1e-6
+        rgb[:, cols][empty] = np.broadcast_to(row[:, None, :], rgb[:, cols].shape)[empty]
+    image = np.empty((size, variants * size, 4), np.float32)
+    image[..., :3] = np.clip(rgb, 0.0, 1.0)
+    image[..., 3] = alpha
+    return image
+
+
+def _draw_strip(rgb, alpha, x0: int, size: int, ys, u, v, half, colour) -> None:
+    """Composite one blade (a tapered strip through points (u, v) with half-widths ``half``, in
+    card units) over the variant at columns x0 .. x0 + size, one row at a time: each row crosses
+    the strip where its height v lies between two joints; edges anti-aliased over one pixel."""
+    rows = np.flatnonzero((ys >= v.min()) & (ys <= v.max()))
+    if rows.size == 0:
+        return
+    y = ys[rows]
+    j = np.clip(np.searchsorted(v, y) - 1, 0, len(v) - 2)
+    dv = np.maximum(v[j + 1] - v[j], 1e-9)
+    t = np.clip((y - v[j]) / dv, 0.0, 1.0)
+    centre = u[j] + (u[j + 1] - u[j]) * t
+    width = half[j] + (half[j + 1] - half[j]) * t
+    col = colour[j] + (colour[j + 1] - colour[j]) * t[:, None]
+    xs = (np.arange(size) + 0.5) / size
+    cover = np.clip((width[:, None] - np.abs(xs[None, :] - centre[:, None])) * size + 0.5, 0.0, 1.0)
+    a_old = alpha[rows, x0:x0 + size]
+    rgb[rows, x0:x0 + size] = col[:, None, :] * cover[..., None] + rgb[rows, x0:x0 + size] * (1.0 - cover[..., None])
+    alpha[rows, x0:x0 + size] = cover + a_old * (1.0 - cover)
+
+
+def card_coverage(params: Params) -> tuple[float, float]:
+    """(mean alpha of the atlas, projected blade area / card area of the same cells): a check
+    that the cards cover what their blades cover."""
+    atlas = card_atlas(params)
+    block = sample_blades(params)
+    n, num = int(params.blade.segments), int(params.field.blades_per_cell)
+    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    area, cards = 0.0, 0.0
+    for k in range(CARD_VARIANTS):
+        cell = k % block.cell_center.shape[0]
+        cards += card_w * float(block.card_height[cell])
+        for b in range(cell * num, (cell + 1) * num):
+            mean_width = 0.5 * (1.0 + params.blade.tip_width) * float(block.blade_width[b])
+            area += mean_width * float(block.blade_length[b] / n * np.cos(block.blade_rest_tilt[b]).sum())
+    return float(atlas[..., 3].mean()), area / cards

@@ -44,6 +44,7 @@ import weakref
 import numpy as np
 
 from . import blade, workers
+from .impostor import CARD_VARIANTS
 
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
@@ -84,9 +85,13 @@ def card_faces(layout) -> np.ndarray:
 
 
 def card_uvs(layout) -> np.ndarray:
-    """(cells_per_block**2 * 4, 2) float32 per face corner: u = 0 left .. 1 right, v = 0 ground .. 1 top."""
+    """(cells_per_block**2 * 4, 2) float32 per face corner: v = 0 ground .. 1 top; u spans variant
+    ``p % CARD_VARIANTS`` of the card atlas (``impostor.card_atlas``) for the block's cell p."""
     one = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
-    return np.ascontiguousarray(np.tile(one, (layout.cells_per_block_total, 1)))
+    variant = np.arange(layout.cells_per_block_total) % CARD_VARIANTS
+    uv = np.tile(one, (layout.cells_per_block_total, 1)).reshape(-1, 4, 2)
+    uv[..., 0] = (uv[..., 0] + variant[:, None]) / CARD_VARIANTS
+    return np.ascontiguousarray(uv.reshape(-1, 2), dtype=np.float32)
 
 
 def blade_vertex_count(layout, n_blocks: int) -> int:

@@ -217,8 +217,8 @@ PARAMS: tuple[Param, ...] = (
        maximum=10000.0, soft_max=300.0),
     _p("lod", "card_width", "float", 1.6, "Card width in cells (>1: cards overlap their neighbours)",
        minimum=0.1, maximum=10.0),
-    _p("lod", "card_height", "float", 0.85, "Card height as a fraction of the mean blade length",
-       minimum=0.05, maximum=5.0),
+    _p("lod", "card_height", "float", 1.0,
+       "Card height as a fraction of the height of its cell's tallest blade (at rest)", minimum=0.05, maximum=5.0),
     # --- [camera] headless renders and LOD without a Blender camera ---------------------------------
     _p("camera", "mode", "enum", "flythrough", "Fly over the field (the paper's tests) or a fixed view",
        choices=("flythrough", "fixed")),

@@ -29,7 +29,7 @@ ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten fro
 
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
-NODE_CARD_TINT = "wg_card_tint"  # RGB: mean species colour of the cards
+NODE_CARD_DEPTH = "wg_card_depth"  # Value: transparent layers a ray crosses before a card stops it
 NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (impostor.sward_colour)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
@@ -39,7 +39,9 @@ BLADE_BASE_COLOUR = (*impostor.BLADE_BASE_COLOUR, 1.0)
 THATCH_COLOUR = (0.050, 0.042, 0.016, 1.0)
 LITTER_COLOUR = (0.022, 0.040, 0.010, 1.0)
 # Seen from afar a sward is darker than its blades' colour: the blades shade one another.
-SWARD_SHADE = 0.6
+# (Measured against the all-geometry render, sun and overcast: headless/lod_compare.py.)
+SWARD_SHADE = 0.7
+CANOPY_GAIN = 2.0  # the canopy's opacity is min(1, CANOPY_GAIN * K_t)
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
@@ -59,6 +61,10 @@ def _socket(sockets, *names: str):
 
 def _set(node, value, *names: str) -> None:
     _socket(node.inputs, *names).default_value = value
+
+
+def _set_input(node, index: int, value) -> None:
+    node.inputs[index].default_value = value
 
 
 def _new_material(name: str, uid: str):
@@ -181,26 +187,34 @@ def set_card_image(mat, image) -> None:
 
 
 def card_material(name: str, uid: str, image):
-    """Cards (paper III.B): the grass-clump texture; its alpha times ``wg_fade`` (K_b of
-    eqs 7 and 11) mixes the foliage shader with a Transparent BSDF."""
+    """Cards (paper III.B): the atlas of the field's own blades (``impostor.card_atlas``), shaded
+    like the blades (the same foliage shader); its alpha times ``wg_fade`` (K_b of eqs 7 and 11)
+    mixes that with a Transparent BSDF."""
     mat = _new_material(name, uid)
     _transparent(mat)
     t = _Tree(mat)
     uv = t.add("ShaderNodeTexCoord", -1300, 100)
     tex = t.add("ShaderNodeTexImage", -1100, 100, image=image, extension="CLIP")
     t.link(uv, "UV", tex, "Vector")
-    tint = t.add("ShaderNodeRGB", -1100, -200, name=NODE_CARD_TINT)
-    tint.outputs[0].default_value = (1.0, 1.0, 1.0, 1.0)
-    colour = t.mix_rgb(-800, 0, blend="MULTIPLY")
-    t.link(tex, "Color", colour, "A_Color")
-    t.link(tint, "Color", colour, "B_Color")
     fade = t.attribute(UV_FADE, -1300, -400)
     opacity = t.add("ShaderNodeSeparateXYZ", -1100, -400)
     t.link(fade, "Vector", opacity, "Vector")
+    # After NODE_CARD_DEPTH transparent layers a ray stops at the next card (its colour there is
+    # the grass's, see impostor.card_atlas): a sparse card (a few blades) is crossed many times
+    # at grazing angles, and past the renderer's transparent-bounce limit a ray would turn black.
+    path = t.add("ShaderNodeLightPath", -1300, -650)
+    depth = t.add("ShaderNodeValue", -1300, -850, name=NODE_CARD_DEPTH)
+    depth.outputs[0].default_value = 6.0
+    deep = t.add("ShaderNodeMath", -1100, -650, operation="GREATER_THAN")
+    t.link(path, "Transparent Depth", deep, deep.inputs[0])
+    t.link(depth, "Value", deep, deep.inputs[1])
+    cover = t.add("ShaderNodeMath", -950, -500, operation="MAXIMUM")
+    t.link(tex, "Alpha", cover, cover.inputs[0])
+    t.link(deep, "Value", cover, cover.inputs[1])
     alpha = t.add("ShaderNodeMath", -800, -300, operation="MULTIPLY", use_clamp=True)
-    t.link(tex, "Alpha", alpha, alpha.inputs[0])
+    t.link(cover, "Value", alpha, alpha.inputs[0])
     t.link(opacity, "X", alpha, alpha.inputs[1])
-    shader = t.foliage(colour, "Result_Color", -500, 0)
+    shader = t.foliage(tex, "Color", -500, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 150, 0)
     t.link(alpha, "Value", cut, "Fac")
@@ -267,9 +281,15 @@ def canopy_material(name: str, uid: str):
     t.link(camera, "View Distance", kt, "Value")
     _set(kt, 0.0, "To Min")
     _set(kt, 1.0, "To Max")
+    # The canopy is the floor of the fading cards (K'_b = 1 - K_t): it turns opaque over the first
+    # 1 / CANOPY_GAIN of the band, so the band blends the cards' colour into the canopy's instead
+    # of letting the dark ground show through both (a seam).
+    gain = t.add("ShaderNodeMath", -450, -550, operation="MULTIPLY", use_clamp=True)
+    t.link(kt, "Result", gain, gain.inputs[0])
+    _set_input(gain, 1, CANOPY_GAIN)
     light_path = t.add("ShaderNodeLightPath", -700, -900)
-    opacity = t.add("ShaderNodeMath", -450, -700, operation="SUBTRACT", use_clamp=True)
-    t.link(kt, "Result", opacity, opacity.inputs[0])
+    opacity = t.add("ShaderNodeMath", -300, -700, operation="SUBTRACT", use_clamp=True)
+    t.link(gain, "Value", opacity, opacity.inputs[0])
     t.link(light_path, "Is Shadow Ray", opacity, opacity.inputs[1])  # no shadow: clear to shadow rays
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 50, 0)
@@ -281,16 +301,15 @@ def canopy_material(name: str, uid: str):
     return mat
 
 
-def mean_species_colour(params) -> tuple[float, float, float]:
-    """Weight-averaged tip colour of the species (linear RGB)."""
-    rows = params.species()
-    total = sum(r["weight"] for r in rows) or 1.0
-    return tuple(sum(r["weight"] * r["color"][i] for r in rows) / total for i in range(3))
+def set_card_depth(cards, transparent_bounces: int) -> None:
+    """Cards stop rays two layers before the scene's transparent-bounce limit (Cycles)."""
+    node = cards.node_tree.nodes.get(NODE_CARD_DEPTH) if cards is not None and cards.node_tree else None
+    if node is not None:
+        node.outputs[0].default_value = float(max(0, int(transparent_bounces) - 2))
 
 
-def update_materials(params, canopy=None, cards=None, card_tip_colour=(0.16, 0.36, 0.07)) -> None:
-    """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the species colours."""
-    colour = mean_species_colour(params)
+def update_materials(params, canopy=None) -> None:
+    """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the far grass's colour."""
     if canopy is not None and canopy.node_tree is not None:
         kt = canopy.node_tree.nodes.get(NODE_KT)
         if kt is not None:
@@ -304,9 +323,3 @@ def update_materials(params, canopy=None, cards=None, card_tip_colour=(0.16, 0.3
         if grass is not None:
             sward = impostor.sward_colour(params)
             grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in sward], 1.0)
-    if cards is not None and cards.node_tree is not None:
-        tint = cards.node_tree.nodes.get(NODE_CARD_TINT)
-        if tint is not None:
-            # The texture is painted with ``card_tip_colour``; the tint turns it into the species'.
-            ratio = [min(c / max(t, 1e-4), 4.0) for c, t in zip(colour, card_tip_colour)]
-            tint.outputs[0].default_value = (*ratio, 1.0)

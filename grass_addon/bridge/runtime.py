@@ -140,7 +140,7 @@ def resolve(scene, item) -> FieldRuntime:
                       topology=slots.topology_key(field.layout, params))
     REGISTRY.fields[key] = rt
     if item.collection is not None:
-        field_scene.update_field_materials(item, params)
+        field_scene.update_field_materials(item, params, scene)
     return rt
 
 

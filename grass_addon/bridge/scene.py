@@ -52,7 +52,6 @@ ROLE_GROUND_MATERIAL = "ground_material"
 ROLE_CANOPY_MATERIAL = "canopy_material"
 ROLE_CARD_IMAGE = "card_image"
 
-CARD_TEXTURE_SIZE = 256
 
 
 def owner_tag(scene, item) -> str:
@@ -306,7 +305,7 @@ def field_materials(item):
     uid, base_name = item.collection["wg_uid"], item.collection.name
     image = registered(item).get(ROLE_CARD_IMAGE)
     if not isinstance(image, bpy.types.Image):
-        image = textures.ensure_card_image(f"{base_name} card texture", size=CARD_TEXTURE_SIZE)
+        image = textures.ensure_card_image(f"{base_name} card texture")
         _tag(image, uid, ROLE_CARD_IMAGE)
         _register(item, ROLE_CARD_IMAGE, image)
     blade = _material(item, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
@@ -316,11 +315,17 @@ def field_materials(item):
     return blade, card, ground, canopy
 
 
-def update_field_materials(item, params) -> None:
-    """Refresh the parameter-dependent values (eq 10 distances, colours) of the materials."""
+def update_field_materials(item, params, scene=None) -> None:
+    """Refresh the parameter-dependent values (eq 10 distances, colours, the card atlas) of the
+    materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles)."""
     reg = registered(item)
-    materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL), reg.get(ROLE_CARD_MATERIAL),
-                               tuple(float(c) for c in textures.TIP_COLOUR))
+    materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL))
+    cycles = getattr(scene, "cycles", None)
+    if cycles is not None:
+        materials.set_card_depth(reg.get(ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
+    image = reg.get(ROLE_CARD_IMAGE)
+    if isinstance(image, bpy.types.Image):
+        textures.paint_card_image(image, params)
 
 
 def _link(coll, obj, parent) -> None:
@@ -402,7 +407,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
             _link(coll, obj, ground)
             _register(item, _slot_key(ROLE_CARDS, i), obj)
     coll["wg_topology"] = topology or slots.topology_key(layout, params)
-    update_field_materials(item, params)
+    update_field_materials(item, params, scene)
     return coll
 
 

@@ -224,7 +224,9 @@ def setup_render(scene, params) -> None:
         cycles.diffuse_bounces = 2
         cycles.glossy_bounces = 1
         cycles.transmission_bounces = 2
-        cycles.transparent_max_bounces = 8  # card alpha (III.B) stacks a few layers deep
+        # A card holds a few blades (III.B, impostor.card_atlas): a grazing ray crosses dozens of them
+        # before one covers it; past this many layers a card stops the ray (materials.card_material).
+        cycles.transparent_max_bounces = 64
         cycles.use_denoising = _has_oidn() and r.samples > 1  # OIDN on the CPU is deterministic
         if cycles.use_denoising:
             _set_enum(cycles, "denoiser", "OPENIMAGEDENOISE")

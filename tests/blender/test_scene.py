@@ -90,27 +90,6 @@ def _stage(scene):
 # Pure helpers (no scene needed)
 
 
-def test_card_texture_is_a_clump_of_blades_rooted_at_the_bottom(with_bridge):
-    from windgrass.grass_addon.bridge import textures
-
-    img = textures.draw_grass_clump(size=128, blades=40, seed=3)
-    assert img.shape == (128, 128, 4) and img.dtype == np.float32 and img.flags["C_CONTIGUOUS"]
-    assert img.min() >= 0.0 and img.max() <= 1.0
-    alpha = img[..., 3]
-    # Blades taper from root (row 0) to tip and have random heights: coverage falls with height,
-    # and the top rows (above the tallest possible blade, 0.97) are empty.
-    rows = alpha.mean(axis=1)
-    assert rows[:16].mean() > rows[64:80].mean() > rows[112:124].mean()
-    assert alpha[-2:].max() == 0.0
-    # Grass: where opaque, green dominates red and blue.
-    opaque = alpha > 0.5
-    rgb = img[..., :3][opaque]
-    assert (rgb[:, 1] > rgb[:, 0]).mean() > 0.9 and (rgb[:, 1] > rgb[:, 2]).mean() > 0.9
-    # Deterministic: a function of the seed only.
-    assert np.array_equal(img, textures.draw_grass_clump(size=128, blades=40, seed=3))
-    assert not np.array_equal(img, textures.draw_grass_clump(size=128, blades=40, seed=4))
-
-
 # --------------------------------------------------------------------------------------------
 # Building and per-frame updates
 

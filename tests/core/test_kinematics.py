@@ -202,6 +202,12 @@ def test_faces_and_uvs_describe_the_strips():
     np.testing.assert_allclose(uvs[..., 1], (faces % (2 * (n + 1))) // 2 / n, atol=1e-7)
     cf, cu = kinematics.card_faces(layout), kinematics.card_uvs(layout)
     assert cf.shape == (layout.cells_per_block_total, 4) and cu.shape == (layout.cells_per_block_total * 4, 2)
+    # each card spans one variant of the atlas: cell p of the block shows variant p % CARD_VARIANTS
+    variant = np.arange(layout.cells_per_block_total) % kinematics.CARD_VARIANTS
+    corners = cu.reshape(-1, 4, 2)
+    np.testing.assert_allclose(corners[:, :, 0].min(axis=1), variant / kinematics.CARD_VARIANTS, atol=1e-7)
+    np.testing.assert_allclose(corners[:, :, 0].max(axis=1), (variant + 1) / kinematics.CARD_VARIANTS, atol=1e-7)
+    np.testing.assert_array_equal(corners[:, :, 1], np.broadcast_to([0, 0, 1, 1], corners.shape[:2]))
 
 
 def test_card_top_moves_by_eq34_offset_and_turns_with_twist():

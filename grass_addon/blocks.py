@@ -125,6 +125,7 @@ class Block:
     card_height: np.ndarray
     card_facing: np.ndarray
     card_shade: np.ndarray
+    card_center: np.ndarray  # (P, 2) float32: the card's foot, jittered inside its cell
     z_range: np.ndarray  # (2,) lowest, highest ground
 
     @property
@@ -220,6 +221,9 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     card_height = params.lod.card_height * tallest
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)
+    # the cards stand anywhere in their cell, like its blades: on the cell centres they would line
+    # up in rows that a view along the grid sees through (radial streaks)
+    card_center = centre64 + (cell_rng.random((P, 2)) - 0.5) * cs
     if terrain is None:
         z_range = np.zeros(2, np.float32)
     else:
@@ -234,7 +238,8 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         cell_length=cell_length, cell_width=cell_width, cell_root_stiffness=cell_stiffness.astype(f32),
         cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
-        card_shade=card_shade.astype(f32), z_range=np.asarray(z_range, dtype=f32))
+        card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
+        z_range=np.asarray(z_range, dtype=f32))
 
 
 class BlockCache:

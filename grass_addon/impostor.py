@@ -67,7 +67,7 @@ def sward_colour(params: Params) -> tuple[float, float, float]:
     return tuple(float(c) for c in species.p @ per_species)
 
 
-CARD_VARIANTS = 8  # cards of a block take variants p % CARD_VARIANTS of the atlas (p: cell in block)
+CARD_VARIANTS = 8  # variants of the atlas; each cell of a block shows one (kinematics.card_variants)
 CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many pixels
 
 
@@ -103,7 +103,7 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
             tilt = block.blade_rest_tilt[b].astype(np.float64)
             along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * float(d @ a)
             up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
-            root = float((block.blade_root[b, :2] - block.cell_center[cell]) @ a)
+            root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
             u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
             v = up / height
             taper = 1.0 - (1.0 - params.blade.tip_width) * np.arange(n + 1) / n

@@ -46,6 +46,7 @@ import numpy as np
 from . import blade, workers
 from .impostor import CARD_VARIANTS
 
+RNG_CARD_VARIANTS = 8  # purpose of the stream that picks each cell's card variant
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
 
@@ -85,13 +86,21 @@ def card_faces(layout) -> np.ndarray:
 
 
 def card_uvs(layout) -> np.ndarray:
-    """(cells_per_block**2 * 4, 2) float32 per face corner: v = 0 ground .. 1 top; u spans variant
-    ``p % CARD_VARIANTS`` of the card atlas (``impostor.card_atlas``) for the block's cell p."""
+    """(cells_per_block**2 * 4, 2) float32 per face corner: v = 0 ground .. 1 top; u spans one
+    variant of the card atlas (``impostor.card_atlas``), ``card_variants(layout)[p]`` for the
+    block's cell p."""
     one = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
-    variant = np.arange(layout.cells_per_block_total) % CARD_VARIANTS
+    variant = card_variants(layout)
     uv = np.tile(one, (layout.cells_per_block_total, 1)).reshape(-1, 4, 2)
     uv[..., 0] = (uv[..., 0] + variant[:, None]) / CARD_VARIANTS
     return np.ascontiguousarray(uv.reshape(-1, 2), dtype=np.float32)
+
+
+def card_variants(layout) -> np.ndarray:
+    """(cells_per_block**2,) the atlas variant of each cell of a block: drawn at random (a fixed
+    stream), so no row or column of cards repeats a pattern along the grid (streaks)."""
+    P = layout.cells_per_block_total
+    return np.random.default_rng([RNG_CARD_VARIANTS, P]).integers(0, CARD_VARIANTS, P)
 
 
 def blade_vertex_count(layout, n_blocks: int) -> int:
@@ -425,7 +434,7 @@ def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
     if rows == 0:
         return result
     cell_ids = layout.block_cells[blocks].ravel()
-    centre = layout.cell_center[cell_ids]  # (m, 2)
+    centre = layout.card_center[cell_ids]  # (m, 2) the card's foot inside its cell
     half = np.float32(0.5 * layout.params.lod.card_width * layout.cell_size)
     facing = layout.card_facing[cell_ids]
     twist_t = getattr(cells, "twist_t", None)  # joint-major (n, C) when present: no transpose

@@ -64,6 +64,7 @@ class FieldLayout:
     card_height: np.ndarray
     card_facing: np.ndarray
     card_shade: np.ndarray
+    card_center: np.ndarray  # (n_cells, 2) float32: each card's foot, jittered inside its cell
     species_color: np.ndarray  # (n_species, 3) float32 linear RGB
     # terrain: None = flat ground z = 0; blade_root z lies on it
     terrain: Heightfield | None = None
@@ -96,7 +97,8 @@ def _block_cells(blocks_x: int, blocks_y: int, cpb: int) -> np.ndarray:
 _BLADE_ARRAYS = ("blade_root", "blade_facing", "blade_length", "blade_width", "blade_inclination",
                  "blade_shade", "blade_species", "blade_rest_tilt")  # concatenated block after block
 _CELL_ARRAYS = ("cell_center", "cell_ground", "cell_length", "cell_width", "cell_root_stiffness",
-                "cell_rest_tilt", "cell_facing", "card_height", "card_facing", "card_shade")
+                "cell_rest_tilt", "cell_facing", "card_height", "card_facing", "card_shade",
+                "card_center")
 
 
 def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[Block],

@@ -248,6 +248,12 @@ PARAMS: tuple[Param, ...] = (
        minimum=-10.0, maximum=90.0),
     _p("render", "sun_azimuth", "float", 140.0, "Sun azimuth from +X, counter-clockwise", unit="deg",
        minimum=-360.0, maximum=360.0),
+    _p("render", "haze_distance", "float", 0.0,
+       "Aerial perspective: the grass at this distance shows 63 % haze (1 - e^-1); 0: none", unit="m",
+       minimum=0.0, maximum=1e6, soft_max=10000.0),
+    _p("render", "haze_color", "vec", (1.5, 1.5, 1.45),
+       "Aerial perspective: the haze's radiance (linear RGB), about the sky's at the horizon",
+       minimum=0.0, maximum=100.0, size=3, soft_max=5.0),
     # --- [simulation] --------------------------------------------------------------------------------
     _p("simulation", "sub_steps", "int", 1, "Solver steps per frame at least (raised for stability)",
        minimum=1, maximum=64),

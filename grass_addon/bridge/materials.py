@@ -30,6 +30,8 @@ ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten fro
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
 NODE_CARD_DEPTH = "wg_card_depth"  # Value: transparent layers a ray crosses before a card stops it
+NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: no haze)
+NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
 NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (impostor.sward_colour)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
@@ -41,6 +43,8 @@ LITTER_COLOUR = (0.022, 0.040, 0.010, 1.0)
 # Seen from afar a sward is darker than its blades' colour: the blades shade one another.
 # (Measured against the all-geometry render, sun and overcast: headless/lod_compare.py.)
 SWARD_SHADE = 0.7
+CARD_SPECULAR = 0.1  # the cards' specular level (blades: 0.35) and roughness (blades: 0.55)
+CARD_ROUGHNESS = 0.8
 CANOPY_GAIN = 2.0  # the canopy's opacity is min(1, CANOPY_GAIN * K_t)
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
@@ -122,11 +126,37 @@ class _Tree:
             _set(node, b, "B_Color")
         return node
 
-    def foliage(self, colour_node, colour_out: str, x: float, y: float):
+    def hazed(self, shader_node, shader_out: str, x: float, y: float):
+        """``shader`` seen through the air: mixed with the haze's emission by
+        1 - exp(-d / render.haze_distance) of the view distance d (aerial perspective). The
+        distance and colour live in NODE_HAZE_DISTANCE / NODE_HAZE_COLOUR (update_materials)."""
+        camera = self.add("ShaderNodeCameraData", x - 700, y - 250)
+        scale = self.add("ShaderNodeMath", x - 500, y - 250, operation="MULTIPLY")
+        self.link(camera, "View Distance", scale, scale.inputs[0])
+        inverse = self.add("ShaderNodeValue", x - 700, y - 450, name=NODE_HAZE_DISTANCE)  # -1 / distance
+        inverse.outputs[0].default_value = 0.0
+        self.link(inverse, "Value", scale, scale.inputs[1])
+        transmitted = self.add("ShaderNodeMath", x - 350, y - 250, operation="EXPONENT")
+        self.link(scale, "Value", transmitted, transmitted.inputs[0])
+        amount = self.add("ShaderNodeMath", x - 200, y - 250, operation="SUBTRACT", use_clamp=True)
+        _set_input(amount, 0, 1.0)
+        self.link(transmitted, "Value", amount, amount.inputs[1])
+        colour = self.add("ShaderNodeRGB", x - 350, y - 450, name=NODE_HAZE_COLOUR)
+        colour.outputs[0].default_value = (1.5, 1.5, 1.45, 1.0)
+        glow = self.add("ShaderNodeEmission", x - 200, y - 450)
+        self.link(colour, "Color", glow, "Color")
+        mix = self.add("ShaderNodeMixShader", x, y)
+        self.link(amount, "Value", mix, "Fac")
+        self.link(shader_node, shader_out, mix, mix.inputs[1])
+        self.link(glow, "Emission", mix, mix.inputs[2])
+        return mix
+
+    def foliage(self, colour_node, colour_out: str, x: float, y: float, specular: float = 0.35,
+                roughness: float = 0.55):
         """Principled (reflection) + Translucent (light through the blade), mixed."""
         bsdf = self.add("ShaderNodeBsdfPrincipled", x, y + 150)
-        _set(bsdf, 0.55, "Roughness")
-        _set(bsdf, 0.35, "Specular IOR Level", "Specular")
+        _set(bsdf, roughness, "Roughness")
+        _set(bsdf, specular, "Specular IOR Level", "Specular")
         trans = self.add("ShaderNodeBsdfTranslucent", x, y - 250)
         self.link(colour_node, colour_out, bsdf, "Base Color")
         self.link(colour_node, colour_out, trans, "Color")
@@ -173,7 +203,7 @@ def blade_material(name: str, uid: str):
     t.link(hue, "Result", hsv, "Hue")
     t.link(value, "Result", hsv, "Value")
     t.link(mix, "Result_Color", hsv, "Color")
-    shader = t.foliage(hsv, "Color", -250, 0)
+    shader = t.hazed(t.foliage(hsv, "Color", -250, 0), "Shader", 150, 0)
     out = t.add("ShaderNodeOutputMaterial", 350, 0)
     t.link(shader, "Shader", out, "Surface")
     return mat
@@ -214,7 +244,10 @@ def card_material(name: str, uid: str, image):
     alpha = t.add("ShaderNodeMath", -800, -300, operation="MULTIPLY", use_clamp=True)
     t.link(cover, "Value", alpha, alpha.inputs[0])
     t.link(opacity, "X", alpha, alpha.inputs[1])
-    shader = t.foliage(tex, "Color", -500, 0)
+    # A card is one flat plane where its blades turn every way: their highlights scatter, the
+    # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
+    shader = t.hazed(t.foliage(tex, "Color", -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
+                     "Shader", -100, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 150, 0)
     t.link(alpha, "Value", cut, "Fac")
@@ -241,8 +274,9 @@ def ground_material(name: str, uid: str):
     _set(bsdf, 1.0, "Roughness")
     _set(bsdf, 0.0, "Specular IOR Level", "Specular")
     t.link(floor, "Result_Color", bsdf, "Base Color")
-    out = t.add("ShaderNodeOutputMaterial", 0, 0)
-    t.link(bsdf, "BSDF", out, "Surface")
+    shader = t.hazed(bsdf, "BSDF", -100, 0)
+    out = t.add("ShaderNodeOutputMaterial", 150, 0)
+    t.link(shader, "Shader", out, "Surface")
     return mat
 
 
@@ -295,7 +329,7 @@ def canopy_material(name: str, uid: str):
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
     t.link(clear, "BSDF", cut, cut.inputs[1])
-    t.link(bsdf, "BSDF", cut, cut.inputs[2])
+    t.link(t.hazed(bsdf, "BSDF", -100, 150), "Shader", cut, cut.inputs[2])
     out = t.add("ShaderNodeOutputMaterial", 300, 0)
     t.link(cut, "Shader", out, "Surface")
     return mat
@@ -306,6 +340,21 @@ def set_card_depth(cards, transparent_bounces: int) -> None:
     node = cards.node_tree.nodes.get(NODE_CARD_DEPTH) if cards is not None and cards.node_tree else None
     if node is not None:
         node.outputs[0].default_value = float(max(0, int(transparent_bounces) - 2))
+
+
+def update_haze(params, *mats) -> None:
+    """Write render.haze_distance / haze_color into every material's aerial perspective."""
+    distance = float(params.render.haze_distance)
+    inverse = -1.0 / distance if distance > 0.0 else 0.0
+    for mat in mats:
+        if mat is None or mat.node_tree is None:
+            continue
+        node = mat.node_tree.nodes.get(NODE_HAZE_DISTANCE)
+        if node is not None:
+            node.outputs[0].default_value = inverse
+        node = mat.node_tree.nodes.get(NODE_HAZE_COLOUR)
+        if node is not None:
+            node.outputs[0].default_value = (*params.render.haze_color, 1.0)
 
 
 def update_materials(params, canopy=None) -> None:

@@ -320,6 +320,8 @@ def update_field_materials(item, params, scene=None) -> None:
     materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles)."""
     reg = registered(item)
     materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL))
+    materials.update_haze(params, *(reg.get(role) for role in (ROLE_BLADE_MATERIAL, ROLE_CARD_MATERIAL,
+                                                               ROLE_GROUND_MATERIAL, ROLE_CANOPY_MATERIAL)))
     cycles = getattr(scene, "cycles", None)
     if cycles is not None:
         materials.set_card_depth(reg.get(ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)

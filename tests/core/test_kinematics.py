@@ -202,8 +202,10 @@ def test_faces_and_uvs_describe_the_strips():
     np.testing.assert_allclose(uvs[..., 1], (faces % (2 * (n + 1))) // 2 / n, atol=1e-7)
     cf, cu = kinematics.card_faces(layout), kinematics.card_uvs(layout)
     assert cf.shape == (layout.cells_per_block_total, 4) and cu.shape == (layout.cells_per_block_total * 4, 2)
-    # each card spans one variant of the atlas: cell p of the block shows variant p % CARD_VARIANTS
-    variant = np.arange(layout.cells_per_block_total) % kinematics.CARD_VARIANTS
+    # each card spans one variant of the atlas, the same for the same cell of every block
+    variant = kinematics.card_variants(layout)
+    assert variant.min() >= 0 and variant.max() < kinematics.CARD_VARIANTS
+    assert len(set(variant.tolist())) > 1
     corners = cu.reshape(-1, 4, 2)
     np.testing.assert_allclose(corners[:, :, 0].min(axis=1), variant / kinematics.CARD_VARIANTS, atol=1e-7)
     np.testing.assert_allclose(corners[:, :, 0].max(axis=1), (variant + 1) / kinematics.CARD_VARIANTS, atol=1e-7)
@@ -224,9 +226,12 @@ def test_card_top_moves_by_eq34_offset_and_turns_with_twist():
     blocks = np.arange(layout.n_blocks)
     v = kinematics.card_vertices(layout, cells, blocks).reshape(-1, 4, 3)
     order = layout.block_cells[blocks].ravel()
-    centre = layout.cell_center[order]
+    centre = layout.card_center[order]
     bottom_mid, top_mid = v[:, :2].mean(axis=1), v[:, 2:].mean(axis=1)
     np.testing.assert_allclose(bottom_mid[:, :2], centre, atol=1e-6)
+    # the card stands inside its cell (anywhere in it: no rows of cards along the grid)
+    assert np.abs(centre - layout.cell_center[order]).max() <= 0.5 * layout.cell_size + 1e-6
+    assert np.abs(centre - layout.cell_center[order]).std() > 0.1 * layout.cell_size
     assert np.all(v[:, :2, 2] == 0.0)
     lift = top_mid - bottom_mid
     np.testing.assert_allclose(lift, offset[order] + np.array([0, 0, 1.0]) * layout.card_height[order, None],

@@ -7,6 +7,7 @@
     python3.11 dev.py simulate [simulate.py options]     # numpy-only simulation summary
     python3.11 dev.py bench [bench.py options]           # benchmark JSON
     python3.11 dev.py lod [lod_compare.py options]       # LOD against all-geometry renders (JSON)
+    python3.11 dev.py docs [docs_media.py options]       # the README's still, animation, LOD pictures
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ ROOT = Path(__file__).resolve().parent
 # (virtual environment, its requirements): the current Blender line, and the oldest supported one
 LATEST = (ROOT / ".venv", ROOT / "requirements.txt")
 OLDEST = (ROOT / ".venv-4.2", ROOT / "requirements-blender-4.2.txt")
+DOCS_REQUIREMENT = "pillow==11.0.0"  # dev.py docs only (animated WebP)
 
 
 def ensure_venv(env_dir: Path = LATEST[0], requirements: Path = LATEST[1]) -> Path:
@@ -49,6 +51,7 @@ def main(argv: list[str]) -> int:
         "simulate": ["headless/simulate.py"],
         "bench": ["headless/bench.py"],
         "lod": ["headless/lod_compare.py"],
+        "docs": ["headless/docs_media.py"],
         "test": ["-m", "pytest", "tests"],
     }
     if not argv or argv[0] not in jobs:
@@ -58,6 +61,8 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if argv[0] == "test":
         return run_tests(python, argv[1:], env)
+    if argv[0] == "docs":  # Pillow writes the animation; only this job needs it
+        subprocess.check_call([str(python), "-m", "pip", "install", "-q", DOCS_REQUIREMENT])
     cmd = [str(python), *jobs[argv[0]], *argv[1:]]
     return subprocess.call(cmd, cwd=ROOT, env=env)
 

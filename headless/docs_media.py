@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""The README's pictures: a still and a short animation of the default scene, and the LOD comparison.
+
+    python headless/docs_media.py [--frames 1-30] [--resolution 400x225] [--out docs]
+    python3.11 dev.py docs ...    # the same inside the project's .venv (installs Pillow there)
+
+Renders ``scenes/default.toml`` with ``render_field.py`` into ``renders/docs/``, then writes
+``<out>/default_scene.png`` (the middle frame) and ``<out>/default_scene.webp`` (every frame, an
+animated WebP of a few hundred kB). When ``renders/lod_compare/`` holds the images of ``dev.py lod``,
+``<out>/lod_compare.png`` puts the LOD render beside the all-geometry render (sun and overcast).
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+HEADLESS = Path(__file__).resolve().parent
+REPO = HEADLESS.parent
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(prog="docs_media.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", default="1-30", help="frame range of the animation (default 1-30)")
+    parser.add_argument("--resolution", default="400x225", help="WIDTHxHEIGHT (default 400x225)")
+    parser.add_argument("--out", type=Path, default=REPO / "docs", help="folder of the README's pictures")
+    parser.add_argument("--skip-render", action="store_true", help="use the frames already in renders/docs")
+    return parser.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    try:
+        from PIL import Image
+    except ImportError:
+        print("docs_media.py: error: needs Pillow (python3.11 dev.py docs installs it)", file=sys.stderr)
+        return 2
+    frames_dir = REPO / "renders" / "docs"
+    if not args.skip_render:
+        status = subprocess.call([sys.executable, str(HEADLESS / "render_field.py"), "--frames", args.frames,
+                                  "--resolution", args.resolution, "--out", str(frames_dir)], cwd=REPO)
+        if status:
+            return status
+    frames = sorted(frames_dir.glob("frame_*.png"))
+    if not frames:
+        print(f"docs_media.py: error: no frames in {frames_dir}", file=sys.stderr)
+        return 1
+    args.out.mkdir(parents=True, exist_ok=True)
+    images = [Image.open(p).convert("RGB") for p in frames]
+    images[len(images) // 2].save(args.out / "default_scene.png", optimize=True)
+    images[0].save(args.out / "default_scene.webp", save_all=True, append_images=images[1:], duration=1000 // 24,
+                   loop=0, quality=70, method=6)
+    print(f"wrote {args.out / 'default_scene.png'} and {args.out / 'default_scene.webp'} ({len(images)} frames)")
+    lod = REPO / "renders" / "lod_compare"
+    pairs = [(lod / f"default_{light}_lod_0001.png", lod / f"default_{light}_geometry_0001.png")
+             for light in ("sun", "overcast")]
+    if all(p.exists() for pair in pairs for p in pair):
+        rows = [[Image.open(p).convert("RGB") for p in pair] for pair in pairs]
+        w, h = rows[0][0].size
+        sheet = Image.new("RGB", (2 * w, 2 * h))
+        for y, row in enumerate(rows):
+            for x, image in enumerate(row):
+                sheet.paste(image, (x * w, y * h))
+        sheet.save(args.out / "lod_compare.png", optimize=True)
+        print(f"wrote {args.out / 'lod_compare.png'} (left: levels of detail, right: every blade as geometry)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

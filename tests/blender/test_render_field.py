@@ -201,6 +201,21 @@ def test_sub_range_renders_the_same_pixels(cycles_run, env, tiny_config, tmp_pat
         assert pixels(tmp_path / name) == pixels(full / name), name
 
 
+def test_a_split_far_into_a_long_range_renders_the_same_pixels(env, tiny_config, tmp_path):
+    """A 10,000-frame scene with a moving camera: frame 10,000 rendered alone equals frame 10,000
+    of the run 9,999-10,000 (each reaches it through a bounded number of steps, not 10,000)."""
+    runs = []
+    for frames in ("9999-10000", "10000"):
+        out = tmp_path / frames
+        proc = render(env, "--config", tiny_config, "--engine", "cycles", "--render-frame-end", "10000",
+                      "--frames", frames, "--out", out)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        runs.append(out)
+    assert frames_in(runs[1]) == ["frame_10000.png"]
+    assert pixels(runs[1] / "frame_10000.png") == pixels(runs[0] / "frame_10000.png")
+    assert lower_green_share(runs[1] / "frame_10000.png") > 0.6
+
+
 def test_eevee_frames_show_grass(env, tiny_config, tmp_path):
     proc = render(env, "--config", tiny_config, "--engine", "eevee", "--samples", "1", "--frames", "1-3",
                   "--out", tmp_path)

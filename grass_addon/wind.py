@@ -81,8 +81,13 @@ def _bilinear_weights(f: np.ndarray, rho: float) -> tuple[np.ndarray, np.ndarray
     correlation of neighbouring units); the weights are divided by its square root so that v'
     keeps its std while the lattice drifts across the cells (no flicker of its strength).
     """
-    norm = 1.0 / np.sqrt((1 - f) ** 2 + f * f + 2 * f * (1 - f) * rho)
-    return ((1 - f) * norm).astype(np.float32), (f * norm).astype(np.float32)
+    g = np.float32(1.0) - f
+    norm = g * g
+    norm += f * f
+    norm += np.float32(2.0 * rho) * f * g
+    np.sqrt(norm, out=norm)
+    np.reciprocal(norm, out=norm)
+    return g * norm, f * norm
 
 
 def _catmull_rom(u: float) -> np.ndarray:
@@ -292,28 +297,45 @@ class WindField:
 
         Taylor's frozen turbulence: the lattice travels with the mean wind, so a point at x sees
         the lattice at x - D(t), D(t) = integral_0^t v-bar dt' (bilinear). Unit i of the lattice
-        has its centre at (i + 1/2) a. Every point's value depends on that point alone.
+        has its centre at (i + 1/2) a. Every point's value depends on that point alone (the same
+        arithmetic, element by element, whichever points are sampled with it).
         """
         t = float(t)
         xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
         if self.turbulence_std == 0.0 or xy.shape[0] == 0:
             return np.zeros((xy.shape[0], 2), dtype=np.float32)
         shift = self.displacement(t)
-        ux = (xy[:, 0] - shift[0]) / self.unit - 0.5
-        uy = (xy[:, 1] - shift[1]) / self.unit - 0.5
+        inverse = 1.0 / self.unit
+        ux = xy[:, 0] * inverse
+        ux -= shift[0] * inverse + 0.5
+        uy = xy[:, 1] * inverse
+        uy -= shift[1] * inverse + 0.5
         fx0, fy0 = np.floor(ux), np.floor(uy)
         i0, j0 = int(fx0.min()), int(fy0.min())
         region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
-        lattice = self._time_blend(t, region)
-        ix = (fx0 - i0).astype(np.intp)
-        iy = (fy0 - j0).astype(np.intp)
-        wx0, wx1 = _bilinear_weights(ux - fx0, self._rho)
-        wy0, wy1 = _bilinear_weights(uy - fy0, self._rho)
-        out = lattice[iy, ix] * (wy0 * wx0)[:, None]
-        out += lattice[iy, ix + 1] * (wy0 * wx1)[:, None]
-        out += lattice[iy + 1, ix] * (wy1 * wx0)[:, None]
-        out += lattice[iy + 1, ix + 1] * (wy1 * wx1)[:, None]
-        return out
+        width = region[2] - i0
+        # the blended lattice as one complex number per unit (x + iy): one gather per corner
+        lattice = np.ascontiguousarray(self._time_blend(t, region)).view(np.complex64).ravel()
+        corner = (fy0 - j0).astype(np.intp)
+        corner *= width
+        corner += (fx0 - i0).astype(np.intp)
+        wx0, wx1 = _bilinear_weights((ux - fx0).astype(np.float32), self._rho)
+        wy0, wy1 = _bilinear_weights((uy - fy0).astype(np.float32), self._rho)
+        out = np.take(lattice, corner)
+        out *= wx0
+        right = np.take(lattice, corner + 1)
+        right *= wx1
+        out += right
+        out *= wy0
+        corner += width
+        upper = np.take(lattice, corner)
+        upper *= wx0
+        right = np.take(lattice, corner + 1)
+        right *= wx1
+        upper += right
+        upper *= wy1
+        out += upper
+        return out.view(np.float32).reshape(-1, 2)
 
     # ------------------------------------------------------------------ the whole field (eq 12)
 

@@ -178,7 +178,10 @@ class Simulation:
         return out
 
     def _sample(self, frame: int) -> np.ndarray:
-        return np.ascontiguousarray(self.wind.sample(self.time(frame), self.layout.cell_center), dtype=np.float32)
+        t = self.time(frame)
+        by_layout = getattr(self.wind, "sample_layout", None)  # a WindField; a plain sampler also works
+        wind = by_layout(t, self.layout) if by_layout is not None else self.wind.sample(t, self.layout.cell_center)
+        return np.ascontiguousarray(wind, dtype=np.float32)
 
     def _trajectory(self, k: int, frame: int) -> Trajectory:
         """Trajectory k at a frame <= ``frame`` (restarted or restored when it is past it)."""

@@ -337,6 +337,55 @@ class WindField:
         out += upper
         return out.view(np.float32).reshape(-1, 2)
 
+    def _turbulence_grid(self, t: float, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """``turbulence`` at every point of the grid xs (columns) x ys (rows): (rows, cols, 2).
+
+        Each column's and row's coordinate and weights are computed once, and the x interpolation
+        once per lattice row and column, in the same order of operations as ``turbulence``, so every
+        point gets the same bits as there."""
+        shift = self.displacement(t)
+        inverse = 1.0 / self.unit
+        ux = np.asarray(xs, dtype=np.float64) * inverse
+        ux -= shift[0] * inverse + 0.5
+        uy = np.asarray(ys, dtype=np.float64) * inverse
+        uy -= shift[1] * inverse + 0.5
+        fx0, fy0 = np.floor(ux), np.floor(uy)
+        i0, j0 = int(fx0.min()), int(fy0.min())
+        region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
+        lattice = np.ascontiguousarray(self._time_blend(t, region)).view(np.complex64)[..., 0]  # (H, W)
+        column = (fx0 - i0).astype(np.intp)
+        row = (fy0 - j0).astype(np.intp)
+        wx0, wx1 = _bilinear_weights((ux - fx0).astype(np.float32), self._rho)
+        wy0, wy1 = _bilinear_weights((uy - fy0).astype(np.float32), self._rho)
+        along = np.take(lattice, column, axis=1)  # (H, cols): every lattice row at every column
+        along *= wx0
+        right = np.take(lattice, column + 1, axis=1)
+        right *= wx1
+        along += right
+        out = np.take(along, row, axis=0)  # (rows, cols)
+        out *= wy0[:, None]
+        upper = np.take(along, row + 1, axis=0)
+        upper *= wy1[:, None]
+        out += upper
+        return out.view(np.float32).reshape(out.shape + (2,))
+
+    def sample_layout(self, t: float, layout) -> np.ndarray:
+        """``sample(t, layout.cell_center)``, the same bits: on a whole-field layout (cells
+        row-major on the field's grid) the turbulence is computed per row and column."""
+        t = float(t)
+        whole = layout.n_cells == layout.cells_x * layout.cells_y and layout.n_cells > 0
+        if not whole or self.turbulence_std == 0.0:
+            return self.sample(t, layout.cell_center)
+        xy = np.asarray(layout.cell_center, dtype=np.float64)
+        grid = self._turbulence_grid(t, xy[: layout.cells_x, 0], xy[:: layout.cells_x, 1])
+        out = np.ascontiguousarray(grid.reshape(-1, 2))
+        out += self._mean_vector(t).astype(np.float32)  # uniform over the field (eq 12)
+        if self.kind == "blast":
+            self._add_gusts(t, xy, out)
+        elif self.kind == "whirlwind":
+            self._add_vortex(t, xy, out)
+        return out
+
     # ------------------------------------------------------------------ the whole field (eq 12)
 
     def sample(self, t: float, xy: np.ndarray | None = None) -> np.ndarray:

@@ -7,7 +7,7 @@ Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks a
 N blades, laid out near-square (default 524,288 blades = 32 x 32 blocks). Each timed frame runs
 the phases of a frame update separately:
 
-* wind: WindField.sample(t) of every cell (eqs 12-13);
+* wind: WindField.sample_layout(t, layout) of every cell (eqs 12-13);
 * solver: the frame's solver sub-steps (eqs 14-32), as Simulation does them;
 * lod: eqs 7-11 for every cell + block frustum culling, from the scene's fixed camera;
 * kinematics: the shared cell data (celldata.cell_data, eq 34) and the blade strip vertices of
@@ -130,7 +130,7 @@ def run_bench(blades: int, segments: int, frames: int) -> dict:
         frame += 1
         t = sim.time(frame)
         stamps = [(clock(), time.process_time())]
-        wind = field.wind.sample(t)  # eqs 12-13
+        wind = field.wind.sample_layout(t, layout)  # eqs 12-13, as Simulation samples them
         stamps.append((clock(), time.process_time()))
         solver.step(wind, frame_dt, substeps)  # eqs 14-32
         stamps.append((clock(), time.process_time()))

@@ -207,5 +207,9 @@ def test_wind_at_a_point_does_not_depend_on_the_other_points():
     everything = wind.sample(3.3, xy)
     some = wind.sample(3.3, xy[::7])
     assert np.array_equal(some, everything[::7])
+    # a whole field's grid path gives the same bits as point by point
+    whole = GrassField(small(**{"wind.type": "blast"})).layout
+    gusts = WindField(whole, whole.params)
+    assert np.array_equal(gusts.sample_layout(2.7, whole), gusts.sample(2.7, whole.cell_center))
     far = wind.sample(3.3, xy + 7000.0)  # kilometres away on an unbounded lattice
     assert np.all(np.isfinite(far)) and not np.allclose(far, everything)

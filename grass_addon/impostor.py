@@ -77,59 +77,80 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     the blades of cell k of the sample block, at their rest shape, in their own colours.
 
     A card is ``lod.card_width`` cells wide and stands for its cell's blades, so the atlas holds
-    exactly those: their coverage (alpha), colour ramp (the blade material's, with each blade's
-    shade) and shape are the blades'. Each blade keeps its full width: seen from a direction v, a
-    blade shows w |sin(v - facing)| and the card |cos(v - card normal)| of its area; averaged over
-    the directions both are 2/pi, so the full width matches the blades' mean silhouette (drawing
-    the width projected onto the card would count that foreshortening twice and leave the cards
-    1.57 times too sparse). The variant's height spans its card's height (``card_height``)."""
+    exactly those: their colour ramp (the blade material's, with each blade's shade), shape and
+    coverage are the blades'. Each blade keeps its full width and its whole droop (to the side its
+    lean points to): seen from a direction v, a blade shows w |sin(v - facing)| of its width (and
+    |cos| of its droop) and the card |cos(v - card normal)| of its area; averaged over the
+    directions all are 2/pi, so the card's coverage must be the blades' whole area over the card's
+    (``card_coverage``). Sizes projected onto the card would count that foreshortening twice (the
+    cards 1.57 times too sparse); what a long droop carries past the card's edge is given back by
+    widening that variant's strips until its coverage is the blades' area. The variant's height
+    spans its card's height (``card_height``)."""
     block = sample_blades(params)
-    n, num = int(params.blade.segments), int(params.field.blades_per_cell)
-    card_w = float(params.lod.card_width) * float(params.field.cell_size)
-    species = Species(params)
-    rgb = np.zeros((size, variants * size, 3), np.float64)
-    alpha = np.zeros((size, variants * size), np.float64)
-    ys = (np.arange(size) + 0.5) / size
+    num = int(params.field.blades_per_cell)
+    image = np.empty((size, variants * size, 4), np.float32)
     for k in range(variants):
         cell = k % block.cell_center.shape[0]
-        height = float(block.card_height[cell])
-        axis = float(block.card_facing[cell])
-        a = np.array([np.cos(axis), np.sin(axis)])
-        blades = range(cell * num, (cell + 1) * num) if num else []
-        for b in blades:
-            facing = float(block.blade_facing[b])
-            d = np.array([np.cos(facing), np.sin(facing)])
-            seg = float(block.blade_length[b]) / n
-            tilt = block.blade_rest_tilt[b].astype(np.float64)
-            along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * float(d @ a)
-            up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
-            root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
-            u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
-            v = up / height
-            taper = 1.0 - (1.0 - params.blade.tip_width) * np.arange(n + 1) / n
-            half = 0.5 * float(block.blade_width[b]) * taper / card_w
-            tip = species.color[int(block.blade_species[b])].astype(np.float64)
-            colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
-            _draw_strip(rgb, alpha, k * size, size, ys, u, v, half, colour)
+        blades = list(range(cell * num, (cell + 1) * num))
+        target = _blade_share(params, block, cell, blades)
+        widen = 1.0
+        for _ in range(3):  # coverage is about linear in the width: converges in a step or two
+            rgb, alpha = _draw_variant(params, block, cell, blades, size, widen)
+            covered = float(alpha.mean())
+            if covered <= 0.0 or abs(covered - target) <= 0.02 * target:
+                break
+            widen = min(4.0, widen * target / covered)
+        image[:, k * size:(k + 1) * size, :3] = rgb
+        image[:, k * size:(k + 1) * size, 3] = alpha
+    return image
+
+
+def _blade_share(params: Params, block, cell: int, blades) -> float:
+    """Whole area of the cell's blades (tapered strips, face on) over its card's area."""
+    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    taper = 0.5 * (1.0 + params.blade.tip_width)
+    area = sum(taper * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
+    return area / (card_w * float(block.card_height[cell]))
+
+
+def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
+    """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another."""
+    n = int(params.blade.segments)
+    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    species = Species(params)
+    rgb = np.zeros((size, size, 3), np.float64)
+    alpha = np.zeros((size, size), np.float64)
+    ys = (np.arange(size) + 0.5) / size
+    height = float(block.card_height[cell])
+    axis = float(block.card_facing[cell])
+    a = np.array([np.cos(axis), np.sin(axis)])
+    taper = 1.0 - (1.0 - params.blade.tip_width) * np.arange(n + 1) / n
+    for b in blades:
+        facing = float(block.blade_facing[b])
+        lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
+        seg = float(block.blade_length[b]) / n
+        tilt = block.blade_rest_tilt[b].astype(np.float64)
+        along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
+        up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
+        root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
+        u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
+        half = 0.5 * widen * float(block.blade_width[b]) * taper / card_w
+        tip = species.color[int(block.blade_species[b])].astype(np.float64)
+        colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
+        _draw_strip(rgb, alpha, 0, size, ys, u, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
-    # Where no blade covers the card, the colour is the variant's coverage-weighted mean colour of
-    # that row (or of the whole variant): a renderer that stops at a card after many transparent
+    # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of
+    # that row (or of the whole card): a renderer that stops at a card after many transparent
     # layers (``materials.card_material``) shows grass there, not black.
-    for k in range(variants):
-        cols = slice(k * size, (k + 1) * size)
-        w = alpha[:, cols]
-        total = w.sum()
-        fallback = (rgb[:, cols] * w[..., None]).sum(axis=(0, 1)) / total if total > 0 else np.zeros(3)
-        row_w = w.sum(axis=1)
-        row_mean = (rgb[:, cols] * w[..., None]).sum(axis=1) / np.maximum(row_w, 1e-9)[:, None]
-        row = np.where(row_w[:, None] > 1e-3, row_mean, fallback)
-        empty = w <= 1e-6
-        rgb[:, cols][empty] = np.broadcast_to(row[:, None, :], rgb[:, cols].shape)[empty]
-    image = np.empty((size, variants * size, 4), np.float32)
-    image[..., :3] = np.clip(rgb, 0.0, 1.0)
-    image[..., 3] = alpha
-    return image
+    total = alpha.sum()
+    fallback = (rgb * alpha[..., None]).sum(axis=(0, 1)) / total if total > 0 else np.zeros(3)
+    row_w = alpha.sum(axis=1)
+    row_mean = (rgb * alpha[..., None]).sum(axis=1) / np.maximum(row_w, 1e-9)[:, None]
+    row = np.where(row_w[:, None] > 1e-3, row_mean, fallback)
+    empty = ~covered
+    rgb[empty] = np.broadcast_to(row[:, None, :], rgb.shape)[empty]
+    return np.clip(rgb, 0.0, 1.0), alpha
 
 
 def _draw_strip(rgb, alpha, x0: int, size: int, ys, u, v, half, colour) -> None:
@@ -154,17 +175,16 @@ def _draw_strip(rgb, alpha, x0: int, size: int, ys, u, v, half, colour) -> None:
 
 
 def card_coverage(params: Params) -> tuple[float, float]:
-    """(mean alpha of the atlas, projected blade area / card area of the same cells): a check
+    """(mean alpha of the atlas, the blades' whole area / card area of the same cells): a check
     that the cards cover what their blades cover."""
     atlas = card_atlas(params)
     block = sample_blades(params)
-    n, num = int(params.blade.segments), int(params.field.blades_per_cell)
+    num = int(params.field.blades_per_cell)
     card_w = float(params.lod.card_width) * float(params.field.cell_size)
-    area, cards = 0.0, 0.0
+    area = cards = 0.0
     for k in range(CARD_VARIANTS):
         cell = k % block.cell_center.shape[0]
         cards += card_w * float(block.card_height[cell])
-        for b in range(cell * num, (cell + 1) * num):
-            mean_width = 0.5 * (1.0 + params.blade.tip_width) * float(block.blade_width[b])
-            area += mean_width * float(block.blade_length[b] / n * np.cos(block.blade_rest_tilt[b]).sum())
+        area += _blade_share(params, block, cell, range(cell * num, (cell + 1) * num)) * card_w * float(
+            block.card_height[cell])
     return float(atlas[..., 3].mean()), area / cards

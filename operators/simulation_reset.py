@@ -11,8 +11,8 @@ class WINDGRASS_OT_simulation_reset(bpy.types.Operator):
 
     bl_idname = "windgrass.simulation_reset"
     bl_label = "Reset Grass Simulation"
-    bl_description = ("Forget the active grass field's simulated states and checkpoints, "
-                      "then simulate the current frame again from rest")
+    bl_description = ("Forget the active grass field's simulated states and saved states, "
+                      "then simulate the current frame again (from its epoch's start, at rest)")
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod

@@ -8,7 +8,8 @@ tip colour over the lower 70 % of the blade, ``bridge/materials.py``):
 * ``canopy_height``: where a low, grazing view stops seeing through the sward: the height below
   which the blades hide the ground, taken as the mean of the blades' rest tip heights times
   CANOPY_SHARE. The far texture lies on a plane at that height, so at the horizon the field's
-  silhouette is the grass's, not the ground's.
+  silhouette is the grass's, not the ground's; ``fringe_height``: at the field's edge a fringe
+  rises from it to the tips of most blades, thinning out towards the top.
 * ``sward_colour``: the colour of the blades as a grazing view sees them: the mean colour of the
   upper part of each blade (the part not hidden by the sward), weighted by its width (strips
   taper to ``blade.tip_width``) and by species share.
@@ -25,7 +26,8 @@ from .schema import Params
 
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (linear RGB)
 GRADIENT_END = 0.7  # the blade material darkens the lower 70 % of the blade towards the root
-CANOPY_SHARE = 0.9  # a grazing view sees the sward down to nine tenths of the tips' mean height
+CANOPY_SHARE = 0.75  # a grazing view sees the sward down to three quarters of the tips' mean height
+FRINGE_PERCENTILE = 80  # the fringe at the field's edge reaches the tips of this share of the blades
 VISIBLE_FROM = 0.35  # of a blade's length: the part below is hidden by the sward from afar
 
 
@@ -46,6 +48,12 @@ def tip_heights(params: Params) -> np.ndarray:
 def canopy_height(params: Params) -> float:
     """Height (m) of the plane that the far texture lies on."""
     return float(CANOPY_SHARE * np.mean(tip_heights(params)))
+
+
+def fringe_height(params: Params) -> float:
+    """How far the tall tips (the FRINGE_PERCENTILE-th percentile) stand above the canopy plane (m):
+    the fringe at the field's edge, where they stand against the sky."""
+    return float(max(0.0, np.percentile(tip_heights(params), FRINGE_PERCENTILE) - canopy_height(params)))
 
 
 def blade_colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:

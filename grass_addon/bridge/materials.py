@@ -25,6 +25,7 @@ from .. import impostor
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
 UV_FADE = "wg_fade"
+UV_FRINGE = "wg_fringe"  # ground mesh: (0, 1 - opacity) of the canopy's fringe at the field's edge
 ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
 
 # Node names that ``update_materials`` looks up.
@@ -318,9 +319,20 @@ def canopy_material(name: str, uid: str):
     # The canopy is the floor of the fading cards (K'_b = 1 - K_t): it turns opaque over the first
     # 1 / CANOPY_GAIN of the band, so the band blends the cards' colour into the canopy's instead
     # of letting the dark ground show through both (a seam).
-    gain = t.add("ShaderNodeMath", -450, -550, operation="MULTIPLY", use_clamp=True)
+    gain = t.add("ShaderNodeMath", -600, -550, operation="MULTIPLY", use_clamp=True)
     t.link(kt, "Result", gain, gain.inputs[0])
     _set_input(gain, 1, CANOPY_GAIN)
+    # The fringe at the field's edge (scene.ground_mesh) thins out towards the tallest tips:
+    # ``wg_fringe`` (a UV map) holds 1 - its opacity there (0 on the plane).
+    fringe = t.add("ShaderNodeSeparateXYZ", -900, -800)
+    t.link(t.attribute(UV_FRINGE, -1100, -800), "Vector", fringe, "Vector")
+    thin = t.add("ShaderNodeMath", -750, -800, operation="SUBTRACT", use_clamp=True)
+    _set_input(thin, 0, 1.0)
+    t.link(fringe, "Y", thin, thin.inputs[1])
+    edge = t.add("ShaderNodeMath", -450, -650, operation="MULTIPLY", use_clamp=True)
+    t.link(gain, "Value", edge, edge.inputs[0])
+    t.link(thin, "Value", edge, edge.inputs[1])
+    gain = edge
     light_path = t.add("ShaderNodeLightPath", -700, -900)
     opacity = t.add("ShaderNodeMath", -300, -700, operation="SUBTRACT", use_clamp=True)
     t.link(gain, "Value", opacity, opacity.inputs[0])

@@ -160,10 +160,13 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     return mesh
 
 
-def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0) -> bpy.types.Mesh:
+def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0,
+                fringe: float = 0.0) -> bpy.types.Mesh:
     """Two layers covering the field, centred on the origin: the ground (material 0) and, ``canopy``
-    metres above it, the plane of the far grass (material 1, ``materials.canopy_material``). Flat
-    ground: one quad each; over a terrain (``heightfield``, in the field's frame) a grid of one
+    metres above it, the plane of the far grass (material 1, ``materials.canopy_material``), with
+    a fringe standing ``fringe`` metres higher along the field's edge (material 1 too; its UV map
+    ``wg_fringe`` thins it out towards the top, as the tallest tips stand against the sky). Flat
+    ground: one quad per layer; over a terrain (``heightfield``, in the field's frame) a grid of one
     quad per heightfield cell following its heights."""
     if heightfield is not None:
         nx, ny = heightfield.nx, heightfield.ny
@@ -176,21 +179,34 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
         corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
         faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
         uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
+        grid = np.arange((ny + 1) * (nx + 1)).reshape(ny + 1, nx + 1)
         smooth = True
     else:
         hx, hy = 0.5 * size[0], 0.5 * size[1]
         floor = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
         faces = np.array([[0, 1, 2, 3]])
         uv_of_vertex = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
+        grid = np.array([[0, 1], [3, 2]])
         smooth = False
-    top = floor + np.array([0.0, 0.0, canopy], dtype=np.float32)
-    verts = np.concatenate([floor, top])
-    layer_faces = np.concatenate([faces, faces + len(floor)])
-    uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2)
-    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {})
+    # the field's edge, counter-clockwise seen from above (the fringe faces outwards)
+    ring = np.concatenate([grid[0, :-1], grid[:-1, -1], grid[-1, ::-1][:-1], grid[::-1, 0][:-1]])
+    lift = np.array([0.0, 0.0, canopy], dtype=np.float32)
+    top = floor + lift
+    rim = floor[ring] + lift + np.array([0.0, 0.0, fringe], dtype=np.float32)
+    n = len(floor)
+    verts = np.concatenate([floor, top, rim])
+    following = np.roll(np.arange(len(ring)), -1)
+    skirt = np.stack([n + ring, n + ring[following], 2 * n + following, 2 * n + np.arange(len(ring))], axis=1)
+    layer_faces = np.concatenate([faces, faces + n, skirt])
+    uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [np.zeros((len(skirt) * 4, 2), np.float32)])
+    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {}, (materials.UV_FRINGE,))
+    fade = np.zeros((len(layer_faces), 4, 2), np.float32)
+    fade[2 * len(faces):, 2:, 1] = 1.0  # the fringe's top corners: clear
+    mesh.uv_layers[materials.UV_FRINGE].data.foreach_set("uv", fade.ravel())
     mesh.materials.clear()
     mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
-    mesh.polygons.foreach_set("material_index", np.repeat(np.arange(2, dtype=np.int32), len(faces)))
+    index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
+    mesh.polygons.foreach_set("material_index", index)
     mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
     mesh.update()
     return mesh
@@ -362,7 +378,8 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
         del item[REGISTRY][key]
 
     heightfield = getattr(layout, "terrain", None)
-    mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params))
+    mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params),
+                       impostor.fringe_height(params))
     ground = bpy.data.objects.new(f"{base} ground", mesh)
     mesh.materials.append(ground_mat)
     mesh.materials.append(canopy_mat)

@@ -140,9 +140,11 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     ground = field_scene.ground_object(item)
     assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
     z = _positions(ground)[:, 2]
-    height = impostor.canopy_height(properties.params_from_settings(item, scene))
-    assert 0.05 < height < 0.5  # a sward of 0.32 m blades
-    np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height], atol=1e-5)
+    params = properties.params_from_settings(item, scene)
+    height, fringe = impostor.canopy_height(params), impostor.fringe_height(params)
+    assert 0.05 < height < 0.5 and 0.0 < fringe < 0.3  # a sward of 0.32 m blades
+    # the ground, the canopy plane and the top of its fringe along the field's edge
+    np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, height + fringe], atol=1e-5)
     kt = canopy.node_tree.nodes[materials.NODE_KT]
     assert kt.clamp
     assert (kt.inputs["From Min"].default_value, kt.inputs["From Max"].default_value) == (25.0, 40.0)

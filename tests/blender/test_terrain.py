@@ -97,7 +97,9 @@ def test_blades_are_rooted_on_the_selected_mesh(bridge):
     # The ground grid follows the surface (a hair above it, against z-fighting).
     g = np.array(ground.matrix_world)
     gv = _positions(ground) @ g[:3, :3].T + g[:3, 3]
-    floor, canopy = gv[: len(gv) // 2], gv[len(gv) // 2:]  # the far grass's layer follows it higher up
+    # vertices: the ground's layer, the far canopy's (the same grid, higher up), its fringe's top
+    layer = len({i for p in ground.data.polygons if p.material_index == 0 for i in p.vertices})
+    floor, canopy = gv[:layer], gv[layer:2 * layer]
     assert len(floor) > 4
     np.testing.assert_allclose(floor[:, 2], SLOPE * (floor[:, 0] - OFFSET[0]) + LIFT + field_scene.GROUND_LIFT,
                                atol=1e-4)

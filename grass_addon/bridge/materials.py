@@ -11,7 +11,8 @@ through Attribute nodes:
   ``wg_tint_rg``  (r, g)       species tip colour of the blade, red and green (blades)
   ``wg_tint_bs``  (b, shade)   its blue, and the per-blade 0..1 variation of hue and value (blades)
   ``wg_fade``     (K_b, K_b)   K_b of eqs 7/11, the card's opacity (cards)
-and the point attribute ``velocity`` (m/s, motion blur).
+and the point attribute ``velocity`` (m/s, motion blur). The ground mesh's static UV map
+``wg_fringe`` (0, 1 - opacity) thins the canopy's fringe at the field's edge towards its top.
 """
 
 from __future__ import annotations

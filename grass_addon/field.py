@@ -20,7 +20,7 @@ from .blocks import BlockCache, FieldGrid
 from .celldata import CellData, cell_data
 from .errors import ParameterError
 from .layout import FieldLayout, build_layout, window_layout
-from .lod import Camera, LodWeights, block_reach, block_visible, lod_weights
+from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
@@ -85,9 +85,7 @@ class GrassField:
                 raise ParameterError("lod.enabled", "every blade as geometry needs a field of at most "
                                      f"{WHOLE_FIELD_CELLS:,} cells; turn LOD on or make the field smaller")
             return np.arange(self.grid.n_blocks, dtype=np.int64)
-        eye = np.asarray(camera.position, dtype=np.float64)
-        if eye.shape != (3,) or not np.all(np.isfinite(eye)):
-            raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
+        eye = camera_eye(camera)
         reach = block_reach(self.params)[0]
         ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far + reach + margin)
         if ids.size == 0:

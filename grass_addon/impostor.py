@@ -47,13 +47,23 @@ def tip_heights(params: Params) -> np.ndarray:
 
 def canopy_height(params: Params) -> float:
     """Height (m) of the plane that the far texture lies on."""
-    return float(CANOPY_SHARE * np.mean(tip_heights(params)))
+    return _canopy(tip_heights(params))
 
 
 def fringe_height(params: Params) -> float:
     """How far the tall tips (the FRINGE_PERCENTILE-th percentile) stand above the canopy plane (m):
     the fringe at the field's edge, where they stand against the sky."""
-    return float(max(0.0, np.percentile(tip_heights(params), FRINGE_PERCENTILE) - canopy_height(params)))
+    tips = tip_heights(params)
+    return float(max(0.0, np.percentile(tips, FRINGE_PERCENTILE) - _canopy(tips)))
+
+
+def _canopy(tips: np.ndarray) -> float:
+    return float(CANOPY_SHARE * np.mean(tips))
+
+
+def _card_width(params: Params) -> float:
+    """A card's width (m): lod.card_width cells."""
+    return float(params.lod.card_width) * float(params.field.cell_size)
 
 
 def blade_colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -115,7 +125,7 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
 
 def _blade_share(params: Params, block, cell: int, blades) -> float:
     """Whole area of the cell's blades (tapered strips, face on) over its card's area."""
-    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    card_w = _card_width(params)
     taper = 0.5 * (1.0 + params.blade.tip_width)
     area = sum(taper * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
     return area / (card_w * float(block.card_height[cell]))
@@ -124,7 +134,7 @@ def _blade_share(params: Params, block, cell: int, blades) -> float:
 def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
     """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another."""
     n = int(params.blade.segments)
-    card_w = float(params.lod.card_width) * float(params.field.cell_size)
+    card_w = _card_width(params)
     species = Species(params)
     rgb = np.zeros((size, size, 3), np.float64)
     alpha = np.zeros((size, size), np.float64)
@@ -145,7 +155,7 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
         half = 0.5 * widen * float(block.blade_width[b]) * taper / card_w
         tip = species.color[int(block.blade_species[b])].astype(np.float64)
         colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
-        _draw_strip(rgb, alpha, 0, size, ys, u, up / height, half, colour)
+        _draw_strip(rgb, alpha, ys, u, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
     # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of
@@ -161,10 +171,11 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     return np.clip(rgb, 0.0, 1.0), alpha
 
 
-def _draw_strip(rgb, alpha, x0: int, size: int, ys, u, v, half, colour) -> None:
+def _draw_strip(rgb, alpha, ys, u, v, half, colour) -> None:
     """Composite one blade (a tapered strip through points (u, v) with half-widths ``half``, in
-    card units) over the variant at columns x0 .. x0 + size, one row at a time: each row crosses
-    the strip where its height v lies between two joints; edges anti-aliased over one pixel."""
+    card units) over a square card image, one row at a time: each row crosses the strip where its
+    height v lies between two joints; edges anti-aliased over one pixel."""
+    size = alpha.shape[1]
     rows = np.flatnonzero((ys >= v.min()) & (ys <= v.max()))
     if rows.size == 0:
         return
@@ -177,9 +188,8 @@ def _draw_strip(rgb, alpha, x0: int, size: int, ys, u, v, half, colour) -> None:
     col = colour[j] + (colour[j + 1] - colour[j]) * t[:, None]
     xs = (np.arange(size) + 0.5) / size
     cover = np.clip((width[:, None] - np.abs(xs[None, :] - centre[:, None])) * size + 0.5, 0.0, 1.0)
-    a_old = alpha[rows, x0:x0 + size]
-    rgb[rows, x0:x0 + size] = col[:, None, :] * cover[..., None] + rgb[rows, x0:x0 + size] * (1.0 - cover[..., None])
-    alpha[rows, x0:x0 + size] = cover + a_old * (1.0 - cover)
+    rgb[rows] = col[:, None, :] * cover[..., None] + rgb[rows] * (1.0 - cover[..., None])
+    alpha[rows] = cover + alpha[rows] * (1.0 - cover)
 
 
 def card_coverage(params: Params) -> tuple[float, float]:
@@ -188,11 +198,10 @@ def card_coverage(params: Params) -> tuple[float, float]:
     atlas = card_atlas(params)
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
-    card_w = float(params.lod.card_width) * float(params.field.cell_size)
     area = cards = 0.0
     for k in range(CARD_VARIANTS):
         cell = k % block.cell_center.shape[0]
-        cards += card_w * float(block.card_height[cell])
-        area += _blade_share(params, block, cell, range(cell * num, (cell + 1) * num)) * card_w * float(
-            block.card_height[cell])
+        card_area = _card_width(params) * float(block.card_height[cell])
+        cards += card_area
+        area += _blade_share(params, block, cell, range(cell * num, (cell + 1) * num)) * card_area
     return float(atlas[..., 3].mean()), area / cards

@@ -101,12 +101,28 @@ _CELL_ARRAYS = ("cell_center", "cell_ground", "cell_length", "cell_width", "cell
                 "card_center")
 
 
+def _layout(params: Params, grid: FieldGrid, ids: np.ndarray, block_cells: np.ndarray, arrays: dict,
+            species_color: np.ndarray, terrain, z_range: np.ndarray, slope) -> FieldLayout:
+    """A FieldLayout of blocks ``ids`` whose blade and cell ``arrays`` are already in place."""
+    n, num, P = int(params.blade.segments), int(params.field.blades_per_cell), grid.cells_per_block ** 2
+    nb = len(ids)
+    return FieldLayout(
+        params=params, blocks_x=grid.blocks_x, blocks_y=grid.blocks_y, cells_per_block=grid.cells_per_block,
+        cell_size=grid.cell_size, segments=n, blades_per_cell=num, cells_x=grid.cells_x, cells_y=grid.cells_y,
+        n_cells=nb * P, n_blocks=nb, cells_per_block_total=P, blades_per_block=P * num,
+        n_blades=nb * P * num, origin=grid.origin, block_cells=block_cells,
+        block_bounds=grid.block_bounds(ids).astype(np.float32),
+        blade_cell=np.repeat(block_cells.ravel().astype(np.int32), num),
+        blade_slot=np.tile(np.arange(num, dtype=np.int32), nb * P),
+        species_color=species_color, terrain=terrain,
+        block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope,
+        grid=grid, block_ids=np.asarray(ids, dtype=np.int64), **arrays)
+
+
 def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[Block],
               block_cells: np.ndarray) -> FieldLayout:
     """The layout of ``blocks`` (ids ``ids``) with their cells placed as ``block_cells`` says."""
-    grid, f = cache.grid, params.field
-    n, num, P = int(params.blade.segments), int(f.blades_per_cell), grid.cells_per_block ** 2
-    nb = len(blocks)
+    n = int(params.blade.segments)
     order = block_cells.ravel()
 
     def blades(name: str) -> np.ndarray:
@@ -117,30 +133,18 @@ def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[B
 
     def cells(name: str) -> np.ndarray:
         if not blocks:
-            shape = {"cell_center": (0, 2), "cell_rest_tilt": (0, n)}.get(name, (0,))
+            shape = {"cell_center": (0, 2), "card_center": (0, 2), "cell_rest_tilt": (0, n)}.get(name, (0,))
             return np.zeros(shape, np.float32)
         values = np.concatenate([getattr(b, name) for b in blocks])
         out = np.empty_like(values)
         out[order] = values
         return out
 
-    terrain = cache.terrain
-    slope = None if terrain is None else blades("blade_ground_slope")
+    arrays = {name: blades(name) for name in _BLADE_ARRAYS}
+    arrays.update({name: cells(name) for name in _CELL_ARRAYS})
+    slope = None if cache.terrain is None else blades("blade_ground_slope")
     z_range = np.stack([b.z_range for b in blocks]) if blocks else np.zeros((0, 2), np.float32)
-    return FieldLayout(
-        params=params, blocks_x=grid.blocks_x, blocks_y=grid.blocks_y, cells_per_block=grid.cells_per_block,
-        cell_size=grid.cell_size, segments=n, blades_per_cell=num, cells_x=grid.cells_x, cells_y=grid.cells_y,
-        n_cells=nb * P, n_blocks=nb, cells_per_block_total=P, blades_per_block=P * num,
-        n_blades=nb * P * num, origin=grid.origin, block_cells=block_cells,
-        block_bounds=grid.block_bounds(ids).astype(np.float32),
-        blade_cell=np.repeat(order.astype(np.int32), num),
-        blade_slot=np.tile(np.arange(num, dtype=np.int32), nb * P),
-        species_color=cache.species.color, terrain=terrain,
-        block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope,
-        grid=grid, block_ids=np.asarray(ids, dtype=np.int64),
-        **{name: blades(name) for name in _BLADE_ARRAYS},
-        **{name: cells(name) for name in _CELL_ARRAYS},
-    )
+    return _layout(params, cache.grid, ids, block_cells, arrays, cache.species.color, cache.terrain, z_range, slope)
 
 
 def window_layout(cache: BlockCache, blocks) -> FieldLayout:
@@ -167,19 +171,9 @@ def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
     P, bpb = layout.cells_per_block_total, layout.blades_per_block
     cells = layout.block_cells[local].ravel()
     blades = (local[:, None] * bpb + np.arange(bpb)).ravel()
-    values = {name: getattr(layout, name)[blades] for name in _BLADE_ARRAYS}
-    values.update({name: getattr(layout, name)[cells] for name in _CELL_ARRAYS})
+    arrays = {name: getattr(layout, name)[blades] for name in _BLADE_ARRAYS}
+    arrays.update({name: getattr(layout, name)[cells] for name in _CELL_ARRAYS})
     slope = layout.blade_ground_slope
-    n = local.size
-    return FieldLayout(
-        params=layout.params, blocks_x=layout.blocks_x, blocks_y=layout.blocks_y,
-        cells_per_block=layout.cells_per_block, cell_size=layout.cell_size, segments=layout.segments,
-        blades_per_cell=layout.blades_per_cell, cells_x=layout.cells_x, cells_y=layout.cells_y,
-        n_cells=n * P, n_blocks=n, cells_per_block_total=P, blades_per_block=bpb, n_blades=n * bpb,
-        origin=layout.origin, block_cells=np.arange(n * P, dtype=np.int32).reshape(n, P),
-        block_bounds=layout.block_bounds[local],
-        blade_cell=np.repeat(np.arange(n * P, dtype=np.int32), layout.blades_per_cell),
-        blade_slot=np.tile(np.arange(layout.blades_per_cell, dtype=np.int32), n * P),
-        species_color=layout.species_color, terrain=layout.terrain,
-        block_z_range=layout.block_z_range[local], blade_ground_slope=None if slope is None else slope[blades],
-        grid=layout.grid, block_ids=layout.block_ids[local], **values)
+    block_cells = np.arange(local.size * P, dtype=np.int32).reshape(local.size, P)
+    return _layout(layout.params, layout.grid, layout.block_ids[local], block_cells, arrays, layout.species_color,
+                   layout.terrain, layout.block_z_range[local], None if slope is None else slope[blades])

@@ -111,6 +111,14 @@ def block_reach(params) -> tuple[float, float]:
     return max(tallest_blade, card_half + species.tallest_card), height
 
 
+def camera_eye(camera: Camera) -> np.ndarray:
+    """The camera's position as (3,) float64; a clear error when it is not 3 finite numbers."""
+    eye = np.asarray(camera.position, dtype=np.float64)
+    if eye.shape != (3,) or not np.all(np.isfinite(eye)):
+        raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
+    return eye
+
+
 def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     """Eqs 7-11 for every cell of ``layout`` and frustum culling of its blocks (vectorised).
 
@@ -129,9 +137,7 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
             k_texture=np.zeros(n_cells, np.float32), blade_count=np.full(n_cells, num, np.int32),
             block_visible=np.ones(n_blocks, bool), block_distance=distance)
 
-    eye = np.asarray(camera.position, dtype=np.float64)
-    if eye.shape != (3,) or not np.all(np.isfinite(eye)):
-        raise ParameterError("camera.position", f"{camera.position!r} is not 3 finite numbers")
+    eye = camera_eye(camera)
     # d: eye to cell centre on the ground (plus the eye's height above the cell's ground)
     centre = layout.cell_center
     dx = centre[:, 0] - np.float32(eye[0])

@@ -121,7 +121,7 @@ class Simulation:
             self.cell_wind = self._sample(frame)
             self._wind_frame = frame
 
-    def set_layout(self, layout, solver: BladeSolver | None = None, frame: int | None = None) -> None:
+    def set_layout(self, layout, frame: int | None = None) -> None:
         """Work on the cells of ``layout`` from now on (the whole field or a window of blocks;
         ``layout.block_ids``).
 
@@ -155,12 +155,12 @@ class Simulation:
             state.changed()
             traj.state = state
             traj.checkpoints.clear()
-        self.solver = solver if solver is not None else BladeSolver(layout, self.params)
+        self.solver = BladeSolver(layout, self.params)
+        # blank until the next seek (which samples the wind of its frame for these cells)
         self._shown = SolverState(layout.n_cells, layout.segments)
         self.state = self._shown
+        self.cell_wind = np.zeros((layout.n_cells, 2), np.float32)
         self._wind_frame = None
-        self.cell_wind = self._sample(self.frame)
-        self._wind_frame = self.frame
 
     # ---------------------------------------------------------------------------- internals
 
@@ -243,14 +243,6 @@ class Simulation:
             out *= w
             out += getattr(a, name)
         self._shown.changed()
-
-    @property
-    def checkpoint_frames(self) -> list[int]:
-        return sorted(f for t in self._trajectories.values() for f in t.checkpoints)
-
-    @property
-    def live_trajectories(self) -> list[int]:
-        return sorted(self._trajectories)
 
 
 def seek_cost_bound(params) -> int:

@@ -90,6 +90,17 @@ def _bilinear_weights(f: np.ndarray, rho: float) -> tuple[np.ndarray, np.ndarray
     return g * norm, f * norm
 
 
+def _along_x(units: np.ndarray, index: np.ndarray, w0: np.ndarray, w1: np.ndarray, axis=None) -> np.ndarray:
+    """units[index] * w0 + units[index + 1] * w1 (complex units; along ``axis``): the x part of
+    the bilinear interpolation."""
+    out = np.take(units, index, axis=axis)
+    out *= w0
+    right = np.take(units, index + 1, axis=axis)
+    right *= w1
+    out += right
+    return out
+
+
 def _catmull_rom(u: float) -> np.ndarray:
     """Catmull-Rom weights of keys k-1, k, k+1, k+2 at fraction u in [0, 1) after key k."""
     u2, u3 = u * u, u * u * u
@@ -160,10 +171,8 @@ class WindField:
         self.turbulence_std = float(w.turbulence)
         self.period = float(w.turbulence_period)
         self.unit = max(float(w.turbulence_scale), 0.5 * self.cell_size)
-        self._rho = KERNEL_LAG1
         self._keys_cache: OrderedDict[int, tuple[tuple[int, int, int, int], np.ndarray]] = OrderedDict()
-        # Blast fronts and the whirlwind repeat with these periods (m) over very large fields.
-        self.gust_period = min(max(self.size), PATTERN_PERIOD_MAX)
+        # The whirlwind repeats with these periods (m) over very large fields (the fronts: _gust_half).
         self.vortex_period = tuple(min(v, PATTERN_PERIOD_MAX) for v in self.size)
 
     # ------------------------------------------------------------------ mean wind (eq 12)
@@ -291,6 +300,24 @@ class WindField:
                 lattice += term * np.float32(wt)
         return lattice
 
+    def _lattice_frame(self, t: float, xs: np.ndarray, ys: np.ndarray):
+        """Where coordinates xs and ys fall on the lattice at time t: (lattice (H, W) complex64, the
+        blended units x + iy over the region they need, column and row of the lower unit, and the
+        bilinear weights (wx0, wx1, wy0, wy1), float32). Element-wise per coordinate."""
+        shift = self.displacement(t)
+        inverse = 1.0 / self.unit
+        ux = np.asarray(xs, dtype=np.float64) * inverse
+        ux -= shift[0] * inverse + 0.5
+        uy = np.asarray(ys, dtype=np.float64) * inverse
+        uy -= shift[1] * inverse + 0.5
+        fx0, fy0 = np.floor(ux), np.floor(uy)
+        i0, j0 = int(fx0.min()), int(fy0.min())
+        region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
+        lattice = np.ascontiguousarray(self._time_blend(t, region)).view(np.complex64)[..., 0]
+        wx0, wx1 = _bilinear_weights((ux - fx0).astype(np.float32), KERNEL_LAG1)
+        wy0, wy1 = _bilinear_weights((uy - fy0).astype(np.float32), KERNEL_LAG1)
+        return lattice, (fx0 - i0).astype(np.intp), (fy0 - j0).astype(np.intp), wx0, wx1, wy0, wy1
+
     def turbulence(self, t: float, xy: np.ndarray | None = None) -> np.ndarray:
         """Turbulent wind v' at time t (eq 13): (m, 2) float32, m/s, at the points ``xy`` (m, 2)
         (default: the layout's cell centres).
@@ -304,35 +331,12 @@ class WindField:
         xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
         if self.turbulence_std == 0.0 or xy.shape[0] == 0:
             return np.zeros((xy.shape[0], 2), dtype=np.float32)
-        shift = self.displacement(t)
-        inverse = 1.0 / self.unit
-        ux = xy[:, 0] * inverse
-        ux -= shift[0] * inverse + 0.5
-        uy = xy[:, 1] * inverse
-        uy -= shift[1] * inverse + 0.5
-        fx0, fy0 = np.floor(ux), np.floor(uy)
-        i0, j0 = int(fx0.min()), int(fy0.min())
-        region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
-        width = region[2] - i0
-        # the blended lattice as one complex number per unit (x + iy): one gather per corner
-        lattice = np.ascontiguousarray(self._time_blend(t, region)).view(np.complex64).ravel()
-        corner = (fy0 - j0).astype(np.intp)
-        corner *= width
-        corner += (fx0 - i0).astype(np.intp)
-        wx0, wx1 = _bilinear_weights((ux - fx0).astype(np.float32), self._rho)
-        wy0, wy1 = _bilinear_weights((uy - fy0).astype(np.float32), self._rho)
-        out = np.take(lattice, corner)
-        out *= wx0
-        right = np.take(lattice, corner + 1)
-        right *= wx1
-        out += right
+        lattice, column, row, wx0, wx1, wy0, wy1 = self._lattice_frame(t, xy[:, 0], xy[:, 1])
+        units = lattice.ravel()  # one gather per corner
+        corner = row * lattice.shape[1] + column
+        out = _along_x(units, corner, wx0, wx1)
         out *= wy0
-        corner += width
-        upper = np.take(lattice, corner)
-        upper *= wx0
-        right = np.take(lattice, corner + 1)
-        right *= wx1
-        upper += right
+        upper = _along_x(units, corner + lattice.shape[1], wx0, wx1)
         upper *= wy1
         out += upper
         return out.view(np.float32).reshape(-1, 2)
@@ -343,25 +347,8 @@ class WindField:
         Each column's and row's coordinate and weights are computed once, and the x interpolation
         once per lattice row and column, in the same order of operations as ``turbulence``, so every
         point gets the same bits as there."""
-        shift = self.displacement(t)
-        inverse = 1.0 / self.unit
-        ux = np.asarray(xs, dtype=np.float64) * inverse
-        ux -= shift[0] * inverse + 0.5
-        uy = np.asarray(ys, dtype=np.float64) * inverse
-        uy -= shift[1] * inverse + 0.5
-        fx0, fy0 = np.floor(ux), np.floor(uy)
-        i0, j0 = int(fx0.min()), int(fy0.min())
-        region = (i0, j0, int(fx0.max()) + 2, int(fy0.max()) + 2)
-        lattice = np.ascontiguousarray(self._time_blend(t, region)).view(np.complex64)[..., 0]  # (H, W)
-        column = (fx0 - i0).astype(np.intp)
-        row = (fy0 - j0).astype(np.intp)
-        wx0, wx1 = _bilinear_weights((ux - fx0).astype(np.float32), self._rho)
-        wy0, wy1 = _bilinear_weights((uy - fy0).astype(np.float32), self._rho)
-        along = np.take(lattice, column, axis=1)  # (H, cols): every lattice row at every column
-        along *= wx0
-        right = np.take(lattice, column + 1, axis=1)
-        right *= wx1
-        along += right
+        lattice, column, row, wx0, wx1, wy0, wy1 = self._lattice_frame(t, xs, ys)
+        along = _along_x(lattice, column, wx0, wx1, axis=1)  # (H, cols): every lattice row, every column
         out = np.take(along, row, axis=0)  # (rows, cols)
         out *= wy0[:, None]
         upper = np.take(along, row + 1, axis=0)
@@ -378,13 +365,7 @@ class WindField:
             return self.sample(t, layout.cell_center)
         xy = np.asarray(layout.cell_center, dtype=np.float64)
         grid = self._turbulence_grid(t, xy[: layout.cells_x, 0], xy[:: layout.cells_x, 1])
-        out = np.ascontiguousarray(grid.reshape(-1, 2))
-        out += self._mean_vector(t).astype(np.float32)  # uniform over the field (eq 12)
-        if self.kind == "blast":
-            self._add_gusts(t, xy, out)
-        elif self.kind == "whirlwind":
-            self._add_vortex(t, xy, out)
-        return out
+        return self._add_mean_and_type(t, xy, np.ascontiguousarray(grid.reshape(-1, 2)))
 
     # ------------------------------------------------------------------ the whole field (eq 12)
 
@@ -396,7 +377,10 @@ class WindField:
         """
         t = float(t)
         xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
-        out = self.turbulence(t, xy)
+        return self._add_mean_and_type(t, xy, self.turbulence(t, xy))
+
+    def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out`` (v' at points ``xy``) plus the mean wind (eq 12) and the type's gusts or vortex."""
         out += self._mean_vector(t).astype(np.float32)  # uniform over the field (eq 12)
         if self.kind == "blast":
             self._add_gusts(t, xy, out)

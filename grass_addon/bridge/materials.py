@@ -12,7 +12,8 @@ through Attribute nodes:
   ``wg_tint_bs``  (b, shade)   its blue, and the per-blade 0..1 variation of hue and value (blades)
   ``wg_fade``     (K_b, K_b)   K_b of eqs 7/11, the card's opacity (cards)
 and the point attribute ``velocity`` (m/s, motion blur). The ground mesh's static UV map
-``wg_fringe`` (0, 1 - opacity) thins the canopy's fringe at the field's edge towards its top.
+``wg_sward_z`` (x, z) holds the height z above the ground of the canopy plane and its fringe
+(x: 0 on the plane, 1 on the fringe).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .. import impostor
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
 UV_FADE = "wg_fade"
-UV_FRINGE = "wg_fringe"  # ground mesh: (0, 1 - opacity) of the canopy's fringe at the field's edge
+UV_SWARD_Z = "wg_sward_z"  # ground mesh: (1 on the fringe, height above the ground) of the canopy
 ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
 
 # Node names that ``update_materials`` looks up.
@@ -35,6 +36,11 @@ NODE_CARD_DEPTH = "wg_card_depth"  # Value: transparent layers a ray crosses bef
 NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: no haze)
 NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
 NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (impostor.sward_colour)
+NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (impostor.fringe_colour)
+NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: impostor.sward_depth / its value at the ground
+NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (impostor.sward_top)
+NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: impostor.sward_depth at the ground
+NODE_FIELD_HALF = "wg_field_half"  # Combine XYZ: half the field's extent along X and Y (m)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
 BLADE_BASE_COLOUR = (*impostor.BLADE_BASE_COLOUR, 1.0)
@@ -63,6 +69,12 @@ def _socket(sockets, *names: str):
         if sock is not None:
             return sock
     raise KeyError(f"none of the sockets {names} exists on this Blender version")
+
+
+def _pick(sockets, key):
+    if isinstance(key, str):
+        return _socket(sockets, *key.split("|"))
+    return sockets[key] if isinstance(key, int) else key
 
 
 def _set(node, value, *names: str) -> None:
@@ -112,8 +124,9 @@ class _Tree:
         return node
 
     def link(self, out_node, out_name, in_node, in_name):
-        out = out_name if not isinstance(out_name, str) else _socket(out_node.outputs, *out_name.split("|"))
-        inp = in_name if not isinstance(in_name, str) else _socket(in_node.inputs, *in_name.split("|"))
+        """Link an output to an input, each given as a socket, a name ("a|b": either) or an index."""
+        out = _pick(out_node.outputs, out_name)
+        inp = _pick(in_node.inputs, in_name)
         self.links.new(out, inp)
 
     def attribute(self, name: str, x: float, y: float):
@@ -298,8 +311,17 @@ def canopy_material(name: str, uid: str):
     t.link(coord, "Object", grass_noise, "Vector")
     grass_colour = t.add("ShaderNodeRGB", -1150, -350, name=NODE_GROUND_GRASS)
     grass_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
+    # the fringe (``wg_sward_z`` X = 1) shows the tips that stand above the plane
+    fringe_colour = t.add("ShaderNodeRGB", -1150, -550, name=NODE_FRINGE_COLOUR)
+    fringe_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
+    on_fringe = t.add("ShaderNodeSeparateXYZ", -1150, -750)
+    t.link(t.attribute(UV_SWARD_Z, -1350, -750), "Vector", on_fringe, "Vector")
+    part = t.mix_rgb(-1000, -350)
+    t.link(on_fringe, "X", part, "Factor_Float")
+    t.link(grass_colour, "Color", part, "A_Color")
+    t.link(fringe_colour, "Color", part, "B_Color")
     grass = t.mix_rgb(-900, -150, blend="MULTIPLY")
-    t.link(grass_colour, "Color", grass, "A_Color")
+    t.link(part, "Result_Color", grass, "A_Color")
     ramp = t.add("ShaderNodeMapRange", -900, -400)  # noise 0..1 -> brightness 0.8 .. 1.2 (mean 1)
     _set(ramp, 0.8, "To Min")
     _set(ramp, 1.2, "To Max")
@@ -323,16 +345,10 @@ def canopy_material(name: str, uid: str):
     gain = t.add("ShaderNodeMath", -600, -550, operation="MULTIPLY", use_clamp=True)
     t.link(kt, "Result", gain, gain.inputs[0])
     _set_input(gain, 1, CANOPY_GAIN)
-    # The fringe at the field's edge (scene.ground_mesh) thins out towards the tallest tips:
-    # ``wg_fringe`` (a UV map) holds 1 - its opacity there (0 on the plane).
-    fringe = t.add("ShaderNodeSeparateXYZ", -900, -800)
-    t.link(t.attribute(UV_FRINGE, -1100, -800), "Vector", fringe, "Vector")
-    thin = t.add("ShaderNodeMath", -750, -800, operation="SUBTRACT", use_clamp=True)
-    _set_input(thin, 0, 1.0)
-    t.link(fringe, "Y", thin, thin.inputs[1])
+    # Where rays leave the field (its edge against the sky) the sward is as see-through as its blades.
     edge = t.add("ShaderNodeMath", -450, -650, operation="MULTIPLY", use_clamp=True)
     t.link(gain, "Value", edge, edge.inputs[0])
-    t.link(thin, "Value", edge, edge.inputs[1])
+    t.link(_sward_edge_opacity(t, coord, -1900, -1100), "Value", edge, edge.inputs[1])
     gain = edge
     light_path = t.add("ShaderNodeLightPath", -700, -900)
     opacity = t.add("ShaderNodeMath", -300, -700, operation="SUBTRACT", use_clamp=True)
@@ -346,6 +362,99 @@ def canopy_material(name: str, uid: str):
     out = t.add("ShaderNodeOutputMaterial", 300, 0)
     t.link(cut, "Shader", out, "Surface")
     return mat
+
+
+def _sward_edge_opacity(t: _Tree, coord, x: float, y: float):
+    """Math node: how likely the sward stops the ray through this point of the canopy plane or
+    its fringe, 1 - exp(-tau(z_e) / s) (``impostor.sward_depth``), where z_e is the height above
+    the ground at which the ray leaves the field and s its slope; 1 when it meets the ground
+    first. In the field's (object) frame: the field spans +-NODE_FIELD_HALF around the origin;
+    a ray at P going along d = -Incoming leaves it after t = min over X, Y of
+    (half / |d| - P / d), having dropped Incoming.z * t."""
+    incoming = t.add("ShaderNodeNewGeometry", x, y)
+    to_object = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
+                      convert_from="WORLD", convert_to="OBJECT")
+    t.link(incoming, "Incoming", to_object, "Vector")
+    d = t.add("ShaderNodeVectorMath", x + 360, y, operation="SCALE")
+    t.link(to_object, "Vector", d, 0)
+    _set(d, -1.0, "Scale")
+    run = t.add("ShaderNodeVectorMath", x + 540, y + 150, operation="ABSOLUTE")
+    t.link(d, "Vector", run, 0)
+    run_min = t.add("ShaderNodeVectorMath", x + 720, y + 150, operation="MAXIMUM")
+    t.link(run, "Vector", run_min, 0)
+    run_min.inputs[1].default_value = (1e-6, 1e-6, 1e-6)
+    half = t.add("ShaderNodeCombineXYZ", x + 720, y + 350, name=NODE_FIELD_HALF)
+    to_wall = t.add("ShaderNodeVectorMath", x + 900, y + 250, operation="DIVIDE")
+    t.link(half, "Vector", to_wall, 0)
+    t.link(run_min, "Vector", to_wall, 1)
+    offset = t.add("ShaderNodeVectorMath", x + 900, y, operation="DIVIDE")  # 0 where d is 0
+    t.link(coord, "Object", offset, 0)
+    t.link(d, "Vector", offset, 1)
+    exits = t.add("ShaderNodeVectorMath", x + 1080, y + 150, operation="SUBTRACT")
+    t.link(to_wall, "Vector", exits, 0)
+    t.link(offset, "Vector", exits, 1)
+    exit_xy = t.add("ShaderNodeSeparateXYZ", x + 1260, y + 150)
+    t.link(exits, "Vector", exit_xy, "Vector")
+    leave = t.add("ShaderNodeMath", x + 1440, y + 150, operation="MINIMUM")
+    t.link(exit_xy, "X", leave, 0)
+    t.link(exit_xy, "Y", leave, 1)
+    leave_t = t.add("ShaderNodeMath", x + 1620, y + 150, operation="MAXIMUM")
+    t.link(leave, "Value", leave_t, 0)
+    _set_input(leave_t, 1, 0.0)
+    view = t.add("ShaderNodeSeparateXYZ", x + 360, y - 250)
+    t.link(to_object, "Vector", view, "Vector")
+    drop = t.add("ShaderNodeMath", x + 1800, y + 150, operation="MULTIPLY")
+    t.link(leave_t, "Value", drop, 0)
+    t.link(view, "Z", drop, 1)
+    height = t.add("ShaderNodeSeparateXYZ", x + 1620, y - 100)
+    t.link(t.attribute(UV_SWARD_Z, x + 1440, y - 100), "Vector", height, "Vector")
+    z_exit = t.add("ShaderNodeMath", x + 1980, y + 50, operation="SUBTRACT")
+    t.link(height, "Y", z_exit, 0)
+    t.link(drop, "Value", z_exit, 1)
+    # slope s = |Incoming.z| / |Incoming.xy|
+    flat = t.add("ShaderNodeVectorMath", x + 540, y - 250, operation="MULTIPLY")
+    t.link(to_object, "Vector", flat, 0)
+    flat.inputs[1].default_value = (1.0, 1.0, 0.0)
+    run_len = t.add("ShaderNodeVectorMath", x + 720, y - 250, operation="LENGTH")
+    t.link(flat, "Vector", run_len, 0)
+    run_len_min = t.add("ShaderNodeMath", x + 900, y - 250, operation="MAXIMUM")
+    t.link(run_len, "Value", run_len_min, 0)
+    _set_input(run_len_min, 1, 1e-6)
+    rise = t.add("ShaderNodeMath", x + 720, y - 450, operation="ABSOLUTE")
+    t.link(view, "Z", rise, 0)
+    slope = t.add("ShaderNodeMath", x + 1080, y - 350, operation="DIVIDE")
+    t.link(rise, "Value", slope, 0)
+    t.link(run_len_min, "Value", slope, 1)
+    slope_min = t.add("ShaderNodeMath", x + 1260, y - 350, operation="MAXIMUM")
+    t.link(slope, "Value", slope_min, 0)
+    _set_input(slope_min, 1, 1e-3)
+    # tau(z_e) / s, from the profile
+    along = t.add("ShaderNodeMapRange", x + 2160, y + 50, name=NODE_SWARD_TOP, clamp=True)
+    t.link(z_exit, "Value", along, "Value")
+    profile = t.add("ShaderNodeFloatCurve", x + 2340, y + 50, name=NODE_SWARD_PROFILE)
+    t.link(along, "Result", profile, "Value")
+    depth = t.add("ShaderNodeValue", x + 2340, y - 250, name=NODE_SWARD_DEPTH)
+    tau = t.add("ShaderNodeMath", x + 2600, y, operation="MULTIPLY")
+    t.link(profile, "Value", tau, 0)
+    t.link(depth, "Value", tau, 1)
+    crossed = t.add("ShaderNodeMath", x + 2780, y, operation="DIVIDE")
+    t.link(tau, "Value", crossed, 0)
+    t.link(slope_min, "Value", crossed, 1)
+    negated = t.add("ShaderNodeMath", x + 2960, y, operation="MULTIPLY")
+    t.link(crossed, "Value", negated, 0)
+    _set_input(negated, 1, -1.0)
+    through = t.add("ShaderNodeMath", x + 3140, y, operation="EXPONENT")
+    t.link(negated, "Value", through, 0)
+    stopped = t.add("ShaderNodeMath", x + 3320, y, operation="SUBTRACT", use_clamp=True)
+    _set_input(stopped, 0, 1.0)
+    t.link(through, "Value", stopped, 1)
+    grounded = t.add("ShaderNodeMath", x + 3140, y - 250, operation="LESS_THAN")
+    t.link(z_exit, "Value", grounded, 0)
+    _set_input(grounded, 1, 0.0)
+    opacity = t.add("ShaderNodeMath", x + 3500, y, operation="MAXIMUM")
+    t.link(stopped, "Value", opacity, 0)
+    t.link(grounded, "Value", opacity, 1)
+    return opacity
 
 
 def set_card_depth(cards, transparent_bounces: int) -> None:
@@ -385,3 +494,37 @@ def update_materials(params, canopy=None) -> None:
         if grass is not None:
             sward = impostor.sward_colour(params)
             grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in sward], 1.0)
+        tips = canopy.node_tree.nodes.get(NODE_FRINGE_COLOUR)
+        if tips is not None:
+            tips.outputs[0].default_value = (*impostor.fringe_colour(params), 1.0)
+        update_sward_profile(params, canopy)
+
+
+def update_sward_profile(params, canopy) -> None:
+    """Write the sward's silhouette depth profile and the field's extent into the canopy."""
+    nodes = canopy.node_tree.nodes
+    heights, depth = impostor.sward_profile(params)
+    top, ground = float(heights[-1]), float(max(depth[0], 1e-9))
+    along = nodes.get(NODE_SWARD_TOP)
+    if along is not None:
+        _set(along, 0.0, "From Min")
+        _set(along, top, "From Max")
+    value = nodes.get(NODE_SWARD_DEPTH)
+    if value is not None:
+        value.outputs[0].default_value = ground
+    half = nodes.get(NODE_FIELD_HALF)
+    if half is not None:
+        f = params.field
+        for axis, blocks in (("X", f.blocks_x), ("Y", f.blocks_y)):
+            _set(half, 0.5 * float(blocks) * float(f.cells_per_block) * float(f.cell_size), axis)
+    profile = nodes.get(NODE_SWARD_PROFILE)
+    if profile is not None:
+        curve = profile.mapping.curves[0]
+        while len(curve.points) > 2:
+            curve.points.remove(curve.points[-1])
+        while len(curve.points) < len(heights):
+            curve.points.new(1.0, 0.0)
+        for point, u, v in zip(curve.points, heights / top, depth / ground):
+            point.location = (float(u), float(v))
+            point.handle_type = "VECTOR"  # straight between the samples
+        profile.mapping.update()

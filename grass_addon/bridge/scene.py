@@ -161,11 +161,12 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
 
 
 def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0,
-                fringe: float = 0.0) -> bpy.types.Mesh:
+                top: float = 0.0) -> bpy.types.Mesh:
     """Two layers covering the field, centred on the origin: the ground (material 0) and, ``canopy``
     metres above it, the plane of the far grass (material 1, ``materials.canopy_material``), with
-    a fringe standing ``fringe`` metres higher along the field's edge (material 1 too; its UV map
-    ``wg_fringe`` thins it out towards the top, as the tallest tips stand against the sky). Flat
+    a fringe rising to ``top`` metres above the ground along the field's edge (material 1 too,
+    where the tallest tips stand against the sky). The UV map ``wg_sward_z`` gives the canopy's
+    height above the ground at each corner and marks the fringe (1, on the plane 0). Flat
     ground: one quad per layer; over a terrain (``heightfield``, in the field's frame) a grid of one
     quad per heightfield cell following its heights."""
     if heightfield is not None:
@@ -190,19 +191,21 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
         smooth = False
     # the field's edge, counter-clockwise seen from above (the fringe faces outwards)
     ring = np.concatenate([grid[0, :-1], grid[:-1, -1], grid[-1, ::-1][:-1], grid[::-1, 0][:-1]])
-    lift = np.array([0.0, 0.0, canopy], dtype=np.float32)
-    top = floor + lift
-    rim = floor[ring] + lift + np.array([0.0, 0.0, fringe], dtype=np.float32)
+    top = max(top, canopy)
+    plane = floor + np.array([0.0, 0.0, canopy], dtype=np.float32)
+    rim = floor[ring] + np.array([0.0, 0.0, top], dtype=np.float32)
     n = len(floor)
-    verts = np.concatenate([floor, top, rim])
+    verts = np.concatenate([floor, plane, rim])
     following = np.roll(np.arange(len(ring)), -1)
     skirt = np.stack([n + ring, n + ring[following], 2 * n + following, 2 * n + np.arange(len(ring))], axis=1)
     layer_faces = np.concatenate([faces, faces + n, skirt])
     uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [np.zeros((len(skirt) * 4, 2), np.float32)])
-    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {}, (materials.UV_FRINGE,))
-    fade = np.zeros((len(layer_faces), 4, 2), np.float32)
-    fade[2 * len(faces):, 2:, 1] = 1.0  # the fringe's top corners: clear
-    mesh.uv_layers[materials.UV_FRINGE].data.foreach_set("uv", fade.ravel())
+    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {}, (materials.UV_SWARD_Z,))
+    height = np.zeros((len(layer_faces), 4, 2), np.float32)
+    height[len(faces):, :, 1] = canopy
+    height[2 * len(faces):, :, 0] = 1.0  # the fringe
+    height[2 * len(faces):, 2:, 1] = top  # its top corners
+    mesh.uv_layers[materials.UV_SWARD_Z].data.foreach_set("uv", height.ravel())
     mesh.materials.clear()
     mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
     index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
@@ -379,7 +382,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
 
     heightfield = getattr(layout, "terrain", None)
     mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params),
-                       impostor.fringe_height(params))
+                       impostor.sward_top(params))
     ground = bpy.data.objects.new(f"{base} ground", mesh)
     mesh.materials.append(ground_mat)
     mesh.materials.append(canopy_mat)

@@ -141,10 +141,25 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
     z = _positions(ground)[:, 2]
     params = properties.params_from_settings(item, scene)
-    height, fringe = impostor.canopy_height(params), impostor.fringe_height(params)
-    assert 0.05 < height < 0.5 and 0.0 < fringe < 0.3  # a sward of 0.32 m blades
-    # the ground, the canopy plane and the top of its fringe along the field's edge
-    np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, height + fringe], atol=1e-5)
+    height, top = impostor.canopy_height(params), impostor.sward_top(params)
+    assert 0.05 < height < top < 0.6  # a sward of 0.32 m blades
+    # the ground, the canopy plane and the top of its fringe along the field's edge (the tallest tip)
+    np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, top], atol=1e-5)
+    # the shader knows each corner's height above the ground, and which corners are the fringe's
+    sward_z = np.empty(2 * len(ground.data.loops))
+    ground.data.uv_layers[materials.UV_SWARD_Z].data.foreach_get("uv", sward_z)
+    sward_z = sward_z.reshape(-1, 2)
+    corner_z = z[[loop.vertex_index for loop in ground.data.loops]]
+    canopy_corners = np.repeat([p.material_index == 1 for p in ground.data.polygons],
+                               [p.loop_total for p in ground.data.polygons])
+    np.testing.assert_allclose(sward_z[canopy_corners, 1], corner_z[canopy_corners], atol=1e-5)
+    assert set(np.unique(sward_z[canopy_corners & (corner_z > height + 1e-4), 0])) == {1.0}
+    # its silhouette depth profile, from the ground (most) to the tallest tip (none)
+    curve = canopy.node_tree.nodes[materials.NODE_SWARD_PROFILE].mapping.curves[0]
+    points = np.array([pt.location[:] for pt in curve.points])
+    assert points[0, 0] == 0.0 and points[-1, 0] == pytest.approx(1.0)
+    assert points[0, 1] == pytest.approx(1.0) and points[-1, 1] == pytest.approx(0.0, abs=1e-6)
+    assert np.all(np.diff(points[:, 1]) <= 1e-6)
     kt = canopy.node_tree.nodes[materials.NODE_KT]
     assert kt.clamp
     assert (kt.inputs["From Min"].default_value, kt.inputs["From Max"].default_value) == (25.0, 40.0)

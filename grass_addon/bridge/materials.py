@@ -345,10 +345,11 @@ def canopy_material(name: str, uid: str):
     gain = t.add("ShaderNodeMath", -600, -550, operation="MULTIPLY", use_clamp=True)
     t.link(kt, "Result", gain, gain.inputs[0])
     _set_input(gain, 1, CANOPY_GAIN)
-    # Where rays leave the field (its edge against the sky) the sward is as see-through as its blades.
-    edge = t.add("ShaderNodeMath", -450, -650, operation="MULTIPLY", use_clamp=True)
+    # Where rays leave the field (its edge against the sky) the sward is as see-through as the
+    # share K_t of its blades that the canopy stands for (the cards carry the rest).
+    edge = t.add("ShaderNodeMath", -450, -650, operation="MINIMUM", use_clamp=True)
     t.link(gain, "Value", edge, edge.inputs[0])
-    t.link(_sward_edge_opacity(t, coord, -1900, -1100), "Value", edge, edge.inputs[1])
+    t.link(_sward_edge_opacity(t, coord, kt, -1900, -1100), "Value", edge, edge.inputs[1])
     gain = edge
     light_path = t.add("ShaderNodeLightPath", -700, -900)
     opacity = t.add("ShaderNodeMath", -300, -700, operation="SUBTRACT", use_clamp=True)
@@ -364,10 +365,11 @@ def canopy_material(name: str, uid: str):
     return mat
 
 
-def _sward_edge_opacity(t: _Tree, coord, x: float, y: float):
+def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     """Math node: how likely the sward stops the ray through this point of the canopy plane or
-    its fringe, 1 - exp(-tau(z_e) / s) (``impostor.sward_depth``), where z_e is the height above
-    the ground at which the ray leaves the field and s its slope; 1 when it meets the ground
+    its fringe, 1 - exp(-share tau(z_e) / s) (``impostor.sward_depth``), where z_e is the height
+    above the ground at which the ray leaves the field, s its slope and ``share`` (a node's
+    "Result") the share of the blades that the canopy stands for; 1 when it meets the ground
     first. In the field's (object) frame: the field spans +-NODE_FIELD_HALF around the origin;
     a ray at P going along d = -Incoming leaves it after t = min over X, Y of
     (half / |d| - P / d), having dropped Incoming.z * t."""
@@ -437,6 +439,10 @@ def _sward_edge_opacity(t: _Tree, coord, x: float, y: float):
     tau = t.add("ShaderNodeMath", x + 2600, y, operation="MULTIPLY")
     t.link(profile, "Value", tau, 0)
     t.link(depth, "Value", tau, 1)
+    shared = t.add("ShaderNodeMath", x + 2690, y - 150, operation="MULTIPLY")
+    t.link(tau, "Value", shared, 0)
+    t.link(share, "Result", shared, 1)
+    tau = shared
     crossed = t.add("ShaderNodeMath", x + 2780, y, operation="DIVIDE")
     t.link(tau, "Value", crossed, 0)
     t.link(slope_min, "Value", crossed, 1)

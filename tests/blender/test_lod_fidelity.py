@@ -10,13 +10,9 @@ import json
 import lod_compare
 import pytest
 
-# Within the field the rows may differ by this much at most (issue goal: 0.04); the three rows
-# where the far field meets the sky (the edge of this 25.6 m field, 22 m away: blade tips up to
-# 0.5 m tall stand against the sky over about 2 degrees) may differ more, up to EDGE_ROW_MAX: there
-# the standing tips rise above the far canopy plane and its fringe or fall short of them (README,
-# "Levels of detail").
+# Goals: every image row's mean colour within 0.04 (linear RGB), including the rows where the
+# field's far edge (22 m away, blade tips up to 0.5 m tall) meets the sky; the image within 0.03.
 ROW_GOAL = 0.04
-EDGE_ROW_MAX = 0.08
 IMAGE_GOAL = 0.03
 
 
@@ -37,12 +33,10 @@ def test_the_lod_render_matches_the_all_geometry_render(comparison, case):
     assert figures["mean_abs_diff"] <= IMAGE_GOAL
     rows = np.load(out / f"{case}_rows.npz")
     diff = np.abs(rows["lod"] - rows["geometry"]).max(axis=1)
+    assert diff.max() <= ROW_GOAL, json.dumps(figures)
+    # grass, not a flat band: the LOD rows below the field's edge are green like the geometry's
     sky = rows["geometry"].mean(axis=1) > 0.3  # rows of sky (bright) in the all-geometry render
-    horizon = int(np.flatnonzero(sky).max()) + 1  # the first row of grass below the sky
-    assert diff.max() <= EDGE_ROW_MAX, json.dumps(figures)
-    field_rows = np.arange(len(diff)) > horizon + 2  # below the field's far edge
-    assert diff[field_rows].max() <= ROW_GOAL, (np.argmax(np.where(field_rows, diff, 0)), diff.max())
-    # grass, not a flat band: the LOD rows below the horizon are green like the geometry's
+    field_rows = np.arange(len(diff)) > int(np.flatnonzero(sky).max()) + 3
     lod = rows["lod"][field_rows]
     assert np.all(lod[:, 1] > lod[:, 0]) and np.all(lod[:, 1] > lod[:, 2])
 

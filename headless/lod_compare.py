@@ -4,7 +4,8 @@ perceivable loss in image quality"): the LOD render against the all-geometry ren
 frame, in calm air, and the frame-to-frame change of a slow fly-through with and without LOD.
 
     python headless/lod_compare.py [--config scenes/default.toml] [--resolution 320x180]
-                                   [--samples 16] [--lights sun overcast] [--presets default meadow]
+                                   [--samples 16] [--engine cycles|eevee]
+                                   [--lights sun overcast] [--presets default meadow]
                                    [--out renders/lod_compare] [--json]
     python3.11 dev.py lod ...      # the same, inside the project's .venv
 
@@ -43,6 +44,7 @@ def parse_args(argv):
     parser.add_argument("--config", type=Path, default=REPO / "scenes" / "default.toml")
     parser.add_argument("--resolution", default="320x180", help="WIDTHxHEIGHT in pixels")
     parser.add_argument("--samples", type=int, default=16)
+    parser.add_argument("--engine", default="cycles", choices=["cycles", "eevee"])
     parser.add_argument("--lights", nargs="+", default=["sun", "overcast"], choices=["sun", "overcast"])
     parser.add_argument("--presets", nargs="+", default=["default", "meadow"],
                         help=f"species presets: default (the scene's) or one of {', '.join(presets.PRESET_NAMES)}")
@@ -64,7 +66,7 @@ def scene_params(args, preset: str, fixed: bool):
         raise ParameterError("samples", f"{args.samples} must be >= 1")
     params = params.replace({"field.blocks_x": args.blocks, "field.blocks_y": args.blocks})
     size_y = params.field.blocks_y * params.field.cells_per_block * params.field.cell_size
-    changes = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0, "render.engine": "cycles",
+    changes = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0, "render.engine": args.engine,
                "render.samples": args.samples, "render.resolution_x": w, "render.resolution_y": h,
                "render.motion_blur": False}
     if fixed:
@@ -126,7 +128,7 @@ def compare(args) -> dict:
     import numpy as np
 
     args.out.mkdir(parents=True, exist_ok=True)
-    result = {"resolution": args.resolution, "samples": args.samples, "cases": {}}
+    result = {"engine": args.engine, "resolution": args.resolution, "samples": args.samples, "cases": {}}
     for preset in args.presets:
         for light in args.lights:
             tag = f"{preset}_{light}"

@@ -370,9 +370,10 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     its fringe, 1 - exp(-share tau(z_e) / s) (``impostor.sward_depth``), where z_e is the height
     above the ground at which the ray leaves the field, s its slope and ``share`` (a node's
     "Result") the share of the blades that the canopy stands for; 1 when it meets the ground
-    first. In the field's (object) frame: the field spans +-NODE_FIELD_HALF around the origin;
-    a ray at P going along d = -Incoming leaves it after t = min over X, Y of
-    (half / |d| - P / d), having dropped Incoming.z * t."""
+    first or rises to this point (from a camera inside the sward). In the field's (object)
+    frame the field spans +-NODE_FIELD_HALF around the origin: a ray at P going along
+    d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
+    Incoming.z * t."""
     incoming = t.add("ShaderNodeNewGeometry", x, y)
     to_object = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
                       convert_from="WORLD", convert_to="OBJECT")
@@ -457,6 +458,14 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     grounded = t.add("ShaderNodeMath", x + 3140, y - 250, operation="LESS_THAN")
     t.link(z_exit, "Value", grounded, 0)
     _set_input(grounded, 1, 0.0)
+    # a ray that rises to the canopy (a camera inside the sward) crossed the sward below it
+    rising = t.add("ShaderNodeMath", x + 3140, y - 450, operation="LESS_THAN")
+    t.link(view, "Z", rising, 0)
+    _set_input(rising, 1, 0.0)
+    stopped_first = t.add("ShaderNodeMath", x + 3320, y - 350, operation="MAXIMUM")
+    t.link(grounded, "Value", stopped_first, 0)
+    t.link(rising, "Value", stopped_first, 1)
+    grounded = stopped_first
     opacity = t.add("ShaderNodeMath", x + 3500, y, operation="MAXIMUM")
     t.link(stopped, "Value", opacity, 0)
     t.link(grounded, "Value", opacity, 1)

@@ -67,20 +67,26 @@ def sward_depth(params: Params, heights: np.ndarray) -> np.ndarray:
     A ray that descends with slope s (rise over run) and leaves the field at height z was at
     height z + s d a distance d before, so it crossed (1/s) * integral of the blade area per
     height above z: tau(z) / s of blade, and is stopped with probability 1 - exp(-tau(z) / s)."""
-    block = sample_blades(params)
     z = np.asarray(heights, np.float64)
+    block = sample_blades(params)
     if block.blade_length.size == 0:
         return np.zeros_like(z)
-    n = int(params.blade.segments)
-    seg = block.blade_length.astype(np.float64)[:, None] / n
-    rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))  # (blades, segments)
-    joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
-    low, high = np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:])
-    taper = 1.0 - (1.0 - params.blade.tip_width) * (np.arange(n) + 0.5) / n
-    area = block.blade_width.astype(np.float64)[:, None] * taper[None, :] * np.abs(rise)
+    low, high, seen = _segment_spans(params, block)
     above = np.clip((high[None] - z[:, None, None]) / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)
     ground = block.cell_center.shape[0] * float(params.field.cell_size) ** 2  # the block's area
-    return (above * area[None]).sum(axis=(1, 2)) * (2.0 / np.pi) / ground
+    return (above * seen[None]).sum(axis=(1, 2)) * (2.0 / np.pi) / ground
+
+
+def _segment_spans(params: Params, block):
+    """(lowest, highest point, width times rise) of every segment of ``block``'s blades at rest,
+    each (blades, segments): what a horizontal ray sees of a segment lies between the two."""
+    n = int(params.blade.segments)
+    seg = block.blade_length.astype(np.float64)[:, None] / n
+    rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))
+    joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
+    taper = 1.0 - (1.0 - params.blade.tip_width) * (np.arange(n) + 0.5) / n
+    seen = block.blade_width.astype(np.float64)[:, None] * taper[None, :] * np.abs(rise)
+    return np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:]), seen
 
 
 def fringe_colour(params: Params) -> tuple[float, float, float]:
@@ -91,13 +97,9 @@ def fringe_colour(params: Params) -> tuple[float, float, float]:
     if block.blade_length.size == 0:
         return sward_colour(params)
     n = int(params.blade.segments)
-    seg = block.blade_length.astype(np.float64)[:, None] / n
-    rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))
-    joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
-    low, high = np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:])
+    low, high, seen = _segment_spans(params, block)
     above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
-    taper = 1.0 - (1.0 - params.blade.tip_width) * (np.arange(n) + 0.5) / n
-    weight = block.blade_width.astype(np.float64)[:, None] * taper[None, :] * np.abs(rise) * above
+    weight = seen * above
     if weight.sum() <= 0.0:
         return sward_colour(params)
     tip = Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]

@@ -57,6 +57,8 @@ CANOPY_GAIN = 2.0  # the canopy's opacity is min(1, CANOPY_GAIN * K_t)
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
+# Raised whenever a material's nodes change: a field saved with older materials gets new ones.
+MATERIALS_VERSION = 2
 
 
 def _socket(sockets, *names: str):
@@ -93,8 +95,14 @@ def _new_material(name: str, uid: str):
             mat.use_nodes = True  # removed in Blender 6, where every material has nodes
     mat.node_tree.nodes.clear()
     mat["wg_uid"] = uid
+    mat["wg_version"] = MATERIALS_VERSION
     mat.use_backface_culling = False  # blades and cards are two-sided strips
     return mat
+
+
+def is_current(mat) -> bool:
+    """Whether ``mat`` was built by this version's node trees."""
+    return mat.get("wg_version") == MATERIALS_VERSION
 
 
 def _transparent(mat) -> None:

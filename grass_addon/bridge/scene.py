@@ -310,8 +310,9 @@ def ensure_collection(scene, item) -> bpy.types.Collection:
 
 
 def _material(item, role: str, make):
+    """The field's material of ``role``; made anew when missing or built by an older version."""
     found = registered(item).get(role)
-    if isinstance(found, bpy.types.Material):
+    if isinstance(found, bpy.types.Material) and materials.is_current(found):
         return found
     mat = make()
     mat["wg_role"] = role

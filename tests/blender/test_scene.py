@@ -463,6 +463,30 @@ def test_save_and_reopen_gives_the_same_frame(bridge, tmp_path):
         np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
 
 
+def test_a_field_saved_with_older_materials_gets_new_ones(bridge, tmp_path):
+    """Materials built by an older version's node trees (here: a canopy without the sward's
+    profile) are replaced when the reopened field is rebuilt; current ones are kept."""
+    from windgrass.grass_addon.bridge import materials
+
+    field_scene, _ = bridge
+    scene, item = _add_field()
+    canopy = field_scene.registered(item)[field_scene.ROLE_CANOPY_MATERIAL]
+    blade = field_scene.registered(item)[field_scene.ROLE_BLADE_MATERIAL].name
+    canopy.node_tree.nodes.remove(canopy.node_tree.nodes[materials.NODE_SWARD_PROFILE])
+    del canopy["wg_version"]
+    path = tmp_path / "old.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
+    new = field_scene.registered(item)[field_scene.ROLE_CANOPY_MATERIAL]
+    assert materials.is_current(new) and materials.NODE_SWARD_PROFILE in new.node_tree.nodes
+    assert field_scene.ground_object(item).data.materials[1] == new
+    assert field_scene.registered(item)[field_scene.ROLE_BLADE_MATERIAL].name == blade  # kept
+    scene.frame_set(2)
+
+
 def _counts():
     return {kind: len(getattr(bpy.data, kind)) for kind in ("objects", "meshes", "materials", "images", "collections")}
 

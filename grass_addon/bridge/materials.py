@@ -137,6 +137,19 @@ class _Tree:
         inp = _pick(in_node.inputs, in_name)
         self.links.new(out, inp)
 
+    def math(self, operation: str, a, b, x: float, y: float, clamp: bool = False, vector: bool = False):
+        """A Math (or Vector Math) node of ``a`` and ``b``: each a number (a vector: a tuple) or
+        (node, output) to link."""
+        node = self.add("ShaderNodeVectorMath" if vector else "ShaderNodeMath", x, y, operation=operation)
+        if not vector:
+            node.use_clamp = clamp
+        for index, value in enumerate((a, b)):
+            if isinstance(value, tuple) and len(value) == 2 and not isinstance(value[0], (int, float)):
+                self.link(value[0], value[1], node, index)
+            else:
+                node.inputs[index].default_value = value
+        return node
+
     def attribute(self, name: str, x: float, y: float):
         return self.add("ShaderNodeAttribute", x, y, attribute_type="GEOMETRY", attribute_name=name)
 
@@ -383,100 +396,52 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
     Incoming.z * t."""
     incoming = t.add("ShaderNodeNewGeometry", x, y)
-    to_object = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
-                      convert_from="WORLD", convert_to="OBJECT")
-    t.link(incoming, "Incoming", to_object, "Vector")
-    d = t.add("ShaderNodeVectorMath", x + 360, y, operation="SCALE")
-    t.link(to_object, "Vector", d, 0)
-    _set(d, -1.0, "Scale")
-    run = t.add("ShaderNodeVectorMath", x + 540, y + 150, operation="ABSOLUTE")
-    t.link(d, "Vector", run, 0)
-    run_min = t.add("ShaderNodeVectorMath", x + 720, y + 150, operation="MAXIMUM")
-    t.link(run, "Vector", run_min, 0)
-    run_min.inputs[1].default_value = (1e-6, 1e-6, 1e-6)
+    view = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
+                 convert_from="WORLD", convert_to="OBJECT")  # Incoming in the field's frame
+    t.link(incoming, "Incoming", view, "Vector")
+    view_z = t.add("ShaderNodeSeparateXYZ", x + 360, y - 250)
+    t.link(view, "Vector", view_z, "Vector")
+    # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
+    d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
+    run = t.math("ABSOLUTE", (d, "Vector"), (0.0, 0.0, 0.0), x + 540, y + 150, vector=True)
+    run = t.math("MAXIMUM", (run, "Vector"), (1e-6, 1e-6, 1e-6), x + 720, y + 150, vector=True)
     half = t.add("ShaderNodeCombineXYZ", x + 720, y + 350, name=NODE_FIELD_HALF)
-    to_wall = t.add("ShaderNodeVectorMath", x + 900, y + 250, operation="DIVIDE")
-    t.link(half, "Vector", to_wall, 0)
-    t.link(run_min, "Vector", to_wall, 1)
-    offset = t.add("ShaderNodeVectorMath", x + 900, y, operation="DIVIDE")  # 0 where d is 0
-    t.link(coord, "Object", offset, 0)
-    t.link(d, "Vector", offset, 1)
-    exits = t.add("ShaderNodeVectorMath", x + 1080, y + 150, operation="SUBTRACT")
-    t.link(to_wall, "Vector", exits, 0)
-    t.link(offset, "Vector", exits, 1)
+    to_wall = t.math("DIVIDE", (half, "Vector"), (run, "Vector"), x + 900, y + 250, vector=True)
+    offset = t.math("DIVIDE", (coord, "Object"), (d, "Vector"), x + 900, y, vector=True)  # 0 where d is 0
+    exits = t.math("SUBTRACT", (to_wall, "Vector"), (offset, "Vector"), x + 1080, y + 150, vector=True)
     exit_xy = t.add("ShaderNodeSeparateXYZ", x + 1260, y + 150)
     t.link(exits, "Vector", exit_xy, "Vector")
-    leave = t.add("ShaderNodeMath", x + 1440, y + 150, operation="MINIMUM")
-    t.link(exit_xy, "X", leave, 0)
-    t.link(exit_xy, "Y", leave, 1)
-    leave_t = t.add("ShaderNodeMath", x + 1620, y + 150, operation="MAXIMUM")
-    t.link(leave, "Value", leave_t, 0)
-    _set_input(leave_t, 1, 0.0)
-    view = t.add("ShaderNodeSeparateXYZ", x + 360, y - 250)
-    t.link(to_object, "Vector", view, "Vector")
-    drop = t.add("ShaderNodeMath", x + 1800, y + 150, operation="MULTIPLY")
-    t.link(leave_t, "Value", drop, 0)
-    t.link(view, "Z", drop, 1)
+    leave = t.math("MINIMUM", (exit_xy, "X"), (exit_xy, "Y"), x + 1440, y + 150)
+    leave = t.math("MAXIMUM", (leave, "Value"), 0.0, x + 1620, y + 150)
+    drop = t.math("MULTIPLY", (leave, "Value"), (view_z, "Z"), x + 1800, y + 150)
     height = t.add("ShaderNodeSeparateXYZ", x + 1620, y - 100)
     t.link(t.attribute(UV_SWARD_Z, x + 1440, y - 100), "Vector", height, "Vector")
-    z_exit = t.add("ShaderNodeMath", x + 1980, y + 50, operation="SUBTRACT")
-    t.link(height, "Y", z_exit, 0)
-    t.link(drop, "Value", z_exit, 1)
+    z_exit = t.math("SUBTRACT", (height, "Y"), (drop, "Value"), x + 1980, y + 50)
     # slope s = |Incoming.z| / |Incoming.xy|
-    flat = t.add("ShaderNodeVectorMath", x + 540, y - 250, operation="MULTIPLY")
-    t.link(to_object, "Vector", flat, 0)
-    flat.inputs[1].default_value = (1.0, 1.0, 0.0)
-    run_len = t.add("ShaderNodeVectorMath", x + 720, y - 250, operation="LENGTH")
-    t.link(flat, "Vector", run_len, 0)
-    run_len_min = t.add("ShaderNodeMath", x + 900, y - 250, operation="MAXIMUM")
-    t.link(run_len, "Value", run_len_min, 0)
-    _set_input(run_len_min, 1, 1e-6)
-    rise = t.add("ShaderNodeMath", x + 720, y - 450, operation="ABSOLUTE")
-    t.link(view, "Z", rise, 0)
-    slope = t.add("ShaderNodeMath", x + 1080, y - 350, operation="DIVIDE")
-    t.link(rise, "Value", slope, 0)
-    t.link(run_len_min, "Value", slope, 1)
-    slope_min = t.add("ShaderNodeMath", x + 1260, y - 350, operation="MAXIMUM")
-    t.link(slope, "Value", slope_min, 0)
-    _set_input(slope_min, 1, 1e-3)
-    # tau(z_e) / s, from the profile
+    flat = t.math("MULTIPLY", (view, "Vector"), (1.0, 1.0, 0.0), x + 540, y - 250, vector=True)
+    run_len = t.math("LENGTH", (flat, "Vector"), (0.0, 0.0, 0.0), x + 720, y - 250, vector=True)
+    run_len = t.math("MAXIMUM", (run_len, "Value"), 1e-6, x + 900, y - 250)
+    rise = t.math("ABSOLUTE", (view_z, "Z"), 0.0, x + 720, y - 450)
+    slope = t.math("DIVIDE", (rise, "Value"), (run_len, "Value"), x + 1080, y - 350)
+    slope = t.math("MAXIMUM", (slope, "Value"), 1e-3, x + 1260, y - 350)
+    # share * tau(z_e) / s, from the profile
     along = t.add("ShaderNodeMapRange", x + 2160, y + 50, name=NODE_SWARD_TOP, clamp=True)
     t.link(z_exit, "Value", along, "Value")
     profile = t.add("ShaderNodeFloatCurve", x + 2340, y + 50, name=NODE_SWARD_PROFILE)
     t.link(along, "Result", profile, "Value")
     depth = t.add("ShaderNodeValue", x + 2340, y - 250, name=NODE_SWARD_DEPTH)
-    tau = t.add("ShaderNodeMath", x + 2600, y, operation="MULTIPLY")
-    t.link(profile, "Value", tau, 0)
-    t.link(depth, "Value", tau, 1)
-    shared = t.add("ShaderNodeMath", x + 2690, y - 150, operation="MULTIPLY")
-    t.link(tau, "Value", shared, 0)
-    t.link(share, "Result", shared, 1)
-    tau = shared
-    crossed = t.add("ShaderNodeMath", x + 2780, y, operation="DIVIDE")
-    t.link(tau, "Value", crossed, 0)
-    t.link(slope_min, "Value", crossed, 1)
-    negated = t.add("ShaderNodeMath", x + 2960, y, operation="MULTIPLY")
-    t.link(crossed, "Value", negated, 0)
-    _set_input(negated, 1, -1.0)
-    through = t.add("ShaderNodeMath", x + 3140, y, operation="EXPONENT")
-    t.link(negated, "Value", through, 0)
-    stopped = t.add("ShaderNodeMath", x + 3320, y, operation="SUBTRACT", use_clamp=True)
-    _set_input(stopped, 0, 1.0)
-    t.link(through, "Value", stopped, 1)
-    grounded = t.add("ShaderNodeMath", x + 3140, y - 250, operation="LESS_THAN")
-    t.link(z_exit, "Value", grounded, 0)
-    _set_input(grounded, 1, 0.0)
-    # a ray that rises to the canopy (a camera inside the sward) crossed the sward below it
-    rising = t.add("ShaderNodeMath", x + 3140, y - 450, operation="LESS_THAN")
-    t.link(view, "Z", rising, 0)
-    _set_input(rising, 1, 0.0)
-    stopped_first = t.add("ShaderNodeMath", x + 3320, y - 350, operation="MAXIMUM")
-    t.link(grounded, "Value", stopped_first, 0)
-    t.link(rising, "Value", stopped_first, 1)
-    grounded = stopped_first
-    opacity = t.add("ShaderNodeMath", x + 3500, y, operation="MAXIMUM")
-    t.link(stopped, "Value", opacity, 0)
-    t.link(grounded, "Value", opacity, 1)
+    tau = t.math("MULTIPLY", (profile, "Value"), (depth, "Value"), x + 2520, y)
+    tau = t.math("MULTIPLY", (tau, "Value"), (share, "Result"), x + 2700, y)
+    crossed = t.math("DIVIDE", (tau, "Value"), (slope, "Value"), x + 2880, y)
+    through = t.math("EXPONENT", (t.math("MULTIPLY", (crossed, "Value"), -1.0, x + 3060, y), "Value"), 0.0,
+                     x + 3240, y)
+    stopped = t.math("SUBTRACT", 1.0, (through, "Value"), x + 3420, y, clamp=True)
+    # stopped for sure: the ray meets the ground first, or rises to this point (a camera inside
+    # the sward: it crossed the sward below)
+    grounded = t.math("LESS_THAN", (z_exit, "Value"), 0.0, x + 3240, y - 250)
+    rising = t.math("LESS_THAN", (view_z, "Z"), 0.0, x + 3240, y - 450)
+    certain = t.math("MAXIMUM", (grounded, "Value"), (rising, "Value"), x + 3420, y - 350)
+    opacity = t.math("MAXIMUM", (stopped, "Value"), (certain, "Value"), x + 3600, y)
     return opacity
 
 

@@ -106,6 +106,11 @@ def _cumsum_rows(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def tip_height(length: np.ndarray, tilt: np.ndarray) -> np.ndarray:
+    """Height of each blade's tip above its root: sum over its n segments of (length / n) cos(tilt)."""
+    return (length[:, None] / tilt.shape[1] * np.cos(tilt)).sum(axis=1)
+
+
 def rest_tilt(inclination: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Absolute tilt from vertical of each segment at rest: alpha + sum of theta_base up to i."""
     return (np.asarray(inclination, dtype=np.float32)[:, None] + np.cumsum(angles, axis=1)).astype(np.float32)

@@ -214,10 +214,9 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
     # (the blades' own lengths are the stochastic part), times lod.card_height.
     if num > 0:
-        tips = (length[:, None] / n * np.cos(rest_tilt)).sum(axis=1)
-        tallest = tips.reshape(P, num).max(axis=1)
+        tallest = blade.tip_height(length, rest_tilt).reshape(P, num).max(axis=1)
     else:
-        tallest = cell_length * np.cos(cell_rest_tilt).mean(axis=1)
+        tallest = blade.tip_height(cell_length, cell_rest_tilt)
     card_height = params.lod.card_height * tallest
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)

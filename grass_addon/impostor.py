@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import blade
 from .blocks import FieldGrid, Species, make_block
 from .schema import Params
 
@@ -42,10 +43,9 @@ def sample_blades(params: Params):
 def tip_heights(params: Params) -> np.ndarray:
     """Rest height of each sample blade's tip (m): sum of l/n cos(tilt) over its segments."""
     block = sample_blades(params)
-    n = int(params.blade.segments)
     if block.blade_length.size == 0:
-        return block.cell_length * np.cos(block.cell_rest_tilt).mean(axis=1)
-    return (block.blade_length[:, None] / n * np.cos(block.blade_rest_tilt)).sum(axis=1)
+        return blade.tip_height(block.cell_length, block.cell_rest_tilt)
+    return blade.tip_height(block.blade_length, block.blade_rest_tilt)
 
 
 def canopy_height(params: Params) -> float:

@@ -83,10 +83,6 @@ def _set(node, value, *names: str) -> None:
     _socket(node.inputs, *names).default_value = value
 
 
-def _set_input(node, index: int, value) -> None:
-    node.inputs[index].default_value = value
-
-
 def _new_material(name: str, uid: str):
     mat = bpy.data.materials.new(name)
     if mat.node_tree is None:
@@ -138,12 +134,14 @@ class _Tree:
         self.links.new(out, inp)
 
     def math(self, operation: str, a, b, x: float, y: float, clamp: bool = False, vector: bool = False):
-        """A Math (or Vector Math) node of ``a`` and ``b``: each a number (a vector: a tuple) or
-        (node, output) to link."""
+        """A Math (or Vector Math) node of ``a`` and ``b``: each a number (a vector: a tuple),
+        (node, output) to link, or None (an operation of one operand)."""
         node = self.add("ShaderNodeVectorMath" if vector else "ShaderNodeMath", x, y, operation=operation)
         if not vector:
             node.use_clamp = clamp
         for index, value in enumerate((a, b)):
+            if value is None:
+                continue
             if isinstance(value, tuple) and len(value) == 2 and not isinstance(value[0], (int, float)):
                 self.link(value[0], value[1], node, index)
             else:
@@ -167,16 +165,11 @@ class _Tree:
         1 - exp(-d / render.haze_distance) of the view distance d (aerial perspective). The
         distance and colour live in NODE_HAZE_DISTANCE / NODE_HAZE_COLOUR (update_materials)."""
         camera = self.add("ShaderNodeCameraData", x - 700, y - 250)
-        scale = self.add("ShaderNodeMath", x - 500, y - 250, operation="MULTIPLY")
-        self.link(camera, "View Distance", scale, scale.inputs[0])
         inverse = self.add("ShaderNodeValue", x - 700, y - 450, name=NODE_HAZE_DISTANCE)  # -1 / distance
         inverse.outputs[0].default_value = 0.0
-        self.link(inverse, "Value", scale, scale.inputs[1])
-        transmitted = self.add("ShaderNodeMath", x - 350, y - 250, operation="EXPONENT")
-        self.link(scale, "Value", transmitted, transmitted.inputs[0])
-        amount = self.add("ShaderNodeMath", x - 200, y - 250, operation="SUBTRACT", use_clamp=True)
-        _set_input(amount, 0, 1.0)
-        self.link(transmitted, "Value", amount, amount.inputs[1])
+        scale = self.math("MULTIPLY", (camera, "View Distance"), (inverse, "Value"), x - 500, y - 250)
+        transmitted = self.math("EXPONENT", (scale, "Value"), None, x - 350, y - 250)
+        amount = self.math("SUBTRACT", 1.0, (transmitted, "Value"), x - 200, y - 250, clamp=True)
         colour = self.add("ShaderNodeRGB", x - 350, y - 450, name=NODE_HAZE_COLOUR)
         colour.outputs[0].default_value = (1.5, 1.5, 1.45, 1.0)
         glow = self.add("ShaderNodeEmission", x - 200, y - 450)
@@ -271,15 +264,9 @@ def card_material(name: str, uid: str, image):
     path = t.add("ShaderNodeLightPath", -1300, -650)
     depth = t.add("ShaderNodeValue", -1300, -850, name=NODE_CARD_DEPTH)
     depth.outputs[0].default_value = 6.0
-    deep = t.add("ShaderNodeMath", -1100, -650, operation="GREATER_THAN")
-    t.link(path, "Transparent Depth", deep, deep.inputs[0])
-    t.link(depth, "Value", deep, deep.inputs[1])
-    cover = t.add("ShaderNodeMath", -950, -500, operation="MAXIMUM")
-    t.link(tex, "Alpha", cover, cover.inputs[0])
-    t.link(deep, "Value", cover, cover.inputs[1])
-    alpha = t.add("ShaderNodeMath", -800, -300, operation="MULTIPLY", use_clamp=True)
-    t.link(cover, "Value", alpha, alpha.inputs[0])
-    t.link(opacity, "X", alpha, alpha.inputs[1])
+    deep = t.math("GREATER_THAN", (path, "Transparent Depth"), (depth, "Value"), -1100, -650)
+    cover = t.math("MAXIMUM", (tex, "Alpha"), (deep, "Value"), -950, -500)
+    alpha = t.math("MULTIPLY", (cover, "Value"), (opacity, "X"), -800, -300, clamp=True)
     # A card is one flat plane where its blades turn every way: their highlights scatter, the
     # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
     shader = t.hazed(t.foliage(tex, "Color", -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
@@ -363,19 +350,14 @@ def canopy_material(name: str, uid: str):
     # The canopy is the floor of the fading cards (K'_b = 1 - K_t): it turns opaque over the first
     # 1 / CANOPY_GAIN of the band, so the band blends the cards' colour into the canopy's instead
     # of letting the dark ground show through both (a seam).
-    gain = t.add("ShaderNodeMath", -600, -550, operation="MULTIPLY", use_clamp=True)
-    t.link(kt, "Result", gain, gain.inputs[0])
-    _set_input(gain, 1, CANOPY_GAIN)
+    gain = t.math("MULTIPLY", (kt, "Result"), CANOPY_GAIN, -600, -550, clamp=True)
     # Where rays leave the field (its edge against the sky) the sward is as see-through as the
     # share K_t of its blades that the canopy stands for (the cards carry the rest).
-    edge = t.add("ShaderNodeMath", -450, -650, operation="MINIMUM", use_clamp=True)
-    t.link(gain, "Value", edge, edge.inputs[0])
-    t.link(_sward_edge_opacity(t, coord, kt, -1900, -1100), "Value", edge, edge.inputs[1])
-    gain = edge
+    edge = t.math("MINIMUM", (gain, "Value"), (_sward_edge_opacity(t, coord, kt, -1900, -1100), "Value"),
+                  -450, -650, clamp=True)
     light_path = t.add("ShaderNodeLightPath", -700, -900)
-    opacity = t.add("ShaderNodeMath", -300, -700, operation="SUBTRACT", use_clamp=True)
-    t.link(gain, "Value", opacity, opacity.inputs[0])
-    t.link(light_path, "Is Shadow Ray", opacity, opacity.inputs[1])  # no shadow: clear to shadow rays
+    # no shadow: clear to shadow rays
+    opacity = t.math("SUBTRACT", (edge, "Value"), (light_path, "Is Shadow Ray"), -300, -700, clamp=True)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
@@ -403,7 +385,7 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     t.link(view, "Vector", view_z, "Vector")
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
-    run = t.math("ABSOLUTE", (d, "Vector"), (0.0, 0.0, 0.0), x + 540, y + 150, vector=True)
+    run = t.math("ABSOLUTE", (d, "Vector"), None, x + 540, y + 150, vector=True)
     run = t.math("MAXIMUM", (run, "Vector"), (1e-6, 1e-6, 1e-6), x + 720, y + 150, vector=True)
     half = t.add("ShaderNodeCombineXYZ", x + 720, y + 350, name=NODE_FIELD_HALF)
     to_wall = t.math("DIVIDE", (half, "Vector"), (run, "Vector"), x + 900, y + 250, vector=True)
@@ -419,9 +401,9 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     z_exit = t.math("SUBTRACT", (height, "Y"), (drop, "Value"), x + 1980, y + 50)
     # slope s = |Incoming.z| / |Incoming.xy|
     flat = t.math("MULTIPLY", (view, "Vector"), (1.0, 1.0, 0.0), x + 540, y - 250, vector=True)
-    run_len = t.math("LENGTH", (flat, "Vector"), (0.0, 0.0, 0.0), x + 720, y - 250, vector=True)
+    run_len = t.math("LENGTH", (flat, "Vector"), None, x + 720, y - 250, vector=True)
     run_len = t.math("MAXIMUM", (run_len, "Value"), 1e-6, x + 900, y - 250)
-    rise = t.math("ABSOLUTE", (view_z, "Z"), 0.0, x + 720, y - 450)
+    rise = t.math("ABSOLUTE", (view_z, "Z"), None, x + 720, y - 450)
     slope = t.math("DIVIDE", (rise, "Value"), (run_len, "Value"), x + 1080, y - 350)
     slope = t.math("MAXIMUM", (slope, "Value"), 1e-3, x + 1260, y - 350)
     # share * tau(z_e) / s, from the profile
@@ -433,7 +415,7 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     tau = t.math("MULTIPLY", (profile, "Value"), (depth, "Value"), x + 2520, y)
     tau = t.math("MULTIPLY", (tau, "Value"), (share, "Result"), x + 2700, y)
     crossed = t.math("DIVIDE", (tau, "Value"), (slope, "Value"), x + 2880, y)
-    through = t.math("EXPONENT", (t.math("MULTIPLY", (crossed, "Value"), -1.0, x + 3060, y), "Value"), 0.0,
+    through = t.math("EXPONENT", (t.math("MULTIPLY", (crossed, "Value"), -1.0, x + 3060, y), "Value"), None,
                      x + 3240, y)
     stopped = t.math("SUBTRACT", 1.0, (through, "Value"), x + 3420, y, clamp=True)
     # stopped for sure: the ray meets the ground first, or rises to this point (a camera inside

@@ -100,12 +100,14 @@ def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
     return blocked / (rays // batch * batch)
 
 
-@pytest.mark.parametrize("slope", [0.2, 0.4])
+@pytest.mark.parametrize("slope", [0.1, 0.2])
 def test_sward_depth_is_what_rays_leaving_the_field_cross(params, slope):
     """The canopy's edge lets through what the blades would: a ray leaving the field at height z
     with slope s is stopped with probability 1 - exp(-tau(z) / s), checked against rays traced
-    through the blade strips themselves."""
-    params = params.replace({"field.cells_per_block": 4})
+    through the blade strips themselves. The sward leans (segments 25-50 degrees from the
+    vertical), so a leaning segment must count with its rise, not its whole face (1.5-2 times
+    more)."""
+    params = params.replace({"field.cells_per_block": 4, "blade.inclination": 35.0, "blade.root_stiffness": 5e-4})
     heights, depth = impostor.sward_profile(params)
     assert depth[0] > 0.0 and depth[-1] == pytest.approx(0.0, abs=1e-9) and np.all(np.diff(depth) <= 1e-12)
     rng = np.random.default_rng(7)

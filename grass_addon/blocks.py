@@ -17,6 +17,7 @@ import numpy as np
 
 from . import blade
 from .errors import ParameterError
+from .grid import FieldGrid
 from .schema import Params
 from .terrain import Heightfield, ground_z
 
@@ -24,82 +25,6 @@ from .terrain import Heightfield, ground_z
 RNG_BLADES = 1
 RNG_CELLS = 2
 DEFAULT_CACHE_BYTES = 1 << 30  # the block cache's budget unless the caller sets one
-
-
-@dataclass(frozen=True)
-class FieldGrid:
-    """The field's block grid: block ``b = by * blocks_x + bx``; cell ``(cx, cy)`` of the field
-    lies in block ``(cx // cpb, cy // cpb)``. The field is centred on the origin."""
-
-    blocks_x: int
-    blocks_y: int
-    cells_per_block: int
-    cell_size: float
-
-    @classmethod
-    def of(cls, params: Params) -> FieldGrid:
-        f = params.field
-        return cls(int(f.blocks_x), int(f.blocks_y), int(f.cells_per_block), float(f.cell_size))
-
-    @property
-    def block_size(self) -> float:
-        return self.cells_per_block * self.cell_size
-
-    @property
-    def n_blocks(self) -> int:
-        return self.blocks_x * self.blocks_y
-
-    @property
-    def cells_x(self) -> int:
-        return self.blocks_x * self.cells_per_block
-
-    @property
-    def cells_y(self) -> int:
-        return self.blocks_y * self.cells_per_block
-
-    @property
-    def size(self) -> tuple[float, float]:
-        return self.cells_x * self.cell_size, self.cells_y * self.cell_size
-
-    @property
-    def origin(self) -> np.ndarray:
-        """(2,) lower-left corner of the field."""
-        return -0.5 * np.array(self.size)
-
-    def block_xy(self, blocks) -> tuple[np.ndarray, np.ndarray]:
-        """(bx, by) int64 of block ids."""
-        by, bx = np.divmod(np.asarray(blocks, dtype=np.int64), self.blocks_x)
-        return bx, by
-
-    def block_bounds(self, blocks) -> np.ndarray:
-        """(m, 4) float64 xmin, ymin, xmax, ymax of each block."""
-        bx, by = self.block_xy(blocks)
-        o, s = self.origin, self.block_size
-        return np.stack([o[0] + bx * s, o[1] + by * s, o[0] + (bx + 1) * s, o[1] + (by + 1) * s], axis=1)
-
-    def blocks_near(self, xy, radius: float) -> np.ndarray:
-        """Ids (int64, ascending) of the blocks whose rectangle comes within ``radius`` of the
-        ground point ``xy``: only the square of blocks around it is looked at."""
-        o, s = self.origin, self.block_size
-        lo = np.floor((np.asarray(xy, dtype=np.float64) - radius - o) / s).astype(np.int64)
-        hi = np.floor((np.asarray(xy, dtype=np.float64) + radius - o) / s).astype(np.int64)
-        bx = np.arange(max(lo[0], 0), min(hi[0], self.blocks_x - 1) + 1, dtype=np.int64)
-        by = np.arange(max(lo[1], 0), min(hi[1], self.blocks_y - 1) + 1, dtype=np.int64)
-        if bx.size == 0 or by.size == 0:
-            return np.zeros(0, np.int64)
-        ids = (by[:, None] * self.blocks_x + bx[None, :]).ravel()
-        b = self.block_bounds(ids)
-        nx = np.clip(xy[0], b[:, 0], b[:, 2]) - xy[0]
-        ny = np.clip(xy[1], b[:, 1], b[:, 3]) - xy[1]
-        return ids[nx * nx + ny * ny <= radius * radius]
-
-    def cell_centers(self, block: int) -> np.ndarray:
-        """(cpb**2, 2) float64 centres of a block's cells, row-major inside the block."""
-        cpb = self.cells_per_block
-        bx, by = self.block_xy(block)
-        ly, lx = np.divmod(np.arange(cpb * cpb), cpb)
-        cx, cy = int(bx) * cpb + lx, int(by) * cpb + ly
-        return self.origin + (np.stack([cx, cy], axis=1) + 0.5) * self.cell_size
 
 
 @dataclass(eq=False)

@@ -16,9 +16,10 @@ from collections import OrderedDict
 import numpy as np
 
 from . import kinematics, slots
-from .blocks import BlockCache, FieldGrid
+from .blocks import BlockCache
 from .celldata import CellData, cell_data
 from .errors import ParameterError
+from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
 from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights
 from .schema import Params

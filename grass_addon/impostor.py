@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import blade
-from .blocks import FieldGrid, Species, make_block
+from .blocks import Species, make_block
+from .grid import FieldGrid
 from .schema import Params
 
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (linear RGB)

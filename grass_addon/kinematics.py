@@ -149,7 +149,7 @@ class _Constants:
         self.root_xy = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(nb, bpb)
         # The ground stops each segment (blade.GROUND_TILT): flat ground as one row of the limit;
         # on a terrain the conjugate slope conj(g) at each root (the limit depends on the lean).
-        slope = getattr(layout, "blade_ground_slope", None)
+        slope = layout.blade_ground_slope
         self.slope = (None if slope is None else
                       (slope[:, 0] - 1j * slope[:, 1]).astype(np.complex64).reshape(nb, bpb, 1))
         self.root_z = root[:, 2].astype(np.float32).reshape(nb, bpb)
@@ -444,8 +444,7 @@ def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
         total_twist = np.add.reduce(np.asarray(cells.twist, dtype=np.float32)[cell_ids], axis=1)
     offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
     height = layout.card_height[cell_ids]
-    cell_ground = getattr(layout, "cell_ground", None)  # terrain height at the cell centre
-    ground = np.float32(0.0) if cell_ground is None else cell_ground[cell_ids]
+    ground = layout.cell_ground[cell_ids]  # terrain height at the cell centre
     bx, by = np.cos(facing) * half, np.sin(facing) * half
     top_facing = facing + total_twist
     tx, ty = np.cos(top_facing) * half, np.sin(top_facing) * half

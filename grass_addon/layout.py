@@ -12,11 +12,11 @@ a window are block-major (``block_cells`` maps either way).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from dataclasses import field as dc_field
 
 import numpy as np
 
-from .blocks import RNG_BLADES, RNG_CELLS, Block, BlockCache, FieldGrid
+from .blocks import RNG_BLADES, RNG_CELLS, Block, BlockCache
+from .grid import FieldGrid
 from .schema import Params
 from .terrain import Heightfield
 
@@ -25,21 +25,12 @@ __all__ = ["RNG_BLADES", "RNG_CELLS", "FieldLayout", "build_layout", "subset_lay
 
 @dataclass(eq=False)
 class FieldLayout:
+    """Some blocks of a field (``block_ids``) as flat arrays; ``grid`` describes the whole field
+    (its extent, cell and blade counts: ``layout.blocks_x`` and the like read it)."""
+
     params: Params
-    blocks_x: int  # the whole field's grid (a window holds fewer blocks: n_blocks)
-    blocks_y: int
-    cells_per_block: int
-    cell_size: float
-    segments: int
-    blades_per_cell: int
-    cells_x: int
-    cells_y: int
-    n_cells: int
-    n_blocks: int
-    cells_per_block_total: int
-    blades_per_block: int
-    n_blades: int
-    origin: np.ndarray  # (2,) lower-left corner of the field; the field is centred on (0, 0)
+    grid: FieldGrid  # the whole field's block grid
+    block_ids: np.ndarray  # (n_blocks,) int64 field-wide id of each local block
     block_cells: np.ndarray  # (n_blocks, cells_per_block**2) int32 flat cell ids
     block_bounds: np.ndarray  # (n_blocks, 4) float32 xmin, ymin, xmax, ymax
     cell_center: np.ndarray  # (n_cells, 2) float32
@@ -66,18 +57,37 @@ class FieldLayout:
     card_shade: np.ndarray
     card_center: np.ndarray  # (n_cells, 2) float32: each card's foot, jittered inside its cell
     species_color: np.ndarray  # (n_species, 3) float32 linear RGB
-    # terrain: None = flat ground z = 0; blade_root z lies on it
-    terrain: Heightfield | None = None
-    cell_ground: np.ndarray = dc_field(default=None)  # (n_cells,) float32 ground z at each cell centre
-    block_z_range: np.ndarray = dc_field(default=None)  # (n_blocks, 2) float32 lowest, highest ground
-    blade_ground_slope: np.ndarray | None = None  # (n_blades, 2) float32 dz/dx, dz/dy at each root
-    grid: FieldGrid | None = None  # the whole field's block grid
-    block_ids: np.ndarray | None = None  # (n_blocks,) int64 field-wide id of each local block
+    cell_ground: np.ndarray  # (n_cells,) float32 ground z at each cell centre (0 on flat ground)
+    block_z_range: np.ndarray  # (n_blocks, 2) float32 lowest, highest ground (0, 0 on flat ground)
+    terrain: Heightfield | None = None  # None = flat ground z = 0; blade_root z lies on it
+    blade_ground_slope: np.ndarray | None = None  # (n_blades, 2) float32 dz/dx, dz/dy at each root; None: flat
+
+    # --- this set of blocks
+    @property
+    def n_blocks(self) -> int:
+        return len(self.block_ids)
 
     @property
-    def size(self) -> tuple[float, float]:
-        """Field extent along X and Y in metres."""
-        return self.cells_x * self.cell_size, self.cells_y * self.cell_size
+    def n_cells(self) -> int:
+        return self.n_blocks * self.grid.cells_per_block_total
+
+    @property
+    def n_blades(self) -> int:
+        return self.n_blocks * self.grid.blades_per_block
+
+    # --- the whole field (its grid)
+    blocks_x = property(lambda self: self.grid.blocks_x)
+    blocks_y = property(lambda self: self.grid.blocks_y)
+    cells_per_block = property(lambda self: self.grid.cells_per_block)
+    cell_size = property(lambda self: self.grid.cell_size)
+    segments = property(lambda self: self.grid.segments)
+    blades_per_cell = property(lambda self: self.grid.blades_per_cell)
+    cells_x = property(lambda self: self.grid.cells_x)
+    cells_y = property(lambda self: self.grid.cells_y)
+    cells_per_block_total = property(lambda self: self.grid.cells_per_block_total)
+    blades_per_block = property(lambda self: self.grid.blades_per_block)
+    origin = property(lambda self: self.grid.origin)
+    size = property(lambda self: self.grid.size, doc="Field extent along X and Y in metres.")
 
     def block_blades(self, block: int) -> slice:
         start = block * self.blades_per_block
@@ -104,19 +114,15 @@ _CELL_ARRAYS = ("cell_center", "cell_ground", "cell_length", "cell_width", "cell
 def _layout(params: Params, grid: FieldGrid, ids: np.ndarray, block_cells: np.ndarray, arrays: dict,
             species_color: np.ndarray, terrain, z_range: np.ndarray, slope) -> FieldLayout:
     """A FieldLayout of blocks ``ids`` whose blade and cell ``arrays`` are already in place."""
-    n, num, P = int(params.blade.segments), int(params.field.blades_per_cell), grid.cells_per_block ** 2
+    num, P = grid.blades_per_cell, grid.cells_per_block_total
     nb = len(ids)
     return FieldLayout(
-        params=params, blocks_x=grid.blocks_x, blocks_y=grid.blocks_y, cells_per_block=grid.cells_per_block,
-        cell_size=grid.cell_size, segments=n, blades_per_cell=num, cells_x=grid.cells_x, cells_y=grid.cells_y,
-        n_cells=nb * P, n_blocks=nb, cells_per_block_total=P, blades_per_block=P * num,
-        n_blades=nb * P * num, origin=grid.origin, block_cells=block_cells,
+        params=params, grid=grid, block_ids=np.asarray(ids, dtype=np.int64), block_cells=block_cells,
         block_bounds=grid.block_bounds(ids).astype(np.float32),
         blade_cell=np.repeat(block_cells.ravel().astype(np.int32), num),
         blade_slot=np.tile(np.arange(num, dtype=np.int32), nb * P),
         species_color=species_color, terrain=terrain,
-        block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope,
-        grid=grid, block_ids=np.asarray(ids, dtype=np.int64), **arrays)
+        block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope, **arrays)
 
 
 def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[Block],

@@ -142,7 +142,7 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     centre = layout.cell_center
     dx = centre[:, 0] - np.float32(eye[0])
     dy = centre[:, 1] - np.float32(eye[1])
-    dz = np.float32(eye[2]) - _cell_ground(layout)
+    dz = np.float32(eye[2]) - layout.cell_ground
     d = np.sqrt(dx * dx + dy * dy + dz * dz)
 
     k_b = _ramp(d, lod.blade_near, lod.blade_far)  # eq 7
@@ -154,20 +154,8 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     k_card = np.minimum(k_b, k_b2)
     return LodWeights(k_geometry=k_g.astype(np.float32, copy=False), k_billboard=k_card,
                       k_texture=k_t, blade_count=blade_count,
-                      block_visible=block_visible(layout.block_bounds, _block_z_range(layout), camera, params),
+                      block_visible=block_visible(layout.block_bounds, layout.block_z_range, camera, params),
                       block_distance=_block_distance(layout, eye))
-
-
-def _cell_ground(layout) -> np.ndarray:
-    """Ground z of every cell centre (zeros for flat ground or a layout without terrain data)."""
-    ground = getattr(layout, "cell_ground", None)
-    return np.zeros(layout.n_cells, np.float32) if ground is None else ground
-
-
-def _block_z_range(layout) -> np.ndarray:
-    """(n_blocks, 2) lowest and highest ground of each block (zeros: flat ground)."""
-    z = getattr(layout, "block_z_range", None)
-    return np.zeros((layout.n_blocks, 2), np.float32) if z is None else z
 
 
 def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
@@ -178,7 +166,7 @@ def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
     box), so a block with block_distance > lod.card_far holds nothing but ground texture.
     """
     b = layout.block_bounds.astype(np.float64)
-    z = _block_z_range(layout).astype(np.float64)
+    z = layout.block_z_range.astype(np.float64)
     nx = np.clip(eye[0], b[:, 0], b[:, 2]) - eye[0]
     ny = np.clip(eye[1], b[:, 1], b[:, 3]) - eye[1]
     nz = np.clip(eye[2], z[:, 0], z[:, 1]) - eye[2]

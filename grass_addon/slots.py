@@ -92,7 +92,7 @@ def pool_shapes(layout, params) -> tuple[PoolShape, PoolShape]:
 def topology_key(layout, params) -> str:
     """What a field's slot objects are built for; they are rebuilt when it changes."""
     blades, cards = pool_shapes(layout, params)
-    ground = getattr(layout, "terrain", None)
+    ground = layout.terrain
     return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block, "card atlas 8 random",
                        [blades.objects, blades.k], [cards.objects, cards.k],
                        [round(float(v), 6) for v in layout.size],

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .errors import ParameterError
+from .grid import FieldGrid
 
 # At most this many heightfield cells along a side: a 1024 x 1024-cell field is sampled every
 # 4 cells (the bridge ray-casts once per sample at build time, and the ground mesh has one quad
@@ -140,11 +141,11 @@ def grid_for(params, max_cells: int = MAX_GRID_CELLS) -> tuple[np.ndarray, float
     sampled every ``step`` cells. The grid covers the whole field (it may reach past the far edge
     by less than one spacing).
     """
-    f = params.field
-    cells_x, cells_y = f.blocks_x * f.cells_per_block, f.blocks_y * f.cells_per_block
+    grid = FieldGrid.of(params)
+    cells_x, cells_y = grid.cells_x, grid.cells_y
     step = max(1, math.ceil(max(cells_x, cells_y) / max_cells))
-    spacing = f.cell_size * step
-    origin = -0.5 * np.array([cells_x * f.cell_size, cells_y * f.cell_size])
+    spacing = grid.cell_size * step
+    origin = grid.origin
     return origin, spacing, math.ceil(cells_x / step), math.ceil(cells_y / step)
 
 

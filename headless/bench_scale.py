@@ -117,10 +117,9 @@ def engine_run(size_m: float) -> dict:
     t0 = clock()
     worst.seek(last, camera)
     seek_worst = clock() - t0
-    f = params.field
     return {
         "size_m": round(field.grid.size[0], 1), "blocks": field.grid.n_blocks,
-        "blades": field.grid.n_blocks * f.cells_per_block ** 2 * f.blades_per_cell,
+        "blades": field.grid.n_blades,
         "build_s": round(build_s, 3), "frame_ms": round(1e3 * statistics.median(times), 2),
         "flythrough_ms": round(1e3 * statistics.mean(fly), 2),
         "flythrough_max_ms": round(1e3 * max(fly), 2),

@@ -35,6 +35,7 @@ import addon_loader  # noqa: E402
 addon_loader.load_package()
 from windgrass.grass_addon import presets, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+from windgrass.grass_addon.grid import FieldGrid  # noqa: E402
 
 OVERCAST = (0.55, 0.58, 0.62)  # uniform grey sky (linear RGB)
 
@@ -65,7 +66,7 @@ def scene_params(args, preset: str, fixed: bool):
     if args.samples < 1:
         raise ParameterError("samples", f"{args.samples} must be >= 1")
     params = params.replace({"field.blocks_x": args.blocks, "field.blocks_y": args.blocks})
-    size_y = params.field.blocks_y * params.field.cells_per_block * params.field.cell_size
+    size_y = FieldGrid.of(params).size[1]
     changes = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0, "render.engine": args.engine,
                "render.samples": args.samples, "render.resolution_x": w, "render.resolution_y": h,
                "render.motion_blur": False}

@@ -66,6 +66,7 @@ def addon_module(name: str):
 schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
 ensure_writable = addon_module("grass_addon.folders").ensure_writable
+FieldGrid = addon_module("grass_addon.grid").FieldGrid
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
@@ -426,7 +427,7 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
     t0 = time.perf_counter()
     scene = build_scene(params)
     f = params.field
-    blades = f.blocks_x * f.blocks_y * f.cells_per_block ** 2 * f.blades_per_cell
+    blades = FieldGrid.of(params).n_blades
     print(f"scene ready in {time.perf_counter() - t0:.1f} s: {blades:,} blades, wind {params.wind.type} "
           f"{params.wind.speed:g} m/s, seed {f.seed}, {params.render.engine} {params.render.samples} spp "
           f"{params.render.resolution_x}x{params.render.resolution_y}, camera {params.camera.mode}",

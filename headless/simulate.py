@@ -32,6 +32,7 @@ from windgrass.grass_addon import kinematics, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.field import WHOLE_FIELD_CELLS, GrassField  # noqa: E402
 from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
+from windgrass.grass_addon.grid import FieldGrid  # noqa: E402
 
 MAX_TRACE_BLADES = 100_000  # blade_tip is stored for fields up to this many blades
 SUMMARY_BLADES = 100_000  # tip statistics of larger fields use evenly spread blocks up to this many
@@ -232,10 +233,8 @@ def main(argv=None) -> int:
         print(f"simulate.py: failed: cannot write the trace {args.trace}: {exc.strerror or exc}; "
               "an earlier file there is unchanged", file=sys.stderr)
         return 1
-    f = params.field
-    cells_x, cells_y = f.blocks_x * f.cells_per_block, f.blocks_y * f.cells_per_block
-    info = {"cells": cells_x * cells_y, "blades": cells_x * cells_y * f.blades_per_cell,
-            "size_x": cells_x * f.cell_size, "size_y": cells_y * f.cell_size}
+    grid = FieldGrid.of(params)
+    info = {"cells": grid.n_cells, "blades": grid.n_blades, "size_x": grid.size[0], "size_y": grid.size[1]}
     print_summary(params, frames, summary, args.trace, info)
     return 0
 

@@ -7,6 +7,7 @@ from mathutils import Vector
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.grid import FieldGrid
 from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
@@ -65,10 +66,8 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         if collection is not None and item.collection is None:
             item.collection = collection
         refresh(scene)
-        f = params.field
-        blades = f.blocks_x * f.blocks_y * f.cells_per_block ** 2 * f.blades_per_cell
-        size_x = f.blocks_x * f.cells_per_block * f.cell_size
-        size_y = f.blocks_y * f.cells_per_block * f.cell_size
+        grid = FieldGrid.of(params)
+        blades, (size_x, size_y) = grid.n_blades, grid.size
         where = f" rooted on '{terrain.name}'" if terrain is not None else ""
         self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
         return {"FINISHED"}

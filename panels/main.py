@@ -5,6 +5,7 @@ import textwrap
 import bpy
 
 from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.grid import FieldGrid
 
 CATEGORY = "Grass"
 # Row PropertyGroup name -> its table parameter (the columns come from the schema).
@@ -85,10 +86,9 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 for line in textwrap.wrap(status, 48):
                     box.label(text=line)
             f = item.field
-            cells = f.blocks_x * f.blocks_y * f.cells_per_block ** 2
-            size_x = f.blocks_x * f.cells_per_block * f.cell_size
-            size_y = f.blocks_y * f.cells_per_block * f.cell_size
-            layout.label(text=f"{size_x:.4g} x {size_y:.4g} m, {cells * f.blades_per_cell:,} blades", icon="INFO")
+            grid = FieldGrid(f.blocks_x, f.blocks_y, f.cells_per_block, f.cell_size, f.blades_per_cell)
+            size_x, size_y = grid.size
+            layout.label(text=f"{size_x:.4g} x {size_y:.4g} m, {grid.n_blades:,} blades", icon="INFO")
             layout.prop(item, "collection")
             layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 

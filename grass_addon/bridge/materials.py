@@ -23,6 +23,7 @@ import warnings
 import bpy
 
 from .. import impostor
+from ..grid import FieldGrid
 
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
@@ -484,9 +485,8 @@ def update_sward_profile(params, canopy) -> None:
         value.outputs[0].default_value = ground
     half = nodes.get(NODE_FIELD_HALF)
     if half is not None:
-        f = params.field
-        for axis, blocks in (("X", f.blocks_x), ("Y", f.blocks_y)):
-            _set(half, 0.5 * float(blocks) * float(f.cells_per_block) * float(f.cell_size), axis)
+        for axis, extent in zip("XY", FieldGrid.of(params).size):
+            _set(half, 0.5 * extent, axis)
     profile = nodes.get(NODE_SWARD_PROFILE)
     if profile is not None:
         curve = profile.mapping.curves[0]

@@ -381,7 +381,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
     for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
         del item[REGISTRY][key]
 
-    heightfield = getattr(layout, "terrain", None)
+    heightfield = layout.terrain
     mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params),
                        impostor.sward_top(params))
     ground = bpy.data.objects.new(f"{base} ground", mesh)

@@ -21,6 +21,7 @@ import numpy as np
 from mathutils import Euler, Vector
 
 from ..errors import ParameterError
+from ..grid import FieldGrid
 from . import animation
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here
@@ -48,8 +49,7 @@ GROUND_HAZE = (0.1, 0.14, 0.08)  # linear RGB of the distant land below the hori
 
 def field_extent(params) -> tuple[float, float]:
     """Edge lengths (m) of the field along X and Y."""
-    f = params.field
-    return (f.blocks_x * f.cells_per_block * f.cell_size, f.blocks_y * f.cells_per_block * f.cell_size)
+    return FieldGrid.of(params).size
 
 
 def _wrap(angle: float) -> float:

@@ -89,14 +89,14 @@ def pool_shapes(layout, params) -> tuple[PoolShape, PoolShape]:
     return PoolShape.of(blade_vertex_count(layout), blades), PoolShape.of(card_vertex_count(layout), cards)
 
 
-def topology_key(layout, params) -> str:
-    """What a field's slot objects are built for; they are rebuilt when it changes."""
-    blades, cards = pool_shapes(layout, params)
-    ground = layout.terrain
-    return json.dumps([layout.blades_per_block, layout.segments, layout.cells_per_block, "card atlas 8 random",
+def topology_key(grid, params, terrain=None) -> str:
+    """What a field's slot objects are built for (``grid``: the field's ``FieldGrid`` or a layout;
+    ``terrain``: its heightfield or None); they are rebuilt when it changes."""
+    blades, cards = pool_shapes(grid, params)
+    return json.dumps([grid.blades_per_block, grid.segments, grid.cells_per_block, "card atlas 8 random",
                        [blades.objects, blades.k], [cards.objects, cards.k],
-                       [round(float(v), 6) for v in layout.size],
-                       ground.fingerprint() if ground is not None else "flat"])
+                       [round(float(v), 6) for v in grid.size],
+                       terrain.fingerprint() if terrain is not None else "flat"])
 
 
 def tiled_topology(faces: np.ndarray, uvs: np.ndarray, verts_per_block: int, k: int):

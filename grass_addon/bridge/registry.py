@@ -23,6 +23,7 @@ class Registry:
     fields: dict[Key, Any] = field(default_factory=dict)  # Key -> runtime.FieldRuntime
     errors: dict[Key, str] = field(default_factory=dict)  # why a field cannot be simulated now
     pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
+    terrains: dict[Key, tuple] = field(default_factory=dict)  # (terrain key, heightfield, centre) sampled
     warned: set[str] = field(default_factory=set)  # console messages already printed
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
@@ -30,11 +31,12 @@ class Registry:
         self.fields.clear()
         self.errors.clear()
         self.pending.clear()
+        self.terrains.clear()
         self.warned.clear()
 
     def forget_missing(self, alive: set[Key]) -> None:
         """Drop the runtimes of scenes or fields that no longer exist."""
-        for table in (self.fields, self.errors, self.pending):
+        for table in (self.fields, self.errors, self.pending, self.terrains):
             for key in [k for k in table if k not in alive]:
                 del table[key]
 

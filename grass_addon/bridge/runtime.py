@@ -1,24 +1,28 @@
-"""A grass field in Blender, frame by frame: resolving, building and the frame handlers.
+"""A grass field in Blender, frame by frame: settings, datablocks, the engine and the handlers.
 
-Each field is resolved once into a ``FieldRuntime``: its parameters (with the scene's clock), the
-numpy engine (``GrassField``), its terrain samples and its two slot pools (``pools.SlotPool``).
-``registry.REGISTRY`` holds them. One frame is one pass (``update_field``): wind, solver and
-shared cell data (``GrassField.seek``), LOD from the scene camera (eqs 7-11), slot assignment
-(``slots.py``), vertex writes (``pools.py``). No ``bpy.ops``, no per-blade Python loop.
+Two kinds of work, kept apart because Blender's undo needs it:
 
-What rebuilds what:
-  * an edit of the field's settings (``mark_dirty``; at once in scripts and background renders,
-    once the edits settle in the UI), Rebuild, Add, file load: ``build_field`` resolves the field
-    again and, when the objects' topology changed, rebuilds the objects (``scene.build_slots``);
-  * a frame handler never creates or deletes objects. It resolves the engine again (numpy only)
-    when the scene's clock or the animated wind changed; a field whose objects do not match its
-    settings (an edit still settling) keeps drawing the runtime it has until the edit is applied.
+* **Datablocks** (``apply_settings``): the field's collection, ground, slot objects, materials and
+  card image for its settings. Blender's undo stores the whole file after each operator and each
+  property edit and, on Ctrl+Z, reuses the datablocks it believes unchanged since the last step:
+  a datablock added or deleted between steps (by a timer, a handler) leaves it pointers to freed
+  memory, and Blender crashes. So datablocks change only inside the operator or the property edit
+  that asked for it (``mark_dirty`` applies them at once), on file load, and never from a timer,
+  a frame handler or an undo handler. Every undo step then holds objects that match its settings.
+* **The engine** (``resolve``, numpy only) and **vertex writes** (``update_field``): each field is
+  resolved into a ``FieldRuntime`` (its parameters with the scene's clock, the numpy engine
+  ``GrassField``, its two slot pools); ``registry.REGISTRY`` holds them. One frame is one pass:
+  wind, solver and shared cell data (``GrassField.seek``), LOD from the camera (eqs 7-11), slot
+  assignment (``slots.py``), vertex writes (``pools.py``). No ``bpy.ops``, no per-blade Python
+  loop. In the UI an edit's engine work waits until the edits settle (a timer), so dragging a
+  slider stays fluid; undo and redo mark every runtime dirty and rewrite the current frame.
 
 Handlers (all ``@persistent``, added once by ``register``):
   ``frame_change_pre``       simulate and write the new frame;
   ``frame_change_post``      redo the LOD if the camera moved during evaluation (animated camera);
   ``depsgraph_update_post``  the same when the camera is moved without a frame change;
-  ``load_post``              empty the registry; ``undo_post``/``redo_post`` forget slot state.
+  ``load_post``              empty the registry, bring outdated objects up to date;
+  ``undo_post``/``redo_post`` the settings may be others now: resolve again, rewrite every slot.
 Which position shows which block is a function of the frame and camera alone (canonical order),
 so frames rendered apart equal frames rendered in one run.
 """
@@ -36,6 +40,7 @@ from bpy.app.handlers import persistent
 from .. import schema, slots
 from ..errors import WindgrassError
 from ..field import GrassField
+from ..grid import FieldGrid
 from . import animation, bake, pools, properties
 from . import camera as field_camera
 from . import scene as field_scene
@@ -109,21 +114,35 @@ def _wind(scene, item, params, previous: FieldRuntime | None):
     return stable, animation.sample_wind_keys(fcurves, params, frames), fingerprint
 
 
+def terrain_of(scene, item, params, force: bool = False) -> tuple:
+    """(heightfield, centre, key) of the field's terrain: sampled once and kept while the terrain
+    object and the grid hold (``REGISTRY.terrains``); ``force`` (Rebuild) samples it again."""
+    key = key_of(scene, item)
+    t_key = field_scene.terrain_key(scene, item, params)
+    kept = REGISTRY.terrains.get(key)
+    if not force and kept is not None and kept[0] == t_key:
+        return kept[1], kept[2], t_key
+    heightfield, centre = field_scene.sample_terrain(scene, item, params)
+    REGISTRY.terrains[key] = (t_key, heightfield, centre)
+    return heightfield, centre, t_key
+
+
+def topology_of(params, heightfield) -> str:
+    """What the field's objects must be built for (``slots.topology_key``)."""
+    return slots.topology_key(FieldGrid.of(params), params, heightfield)
+
+
 def resolve(scene, item) -> FieldRuntime:
     """The field's runtime for its settings now: the registered one when nothing it depends on
-    changed, else a new one (the engine is rebuilt; the terrain re-sampled only when its object
-    or grid changed). Never touches the field's objects; raises WindgrassError on bad settings."""
+    changed, else a new one (the engine is rebuilt). Numpy only: never touches a datablock
+    (``apply_settings`` does); raises WindgrassError on bad settings."""
     key = key_of(scene, item)
     previous = REGISTRY.fields.get(key)
     if previous is None:
         REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes if hasattr(s, "windgrass")
                                  for f in s.windgrass.fields})
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
-    t_key = field_scene.terrain_key(scene, item, params)
-    if previous is not None and previous.terrain_key == t_key:
-        heightfield, centre = previous.heightfield, previous.terrain_centre
-    else:
-        heightfield, centre = field_scene.sample_terrain(scene, item, params)
+    heightfield, centre, t_key = terrain_of(scene, item, params)
     digest = hashlib.sha1((params.digest() + fingerprint
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
     if previous is not None and previous.digest == digest:
@@ -132,15 +151,12 @@ def resolve(scene, item) -> FieldRuntime:
         return previous
     field = GrassField(params, wind_keys=wind_keys, terrain=heightfield)
     field.sim.progress = _seek_progress(item.name)
-    blade_shape, card_shape = slots.pool_shapes(field.layout, params)
+    blade_shape, card_shape = slots.pool_shapes(field.grid, params)
     rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
                       wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
                       field=field, blades=pools.blade_pool(field, blade_shape),
-                      cards=pools.card_pool(field, card_shape),
-                      topology=slots.topology_key(field.layout, params))
+                      cards=pools.card_pool(field, card_shape), topology=topology_of(params, heightfield))
     REGISTRY.fields[key] = rt
-    if item.collection is not None:
-        field_scene.update_field_materials(item, params, scene)
     return rt
 
 
@@ -162,13 +178,12 @@ def _seek_progress(name: str):
 
 
 def _current(scene, item) -> FieldRuntime:
-    """The runtime a frame handler uses: the registered one unless the scene's clock or the
-    animated wind changed under it (then resolved again, numpy only) or there is none yet."""
+    """The runtime a frame handler uses: the registered one unless its settings may have changed
+    (an edit, undo), the scene's clock or the animated wind changed under it (then resolved
+    again, numpy only), or there is none yet."""
     rt = REGISTRY.fields.get(key_of(scene, item))
-    if rt is None:
+    if rt is None or rt.dirty:
         return resolve(scene, item)
-    if rt.dirty:  # an edit is settling: its update (not a frame handler) applies it
-        return rt
     if rt.clock != _clock(scene) or _wind_curves(scene, item, rt.params)[1] != rt.wind_fingerprint:
         return resolve(scene, item)
     if rt.terrain_key and field_scene.terrain_key(scene, item, rt.params) != rt.terrain_key:
@@ -178,36 +193,55 @@ def _current(scene, item) -> FieldRuntime:
 
 
 # --------------------------------------------------------------------------------------------
-# Building and removing (operators, edits, scripts: never from a frame handler)
+# Datablocks: only inside operators, property edits and file load (see the module docstring)
 
 
-def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
-    """Resolve the field and (re)build its objects when their topology changed (always with
-    ``force``: Rebuild, which also re-samples the terrain and frees a bake), then write the
-    current frame. A baked field is left as baked (an edit makes its bake stale, see bake.status)."""
+def apply_settings(scene, item, force: bool = False) -> None:
+    """Bring the field's datablocks to its settings now: the objects are rebuilt when their
+    topology changed (always with ``force``: Rebuild, which also re-samples the terrain and frees
+    a bake), the materials' values refreshed. A baked field is left as baked (an edit makes its
+    bake stale, see bake.status); a field without objects (never built, deleted by hand) gets
+    none. Raises WindgrassError on bad settings (nothing is changed then)."""
     if bake.is_baked(item):
         if not force:
-            return item.collection
+            return
         bake.free_bake(scene, item)
-    if getattr(item, "terrain", None) is not None:
+    if item.collection is None and not force:
+        return
+    params = properties.params_from_settings(item, scene)
+    if force and getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()
         except Exception:
             pass
+    heightfield, centre, _ = terrain_of(scene, item, params, force=force)
     field_scene.separate_copy(item)
+    coll = item.collection
+    if force or coll is None or coll.get(field_scene.TOPOLOGY) != topology_of(params, heightfield):
+        field_scene.build_slots(scene, item, params, heightfield, centre)
+        rt = get_runtime(scene, item)
+        if rt is not None:  # its pools showed the old objects
+            rt.dirty = True
+            rt.blades.state.forget()
+            rt.cards.state.forget()
+    else:
+        field_scene.update_field_materials(item, params, scene)
+    # The frame handler edits meshes while a render runs: keep the interface locked then.
+    if not scene.render.use_lock_interface:
+        scene.render.use_lock_interface = True
+
+
+def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
+    """Add, Rebuild (``force``), scripts: the field's datablocks for its settings and its current
+    frame written at once (``apply_settings``, ``update_field``)."""
+    if bake.is_baked(item) and not force:
+        return item.collection
+    apply_settings(scene, item, force=True if item.collection is None else force)
     if force:
         reset_field(scene, item)
-    rt = resolve(scene, item)
-    coll = item.collection
-    if force or coll is None or coll.get("wg_topology") != rt.topology:
-        coll = field_scene.build_slots(scene, item, rt.field.layout, rt.params, rt.terrain_centre, rt.topology)
-        rt.blades.state.forget()
-        rt.cards.state.forget()
-    # The frame handler edits meshes while a render runs: keep the interface locked then.
-    scene.render.use_lock_interface = True
-    _write(scene, item, rt)
+    update_field(scene, item)
     write_read_me()
-    return coll
+    return item.collection
 
 
 def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Baker:
@@ -217,7 +251,7 @@ def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Bake
     if bake.is_baked(item):
         free_bake(scene, item)
     rt = resolve(scene, item)
-    if item.collection is None or item.collection.get("wg_topology") != rt.topology:
+    if item.collection is None or item.collection.get(field_scene.TOPOLOGY) != rt.topology:
         build_field(scene, item)
     return bake.Baker(scene, item, first, last, params_digest(scene, item), groups)
 
@@ -338,10 +372,12 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         if rt.camera_signature == field_camera.signature(field_camera.field_camera(scene, item, depsgraph)):
             return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
     rt = _current(scene, item)
-    if item.collection.get("wg_topology") != rt.topology:
-        if rt.dirty:
-            return rt  # the edit that changed the objects' topology is still settling
-        raise WindgrassError(f"the objects of field '{item.name}' do not match its settings; press Rebuild")
+    if item.collection.get(field_scene.TOPOLOGY) != rt.topology:
+        # Windgrass rebuilds the objects whenever the settings ask for it (apply_settings); only a
+        # change made around it (objects edited by hand, settings written as raw ID properties)
+        # gets here, and a frame handler must not add or delete datablocks.
+        raise WindgrassError(f"the objects of field '{item.name}' were not built for its settings "
+                             "(changed outside Windgrass); press Rebuild")
     _write(scene, item, rt, depsgraph)
     return rt
 
@@ -396,28 +432,37 @@ def _hide(scene, item) -> None:
 
 
 def mark_dirty(scene, item, defer: bool | None = None) -> None:
-    """Settings of ``item`` changed: resolve and write it again (the digest decides what is
-    rebuilt). Scripts and background renders (``bpy.app.background``) get the update at once; in
-    the UI (``defer``) it waits until the edits settle (a timer), so interactive edits stay fluid.
+    """Settings of ``item`` changed (a property edit, an operator): its datablocks follow at once
+    (``apply_settings``: the undo step Blender pushes after the edit holds objects that match),
+    then the engine is resolved again and the frame written (the digest decides what is rebuilt).
+    Scripts and background renders (``bpy.app.background``) get the engine's update at once; in
+    the UI (``defer``) it waits until the edits settle (a timer), so dragging a slider stays fluid.
     """
+    if item.collection is None or bake.is_baked(item):
+        return
     rt = get_runtime(scene, item)
     if rt is not None:
         rt.dirty = True
+    _guarded(apply_settings, scene, item)
     if not (defer if defer is not None else not bpy.app.background):
-        _apply_edit(scene, item)
+        _guarded(update_field, scene, item)
         return
-    REGISTRY.pending[key_of(scene, item)] = time.monotonic()
+    _refresh_later([key_of(scene, item)])
+
+
+def _refresh_later(keys) -> None:
+    """Write these fields' current frame once the edits settle (a timer: numpy and vertex writes
+    only, no datablock is added or removed there)."""
+    now = time.monotonic()
+    for key in keys:
+        REGISTRY.pending[key] = now
     if not bpy.app.timers.is_registered(_flush_pending):
         bpy.app.timers.register(_flush_pending, first_interval=EDIT_SETTLE_S)
 
 
-def _apply_edit(scene, item) -> None:
-    if item.collection is not None:
-        _guarded(build_field, scene, item)
-
-
 def _flush_pending() -> float | None:
-    """Timer: apply settled edits; run again shortly while the user is still dragging."""
+    """Timer: write the fields whose edits settled; run again shortly while the user is still
+    dragging."""
     latest = max(REGISTRY.pending.values(), default=0.0)
     wait = latest + EDIT_SETTLE_S - time.monotonic()
     if wait > 0:
@@ -428,8 +473,8 @@ def _flush_pending() -> float | None:
     for scene_uid, uid in pending:
         scene = scenes.get(scene_uid)
         item = next((f for f in scene.windgrass.fields if f.uid == uid), None) if scene else None
-        if item is not None:
-            _apply_edit(scene, item)
+        if item is not None and item.collection is not None:
+            _guarded(update_field, scene, item)
     return None
 
 
@@ -467,24 +512,37 @@ def on_load_post(*_args):
     topology than their settings give now (files of earlier versions), here rather than in a
     frame handler."""
     REGISTRY.clear()
+    for scene, item in _live_fields():
+        _guarded(apply_settings, scene, item)
+        _guarded(update_field, scene, item)
+
+
+def _live_fields():
+    """(scene, item) of every field with objects that is not baked."""
     for scene in bpy.data.scenes:
         for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
             if item.collection is not None and not bake.is_baked(item):
-                _guarded(_rebuild_if_outdated, scene, item)
-
-
-def _rebuild_if_outdated(scene, item) -> None:
-    if item.collection.get("wg_topology") != resolve(scene, item).topology:
-        build_field(scene, item)
+                yield scene, item
 
 
 @persistent
 def on_undo_redo_post(*_args):
-    """Undo and redo bring back older mesh data: forget what the slots show, so the next
-    update rewrites every slot (positions and colours) instead of trusting stale state."""
+    """Undo and redo bring back the settings and datablocks of another step (which match: see
+    the module docstring) with that step's mesh data: every runtime resolves again from the
+    settings (its digest decides whether the engine is kept) and rewrites every slot. In the UI
+    that waits for a timer, outside Blender's undo code; in scripts it happens at once. No
+    datablock is added or removed here."""
+    REGISTRY.errors.clear()
     for rt in REGISTRY.fields.values():
+        rt.dirty = True
         rt.blades.state.forget()
         rt.cards.state.forget()
+    fields = list(_live_fields())
+    if bpy.app.background:
+        for scene, item in fields:
+            _guarded(update_field, scene, item)
+    else:
+        _refresh_later([key_of(scene, item) for scene, item in fields])
 
 
 _HANDLERS = (

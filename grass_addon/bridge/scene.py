@@ -34,6 +34,7 @@ import numpy as np
 from .. import impostor, slots
 from .. import kinematics as kin
 from .. import terrain as terrain_core
+from ..grid import FieldGrid
 from . import materials, textures
 from .registry import warn_once
 
@@ -88,6 +89,7 @@ def _owned(collection, uid: str, role: str | None = None) -> list:
     return [d for d in collection if d.get("wg_uid") == uid and (role is None or d.get("wg_role") == role)]
 
 
+TOPOLOGY = "wg_topology"  # the collection's custom property: slots.topology_key it was built for
 REGISTRY = "wg_objects"  # the field item's custom property: {key: ID pointer} of what it made
 
 
@@ -335,19 +337,31 @@ def field_materials(item):
     return blade, card, ground, canopy
 
 
+MATERIALS_DIGEST = "wg_materials"  # the collection's custom property: what its materials show
+
+
 def update_field_materials(item, params, scene=None) -> None:
     """Refresh the parameter-dependent values (eq 10 distances, colours, the card atlas) of the
-    materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles)."""
+    materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles); nothing
+    when they already show these."""
+    cycles = getattr(scene, "cycles", None)
+    bounces = cycles.transparent_max_bounces if cycles is not None else -1
     reg = registered(item)
+    digest = f"{params.digest()}|{bounces}|" + ",".join(sorted(d.name for d in reg.values()
+                                                               if isinstance(d, (bpy.types.Material, bpy.types.Image))))
+    coll = item.collection
+    if coll is not None and coll.get(MATERIALS_DIGEST) == digest:
+        return
     materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL))
     materials.update_haze(params, *(reg.get(role) for role in (ROLE_BLADE_MATERIAL, ROLE_CARD_MATERIAL,
                                                                ROLE_GROUND_MATERIAL, ROLE_CANOPY_MATERIAL)))
-    cycles = getattr(scene, "cycles", None)
     if cycles is not None:
         materials.set_card_depth(reg.get(ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
     image = reg.get(ROLE_CARD_IMAGE)
     if isinstance(image, bpy.types.Image):
         textures.paint_card_image(image, params)
+    if coll is not None:
+        coll[MATERIALS_DIGEST] = digest
 
 
 def _link(coll, obj, parent) -> None:
@@ -365,11 +379,13 @@ def _remove_objects(objects) -> None:
             bpy.data.meshes.remove(mesh)
 
 
-def build_slots(scene, item, layout, params, terrain_centre=None, topology: str = "") -> bpy.types.Collection:
-    """(Re)create the ground and the blade/card slot objects for ``layout`` (``slots.pool_shapes``);
-    idempotent. ``terrain_centre``: world XY of the field over a terrain; ``topology``: the
-    ``slots.topology_key`` recorded on the collection. Called by ``runtime.build_field`` only.
-    """
+def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> bpy.types.Collection:
+    """(Re)create the ground and the blade/card slot objects of the field of ``params``
+    (``slots.pool_shapes``); idempotent. ``heightfield``: its terrain in the field's frame (None:
+    flat), ``terrain_centre``: the world XY the field is centred on over it. The collection records
+    ``slots.topology_key``. Called by ``runtime.apply_settings`` only (datablocks change inside the
+    operator or edit that asked for them, never between undo steps)."""
+    grid = FieldGrid.of(params)
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
     base = coll.name
@@ -381,8 +397,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
     for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
         del item[REGISTRY][key]
 
-    heightfield = layout.terrain
-    mesh = ground_mesh(f"{base} ground", layout.size, heightfield, impostor.canopy_height(params),
+    mesh = ground_mesh(f"{base} ground", grid.size, heightfield, impostor.canopy_height(params),
                        impostor.sward_top(params))
     ground = bpy.data.objects.new(f"{base} ground", mesh)
     mesh.materials.append(ground_mat)
@@ -404,9 +419,9 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
         if "wg_terrain" in coll and heightfield is None and terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    blade_shape, card_shape = slots.pool_shapes(layout, params)
+    blade_shape, card_shape = slots.pool_shapes(grid, params)
     if blade_shape.objects:
-        faces, uvs = slots.tiled_topology(kin.blade_faces(layout), kin.blade_uvs(layout),
+        faces, uvs = slots.tiled_topology(kin.blade_faces(grid), kin.blade_uvs(grid),
                                           blade_shape.verts_per_block, blade_shape.k)
         for i in range(blade_shape.objects):  # once per build, not per frame
             mesh = quad_mesh(f"{base} blades {i:03d}", blade_shape.verts_per_object, faces, uvs, blade_mat,
@@ -418,7 +433,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
             _link(coll, obj, ground)
             _register(item, _slot_key(ROLE_BLADES, i), obj)
     if card_shape.objects:
-        faces, uvs = slots.tiled_topology(kin.card_faces(layout), kin.card_uvs(layout),
+        faces, uvs = slots.tiled_topology(kin.card_faces(grid), kin.card_uvs(grid),
                                           card_shape.verts_per_block, card_shape.k)
         for i in range(card_shape.objects):
             mesh = quad_mesh(f"{base} cards {i:03d}", card_shape.verts_per_object, faces, uvs, card_mat,
@@ -429,7 +444,7 @@ def build_slots(scene, item, layout, params, terrain_centre=None, topology: str 
             _tag(mesh, uid, ROLE_CARDS, i)
             _link(coll, obj, ground)
             _register(item, _slot_key(ROLE_CARDS, i), obj)
-    coll["wg_topology"] = topology or slots.topology_key(layout, params)
+    coll[TOPOLOGY] = slots.topology_key(grid, params, heightfield)
     update_field_materials(item, params, scene)
     return coll
 

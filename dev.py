@@ -26,7 +26,6 @@ ROOT = Path(__file__).resolve().parent
 # (virtual environment, its requirements): the current Blender line, and the oldest supported one
 LATEST = (ROOT / ".venv", ROOT / "requirements.txt")
 OLDEST = (ROOT / ".venv-4.2", ROOT / "requirements-blender-4.2.txt")
-DOCS_REQUIREMENT = "pillow==11.0.0"  # dev.py docs only (animated WebP)
 # A real Blender with its window for tests/window: Debian 13's Blender 4.3 in a Debian 13 root made
 # with debootstrap (Debian 12 ships Blender 3.4), on a virtual screen (Xvfb, Mesa's software GL).
 TRIXIE = Path(os.environ.get("WINDGRASS_TRIXIE", Path.home() / ".cache" / "windgrass" / "trixie"))
@@ -69,8 +68,6 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if argv[0] == "test":
         return run_tests(python, argv[1:], env)
-    if argv[0] == "docs":  # Pillow writes the animation; only this job needs it
-        subprocess.check_call([str(python), "-m", "pip", "install", "-q", DOCS_REQUIREMENT])
     cmd = [str(python), *jobs[argv[0]], *argv[1:]]
     return subprocess.call(cmd, cwd=ROOT, env=env)
 

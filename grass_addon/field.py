@@ -21,7 +21,7 @@ from .celldata import CellData, cell_data
 from .errors import ParameterError
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
-from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights
+from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights, views
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
@@ -75,26 +75,29 @@ class GrassField:
     def _centre_blocks(self) -> np.ndarray:
         return self.grid.blocks_near(np.zeros(2), self.params.lod.card_far + block_reach(self.params)[0])
 
-    def blocks_for(self, camera: Camera | None, margin: float = 0.0) -> np.ndarray:
-        """Ids (ascending) of the blocks that ``camera`` needs: inside its frustum and within the
-        card range (plus ``margin`` metres); every block when LOD is off or without a camera on a
-        small field."""
-        if camera is None:
+    def blocks_for(self, camera, margin: float = 0.0) -> np.ndarray:
+        """Ids (ascending) of the blocks that ``camera`` (a ``lod.Camera``, several, or None)
+        needs: in a camera's view and within the card range of its eye (plus ``margin`` metres);
+        every block when LOD is off or without a camera on a small field."""
+        cams = views(camera)
+        if not cams:
             return (np.arange(self.grid.n_blocks, dtype=np.int64) if self.whole else self._centre_blocks())
         if not self.params.lod.enabled:
             if not self.whole:
                 raise ParameterError("lod.enabled", "every blade as geometry needs a field of at most "
                                      f"{WHOLE_FIELD_CELLS:,} cells; turn LOD on or make the field smaller")
             return np.arange(self.grid.n_blocks, dtype=np.int64)
-        eye = camera_eye(camera)
         reach = block_reach(self.params)[0]
-        ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far + reach + margin)
-        if ids.size == 0:
-            return ids
-        z = self._z_ranges(ids)
-        # the eye's height above the ground can only add distance: cells past card_far hold no cards
-        seen = block_visible(self.grid.block_bounds(ids), z, camera, self.params, margin)
-        return ids[seen]
+        found = []
+        for cam in cams:
+            eye = camera_eye(cam)
+            ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far + reach + margin)
+            if ids.size == 0:
+                continue
+            z = self._z_ranges(ids)
+            # the eye's height above the ground can only add distance: cells past card_far hold no cards
+            found.append(ids[block_visible(self.grid.block_bounds(ids), z, cam, self.params, margin)])
+        return np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
 
     def _z_ranges(self, ids: np.ndarray) -> np.ndarray:
         terrain = self.cache.terrain
@@ -102,8 +105,9 @@ class GrassField:
             return np.zeros((ids.size, 2))
         return terrain.box_z_range(self.grid.block_bounds(ids))
 
-    def view(self, camera: Camera | None, frame: int | None = None) -> bool:
-        """Make the window hold the blocks ``camera`` needs (returns True when it changed). With
+    def view(self, camera, frame: int | None = None) -> bool:
+        """Make the window hold the blocks ``camera`` (one ``lod.Camera``, several or None) needs
+        (returns True when it changed). With
         LOD on, the window reaches a block further than needed and is kept while it still holds
         every needed block and is not much larger, so a moving camera changes it every few frames.
         ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
@@ -112,7 +116,7 @@ class GrassField:
         current = self.layout.block_ids
         if np.array_equal(needed, current):
             return False
-        windowed = camera is not None and self.params.lod.enabled
+        windowed = bool(views(camera)) and self.params.lod.enabled
         if windowed and np.isin(needed, current).all() and current.size <= WINDOW_SLACK * needed.size + 16:
             return False
         if not windowed and self.whole:
@@ -192,8 +196,9 @@ class GrassField:
 
     # ------------------------------------------------------------------ LOD
 
-    def lod(self, camera: Camera | None) -> LodWeights:
-        """Eqs 7-11 per cell and frustum culling per block (all geometry when camera is None)."""
+    def lod(self, camera) -> LodWeights:
+        """Eqs 7-11 per cell and culling per block for one camera or several (all geometry when
+        camera is None)."""
         return lod_weights(self.layout, camera, self.params)
 
     def all_blocks(self) -> np.ndarray:

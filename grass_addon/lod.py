@@ -12,10 +12,14 @@ All weights are clamped to [0, 1]. The card opacity is K_b in the first region, 
 regions and K'_b in the second, i.e. ``min(K_b, K'_b)`` (the schema guarantees d_g2 <= d_s1).
 When a region has zero width (d_g1 == d_g2) the weight is a step at that distance.
 
-Blocks are culled against the camera frustum (side planes and the plane through the eye):
-a block's box is its ground rectangle widened by how far a blade or card can reach sideways,
-extruded from its lowest ground (``layout.block_z_range``) to the tallest blade or card standing
-on its highest ground, so culling is conservative.
+Blocks are culled against the camera's view volume: a perspective frustum (side planes, shifted
+with the lens shift, and the plane through the eye), an orthographic box, or nothing for a
+panoramic camera (it sees every direction). A block's box is its ground rectangle widened by how
+far a blade or card can reach sideways, extruded from its lowest ground (``layout.block_z_range``)
+to the tallest blade or card standing on its highest ground, so culling is conservative.
+
+Several views at once (the 3D views an artist has open): a cell's distance is that to the nearest
+eye, a block is visible when any view sees it (``views``).
 """
 
 from __future__ import annotations
@@ -28,13 +32,18 @@ import numpy as np
 from .blocks import Species
 from .errors import ParameterError
 
+PERSPECTIVE, ORTHOGRAPHIC, PANORAMIC = "PERSP", "ORTHO", "PANO"
+
 
 @dataclass
 class Camera:
-    """A pinhole camera in world space (Blender's camera looks down its local -Z, up is local +Y).
+    """A camera in world space (Blender's camera looks down its local -Z, up is local +Y).
 
     position, forward, up: (3,) arrays (forward and up need not be unit length or orthogonal);
-    fov_x: horizontal field of view in radians; aspect: image width / height.
+    fov_x: horizontal field of view in radians; aspect: image width / height. ``projection``:
+    PERSP (a pinhole), ORTHO (``ortho_width``: the image's width in metres; LOD distances are taken
+    from ``position``) or PANO (every direction: nothing is culled by direction). ``shift``: the
+    lens shift (x, y) as Blender gives it, in units of the image's larger side.
     """
 
     position: np.ndarray
@@ -42,6 +51,9 @@ class Camera:
     up: np.ndarray
     fov_x: float
     aspect: float
+    projection: str = PERSPECTIVE
+    ortho_width: float = 0.0
+    shift: tuple[float, float] = (0.0, 0.0)
 
     @classmethod
     def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0)) -> Camera:
@@ -63,21 +75,37 @@ class Camera:
         right /= np.linalg.norm(right)
         return f, right, np.cross(right, f)
 
-    def planes(self) -> np.ndarray:
-        """(5, 3) inward normals of the frustum's side planes and of the plane through the eye.
+    def half_spaces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(normals (m, 3), offsets (m,)): a point p relative to the eye is in view when
+        ``normals @ p + offsets >= 0`` for every row (m = 0 for a panoramic camera).
 
-        A point p relative to the eye, with view coordinates x (right), y (up), z (forward), is
-        inside when |x| <= z tan(fov_x/2) and |y| <= z tan(fov_x/2) / aspect, i.e. n . p >= 0 for
-        n = tan*forward -+ right and tan_y*forward -+ up; and z >= 0.
+        View coordinates x (right), y (up), z (forward). Perspective: the image at z = 1 spans
+        x in [cx - tx, cx + tx], y in [cy - ty, cy + ty] with tx = tan(fov_x / 2), ty = tx / aspect
+        and the shift's centre (cx, cy) = 2 shift max(tx, ty); inside when x0 z <= x <= x1 z,
+        likewise y, and z >= 0. Orthographic: the same window in metres at any z >= 0.
         """
-        if not (0.0 < self.fov_x < math.pi):
-            raise ParameterError("camera.fov", f"{math.degrees(self.fov_x):g} deg is out of range (0 to 180 deg)")
+        if self.projection == PANORAMIC:
+            return np.zeros((0, 3)), np.zeros(0)
         if not self.aspect > 0.0:
             raise ParameterError("camera", f"aspect ratio {self.aspect!r} must be > 0")
         f, r, u = self.basis()
-        tx = math.tan(0.5 * self.fov_x)
+        if self.projection == ORTHOGRAPHIC:
+            if not self.ortho_width > 0.0:
+                raise ParameterError("camera", f"orthographic width {self.ortho_width!r} must be > 0")
+            tx = 0.5 * self.ortho_width
+        else:
+            if not (0.0 < self.fov_x < math.pi):
+                raise ParameterError("camera.fov", f"{math.degrees(self.fov_x):g} deg is out of range (0 to 180 deg)")
+            tx = math.tan(0.5 * self.fov_x)
         ty = tx / self.aspect
-        return np.stack([tx * f - r, tx * f + r, ty * f - u, ty * f + u, f])
+        big = max(tx, ty)
+        cx, cy = 2.0 * float(self.shift[0]) * big, 2.0 * float(self.shift[1]) * big
+        x0, x1, y0, y1 = cx - tx, cx + tx, cy - ty, cy + ty
+        if self.projection == ORTHOGRAPHIC:
+            normals = np.stack([r, -r, u, -u, f])
+            return normals, np.array([-x0, x1, -y0, y1, 0.0])
+        normals = np.stack([r - x0 * f, x1 * f - r, u - y0 * f, y1 * f - u, f])
+        return normals, np.zeros(5)
 
 
 @dataclass
@@ -119,31 +147,40 @@ def camera_eye(camera: Camera) -> np.ndarray:
     return eye
 
 
-def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
-    """Eqs 7-11 for every cell of ``layout`` and frustum culling of its blocks (vectorised).
+def views(camera) -> list[Camera]:
+    """``camera`` as a list of views: None gives none, a ``Camera`` itself, a sequence its items."""
+    if camera is None:
+        return []
+    if isinstance(camera, Camera):
+        return [camera]
+    return list(camera)
 
-    camera None or ``lod.enabled`` false: every blade is geometry (K_g = 1, N = num, K_b = K_t = 0)
-    and every block is visible. Each cell's and block's values depend on it and the camera alone.
+
+def lod_weights(layout, camera, params=None) -> LodWeights:
+    """Eqs 7-11 for every cell of ``layout`` and culling of its blocks (vectorised).
+
+    ``camera``: a ``Camera``, several (their nearest eye sets each cell's distance, a block is
+    visible when one of them sees it) or None. No camera or ``lod.enabled`` false: every blade is
+    geometry (K_g = 1, N = num, K_b = K_t = 0) and every block is visible. Each cell's and block's
+    values depend on it and the cameras alone.
     """
     params = params if params is not None else layout.params
     lod = params.lod
     num = layout.blades_per_cell
     n_cells, n_blocks = layout.n_cells, layout.n_blocks
-    if camera is None or not lod.enabled:
-        distance = (np.zeros(n_blocks, np.float32) if camera is None
-                    else _block_distance(layout, np.asarray(camera.position, dtype=np.float64)))
+    cams = views(camera)
+    eyes = [camera_eye(cam) for cam in cams]
+    block_distance = _nearest(_block_distance(layout, eye) for eye in eyes)
+    if not cams or not lod.enabled:
         return LodWeights(
             k_geometry=np.ones(n_cells, np.float32), k_billboard=np.zeros(n_cells, np.float32),
             k_texture=np.zeros(n_cells, np.float32), blade_count=np.full(n_cells, num, np.int32),
-            block_visible=np.ones(n_blocks, bool), block_distance=distance)
+            block_visible=np.ones(n_blocks, bool),
+            block_distance=np.zeros(n_blocks, np.float32) if block_distance is None else block_distance)
 
-    eye = camera_eye(camera)
-    # d: eye to cell centre on the ground (plus the eye's height above the cell's ground)
+    # d: the nearest eye to the cell centre on the ground (plus the eye's height above the cell's ground)
     centre = layout.cell_center
-    dx = centre[:, 0] - np.float32(eye[0])
-    dy = centre[:, 1] - np.float32(eye[1])
-    dz = np.float32(eye[2]) - layout.cell_ground
-    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    d = _nearest(_cell_distance(centre, layout.cell_ground, eye) for eye in eyes)
 
     k_b = _ramp(d, lod.blade_near, lod.blade_far)  # eq 7
     k_g = 1.0 - k_b  # eq 8
@@ -152,10 +189,27 @@ def lod_weights(layout, camera: Camera | None, params=None) -> LodWeights:
     k_t = _ramp(d, lod.card_near, lod.card_far)  # eq 10
     k_b2 = 1.0 - k_t  # eq 11
     k_card = np.minimum(k_b, k_b2)
+    visible = np.zeros(n_blocks, bool)
+    for cam in cams:
+        visible |= block_visible(layout.block_bounds, layout.block_z_range, cam, params)
     return LodWeights(k_geometry=k_g.astype(np.float32, copy=False), k_billboard=k_card,
-                      k_texture=k_t, blade_count=blade_count,
-                      block_visible=block_visible(layout.block_bounds, layout.block_z_range, camera, params),
-                      block_distance=_block_distance(layout, eye))
+                      k_texture=k_t, blade_count=blade_count, block_visible=visible,
+                      block_distance=block_distance)
+
+
+def _nearest(distances):
+    """Element-wise minimum of a sequence of distance arrays (None when empty)."""
+    out = None
+    for d in distances:
+        out = d if out is None else np.minimum(out, d)
+    return out
+
+
+def _cell_distance(centre: np.ndarray, ground: np.ndarray, eye: np.ndarray) -> np.ndarray:
+    dx = centre[:, 0] - np.float32(eye[0])
+    dy = centre[:, 1] - np.float32(eye[1])
+    dz = np.float32(eye[2]) - ground
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
@@ -174,8 +228,9 @@ def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
 
 
 def block_visible(bounds, z_range, camera: Camera, params, margin: float = 0.0) -> np.ndarray:
-    """Box-vs-frustum test of blocks (bounds (m, 4), z_range (m, 2)): a box is out when all 8
-    corners lie outside one plane. ``margin`` widens every box by that many metres.
+    """Box-vs-view-volume test of blocks (bounds (m, 4), z_range (m, 2)): a box is out when all 8
+    corners lie outside one of the camera's half-spaces. ``margin`` widens every box by that many
+    metres.
 
     For a plane normal n the corner farthest inside is centre + |n| . half (the "positive
     vertex"), so that single test is exact for the 8 corners.
@@ -189,6 +244,6 @@ def block_visible(bounds, z_range, camera: Camera, params, margin: float = 0.0) 
                        0.5 * (bottom + top)], axis=1) - np.asarray(camera.position, dtype=np.float64)
     half = np.stack([(b[:, 2] - b[:, 0]) * 0.5 + reach, (b[:, 3] - b[:, 1]) * 0.5 + reach,
                      0.5 * (top - bottom)], axis=1)
-    planes = camera.planes()  # (5, 3)
-    best = centre @ planes.T + half @ np.abs(planes).T  # (n_blocks, 5)
+    normals, offsets = camera.half_spaces()  # (m, 3), (m,)
+    best = centre @ normals.T + half @ np.abs(normals).T + offsets  # (n_blocks, m)
     return np.all(best >= 0.0, axis=1)

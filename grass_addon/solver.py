@@ -117,8 +117,8 @@ class SolverState:
                     if view is None:  # allocated once, refreshed in place after each change
                         view = np.empty((src.shape[-1],) + src.shape[:-1], dtype=F32)
                         self._views[name] = view
-                    rows = src.reshape(-1, src.shape[-1])  # (n * 2, C) or (n, C)
-                    flat = view.reshape(src.shape[-1], -1)  # (C, n * 2): the same memory
+                    rows = src.reshape(int(np.prod(src.shape[:-1])), src.shape[-1])  # (n * 2, C) or (n, C)
+                    flat = view.reshape(src.shape[-1], rows.shape[0])  # (C, n * 2): the same memory
                     np.copyto(flat, rows.T)
                     self._fresh.add(name)
         return self._views[name]

@@ -27,7 +27,10 @@ def pool() -> ThreadPoolExecutor:
 
 
 def run_lanes(work: Callable[[int], None], lanes: int) -> None:
-    """Run ``work(0) .. work(lanes - 1)`` in parallel and wait; a lane's error is raised here."""
+    """Run ``work(0) .. work(lanes - 1)`` in parallel and wait; a lane's error is raised here.
+    No lanes (nothing to do: an empty window of cells) runs nothing."""
+    if lanes <= 0:
+        return
     if lanes <= 1:
         work(0)
         return

@@ -65,6 +65,7 @@ def addon_module(name: str):
 
 schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
+WindgrassError = addon_module("grass_addon.errors").WindgrassError
 ensure_writable = addon_module("grass_addon.folders").ensure_writable
 FieldGrid = addon_module("grass_addon.grid").FieldGrid
 
@@ -480,6 +481,11 @@ def main(argv: list[str]) -> int:
     if too_old:
         print(f"render_field.py: error: {too_old}", file=sys.stderr)
         return EXIT_FAILED
+    if args.bake:
+        missing = addon_module("grass_addon.bridge.bake").missing_build_feature()
+        if missing:
+            print(f"render_field.py: failed: --bake: {missing}", file=sys.stderr)
+            return EXIT_FAILED
     print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
     results = []
     try:
@@ -492,7 +498,7 @@ def main(argv: list[str]) -> int:
     except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except (FrameWriteError, FieldError) as exc:
+    except (FrameWriteError, FieldError, WindgrassError) as exc:
         print(f"render_field.py: failed: {exc}", file=sys.stderr)
         return EXIT_FAILED
     except KeyboardInterrupt:

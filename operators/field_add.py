@@ -1,4 +1,5 @@
-"""windgrass.field_add: add a grass field (also in Add > Mesh and the Add menu)."""
+"""windgrass.field_add: add a grass field (Add menu: "Grass Field", and "Grass Field on Selected
+Mesh", which roots it on the selected mesh; the panel's + button adds one on flat ground)."""
 
 import math
 
@@ -7,6 +8,7 @@ from mathutils import Vector
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.errors import WindgrassError
 from ..grass_addon.grid import FieldGrid
 from ._common import refresh, reported
 
@@ -25,7 +27,7 @@ def _field_options() -> dict:
 
 
 class WINDGRASS_OT_field_add(bpy.types.Operator):
-    """Add a grass field swaying in the wind; a selected mesh becomes its terrain"""
+    """Add a grass field swaying in the wind, on flat ground or rooted on the selected mesh"""
 
     bl_idname = "windgrass.field_add"
     bl_label = "Add Grass Field"
@@ -35,9 +37,9 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     __annotations__ = {
         **_field_options(),
         "use_selected_mesh": bpy.props.BoolProperty(
-            name="Selected Mesh as Terrain", default=True,
-            description="Root the blades on the surface of the selected mesh (its terrain); "
-                        "the field is centred on the mesh and sized to it unless Blocks X/Y are set"),
+            name="On Selected Mesh", default=False,
+            description="Root the blades on the surface of the selected mesh (its terrain): the field is "
+                        "centred on the mesh and sized to it unless Blocks X/Y are set. Off: flat ground"),
     }
 
     @classmethod
@@ -47,10 +49,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        terrain = None
-        obj = context.active_object
-        if self.use_selected_mesh and obj is not None and obj.type == "MESH" and obj.select_get():
-            terrain = obj
+        terrain = self._terrain(context) if self.use_selected_mesh else None
         values = {p.key: getattr(self, p.key) for p in schema.section_params("field")}
         if terrain is not None:
             values.update(self._fit_to(terrain, values))
@@ -72,6 +71,19 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
         return {"FINISHED"}
 
+
+    @staticmethod
+    def _terrain(context):
+        """The selected mesh to grow on; WindgrassError when there is none (never a grass field's
+        own object: its ground is no terrain)."""
+        obj = context.active_object
+        if obj is None or not obj.select_get() or obj.type != "MESH":
+            raise WindgrassError("Grass Field on Selected Mesh: select the mesh to grow the grass on first "
+                                 "(or add a field on flat ground)")
+        if obj.get("wg_uid") is not None or obj.get("wg_role") is not None:
+            raise WindgrassError(f"Grass Field on Selected Mesh: '{obj.name}' belongs to a grass field; select "
+                                 "a mesh of your own to grow the grass on")
+        return obj
 
     def _fit_to(self, terrain, values: dict) -> dict:
         """blocks_x/blocks_y covering the terrain's XY extent (world bounding box) with the cell
@@ -99,6 +111,8 @@ def _undo_add(scene, item) -> None:
 
 def menu_func(self, context):
     self.layout.operator(WINDGRASS_OT_field_add.bl_idname, text="Grass Field", icon="OUTLINER_OB_CURVES")
+    self.layout.operator(WINDGRASS_OT_field_add.bl_idname, text="Grass Field on Selected Mesh",
+                         icon="OUTLINER_OB_CURVES").use_selected_mesh = True
 
 
 # Add menu (Shift+A) of the 3D View, next to the other object types.

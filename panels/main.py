@@ -8,6 +8,20 @@ from ..grass_addon.bridge import properties, runtime
 from ..grass_addon.grid import FieldGrid
 
 CATEGORY = "Grass"
+CHAR_PX = 7.0  # width of an average character of the interface font at scale 1 (pixels)
+
+
+def wrapped(layout, context, text: str, icon: str = "NONE") -> None:
+    """``text`` as labels that fit the region's width (the sidebar can be narrow): the first line
+    with ``icon``, the rest below it."""
+    region = getattr(context, "region", None)
+    width = region.width if region is not None else 300
+    scale = context.preferences.view.ui_scale if context.preferences is not None else 1.0
+    indent = 2 if icon != "NONE" else 0
+    chars = max(16, int(width / (CHAR_PX * scale)) - 4 - indent)
+    col = layout.column(align=True)
+    for i, line in enumerate(textwrap.wrap(text, chars) or [""]):
+        col.label(text=line, icon=icon if i == 0 else "BLANK1" if icon != "NONE" else "NONE")
 # Row PropertyGroup name -> its table parameter (the columns come from the schema).
 _ROW_TABLES = {cls.__name__: properties.table_param(name) for name, cls in properties.ROW_CLASSES.items()}
 
@@ -73,9 +87,8 @@ class WINDGRASS_PT_main(bpy.types.Panel):
             if error:
                 box = layout.box()
                 box.alert = True
-                box.label(text="Grass hidden: this field cannot be simulated", icon="ERROR")
-                for line in textwrap.wrap(error, 48):
-                    box.label(text=line)
+                wrapped(box, context, "Grass hidden: this field cannot be simulated", icon="ERROR")
+                wrapped(box, context, error)
             status = runtime.bake_status(context.scene, item)
             row = layout.row(align=True)
             row.operator("windgrass.field_bake", text="Bake", icon="FILE_CACHE")
@@ -83,12 +96,11 @@ class WINDGRASS_PT_main(bpy.types.Panel):
             if status:
                 box = layout.box()
                 box.alert = "stale" in status
-                for line in textwrap.wrap(status, 48):
-                    box.label(text=line)
+                wrapped(box, context, status)
             f = item.field
             grid = FieldGrid(f.blocks_x, f.blocks_y, f.cells_per_block, f.cell_size, f.blades_per_cell)
             size_x, size_y = grid.size
-            layout.label(text=f"{size_x:.4g} x {size_y:.4g} m, {grid.n_blades:,} blades", icon="INFO")
+            wrapped(layout, context, f"{size_x:.4g} x {size_y:.4g} m, {grid.n_blades:,} blades", icon="INFO")
             layout.prop(item, "collection")
             layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 

@@ -5,7 +5,7 @@ import bpy
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties
-from .main import CATEGORY, WINDGRASS_PT_main
+from .main import CATEGORY, WINDGRASS_PT_main, wrapped
 
 LABELS = {
     "field": "Field",
@@ -26,7 +26,7 @@ PRESETS = {
 ROW_WORD = {"blade.species": "Species", "wind.keys": "Key"}
 
 
-def draw_table(layout, group, p: schema.Param) -> None:
+def draw_table(layout, context, group, p: schema.Param) -> None:
     """UI list of a table parameter, add/remove buttons and the selected row's columns."""
     box = layout.box()
     box.label(text=p.ui_name)
@@ -39,7 +39,7 @@ def draw_table(layout, group, p: schema.Param) -> None:
     col.operator("windgrass.row_remove", text="", icon="REMOVE").table = p.name
     rows = getattr(group, p.key)
     if not len(rows):
-        box.label(text=f"No {word.lower()} rows: {p.help}", icon="INFO")
+        wrapped(box, context, f"No {word.lower()} rows: {p.help}", icon="INFO")
         return
     selected = rows[min(getattr(group, index), len(rows) - 1)]
     col = box.column()
@@ -59,20 +59,19 @@ def draw_section(layout, context, item, section: str) -> None:
         if p.applies_when and getattr(group, p.applies_when[0]) != p.applies_when[1]:
             continue  # e.g. the gust front's settings while the wind is not a blast
         if p.kind == "table_list":
-            draw_table(layout, group, p)
+            draw_table(layout, context, group, p)
         else:
             layout.prop(group, p.key)
     if section == "simulation":
         render = context.scene.render
         fps = render.fps / render.fps_base
-        col = layout.column(align=True)
-        col.label(text=f"Steps at the scene's {render.fps} fps from frame {context.scene.frame_start}",
-                  icon="INFO")
+        text = f"Steps at the scene's {render.fps} fps from frame {context.scene.frame_start}"
         if render.fps_base != 1.0:
-            col.label(text=f"(the scene's {fps:.3g} fps is simulated as {render.fps} fps)")
+            text += f" (the scene's {fps:.3g} fps is simulated as {render.fps} fps)"
+        wrapped(layout, context, text, icon="INFO")
     if section in HEADLESS:
-        layout.label(text="Used by headless renders; in Blender the scene's camera, frame rate and "
-                          "frame range rule", icon="INFO")
+        wrapped(layout, context, "Used by headless renders; in Blender the scene's camera, frame rate and "
+                "frame range rule", icon="INFO")
 
 
 def _panel(section: str) -> type:

@@ -64,8 +64,20 @@ def camera_fingerprint(scene) -> str:
     return h.hexdigest()
 
 
+def missing_build_feature() -> str | None:
+    """Why this Blender cannot bake (it was built without Alembic, as Debian's is), or None."""
+    if not getattr(bpy.app.build_options, "alembic", True):
+        return ("bake: this Blender was built without Alembic, the format the bake writes; bake in a Blender "
+                "from blender.org (its builds have Alembic)")
+    return None
+
+
 def check(scene, item, first: int, last: int) -> Path:
-    """The cache's folder, once everything a bake needs is there; BakeError naming what is not."""
+    """The cache's folder, once everything a bake needs is there; BakeError naming what is not.
+    Nothing is written before every check has passed."""
+    missing = missing_build_feature()
+    if missing:
+        raise BakeError(missing)
     if item.collection is None or not field_scene.slot_objects(item, field_scene.ROLE_BLADES) and \
             not field_scene.slot_objects(item, field_scene.ROLE_CARDS):
         raise BakeError(f"bake: field '{item.name}' has no objects; add or rebuild it first")

@@ -1,4 +1,13 @@
-"""The scene camera as the engine's ``lod.Camera``, in the field's frame."""
+"""The views a field's levels of detail follow, as the engine's ``lod.Camera`` in the field's frame.
+
+* Renders (F12, animations, background Blender, ``render_field.py``): the scene camera, with its
+  lens shift, orthographic scale or panoramic projection. A render therefore depends on the frame
+  and the scene camera alone, never on how the artist's viewport looked.
+* The artist's viewport: every open 3D view, through its own eye (its perspective or
+  orthographic view; in camera view the camera it looks through), so the grass is drawn around
+  wherever the artist orbits and zooms, in several views at once. Without a 3D view (a script
+  in a window with none), the scene camera.
+"""
 
 from __future__ import annotations
 
@@ -6,63 +15,142 @@ import math
 
 import numpy as np
 
-from ..lod import Camera
+from ..lod import ORTHOGRAPHIC, PANORAMIC, PERSPECTIVE, Camera
 from . import scene as field_scene
+from .registry import REGISTRY
+
+# Blender draws a 3D view with a 36 mm sensor at twice the zoom of a camera (CAMERA_PARAM_ZOOM_INIT_PERSP):
+# its lens of 50 mm shows what a 50 mm lens on a 72 mm sensor would.
+VIEWPORT_SENSOR = 72.0
 
 
-def blender_camera(scene, to_field=None, depsgraph=None):
-    """``lod.Camera`` of the scene camera in the field's frame, or None without a camera.
+def _basis(matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(position, forward, up) of a camera-to-world matrix (a camera looks down its local -Z)."""
+    rot = np.array(matrix.to_3x3(), dtype=np.float64)
+    position = np.array(matrix.translation, dtype=np.float64)
+    forward, up = -rot[:, 2], rot[:, 1]
+    forward /= max(np.linalg.norm(forward), 1e-12)
+    up /= max(np.linalg.norm(up), 1e-12)
+    return position, forward, up
 
-    With ``depsgraph`` the evaluated camera is used (its animation at this frame)."""
-    cam = scene.camera
+
+def _fov_x(angle_larger_side: float, aspect: float) -> float:
+    """Horizontal field of view from the angle across the image's larger side (sensor fit AUTO)."""
+    if aspect >= 1.0:
+        return angle_larger_side
+    return 2.0 * math.atan(math.tan(0.5 * angle_larger_side) * aspect)
+
+
+def _camera_object(cam, aspect: float, to_field=None, depsgraph=None) -> Camera | None:
+    """``lod.Camera`` of a camera object (its lens, sensor fit, shift, projection)."""
     if cam is None or cam.type != "CAMERA":
         return None
     if depsgraph is not None:
         cam = cam.evaluated_get(depsgraph)
-    matrix = cam.matrix_world
+    matrix = cam.matrix_world if to_field is None else to_field @ cam.matrix_world
+    position, forward, up = _basis(matrix)
+    data = cam.data
+    shift = (float(data.shift_x), float(data.shift_y))
+    if data.type == "PANO":
+        return Camera(position, forward, up, math.radians(179.0), aspect, projection=PANORAMIC)
+    if data.type == "ORTHO":
+        # ortho_scale spans the image's larger side (sensor fit AUTO; the others alike here)
+        width = data.ortho_scale if aspect >= 1.0 else data.ortho_scale * aspect
+        return Camera(position, forward, up, 0.0, aspect, projection=ORTHOGRAPHIC, ortho_width=float(width),
+                      shift=shift)
+    fit = data.sensor_fit
+    if fit == "AUTO":
+        fov_x = _fov_x(data.angle_x, aspect)  # the sensor width spans the larger image side
+    elif fit == "HORIZONTAL":
+        fov_x = data.angle_x
+    else:
+        fov_x = 2.0 * math.atan(math.tan(0.5 * data.angle_y) * aspect)
+    fov_x = min(max(fov_x, 1e-3), math.radians(179.0))
+    return Camera(position, forward, up, float(fov_x), float(aspect), shift=shift)
+
+
+def render_aspect(scene) -> float:
+    r = scene.render
+    return (r.resolution_x * r.pixel_aspect_x) / max(r.resolution_y * r.pixel_aspect_y, 1e-9)
+
+
+def blender_camera(scene, to_field=None, depsgraph=None) -> Camera | None:
+    """``lod.Camera`` of the scene camera in the field's frame, or None without a camera.
+
+    With ``depsgraph`` the evaluated camera is used (its animation at this frame)."""
+    return _camera_object(scene.camera, render_aspect(scene), to_field, depsgraph)
+
+
+def _view3d_camera(space, region, r3d, scene, to_field, depsgraph) -> Camera | None:
+    """``lod.Camera`` of one 3D view region: its own eye, or in camera view the camera."""
+    aspect = region.width / max(region.height, 1)
+    if r3d.view_perspective == "CAMERA":
+        cam = space.camera if space.use_local_camera and space.camera is not None else scene.camera
+        return _camera_object(cam, render_aspect(scene), to_field, depsgraph)
+    matrix = r3d.view_matrix.inverted()
     if to_field is not None:
         matrix = to_field @ matrix
-    rot = np.array(matrix.to_3x3(), dtype=np.float64)
-    position = np.array(matrix.translation, dtype=np.float64)
-    forward = -rot[:, 2]  # a Blender camera looks down its local -Z
-    up = rot[:, 1]
-    forward /= max(np.linalg.norm(forward), 1e-12)
-    up /= max(np.linalg.norm(up), 1e-12)
-    r = scene.render
-    aspect = (r.resolution_x * r.pixel_aspect_x) / max(r.resolution_y * r.pixel_aspect_y, 1e-9)
-    data = cam.data
-    if data.type == "ORTHO":
-        # No perspective: take the angle that shows the ortho width from the camera's distance
-        # to the field centre (LOD distances still come from the camera position).
-        dist = max(float(np.linalg.norm(position)), 1e-3)
-        fov_x = 2.0 * math.atan(0.5 * data.ortho_scale / dist)
-    else:
-        fit = data.sensor_fit
-        if fit == "AUTO":
-            # The sensor width spans the larger image side.
-            fov_x = data.angle_x if aspect >= 1.0 else 2.0 * math.atan(math.tan(0.5 * data.angle_x) * aspect)
-        elif fit == "HORIZONTAL":
-            fov_x = data.angle_x
-        else:
-            fov_x = 2.0 * math.atan(math.tan(0.5 * data.angle_y) * aspect)
-    fov_x = min(max(fov_x, 1e-3), math.radians(179.0))
-    return Camera(position=position.astype(np.float32), forward=forward.astype(np.float32),
-                  up=up.astype(np.float32), fov_x=float(fov_x), aspect=float(aspect))
+    position, forward, up = _basis(matrix)
+    if r3d.view_perspective == "ORTHO":
+        width = 2.0 * r3d.view_distance * (VIEWPORT_SENSOR / 2.0) / space.lens
+        width = width if aspect >= 1.0 else width * aspect
+        return Camera(position, forward, up, 0.0, aspect, projection=ORTHOGRAPHIC, ortho_width=float(width))
+    fov = 2.0 * math.atan(0.5 * VIEWPORT_SENSOR / space.lens)
+    return Camera(position, forward, up, float(min(_fov_x(fov, aspect), math.radians(179.0))), float(aspect),
+                  projection=PERSPECTIVE)
 
 
-def signature(camera) -> tuple | None:
-    if camera is None:
-        return None
-    return (tuple(np.round(camera.position, 6)), tuple(np.round(camera.forward, 6)),
-            tuple(np.round(camera.up, 6)), round(camera.fov_x, 6), round(camera.aspect, 6))
+def viewport_views(context, scene, to_field=None, depsgraph=None) -> list[Camera]:
+    """Every 3D view of every window showing ``scene`` (quad views: each of the four)."""
+    out = []
+    wm = getattr(context, "window_manager", None)
+    for window in wm.windows if wm is not None else ():
+        if window.scene != scene:
+            continue
+        for area in window.screen.areas:
+            if area.type != "VIEW_3D":
+                continue
+            space = area.spaces.active
+            regions = [r for r in area.regions if r.type == "WINDOW" and r.width > 1 and r.height > 1]
+            quads = list(space.region_quadviews) if getattr(space, "region_quadviews", None) else []
+            r3ds = quads if len(quads) == len(regions) and quads else [space.region_3d] * len(regions[:1])
+            for region, r3d in zip(regions, r3ds):
+                view = _view3d_camera(space, region, r3d, scene, to_field, depsgraph)
+                if view is not None:
+                    out.append(view)
+    return out
 
 
-def field_camera(scene, item, depsgraph=None):
-    """The scene camera in the field's frame (the ground object's inverse world matrix)."""
+def rendering() -> bool:
+    """True while Blender renders (F12, an animation) or runs without a window."""
+    import bpy
+
+    return bpy.app.background or REGISTRY.rendering or bpy.app.is_job_running("RENDER")
+
+
+def field_views(scene, item, depsgraph=None) -> list[Camera]:
+    """The views the field follows now (see the module docstring), in the field's frame (the
+    ground object's inverse world matrix); empty when there is none (no camera, no 3D view)."""
+    import bpy
+
     ground = field_scene.ground_object(item)
     if ground is not None and depsgraph is not None:
         ground = ground.evaluated_get(depsgraph)
     to_field = ground.matrix_world.inverted_safe() if ground is not None else None
-    return blender_camera(scene, to_field, depsgraph)
+    if not rendering():
+        views = viewport_views(bpy.context, scene, to_field, depsgraph)
+        if views:
+            return views
+    cam = blender_camera(scene, to_field, depsgraph)
+    return [] if cam is None else [cam]
 
 
+def signature(views) -> tuple:
+    """What the views are, rounded: equal signatures draw the same LOD."""
+    if views is None:
+        return ()
+    if isinstance(views, Camera):
+        views = [views]
+    return tuple((tuple(np.round(v.position, 6)), tuple(np.round(v.forward, 6)), tuple(np.round(v.up, 6)),
+                  round(v.fov_x, 6), round(v.aspect, 6), v.projection, round(v.ortho_width, 6),
+                  tuple(np.round(v.shift, 6))) for v in views)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import warnings
 
 import bpy
+import numpy as np
 
 from .. import impostor
 from ..grid import FieldGrid
@@ -448,6 +449,22 @@ def update_haze(params, *mats) -> None:
         node = mat.node_tree.nodes.get(NODE_HAZE_COLOUR)
         if node is not None:
             node.outputs[0].default_value = (*params.render.haze_color, 1.0)
+
+
+def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy=None) -> None:
+    """The colours Solid shading draws (``Material.diffuse_color``; it shows no node tree and no
+    texture): the blades' mean tip colour, the cards and the far canopy in the sward's colour seen
+    from afar, the meadow floor under them; matte, so the field reads as a green meadow."""
+    species = np.asarray([row["color"] for row in params.species()], dtype=np.float64)
+    weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
+    tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
+    sward = SWARD_SHADE * np.asarray(impostor.sward_colour(params), dtype=np.float64)
+    for mat, rgb in ((blades, 0.85 * tips), (cards, sward), (canopy, sward), (ground, THATCH_COLOUR[:3])):
+        if mat is None:
+            continue
+        mat.diffuse_color = (*[float(c) for c in rgb], 1.0)
+        mat.roughness = 0.9
+        mat.metallic = 0.0
 
 
 def update_materials(params, canopy=None) -> None:

@@ -34,7 +34,23 @@ _PREFIX = "WINDGRASS_PG_"
 # Units and conversion between schema values (user units) and Blender values
 
 
+# Units Blender's unit system shows by itself (the subtypes above); the others go into the label.
+NATIVE_UNITS = frozenset({"", "m", "m/s", "s", "deg", "px", "fraction"})
+PRETTY_UNITS = {"N*m^2/rad": "N\u00b7m\u00b2/rad", "N*m/rad^2": "N\u00b7m/rad\u00b2", "N*m": "N\u00b7m",
+                "x bending": "\u00d7 bending"}
+
+
+def ui_label(p: schema.Param) -> str:
+    """The property's label in Blender: the schema's label, with its unit where Blender cannot
+    show it (``Mass per Length (kg/m)``, ``Cache (MB)``)."""
+    if p.unit in NATIVE_UNITS:
+        return p.ui_name
+    return f"{p.ui_name} ({PRETTY_UNITS.get(p.unit, p.unit)})"
+
+
 def _float_subtype(p: schema.Param) -> dict[str, str]:
+    if p.unit == "fraction":
+        return {"subtype": "FACTOR"}
     if p.unit == "deg":
         return {"subtype": "ANGLE"}
     if p.unit == "m":
@@ -160,7 +176,7 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
     row class, so they are made by ``_section_class``.
     """
     value = p.default if default is None else default
-    kw: dict[str, Any] = {"name": p.ui_name, "description": description(p)}
+    kw: dict[str, Any] = {"name": ui_label(p), "description": description(p)}
     if update is not None:
         kw["update"] = update
     if animatable is None:

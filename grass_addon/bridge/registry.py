@@ -25,6 +25,7 @@ class Registry:
     pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
     terrains: dict[Key, tuple] = field(default_factory=dict)  # (terrain key, heightfield, centre) sampled
     warned: set[str] = field(default_factory=set)  # console messages already printed
+    rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
     def clear(self) -> None:

@@ -22,6 +22,7 @@ Handlers (all ``@persistent``, added once by ``register``):
   ``frame_change_post``      redo the LOD if the camera moved during evaluation (animated camera);
   ``depsgraph_update_post``  the same when the camera is moved without a frame change;
   ``load_post``              empty the registry, bring outdated objects up to date;
+  ``save_pre``/``save_post``  a live field is saved without its slot geometry (made again after);
   ``undo_post``/``redo_post`` the settings may be others now: resolve again, rewrite every slot.
 Which position shows which block is a function of the frame and camera alone (canonical order),
 so frames rendered apart equal frames rendered in one run.
@@ -49,6 +50,8 @@ from .registry import REGISTRY, Key, key_of, warn_once
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
 # for this long, so dragging a slider on a large field does not re-simulate at every step.
 EDIT_SETTLE_S = 0.15
+# How often the viewport's views are looked at (orbiting changes no data, so no handler runs).
+VIEW_POLL_S = 0.1
 
 
 @dataclass(eq=False)
@@ -219,16 +222,23 @@ def apply_settings(scene, item, force: bool = False) -> None:
     coll = item.collection
     if force or coll is None or coll.get(field_scene.TOPOLOGY) != topology_of(params, heightfield):
         field_scene.build_slots(scene, item, params, heightfield, centre)
-        rt = get_runtime(scene, item)
-        if rt is not None:  # its pools showed the old objects
-            rt.dirty = True
-            rt.blades.state.forget()
-            rt.cards.state.forget()
+        _forget_slots(scene, item, dirty=True)
     else:
+        if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
+            _forget_slots(scene, item)
         field_scene.update_field_materials(item, params, scene)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
+
+
+def _forget_slots(scene, item, dirty: bool = False) -> None:
+    """The field's slot meshes hold something else now: its pools write every slot next time."""
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = rt.dirty or dirty
+        rt.blades.state.forget()
+        rt.cards.state.forget()
 
 
 def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
@@ -296,9 +306,10 @@ def write_read_me() -> None:
     text = bpy.data.texts.get(READ_ME) or bpy.data.texts.new(READ_ME)
     lines = ["This file has grass fields of the Windgrass extension for Blender.", ""]
     if live:
-        lines += ["Live fields: their grass is simulated by the Windgrass add-on every frame. Without the",
-                  "add-on they stay frozen at the last pose written. Install Windgrass, or bake them",
-                  "(Grass tab > Bake) to play and render them in any Blender:"] + [f"  {n}" for n in live] + [""]
+        lines += ["Live fields: their grass is made and simulated by the Windgrass add-on every frame (the",
+                  "file keeps their settings, not their blades). Without the add-on they show only their",
+                  "ground. Install Windgrass, or bake them (Grass tab > Bake) to play and render them in any",
+                  "Blender:"] + [f"  {n}" for n in live] + [""]
     if baked:
         lines += ["Baked fields: they play an Alembic cache beside this file (folder <file>_windgrass)",
                   "in any Blender; keep that folder with the file:"] + [f"  {n}" for n in baked]
@@ -324,20 +335,22 @@ def reset_field(scene, item) -> None:
 # One frame
 
 
-def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
-    """wind -> solver -> cell data (seek), LOD from the camera, slot pools, writes.
+def _write(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
+    """wind -> solver -> cell data (seek), LOD from the views (camera.field_views: the scene
+    camera in renders, the 3D views in the viewport), slot pools, writes.
 
     With the scene's motion blur on, or at a sub-frame (Blender evaluates frame + subframe for
     each motion-blur step), the vertices are those of that instant and carry their velocity."""
     frame, subframe = scene.frame_current, float(scene.frame_subframe)
-    camera = field_camera.field_camera(scene, item, depsgraph)
-    rt.field.view(camera, frame)  # the window of blocks this camera needs (same window: no work)
-    if camera is None and rt.field.notice:
+    if views is None:
+        views = field_camera.field_views(scene, item, depsgraph)
+    rt.field.view(views, frame)  # the window of blocks these views need (same window: no work)
+    if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     if rt.frame != frame or rt.field.cells is None:
-        rt.field.seek(frame)  # a camera-only update reuses this frame's cell data
-    lod = rt.field.lod(camera)
-    if camera is None:
+        rt.field.seek(frame)  # a view-only update reuses this frame's cell data
+    lod = rt.field.lod(views)
+    if not views:
         # No camera: every block is geometry (lod_weights(None)); the pools take the blocks
         # nearest the field centre.
         bounds = rt.field.layout.block_bounds
@@ -351,7 +364,7 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None) -> None:
     rt.blades.write(item, rt.field, lod, block_distance, motion)
     rt.cards.write(item, rt.field, lod, block_distance, motion)
     rt.frame, rt.subframe, rt.lod = frame, subframe, lod
-    rt.camera_signature = field_camera.signature(camera)
+    rt.camera_signature = field_camera.signature(views)
 
 
 def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
@@ -365,12 +378,14 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         return None
     if bake.is_baked(item):
         return None  # its objects play the cache
+    views = None
     if camera_moved_only:
         rt = get_runtime(scene, item)
         if rt is None or rt.frame != scene.frame_current or rt.subframe != float(scene.frame_subframe):
             return rt  # not written at this instant yet: the frame handlers will do it
-        if rt.camera_signature == field_camera.signature(field_camera.field_camera(scene, item, depsgraph)):
-            return rt  # same camera, same frame: nothing to do (cheap: no parameter read)
+        views = field_camera.field_views(scene, item, depsgraph)
+        if rt.camera_signature == field_camera.signature(views):
+            return rt  # same views, same frame: nothing to do (cheap: no parameter read)
     rt = _current(scene, item)
     if item.collection.get(field_scene.TOPOLOGY) != rt.topology:
         # Windgrass rebuilds the objects whenever the settings ask for it (apply_settings); only a
@@ -378,7 +393,7 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         # gets here, and a frame handler must not add or delete datablocks.
         raise WindgrassError(f"the objects of field '{item.name}' were not built for its settings "
                              "(changed outside Windgrass); press Rebuild")
-    _write(scene, item, rt, depsgraph)
+    _write(scene, item, rt, depsgraph, views)
     return rt
 
 
@@ -497,6 +512,36 @@ def on_frame_change_post(scene, depsgraph=None):
 
 
 @persistent
+def on_render_pre(scene, *_args):
+    """A render follows the scene camera, whatever the viewport showed: write every field of the
+    rendered scene for it before Blender syncs the scene (a still has no frame change)."""
+    REGISTRY.rendering = True
+    update_scene(scene, camera_moved_only=True)
+
+
+@persistent
+def on_render_post(scene, *_args):
+    """Back to the 3D views once the render is done (or cancelled): rewritten by a timer, out of
+    the render's thread."""
+    REGISTRY.rendering = False
+    if not bpy.app.background:
+        _refresh_later([key_of(s, item) for s, item in _live_fields()])
+
+
+def watch_views() -> float | None:
+    """Timer (the UI only): the 3D views moved (orbit, zoom, pan, another view) without a frame
+    change or a data edit, so no handler runs: redo each field's LOD and window for them."""
+    if not REGISTRY.fields or field_camera.rendering():
+        return VIEW_POLL_S  # renders use the scene camera
+    windows = bpy.context.window_manager.windows
+    if any(w.screen is not None and w.screen.is_animation_playing for w in windows):
+        return VIEW_POLL_S  # playback rewrites every frame anyway
+    for scene in {w.scene for w in windows}:
+        update_scene(scene, camera_moved_only=True)
+    return VIEW_POLL_S
+
+
+@persistent
 def on_depsgraph_update_post(scene, depsgraph=None):
     """The camera was moved in the viewport (no frame change): follow it with the LOD. Only
     fields already written at this frame are touched, and only when the camera moved, so the
@@ -526,6 +571,31 @@ def _live_fields():
 
 
 @persistent
+def on_save_pre(*_args):
+    """A live field is saved as its settings, ground and materials: its slot meshes are emptied
+    for the write (a 12.8 m field's slots are tens of MB) and filled again after it (on_save_post,
+    and on load in a reopened file). A bake keeps its meshes: they carry the cache."""
+    for scene, item in _live_fields():
+        try:
+            field_scene.clear_slots(item)
+            _forget_slots(scene, item)
+        except Exception as exc:  # pragma: no cover (a save must never fail because of the grass)
+            warn_once(f"field '{item.name}': its slots are saved as they are ({type(exc).__name__}: {exc})")
+
+
+@persistent
+def on_save_post(*_args):
+    """After a save: the slot meshes get their quads and the current frame back."""
+    for scene, item in _live_fields():
+        _guarded(_refill, scene, item)
+
+
+def _refill(scene, item) -> None:
+    field_scene.fill_slots(item, properties.params_from_settings(item, scene))
+    update_field(scene, item)
+
+
+@persistent
 def on_undo_redo_post(*_args):
     """Undo and redo bring back the settings and datablocks of another step (which match: see
     the module docstring) with that step's mesh data: every runtime resolves again from the
@@ -550,6 +620,11 @@ _HANDLERS = (
     (bpy.app.handlers.frame_change_post, on_frame_change_post),
     (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update_post),
     (bpy.app.handlers.load_post, on_load_post),
+    (bpy.app.handlers.render_pre, on_render_pre),
+    (bpy.app.handlers.render_post, on_render_post),
+    (bpy.app.handlers.render_cancel, on_render_post),
+    (bpy.app.handlers.save_pre, on_save_pre),
+    (bpy.app.handlers.save_post, on_save_post),
     (bpy.app.handlers.undo_post, on_undo_redo_post),
     (bpy.app.handlers.redo_post, on_undo_redo_post),
 )
@@ -567,13 +642,16 @@ def register() -> None:
             handlers.remove(existing)
         handlers.append(func)
     properties.on_edit = mark_dirty
+    if not bpy.app.background and not bpy.app.timers.is_registered(watch_views):
+        bpy.app.timers.register(watch_views, first_interval=VIEW_POLL_S, persistent=True)
 
 
 def unregister() -> None:
     for handlers, func in _HANDLERS:
         for existing in [h for h in handlers if _same(h, func)]:
             handlers.remove(existing)
-    if bpy.app.timers.is_registered(_flush_pending):
-        bpy.app.timers.unregister(_flush_pending)
+    for timer in (_flush_pending, watch_views):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     properties.on_edit = None
     REGISTRY.clear()

@@ -142,8 +142,17 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     """A mesh of quads from topology arrays: faces (F, 4) local vertex ids, uvs (F*4, 2) per
     corner, every vertex at the origin (collapsed) until the runtime writes positions. ``data_uvs``:
     more UV maps, after the texture's "UVMap", that carry per-frame data (materials.py)."""
-    faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 4)
     mesh = bpy.data.meshes.new(name)
+    fill_quads(mesh, n_verts, faces, uvs, attributes, data_uvs)
+    if material is not None:
+        mesh.materials.append(material)
+    return mesh
+
+
+def fill_quads(mesh, n_verts: int, faces: np.ndarray, uvs: np.ndarray, attributes: dict[str, str],
+               data_uvs: tuple[str, ...] = ()) -> None:
+    """Give an empty mesh its quads (see ``quad_mesh``); its materials are kept."""
+    faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 4)
     n_faces = len(faces)
     mesh.vertices.add(n_verts)
     mesh.loops.add(n_faces * 4)
@@ -158,8 +167,6 @@ def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, mater
     for attr_name, attr_type in attributes.items():
         mesh.attributes.new(attr_name, attr_type, "POINT")
     mesh.update(calc_edges=True)
-    mesh.materials.append(material)
-    return mesh
 
 
 def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0,
@@ -353,8 +360,10 @@ def update_field_materials(item, params, scene=None) -> None:
     if coll is not None and coll.get(MATERIALS_DIGEST) == digest:
         return
     materials.update_materials(params, reg.get(ROLE_CANOPY_MATERIAL))
-    materials.update_haze(params, *(reg.get(role) for role in (ROLE_BLADE_MATERIAL, ROLE_CARD_MATERIAL,
-                                                               ROLE_GROUND_MATERIAL, ROLE_CANOPY_MATERIAL)))
+    mats = [reg.get(role) for role in (ROLE_BLADE_MATERIAL, ROLE_CARD_MATERIAL, ROLE_GROUND_MATERIAL,
+                                       ROLE_CANOPY_MATERIAL)]
+    materials.update_haze(params, *mats)
+    materials.update_viewport_colours(params, *mats)
     if cycles is not None:
         materials.set_card_depth(reg.get(ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
     image = reg.get(ROLE_CARD_IMAGE)
@@ -419,34 +428,60 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
         if "wg_terrain" in coll and heightfield is None and terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    blade_shape, card_shape = slots.pool_shapes(grid, params)
-    if blade_shape.objects:
-        faces, uvs = slots.tiled_topology(kin.blade_faces(grid), kin.blade_uvs(grid),
-                                          blade_shape.verts_per_block, blade_shape.k)
-        for i in range(blade_shape.objects):  # once per build, not per frame
-            mesh = quad_mesh(f"{base} blades {i:03d}", blade_shape.verts_per_object, faces, uvs, blade_mat,
-                             {materials.ATTR_VELOCITY: "FLOAT_VECTOR"},
-                             (materials.UV_TINT_RG, materials.UV_TINT_BS))
-            obj = bpy.data.objects.new(mesh.name, mesh)
-            _tag(obj, uid, ROLE_BLADES, i)
-            _tag(mesh, uid, ROLE_BLADES, i)
-            _link(coll, obj, ground)
-            _register(item, _slot_key(ROLE_BLADES, i), obj)
-    if card_shape.objects:
-        faces, uvs = slots.tiled_topology(kin.card_faces(grid), kin.card_uvs(grid),
-                                          card_shape.verts_per_block, card_shape.k)
-        for i in range(card_shape.objects):
-            mesh = quad_mesh(f"{base} cards {i:03d}", card_shape.verts_per_object, faces, uvs, card_mat,
-                             {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}, (materials.UV_FADE,))
+    for role, material in ((ROLE_BLADES, blade_mat), (ROLE_CARDS, card_mat)):
+        spec = _SlotTopology(grid, params, role)
+        for i in range(spec.shape.objects):  # once per build, not per frame
+            mesh = quad_mesh(f"{base} {role} {i:03d}", spec.shape.verts_per_object, spec.faces, spec.uvs, material,
+                             spec.attributes, spec.data_uvs)
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
-            _tag(obj, uid, ROLE_CARDS, i)
-            _tag(mesh, uid, ROLE_CARDS, i)
+            _tag(obj, uid, role, i)
+            _tag(mesh, uid, role, i)
             _link(coll, obj, ground)
-            _register(item, _slot_key(ROLE_CARDS, i), obj)
+            _register(item, _slot_key(role, i), obj)
     coll[TOPOLOGY] = slots.topology_key(grid, params, heightfield)
     update_field_materials(item, params, scene)
     return coll
+
+
+class _SlotTopology:
+    """What every slot object of a role holds: k copies of one block's quads (``slots.py``)."""
+
+    def __init__(self, grid, params, role: str):
+        blade_shape, card_shape = slots.pool_shapes(grid, params)
+        if role == ROLE_BLADES:
+            self.shape, faces, uvs = blade_shape, kin.blade_faces(grid), kin.blade_uvs(grid)
+            self.data_uvs = (materials.UV_TINT_RG, materials.UV_TINT_BS)
+        else:
+            self.shape, faces, uvs = card_shape, kin.card_faces(grid), kin.card_uvs(grid)
+            self.data_uvs = (materials.UV_FADE,)
+        self.faces, self.uvs = slots.tiled_topology(faces, uvs, self.shape.verts_per_block, self.shape.k)
+        self.attributes = {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}
+
+
+def clear_slots(item) -> None:
+    """Empty the slot meshes of a live field (before a save: the file keeps its settings, ground
+    and materials, not megabytes of slot geometry that ``fill_slots`` makes again)."""
+    for role in (ROLE_BLADES, ROLE_CARDS):
+        for obj in slot_objects(item, role).values():
+            if len(obj.data.vertices):
+                obj.data.clear_geometry()
+
+
+def fill_slots(item, params) -> bool:
+    """Give every empty slot mesh of the field its quads again (after a save, in a reopened file);
+    returns whether any was filled (its positions are then to be written)."""
+    grid, filled = FieldGrid.of(params), False
+    for role in (ROLE_BLADES, ROLE_CARDS):
+        objects = slot_objects(item, role)
+        empty = [obj for obj in objects.values() if not len(obj.data.vertices)]
+        if not empty:
+            continue
+        spec = _SlotTopology(grid, params, role)
+        for obj in empty:
+            fill_quads(obj.data, spec.shape.verts_per_object, spec.faces, spec.uvs, spec.attributes, spec.data_uvs)
+            filled = True
+    return filled
 
 
 def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:

@@ -414,9 +414,27 @@ def test_field_add_with_a_selected_mesh(scene, with_bridge):
 
     bpy.ops.mesh.primitive_plane_add(size=4.0)
     plane = bpy.context.active_object
-    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=3) == {"FINISHED"}
+    # A selected mesh (the startup file's Cube, say) stays a mesh: Add grows on flat ground ...
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2) == {"FINISHED"}
+    assert properties.active_field(scene).terrain is None
+    # ... unless the artist asks for the mesh ("Grass Field on Selected Mesh").
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=3, use_selected_mesh=True) == {"FINISHED"}
     item = properties.active_field(scene)
     params = properties.params_from_settings(item)
     assert (params.field.blocks_x, params.field.blocks_y) == (2, 3)
     assert item.collection is not None
     assert item.terrain == plane  # the selected mesh became the field's terrain
+    # A field's own ground is never a terrain; asking for a mesh with none selected says so.
+    ground = next(o for o in item.collection.objects if o.get("wg_role") == "ground")
+    bpy.ops.object.select_all(action="DESELECT")
+    ground.select_set(True)
+    bpy.context.view_layer.objects.active = ground
+    fields = len(scene.windgrass.fields)
+    with pytest.raises(RuntimeError, match="belongs to a grass field"):
+        bpy.ops.windgrass.field_add(use_selected_mesh=True)
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}  # + in the panel: flat ground
+    assert properties.active_field(scene).terrain is None
+    bpy.ops.object.select_all(action="DESELECT")
+    with pytest.raises(RuntimeError, match="select the mesh to grow the grass on first"):
+        bpy.ops.windgrass.field_add(use_selected_mesh=True)
+    assert len(scene.windgrass.fields) == fields + 1

@@ -1,4 +1,4 @@
-"""Terrain: a selected mesh becomes the field's terrain; blades are rooted on its surface.
+"""Terrain: Add > Grass Field on Selected Mesh roots the blades on the mesh's surface.
 
 Small fields (2 x 2 blocks of 8 x 8 cells of 0.1 m, 1.6 m square) on a 4 m grid mesh keep this fast.
 """
@@ -41,7 +41,7 @@ def _displace(obj, func):
 
 
 def _add_field(**options):
-    values = {"blocks_x": 2, "blocks_y": 2, "cells_per_block": 8}
+    values = {"blocks_x": 2, "blocks_y": 2, "cells_per_block": 8, "use_selected_mesh": True}
     values.update(options)
     assert bpy.ops.windgrass.field_add(**values) == {"FINISHED"}
     scene = bpy.context.scene
@@ -118,7 +118,7 @@ def test_field_size_fits_the_terrain_unless_given(bridge):
     terrain = bpy.data.objects["Grid"]
     terrain.select_set(True)
     bpy.context.view_layer.objects.active = terrain
-    assert bpy.ops.windgrass.field_add(cells_per_block=8) == {"FINISHED"}
+    assert bpy.ops.windgrass.field_add(cells_per_block=8, use_selected_mesh=True) == {"FINISHED"}
     f = properties.params_from_settings(scene.windgrass.fields[-1]).field
     assert (f.blocks_x, f.blocks_y) == (5, 5)  # 4 m / 0.8 m blocks
 

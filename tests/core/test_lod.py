@@ -97,3 +97,112 @@ def test_bad_camera_names_the_problem():
     layout = row_layout()
     with pytest.raises(schema.ParameterError, match="camera"):
         lod_weights(layout, Camera.look_at((0, 0, 1), (0, 0, 1), 1.0), layout.params)
+
+
+# --------------------------------------------------------------------------------------------
+# The real view: lens shift, orthographic and panoramic cameras, several views at once
+
+
+def _point_boxes(points):
+    """Blocks of zero size at ground points (bounds (m, 4), z range (m, 2)) and params whose
+    blades and cards reach 1 mm: the culling test then asks about the points themselves."""
+    p = schema.defaults().replace({"blade.species": [{"length": 0.01, "length_variation": 0.0}],
+                                   "lod.card_height": 0.05, "lod.card_width": 0.1, "field.cell_size": 0.01})
+    pts = np.asarray(points, dtype=np.float64)
+    bounds = np.stack([pts[:, 0], pts[:, 1], pts[:, 0], pts[:, 1]], axis=1)
+    return bounds, np.zeros((len(pts), 2)), p
+
+
+def _projected_inside(cam, points, margin):
+    """Independent of lod.py: project ground points through the camera (Blender's conventions) and
+    say which land inside the image shrunk (margin < 0) or grown (margin > 0) by ``margin``
+    (a fraction of the image's half-width)."""
+    f = np.asarray(cam.forward, float) / np.linalg.norm(cam.forward)
+    r = np.cross(f, cam.up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    rel = np.asarray(points, float) - np.asarray(cam.position, float)
+    x, y, z = rel @ r, rel @ u, rel @ f
+    if cam.projection == "ORTHO":
+        tx = cam.ortho_width / 2
+        sx, sy = x, y
+    else:
+        tx = math.tan(cam.fov_x / 2)
+        sx, sy = x / np.maximum(z, 1e-12), y / np.maximum(z, 1e-12)
+    ty = tx / cam.aspect
+    big = max(tx, ty)
+    cx, cy = 2 * cam.shift[0] * big, 2 * cam.shift[1] * big
+    ok = (np.abs(sx - cx) <= tx * (1 + margin)) & (np.abs(sy - cy) <= ty * (1 + margin)) & (z > 0)
+    return ok
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0), (0.6, 0.0), (-0.3, 0.25)])
+def test_culling_follows_the_lens_shift(shift):
+    """Issue: with shift_x = 0.6 the shifted part of the image showed bare ground. Every ground
+    point that projects into the shifted image is kept; points well outside it are culled."""
+    from windgrass.grass_addon.lod import block_visible
+
+    rng = np.random.default_rng(3)
+    points = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(-40, 40, 4000), np.zeros(4000)])
+    cam = Camera((0.0, -20.0, 6.0), (0.0, 1.0, -0.25), (0.0, 0.0, 1.0), math.radians(50.0), 16 / 9, shift=shift)
+    bounds, z, params = _point_boxes(points)
+    seen = block_visible(bounds, z, cam, params)
+    assert seen[_projected_inside(cam, points, -0.02)].all()
+    assert not seen[~_projected_inside(cam, points, 0.05)].any()
+    if shift[0] > 0.5:  # the right edge of the shifted image lies past the unshifted one's
+        plain = Camera(cam.position, cam.forward, cam.up, cam.fov_x, cam.aspect)
+        assert (seen & ~block_visible(bounds, z, plain, params)).sum() > 100
+
+
+def test_culling_of_an_orthographic_view():
+    from windgrass.grass_addon.lod import block_visible
+
+    rng = np.random.default_rng(4)
+    points = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(-40, 40, 4000), np.zeros(4000)])
+    cam = Camera((5.0, -30.0, 20.0), (0.0, 1.0, -0.7), (0.0, 0.0, 1.0), 0.0, 1.5, projection="ORTHO",
+                 ortho_width=30.0, shift=(0.2, 0.0))
+    bounds, z, params = _point_boxes(points)
+    seen = block_visible(bounds, z, cam, params)
+    assert seen[_projected_inside(cam, points, -0.02)].all()
+    assert not seen[~_projected_inside(cam, points, 0.05)].any()
+
+
+def test_a_panoramic_camera_sees_every_direction():
+    """Issue: an equirectangular camera showed grass only in the ~40 degrees ahead."""
+    layout = row_layout()
+    cam = Camera.look_at((0.0, 0.0, 1.5), (10.0, 0.0, 1.5), math.radians(60.0), 2.0)
+    pano = Camera(cam.position, cam.forward, cam.up, cam.fov_x, cam.aspect, projection="PANO")
+    assert not lod_weights(layout, cam, layout.params).block_visible.all()
+    assert lod_weights(layout, pano, layout.params).block_visible.all()
+
+
+def test_several_views_take_the_nearest_eye_and_any_view():
+    """Two 3D views at opposite corners: each cell's distance is to the nearer eye (blades near
+    both), a block is visible when either view sees it."""
+    layout = row_layout()
+    a = Camera.look_at((-7.5, -7.5, 1.0), (0.0, 0.0, 0.0), math.radians(60.0), 1.5)
+    b = Camera.look_at((7.5, 7.5, 1.0), (0.0, 0.0, 0.0), math.radians(60.0), 1.5)
+    wa, wb, both = (lod_weights(layout, c, layout.params) for c in (a, b, [a, b]))
+    np.testing.assert_array_equal(both.blade_count, np.maximum(wa.blade_count, wb.blade_count))
+    np.testing.assert_array_equal(both.block_visible, wa.block_visible | wb.block_visible)
+    np.testing.assert_array_equal(both.block_distance, np.minimum(wa.block_distance, wb.block_distance))
+    assert both.blade_count[0] == 4 and both.blade_count[-1] == 4  # under either eye: full blades
+    assert wa.blade_count[-1] == 0 and wb.blade_count[0] == 0
+
+
+def test_a_camera_that_sees_no_block_simulates_nothing():
+    """Issue: a field over 262,144 cells whose camera sees none of its blocks (looking at the
+    sky) failed with IndexError in the solver. An empty window simulates nothing and draws
+    nothing."""
+    from windgrass.grass_addon.field import GrassField
+
+    field = GrassField(schema.defaults().replace({"field.blocks_x": 300, "field.blocks_y": 300}))
+    sky = Camera.look_at((0.0, 0.0, 1.0), (0.0, 0.0, 100.0), 1.0)
+    cells = field.seek(5, sky)
+    lod = field.lod(sky)
+    assert field.layout.n_blocks == 0 and cells.bend.shape[0] == 0
+    assert field.blade_blocks(lod).size == 0 and field.card_blocks(lod).size == 0
+    assert field.blade_vertices(field.blade_blocks(lod), lod).shape == (0, 3)
+    # turning to the grass fills the window again
+    field.seek(6, Camera.look_at((0.0, 0.0, 1.6), (10.0, 0.0, 0.0), 1.0))
+    assert field.layout.n_blocks > 0

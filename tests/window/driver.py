@@ -143,7 +143,7 @@ class Driver:
         return self.report
 
     def start_window(self) -> None:
-        bpy.app.timers.register(self._tick, first_interval=1.0)
+        bpy.app.timers.register(self._tick, first_interval=1.0, persistent=True)  # (survives file loads)
 
     def _tick(self):
         if self.index >= len(self.steps):
@@ -194,6 +194,12 @@ class Driver:
         module, op = name.split(".")
         func = getattr(getattr(bpy.ops, module), op)
         args = step.get("args", {})
+        if step.get("invoke"):  # as a button or menu entry runs it (dialogs, modal operators)
+            try:
+                with bpy.context.temp_override(**self._context()):
+                    return sorted(func("INVOKE_DEFAULT", True, **args)), UI_EDIT_SETTLE_S
+            except RuntimeError as exc:  # the operator reported an error
+                return {"error": str(exc)}, UI_EDIT_SETTLE_S
         with bpy.context.temp_override(**self._context()):
             if bpy.app.background:  # (the module segfaults on an operator's own undo push)
                 result = func("EXEC_DEFAULT", **args)
@@ -262,9 +268,13 @@ class Driver:
         raise ValueError(f"unknown probe {what!r}")
 
     def do_view(self, view: dict, step: dict):
-        """Place the largest 3D view: ``{"location": [x, y, z], "distance": d, "rotation":
-        [w, x, y, z]}`` or ``{"perspective": "CAMERA"}``; then let the viewport follow."""
+        """Place the largest 3D view (``"area": i``: the i-th from the left): ``{"location": [x, y,
+        z], "distance": d, "rotation": [w, x, y, z]}``, ``{"look": [eye, target]}`` or
+        ``{"perspective": "CAMERA"}``; then let the viewport follow."""
         win, area, region = view3d()
+        if "area" in view:
+            areas = sorted((a for a in win.screen.areas if a.type == "VIEW_3D"), key=lambda a: a.x)
+            area = areas[view["area"]]
         r3d = area.spaces.active.region_3d
         if "perspective" in view:
             r3d.view_perspective = view["perspective"]
@@ -284,6 +294,13 @@ class Driver:
             r3d.view_perspective = "PERSP"
         area.tag_redraw()
         return [list(r3d.view_location), r3d.view_distance, r3d.view_perspective], 1.0
+
+    def do_split(self, direction: str, step: dict):
+        """Split the largest 3D view in two (``VERTICAL``: side by side)."""
+        win, area, region = view3d()
+        with bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region):
+            result = bpy.ops.screen.area_split(direction=direction, factor=0.5)
+        return sorted(result), 1.0
 
     def do_shading(self, kind: str, step: dict):
         win, area, region = view3d()

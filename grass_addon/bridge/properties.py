@@ -189,7 +189,8 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
         if limit is not None:
             limits[arg] = limit
     if p.kind == "int":
-        return bpy.props.IntProperty(default=int(value), **{k: int(v) for k, v in limits.items()}, **kw)
+        subtype = {"subtype": "PIXEL"} if p.unit == "px" else {}
+        return bpy.props.IntProperty(default=int(value), **{k: int(v) for k, v in limits.items()}, **subtype, **kw)
     if p.kind == "float":
         unit_limits = {k: to_blender(p, float(v)) for k, v in limits.items()}
         return bpy.props.FloatProperty(default=to_blender(p, float(value)), precision=_precision(p),

@@ -236,6 +236,33 @@ def test_units_map_to_blender_subtypes(scene):
     assert item.camera.bl_rna.properties["position"].array_length == 3
 
 
+def test_labels_units_and_tooltips_follow_blenders_conventions(scene):
+    """Issue: "Blocks X/Y", "Cache (MB)", "Substeps"; a unit on every value that has one (shown
+    by Blender's unit system or in the label); tooltips in an artist's words first, the paper's
+    symbol after."""
+    from windgrass.grass_addon.bridge import properties
+
+    item = properties.add_field(scene)
+    names = {f"{p.section}.{p.key}": getattr(item, p.section).bl_rna.properties[p.key] for p in _schema().PARAMS}
+    assert names["field.blocks_x"].name == "Blocks X" and names["field.blocks_y"].name == "Blocks Y"
+    assert names["simulation.cache_mb"].name == "Cache (MB)"
+    assert names["simulation.sub_steps"].name == "Substeps"
+    assert names["blade.density"].name == "Mass per Length (kg/m)"
+    assert names["blade.damping_mass"].name == "Air Damping (1/s)"
+    assert names["lod.card_width"].name == "Card Width (cells)"
+    assert names["blade.tip_width"].subtype == "FACTOR" and names["lod.card_height"].subtype == "FACTOR"
+    symbols = ("mu_root", "d_g1", "d_g2", "d_s1", "d_s2", "alpha", "beta", "gamma", "lambda", "k of", "rho")
+    for name, rna in names.items():
+        words = rna.name.split(" (")[0].split()  # the label before its unit
+        assert all(w[:1].isupper() or w in ("per", "of") for w in words), f"{name}: {rna.name!r} is not in Title Case"
+        p = _schema().BY_NAME[name]
+        if p.unit and p.kind in ("float", "int"):  # Blender shows it, or the label does
+            assert rna.subtype in ("DISTANCE", "ANGLE", "TIME_ABSOLUTE", "PIXEL", "FACTOR") or rna.unit != "NONE" \
+                or "(" in rna.name, f"{name}: no unit shown"
+        first = rna.description.split()[0].lower()
+        assert not any(first.startswith(s) for s in symbols), f"{name}: tooltip starts with a symbol"
+
+
 def test_only_wind_speed_and_direction_are_animatable(scene):
     """The runtime samples F-curves of the mean wind; keyframes anywhere else would do nothing."""
     from windgrass.grass_addon.bridge import properties

@@ -20,6 +20,36 @@ REFERENCE_SEGMENTS = 5
 GROUND_TILT = 0.5 * np.pi - 0.03
 
 
+# --------------------------------------------------------------------------------------------
+# The strip: a blade is drawn as a strip of n rigid segments, widest at its root
+
+
+def width_at(tip_width: float, t) -> np.ndarray:
+    """The strip's width at fractions ``t`` of the blade's length (0 root .. 1 tip), as a
+    fraction of its width at the root: it tapers linearly to ``blade.tip_width`` at the tip."""
+    return 1.0 - (1.0 - float(tip_width)) * np.asarray(t, dtype=np.float64)
+
+
+def joint_widths(tip_width: float, segments: int) -> np.ndarray:
+    """``width_at`` the n + 1 joints (t = j / n), float64."""
+    return 1.0 - (1.0 - float(tip_width)) * np.arange(segments + 1) / segments
+
+
+def segment_widths(tip_width: float, segments: int) -> np.ndarray:
+    """``width_at`` the middles of the n segments (t = (j + 1/2) / n), float64: the width a
+    segment shows the wind (eq 16) and a ray."""
+    return 1.0 - (1.0 - float(tip_width)) * (np.arange(segments) + 0.5) / segments
+
+
+def mean_width(tip_width: float) -> float:
+    """The strip's area over (root width x length): the mean of its linear taper."""
+    return 0.5 * (1.0 + float(tip_width))
+
+
+# --------------------------------------------------------------------------------------------
+# Stiffness and the rest shape (eqs 1-6)
+
+
 def joint_stiffness(root_stiffness: np.ndarray, segment_length: np.ndarray, segments: int,
                     offset: float) -> np.ndarray:
     """mu_i^base of every joint, shape (..., n).

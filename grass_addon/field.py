@@ -15,7 +15,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import kinematics, slots
+from . import atlas, kinematics, slots
 from .blocks import BlockCache
 from .celldata import CellData, cell_data
 from .errors import ParameterError
@@ -240,4 +240,4 @@ class GrassField:
         return kinematics.card_faces(self.layout)
 
     def card_uvs(self) -> np.ndarray:
-        return kinematics.card_uvs(self.layout)
+        return atlas.card_uvs(self.layout)

@@ -44,9 +44,7 @@ import weakref
 import numpy as np
 
 from . import blade, workers
-from .impostor import CARD_VARIANTS
 
-RNG_CARD_VARIANTS = 8  # purpose of the stream that picks each cell's card variant
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
 
@@ -83,24 +81,6 @@ def card_faces(layout) -> np.ndarray:
     """(cells_per_block**2, 4) int32: (bottom-left, bottom-right, top-right, top-left) of each card."""
     base = np.arange(layout.cells_per_block_total, dtype=np.int32)[:, None] * 4
     return np.ascontiguousarray(base + np.arange(4, dtype=np.int32)[None, :], dtype=np.int32)
-
-
-def card_uvs(layout) -> np.ndarray:
-    """(cells_per_block**2 * 4, 2) float32 per face corner: v = 0 ground .. 1 top; u spans one
-    variant of the card atlas (``impostor.card_atlas``), ``card_variants(layout)[p]`` for the
-    block's cell p."""
-    one = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
-    variant = card_variants(layout)
-    uv = np.tile(one, (layout.cells_per_block_total, 1)).reshape(-1, 4, 2)
-    uv[..., 0] = (uv[..., 0] + variant[:, None]) / CARD_VARIANTS
-    return np.ascontiguousarray(uv.reshape(-1, 2), dtype=np.float32)
-
-
-def card_variants(layout) -> np.ndarray:
-    """(cells_per_block**2,) the atlas variant of each cell of a block: drawn at random (a fixed
-    stream), so no row or column of cards repeats a pattern along the grid (streaks)."""
-    P = layout.cells_per_block_total
-    return np.random.default_rng([RNG_CARD_VARIANTS, P]).integers(0, CARD_VARIANTS, P)
 
 
 def blade_vertex_count(layout, n_blocks: int) -> int:
@@ -140,7 +120,7 @@ class _Constants:
         seg = (layout.blade_length.astype(np.float64) / n).astype(np.float32)  # l/n
         self.seg = np.ascontiguousarray(np.broadcast_to(seg.reshape(nb, bpb, 1), (nb, bpb, n)))
         # linear taper of the width along the blade, per joint (multiplies the per-cell e^{i Phi})
-        self.taper = (1.0 + (layout.params.blade.tip_width - 1.0) * np.arange(n + 1) / n).astype(np.float32)
+        self.taper = blade.joint_widths(layout.params.blade.tip_width, n).astype(np.float32)
         # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f},
         # repeated for every joint (nb, bpb, n+1).
         w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)

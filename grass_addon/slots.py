@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import atlas
+
 FREE = -1  # a position that shows nothing
 UNKNOWN = -2  # what a position shows is not known (new pool, undo, reopened file): write it
 # Vertices a slot object aims at: k = SLOT_VERTEX_BUDGET // vertices per block blocks share one
@@ -93,7 +95,7 @@ def topology_key(grid, params, terrain=None) -> str:
     """What a field's slot objects are built for (``grid``: the field's ``FieldGrid`` or a layout;
     ``terrain``: its heightfield or None); they are rebuilt when it changes."""
     blades, cards = pool_shapes(grid, params)
-    return json.dumps([grid.blades_per_block, grid.segments, grid.cells_per_block, "card atlas 8 random",
+    return json.dumps([grid.blades_per_block, grid.segments, grid.cells_per_block, atlas.UV_LAYOUT,
                        [blades.objects, blades.k], [cards.objects, cards.k],
                        [round(float(v), 6) for v in grid.size],
                        terrain.fingerprint() if terrain is not None else "flat"])

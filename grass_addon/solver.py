@@ -281,9 +281,8 @@ class BladeSolver:
             blade.joint_stiffness(layout.cell_root_stiffness, seg, n, b.stiffness_offset).T)
         # Segment width: the strip tapers linearly from the root width to tip_width * width (the
         # width of eq 16 is taken at the segment's middle).
-        j = np.arange(n, dtype=np.float64)[:, None]
-        width = np.asarray(layout.cell_width, dtype=np.float64)[None, :] * (
-            1.0 - (1.0 - b.tip_width) * (j + 0.5) / n)
+        width = np.asarray(layout.cell_width, dtype=np.float64)[None, :] * \
+            blade.segment_widths(b.tip_width, n)[:, None]
         # rho_wind * l_length * l_width (eqs 16-17) times the lever unit l_length: eq 18's
         # torques then come out in N m without a pass of their own (_forcing)
         self._area_seg = (RHO_AIR * seg[None, :] ** 2 * width).astype(F32)
@@ -294,6 +293,7 @@ class BladeSolver:
         # weight of that part: I_i = rho_grass ((n - i) l_length)^3. (A uniform rod would give a
         # third of this; the lumped value also stands for the drag of the joints above, which
         # must follow joint i's motion, and gives the 1-3 Hz sway of real blades.)
+        j = np.arange(n, dtype=np.float64)[:, None]
         above = (n - j) * seg[None, :]
         inertia = b.density * above ** 3
         self._inv_inertia = (1.0 / inertia).astype(F32)

@@ -23,7 +23,7 @@ import warnings
 import bpy
 import numpy as np
 
-from .. import impostor
+from .. import sward
 from ..grid import FieldGrid
 
 UV_TINT_RG = "wg_tint_rg"
@@ -37,15 +37,15 @@ NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
 NODE_CARD_DEPTH = "wg_card_depth"  # Value: transparent layers a ray crosses before a card stops it
 NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: no haze)
 NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
-NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (impostor.sward_colour)
-NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (impostor.fringe_colour)
-NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: impostor.sward_depth / its value at the ground
-NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (impostor.sward_top)
-NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: impostor.sward_depth at the ground
+NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (sward.sward_colour)
+NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (sward.fringe_colour)
+NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
+NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
+NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
 NODE_FIELD_HALF = "wg_field_half"  # Combine XYZ: half the field's extent along X and Y (m)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
-BLADE_BASE_COLOUR = (*impostor.BLADE_BASE_COLOUR, 1.0)
+BLADE_BASE_COLOUR = (*sward.BLADE_BASE_COLOUR, 1.0)
 # Ground under near grass: the floor of a meadow, dry thatch and green litter in the sward's shade
 # (not bare earth, not a grey floor); matte (no specular sheen).
 THATCH_COLOUR = (0.050, 0.042, 0.016, 1.0)
@@ -209,7 +209,7 @@ def blade_material(name: str, uid: str):
     # Smooth gradient: the lower 70 % of the blade darkens towards the root.
     grad = t.add("ShaderNodeMapRange", -1000, 200, interpolation_type="SMOOTHSTEP")
     _set(grad, 0.0, "From Min")
-    _set(grad, impostor.GRADIENT_END, "From Max")
+    _set(grad, sward.GRADIENT_END, "From Max")
     t.link(sep, "Y", grad, "Value")
     rg = t.add("ShaderNodeSeparateXYZ", -1000, -50)
     t.link(t.attribute(UV_TINT_RG, -1200, -50), "Vector", rg, "Vector")
@@ -248,7 +248,7 @@ def set_card_image(mat, image) -> None:
 
 
 def card_material(name: str, uid: str, image):
-    """Cards (paper III.B): the atlas of the field's own blades (``impostor.card_atlas``), shaded
+    """Cards (paper III.B): the atlas of the field's own blades (``atlas.card_atlas``), shaded
     like the blades (the same foliage shader); its alpha times ``wg_fade`` (K_b of eqs 7 and 11)
     mixes that with a Transparent BSDF."""
     mat = _new_material(name, uid)
@@ -261,7 +261,7 @@ def card_material(name: str, uid: str, image):
     opacity = t.add("ShaderNodeSeparateXYZ", -1100, -400)
     t.link(fade, "Vector", opacity, "Vector")
     # After NODE_CARD_DEPTH transparent layers a ray stops at the next card (its colour there is
-    # the grass's, see impostor.card_atlas): a sparse card (a few blades) is crossed many times
+    # the grass's, see atlas.card_atlas): a sparse card (a few blades) is crossed many times
     # at grazing angles, and past the renderer's transparent-bounce limit a ray would turn black.
     path = t.add("ShaderNodeLightPath", -1300, -650)
     depth = t.add("ShaderNodeValue", -1300, -850, name=NODE_CARD_DEPTH)
@@ -307,7 +307,7 @@ def ground_material(name: str, uid: str):
 
 def canopy_material(name: str, uid: str):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
-    (``impostor.canopy_height``). Its colour is the blades' (``impostor.sward_colour``, darkened
+    (``sward.canopy_height``). Its colour is the blades' (``sward.sward_colour``, darkened
     by SWARD_SHADE) with fine streaks; its opacity is K_t of eq 10 = clamp((d - d_s1) /
     (d_s2 - d_s1)) from the Camera Data node's View Distance, so it appears where the cards fade
     (K'_b = 1 - K_t, eq 11) and is clear near the camera. It casts no shadow."""
@@ -372,7 +372,7 @@ def canopy_material(name: str, uid: str):
 
 def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     """Math node: how likely the sward stops the ray through this point of the canopy plane or
-    its fringe, 1 - exp(-share tau(z_e) / s) (``impostor.sward_depth``), where z_e is the height
+    its fringe, 1 - exp(-share tau(z_e) / s) (``sward.sward_depth``), where z_e is the height
     above the ground at which the ray leaves the field, s its slope and ``share`` (a node's
     "Result") the share of the blades that the canopy stands for; 1 when it meets the ground
     first or rises to this point (from a camera inside the sward). In the field's (object)
@@ -458,8 +458,8 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
     species = np.asarray([row["color"] for row in params.species()], dtype=np.float64)
     weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
     tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
-    sward = SWARD_SHADE * np.asarray(impostor.sward_colour(params), dtype=np.float64)
-    for mat, rgb in ((blades, 0.85 * tips), (cards, sward), (canopy, sward), (ground, THATCH_COLOUR[:3])):
+    far = SWARD_SHADE * np.asarray(sward.sward_colour(params), dtype=np.float64)
+    for mat, rgb in ((blades, 0.85 * tips), (cards, far), (canopy, far), (ground, THATCH_COLOUR[:3])):
         if mat is None:
             continue
         mat.diffuse_color = (*[float(c) for c in rgb], 1.0)
@@ -480,18 +480,18 @@ def update_materials(params, canopy=None) -> None:
             _set(kt, far, "From Max")
         grass = canopy.node_tree.nodes.get(NODE_GROUND_GRASS)
         if grass is not None:
-            sward = impostor.sward_colour(params)
-            grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in sward], 1.0)
+            colour = sward.sward_colour(params)
+            grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in colour], 1.0)
         tips = canopy.node_tree.nodes.get(NODE_FRINGE_COLOUR)
         if tips is not None:
-            tips.outputs[0].default_value = (*impostor.fringe_colour(params), 1.0)
+            tips.outputs[0].default_value = (*sward.fringe_colour(params), 1.0)
         update_sward_profile(params, canopy)
 
 
 def update_sward_profile(params, canopy) -> None:
     """Write the sward's silhouette depth profile and the field's extent into the canopy."""
     nodes = canopy.node_tree.nodes
-    heights, depth = impostor.sward_profile(params)
+    heights, depth = sward.sward_profile(params)
     top, ground = float(heights[-1]), float(max(depth[0], 1e-9))
     along = nodes.get(NODE_SWARD_TOP)
     if along is not None:

@@ -31,7 +31,7 @@ import json
 import bpy
 import numpy as np
 
-from .. import impostor, slots
+from .. import atlas, slots, sward
 from .. import kinematics as kin
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
@@ -406,8 +406,8 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
         del item[REGISTRY][key]
 
-    mesh = ground_mesh(f"{base} ground", grid.size, heightfield, impostor.canopy_height(params),
-                       impostor.sward_top(params))
+    mesh = ground_mesh(f"{base} ground", grid.size, heightfield, sward.canopy_height(params),
+                       sward.sward_top(params))
     ground = bpy.data.objects.new(f"{base} ground", mesh)
     mesh.materials.append(ground_mat)
     mesh.materials.append(canopy_mat)
@@ -453,7 +453,7 @@ class _SlotTopology:
             self.shape, faces, uvs = blade_shape, kin.blade_faces(grid), kin.blade_uvs(grid)
             self.data_uvs = (materials.UV_TINT_RG, materials.UV_TINT_BS)
         else:
-            self.shape, faces, uvs = card_shape, kin.card_faces(grid), kin.card_uvs(grid)
+            self.shape, faces, uvs = card_shape, kin.card_faces(grid), atlas.card_uvs(grid)
             self.data_uvs = (materials.UV_FADE,)
         self.faces, self.uvs = slots.tiled_topology(faces, uvs, self.shape.verts_per_block, self.shape.k)
         self.attributes = {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}

@@ -224,7 +224,7 @@ def setup_render(scene, params) -> None:
         cycles.diffuse_bounces = 2
         cycles.glossy_bounces = 1
         cycles.transmission_bounces = 2
-        # A card holds a few blades (III.B, impostor.card_atlas): a grazing ray crosses dozens of them
+        # A card holds a few blades (III.B, atlas.card_atlas): a grazing ray crosses dozens of them
         # before one covers it; past this many layers a card stops the ray (materials.card_material).
         cycles.transparent_max_bounces = 64
         cycles.use_denoising = _has_oidn() and r.samples > 1  # OIDN on the CPU is deterministic

@@ -1,7 +1,7 @@
 """The cards' texture in Blender (paper III.B): the atlas of the field's own blades, packed.
 
 The paper covers each card with a "semi-transparency grass pack texture". The add-on ships no
-image files: ``impostor.card_atlas`` paints the blades of sample cells of the field (their
+image files: ``atlas.card_atlas`` paints the blades of sample cells of the field (their
 shapes, coverage and colours) and ``paint_card_image`` writes it into a packed Blender image (it
 survives save and reopen), again whenever the parameters it depends on change.
 """
@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 
-from .. import impostor
+from .. import atlas
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -29,7 +29,7 @@ def atlas_digest(params) -> str:
     d = params.to_dict()
     inputs = {"field": d["field"], "blade": d["blade"],
               "lod": {k: d["lod"][k] for k in ("card_width", "card_height")},
-              "atlas": [impostor.CARD_VARIANTS, impostor.CARD_PIXELS]}
+              "atlas": [atlas.CARD_VARIANTS, atlas.CARD_PIXELS]}
     return hashlib.sha1(json.dumps(inputs, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -38,7 +38,7 @@ def ensure_card_image(name: str):
     ``paint_card_image``)."""
     import bpy
 
-    width, height = impostor.CARD_VARIANTS * impostor.CARD_PIXELS, impostor.CARD_PIXELS
+    width, height = atlas.CARD_VARIANTS * atlas.CARD_PIXELS, atlas.CARD_PIXELS
     image = bpy.data.images.get(name)
     if image is not None and tuple(image.size) == (width, height) and image.packed_file is not None:
         image.alpha_mode = "CHANNEL_PACKED"
@@ -48,7 +48,7 @@ def ensure_card_image(name: str):
     image = bpy.data.images.new(name, width=width, height=height, alpha=True)
     image.colorspace_settings.name = "sRGB"
     # colour and alpha kept apart: where no blade covers the card the colour stays the grass's
-    # (premultiplied storage would make it black; see impostor.card_atlas)
+    # (premultiplied storage would make it black; see atlas.card_atlas)
     image.alpha_mode = "CHANNEL_PACKED"
     image.pack()
     return image
@@ -59,7 +59,7 @@ def paint_card_image(image, params) -> None:
     digest = atlas_digest(params)
     if image.get(DIGEST_KEY) == digest:
         return
-    pixels = impostor.card_atlas(params)
+    pixels = atlas.card_atlas(params)
     # A byte image stores its colour-space values as they are: encode linear RGB to sRGB.
     pixels[..., :3] = linear_to_srgb(pixels[..., :3])
     image.pixels.foreach_set(np.ascontiguousarray(pixels).ravel())

@@ -131,7 +131,7 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     """K_t of eq 10 is computed in the far canopy's shader from the view distance: its Map Range
     goes from d_s1 to d_s2 and follows the settings; with the LOD off the far texture never shows.
     The canopy lies above the ground at the sward's height."""
-    from windgrass.grass_addon import impostor
+    from windgrass.grass_addon import sward
     from windgrass.grass_addon.bridge import materials, properties
 
     field_scene, _ = bridge
@@ -141,7 +141,7 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
     z = _positions(ground)[:, 2]
     params = properties.params_from_settings(item, scene)
-    height, top = impostor.canopy_height(params), impostor.sward_top(params)
+    height, top = sward.canopy_height(params), sward.sward_top(params)
     assert 0.05 < height < top < 0.6  # a sward of 0.32 m blades
     # the ground, the canopy plane and the top of its fringe along the field's edge (the tallest tip)
     np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, top], atol=1e-5)

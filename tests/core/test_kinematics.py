@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import blade, kinematics, schema
+from windgrass.grass_addon import atlas, blade, kinematics, schema
 from windgrass.grass_addon.layout import build_layout
 from windgrass.grass_addon.terrain import Heightfield, grid_for
 
@@ -200,15 +200,15 @@ def test_faces_and_uvs_describe_the_strips():
     # uv: u = 0 on left vertices (even ids), 1 on right; v = joint / n (0 at the root, 1 at the tip)
     np.testing.assert_array_equal(uvs[..., 0], faces % 2)
     np.testing.assert_allclose(uvs[..., 1], (faces % (2 * (n + 1))) // 2 / n, atol=1e-7)
-    cf, cu = kinematics.card_faces(layout), kinematics.card_uvs(layout)
+    cf, cu = kinematics.card_faces(layout), atlas.card_uvs(layout)
     assert cf.shape == (layout.cells_per_block_total, 4) and cu.shape == (layout.cells_per_block_total * 4, 2)
     # each card spans one variant of the atlas, the same for the same cell of every block
-    variant = kinematics.card_variants(layout)
-    assert variant.min() >= 0 and variant.max() < kinematics.CARD_VARIANTS
+    variant = atlas.card_variants(layout)
+    assert variant.min() >= 0 and variant.max() < atlas.CARD_VARIANTS
     assert len(set(variant.tolist())) > 1
     corners = cu.reshape(-1, 4, 2)
-    np.testing.assert_allclose(corners[:, :, 0].min(axis=1), variant / kinematics.CARD_VARIANTS, atol=1e-7)
-    np.testing.assert_allclose(corners[:, :, 0].max(axis=1), (variant + 1) / kinematics.CARD_VARIANTS, atol=1e-7)
+    np.testing.assert_allclose(corners[:, :, 0].min(axis=1), variant / atlas.CARD_VARIANTS, atol=1e-7)
+    np.testing.assert_allclose(corners[:, :, 0].max(axis=1), (variant + 1) / atlas.CARD_VARIANTS, atol=1e-7)
     np.testing.assert_array_equal(corners[:, :, 1], np.broadcast_to([0, 0, 1, 1], corners.shape[:2]))
 
 

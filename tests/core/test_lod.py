@@ -190,6 +190,7 @@ def test_several_views_take_the_nearest_eye_and_any_view():
     assert wa.blade_count[-1] == 0 and wb.blade_count[0] == 0
 
 
+@pytest.mark.slow
 def test_a_camera_that_sees_no_block_simulates_nothing():
     """Issue: a field over 262,144 cells whose camera sees none of its blocks (looking at the
     sky) failed with IndexError in the solver. An empty window simulates nothing and draws

@@ -10,6 +10,8 @@ import pytest
 from windgrass.grass_addon import schema
 from windgrass.grass_addon.solver import SolverState
 
+pytestmark = pytest.mark.slow  # each test starts Python again (dev.py test --quick leaves them out)
+
 REPO = Path(__file__).resolve().parents[2]
 TINY = ["--field-blocks-x", "2", "--field-blocks-y", "1", "--field-cells-per-block", "4",
         "--field-blades-per-cell", "3", "--blade-segments", "4"]

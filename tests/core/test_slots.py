@@ -2,10 +2,12 @@
 canonical assignment of blocks to positions and which objects a frame writes. No Blender."""
 
 import numpy as np
+import pytest
 from windgrass.grass_addon import schema, slots
 from windgrass.grass_addon.layout import build_layout
 
 
+@pytest.mark.slow
 def test_pool_size_bounds_every_camera_position():
     """The blade pool holds every block whose nearest point is within blade_far of the camera,
     wherever the camera stands: checked against brute force over many camera positions."""

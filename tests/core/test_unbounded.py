@@ -51,6 +51,7 @@ def path(frame):
     return camera_at(-1.8 + 0.05 * frame, -1.0 + 0.02 * frame, 40.0 + 4.0 * frame)
 
 
+@pytest.mark.slow
 def test_a_cell_is_the_same_bits_whichever_way_it_was_reached():
     params = small()
     whole = GrassField(params)  # no camera, a small field: every cell, stepped frame by frame
@@ -79,6 +80,7 @@ def test_a_cell_is_the_same_bits_whichever_way_it_was_reached():
             assert np.array_equal(bits, reference[key]), key
 
 
+@pytest.mark.slow
 def test_only_the_window_is_simulated_and_it_follows_the_camera():
     params = small(**{"field.blocks_x": 24, "field.blocks_y": 24})  # 9.6 m
     field = GrassField(params)
@@ -131,6 +133,7 @@ FULL_HISTORY_P99_RAD = 0.2
 FULL_HISTORY_MEDIAN_RAD = 0.02
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wind", ["gentle_breeze", "moderate_breeze", "blast", "whirlwind"])
 def test_difference_from_a_full_history_simulation_stays_within_the_bound(wind):
     base = {"wind.type": wind, "field.blocks_x": 4, "field.blocks_y": 4}
@@ -149,6 +152,7 @@ def test_difference_from_a_full_history_simulation_stays_within_the_bound(wind):
     assert max(medians) <= FULL_HISTORY_MEDIAN_RAD
 
 
+@pytest.mark.slow
 def test_a_1km_field_is_made_without_memory_for_its_area():
     params = schema.defaults().replace({"field.blocks_x": 625, "field.blocks_y": 625})  # 1000 m, 1.6e8 blades
     tracemalloc.start()
@@ -164,6 +168,7 @@ def test_a_1km_field_is_made_without_memory_for_its_area():
     assert peak < 400 * 2**20  # what the camera sees, not 1.6e8 blades (~20 GB)
 
 
+@pytest.mark.slow
 def test_a_10km_field_is_valid_and_sees_grass_anywhere():
     params = schema.defaults().replace({"field.blocks_x": 6250, "field.blocks_y": 6250})  # 2e10 blades
     field = GrassField(params)

@@ -1,10 +1,10 @@
-"""Far grass computed from the field's own blades (impostor.py): the card atlas covers what the
+"""Far grass computed from the field's own blades (sward.py): the card atlas covers what the
 cell's blades cover, in the blade material's colours; the far canopy's height and colour are the
 sward's."""
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import impostor, presets, schema
+from windgrass.grass_addon import atlas, presets, schema, sward
 
 
 @pytest.fixture(params=["default", "meadow"])
@@ -16,38 +16,38 @@ def params(request):
 def test_cards_cover_what_their_blades_cover(params):
     """A card stands for its cell's blades: the atlas's mean opacity is the blades' projected
     area (width across the card times height, tapering) over the card's area."""
-    mean_alpha, blade_share = impostor.card_coverage(params)
+    mean_alpha, blade_share = atlas.card_coverage(params)
     assert 0.01 < blade_share < 0.5
     assert mean_alpha == pytest.approx(blade_share, rel=0.25)
 
 
 def test_card_atlas_is_the_blades_colours_rooted_at_the_bottom(params):
-    atlas = impostor.card_atlas(params)
-    size = impostor.CARD_PIXELS
-    assert atlas.shape == (size, impostor.CARD_VARIANTS * size, 4) and atlas.dtype == np.float32
-    alpha = atlas[..., 3]
+    image = atlas.card_atlas(params)
+    size = atlas.CARD_PIXELS
+    assert image.shape == (size, atlas.CARD_VARIANTS * size, 4) and image.dtype == np.float32
+    alpha = image[..., 3]
     rows = alpha.mean(axis=1)
     assert rows[: size // 8].mean() > rows[size // 2: 5 * size // 8].mean()  # blades taper, tips droop
     # opaque pixels take the blade material's ramp: from the dark base to a shaded species colour
-    colours = impostor.Species(params).color
-    rgb = atlas[..., :3][alpha > 0.5]
+    colours = sward.Species(params).color
+    rgb = image[..., :3][alpha > 0.5]
     assert rgb.size and np.all(rgb <= 1.3 * colours.max(axis=0) + 1e-6)
-    assert np.all(rgb >= 0.7 * np.asarray(impostor.BLADE_BASE_COLOUR) - 1e-6)
+    assert np.all(rgb >= 0.7 * np.asarray(sward.BLADE_BASE_COLOUR) - 1e-6)
     assert (rgb[:, 1] >= rgb[:, 2]).mean() > 0.95  # green over blue, like every species colour
     # each variant shows different blades
-    variants = alpha.reshape(size, impostor.CARD_VARIANTS, size).transpose(1, 0, 2)
+    variants = alpha.reshape(size, atlas.CARD_VARIANTS, size).transpose(1, 0, 2)
     assert not np.array_equal(variants[0], variants[1])
 
 
 def test_far_canopy_is_the_swards_height_and_colour(params):
-    tips = impostor.tip_heights(params)
-    height = impostor.canopy_height(params)
+    tips = sward.tip_heights(params)
+    height = sward.canopy_height(params)
     assert 0.5 * tips.mean() < height < tips.mean() < max(r["length"] for r in params.species()) * 1.5
-    colour = np.array(impostor.sward_colour(params))
-    species = impostor.Species(params)
+    colour = np.array(sward.sward_colour(params))
+    species = sward.Species(params)
     tip = species.p @ species.color
     # the visible upper part of the blades: darker than the tips, lighter than the roots
-    assert np.all(colour <= tip + 1e-6) and np.all(colour >= np.asarray(impostor.BLADE_BASE_COLOUR))
+    assert np.all(colour <= tip + 1e-6) and np.all(colour >= np.asarray(sward.BLADE_BASE_COLOUR))
     assert np.all(colour >= 0.6 * tip)
 
 
@@ -57,7 +57,7 @@ def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
     rises by ``slope`` per metre until it clears the tallest tip. Blades are the kinematics'
     strips at rest: segment j leans by rest_tilt[j] towards the blade's facing, its side vector
     is horizontal and square to the facing, its width tapers linearly."""
-    block = impostor.sample_blades(params)
+    block = sward.sample_blades(params)
     n = int(params.blade.segments)
     facing = block.blade_facing.astype(np.float64)
     tilt = block.blade_rest_tilt.astype(np.float64)
@@ -100,6 +100,7 @@ def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
     return blocked / (rays // batch * batch)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("slope", [0.1, 0.2])
 def test_sward_depth_is_what_rays_leaving_the_field_cross(params, slope):
     """The canopy's edge lets through what the blades would: a ray leaving the field at height z
@@ -108,7 +109,7 @@ def test_sward_depth_is_what_rays_leaving_the_field_cross(params, slope):
     vertical), so a leaning segment must count with its rise, not its whole face (1.5-2 times
     more)."""
     params = params.replace({"field.cells_per_block": 4, "blade.inclination": 35.0, "blade.root_stiffness": 5e-4})
-    heights, depth = impostor.sward_profile(params)
+    heights, depth = sward.sward_profile(params)
     assert depth[0] > 0.0 and depth[-1] == pytest.approx(0.0, abs=1e-9) and np.all(np.diff(depth) <= 1e-12)
     rng = np.random.default_rng(7)
     for target in (0.5, 0.25):  # heights where the sward stops about half and a quarter of such rays

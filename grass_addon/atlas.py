@@ -1,0 +1,168 @@
+"""The cards' texture (paper III.B): an atlas of the field's own blades, and where a card maps into it.
+
+The paper covers each card with a "semi-transparency grass pack texture". Windgrass ships no
+image: ``card_atlas`` draws the blades of sample cells of the field (their shapes, coverage and
+colours, ``sward.sample_blades``) into ``CARD_VARIANTS`` square variants side by side, and each
+cell's card shows one of them (``card_variants``, ``card_uvs``). The bridge packs the atlas into a
+Blender image (``bridge/textures.py``). Numpy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import blade
+from .blocks import Species
+from .schema import Params
+from .sward import blade_colour_ramp, sample_blades
+
+# Purpose of the random stream that picks each cell's variant (np.random.default_rng([purpose, P])).
+RNG_CARD_VARIANTS = 8
+
+CARD_VARIANTS = 8  # variants of the atlas; each cell of a block shows one (card_variants)
+CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many pixels
+
+
+def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
+    """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
+    row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of
+    the blades of cell k of the sample block, at their rest shape, in their own colours.
+
+    A card is ``lod.card_width`` cells wide and stands for its cell's blades, so the atlas holds
+    exactly those: their colour ramp (the blade material's, with each blade's shade), shape and
+    coverage are the blades'. Each blade keeps its full width and its whole droop (to the side its
+    lean points to): seen from a direction v, a blade shows w |sin(v - facing)| of its width (and
+    |cos| of its droop) and the card |cos(v - card normal)| of its area; averaged over the
+    directions all are 2/pi, so the card's coverage must be the blades' whole area over the card's
+    (``card_coverage``). Sizes projected onto the card would count that foreshortening twice (the
+    cards 1.57 times too sparse); what a long droop carries past the card's edge is given back by
+    widening that variant's strips until its coverage is the blades' area. The variant's height
+    spans its card's height (``card_height``)."""
+    block = sample_blades(params)
+    num = int(params.field.blades_per_cell)
+    image = np.empty((size, variants * size, 4), np.float32)
+    for k in range(variants):
+        cell = k % block.cell_center.shape[0]
+        blades = list(range(cell * num, (cell + 1) * num))
+        target = _blade_share(params, block, cell, blades)
+        widen = 1.0
+        for _ in range(3):  # coverage is about linear in the width: converges in a step or two
+            rgb, alpha = _draw_variant(params, block, cell, blades, size, widen)
+            covered = float(alpha.mean())
+            if covered <= 0.0 or abs(covered - target) <= 0.02 * target:
+                break
+            widen = min(4.0, widen * target / covered)
+        image[:, k * size:(k + 1) * size, :3] = rgb
+        image[:, k * size:(k + 1) * size, 3] = alpha
+    return image
+
+
+def _card_width(params: Params) -> float:
+    """A card's width (m): lod.card_width cells."""
+    return float(params.lod.card_width) * float(params.field.cell_size)
+
+
+def _blade_share(params: Params, block, cell: int, blades) -> float:
+    """Whole area of the cell's blades (tapered strips, face on) over its card's area."""
+    card_w = _card_width(params)
+    taper = blade.mean_width(params.blade.tip_width)
+    area = sum(taper * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
+    return area / (card_w * float(block.card_height[cell]))
+
+
+def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
+    """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another."""
+    n = int(params.blade.segments)
+    card_w = _card_width(params)
+    species = Species(params)
+    rgb = np.zeros((size, size, 3), np.float64)
+    alpha = np.zeros((size, size), np.float64)
+    ys = (np.arange(size) + 0.5) / size
+    height = float(block.card_height[cell])
+    axis = float(block.card_facing[cell])
+    a = np.array([np.cos(axis), np.sin(axis)])
+    taper = blade.joint_widths(params.blade.tip_width, n)
+    for b in blades:
+        facing = float(block.blade_facing[b])
+        lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
+        seg = float(block.blade_length[b]) / n
+        tilt = block.blade_rest_tilt[b].astype(np.float64)
+        along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
+        up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
+        root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
+        u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
+        half = 0.5 * widen * float(block.blade_width[b]) * taper / card_w
+        tip = species.color[int(block.blade_species[b])].astype(np.float64)
+        colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
+        _draw_strip(rgb, alpha, ys, u, up / height, half, colour)
+    covered = alpha > 1e-6
+    rgb[covered] /= alpha[covered][:, None]
+    # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of
+    # that row (or of the whole card): a renderer that stops at a card after many transparent
+    # layers (``materials.card_material``) shows grass there, not black.
+    total = alpha.sum()
+    fallback = (rgb * alpha[..., None]).sum(axis=(0, 1)) / total if total > 0 else np.zeros(3)
+    row_w = alpha.sum(axis=1)
+    row_mean = (rgb * alpha[..., None]).sum(axis=1) / np.maximum(row_w, 1e-9)[:, None]
+    row = np.where(row_w[:, None] > 1e-3, row_mean, fallback)
+    empty = ~covered
+    rgb[empty] = np.broadcast_to(row[:, None, :], rgb.shape)[empty]
+    return np.clip(rgb, 0.0, 1.0), alpha
+
+
+def _draw_strip(rgb, alpha, ys, u, v, half, colour) -> None:
+    """Composite one blade (a tapered strip through points (u, v) with half-widths ``half``, in
+    card units) over a square card image, one row at a time: each row crosses the strip where its
+    height v lies between two joints; edges anti-aliased over one pixel."""
+    size = alpha.shape[1]
+    rows = np.flatnonzero((ys >= v.min()) & (ys <= v.max()))
+    if rows.size == 0:
+        return
+    y = ys[rows]
+    j = np.clip(np.searchsorted(v, y) - 1, 0, len(v) - 2)
+    dv = np.maximum(v[j + 1] - v[j], 1e-9)
+    t = np.clip((y - v[j]) / dv, 0.0, 1.0)
+    centre = u[j] + (u[j + 1] - u[j]) * t
+    width = half[j] + (half[j + 1] - half[j]) * t
+    col = colour[j] + (colour[j + 1] - colour[j]) * t[:, None]
+    xs = (np.arange(size) + 0.5) / size
+    cover = np.clip((width[:, None] - np.abs(xs[None, :] - centre[:, None])) * size + 0.5, 0.0, 1.0)
+    rgb[rows] = col[:, None, :] * cover[..., None] + rgb[rows] * (1.0 - cover[..., None])
+    alpha[rows] = cover + alpha[rows] * (1.0 - cover)
+
+
+def card_coverage(params: Params) -> tuple[float, float]:
+    """(mean alpha of the atlas, the blades' whole area / card area of the same cells): a check
+    that the cards cover what their blades cover."""
+    atlas = card_atlas(params)
+    block = sample_blades(params)
+    num = int(params.field.blades_per_cell)
+    area = cards = 0.0
+    for k in range(CARD_VARIANTS):
+        cell = k % block.cell_center.shape[0]
+        card_area = _card_width(params) * float(block.card_height[cell])
+        cards += card_area
+        area += _blade_share(params, block, cell, range(cell * num, (cell + 1) * num)) * card_area
+    return float(atlas[..., 3].mean()), area / cards
+
+
+def card_uvs(grid) -> np.ndarray:
+    """(cells_per_block**2 * 4, 2) float32 per face corner: v = 0 ground .. 1 top; u spans one
+    variant of the atlas (``card_atlas``), ``card_variants(grid)[p]`` for the
+    block's cell p."""
+    one = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float32)
+    variant = card_variants(grid)
+    uv = np.tile(one, (grid.cells_per_block_total, 1)).reshape(-1, 4, 2)
+    uv[..., 0] = (uv[..., 0] + variant[:, None]) / CARD_VARIANTS
+    return np.ascontiguousarray(uv.reshape(-1, 2), dtype=np.float32)
+
+
+def card_variants(grid) -> np.ndarray:
+    """(cells_per_block**2,) the atlas variant of each cell of a block: drawn at random (a fixed
+    stream), so no row or column of cards repeats a pattern along the grid (streaks)."""
+    P = grid.cells_per_block_total
+    return np.random.default_rng([RNG_CARD_VARIANTS, P]).integers(0, CARD_VARIANTS, P)
+
+
+# What a card's UVs depend on besides the block's size: the slot objects are rebuilt when it changes.
+UV_LAYOUT = f"card atlas {CARD_VARIANTS} variants, stream {RNG_CARD_VARIANTS}"

@@ -313,10 +313,31 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     """Vertices of the blades of blocks `ids` into `out` (k, blades_per_block * (n+1) * 2, 3)."""
     k, n, num, P = len(ids), const.n, const.num, const.P
     cells, blades = k * P, k * P * num
+    cb_blade, rot_blade = _cell_shapes(layout, const, s, ids, bend, twist)
+    run = _consecutive(ids)
+    rest = _select(const.rest, ids, run, s, "sel_rest").reshape(blades, n)
+    seg = _select(const.seg, ids, run, s, "sel_seg").reshape(blades, n)
+    w_side = _select(const.w_side, ids, run, s, "sel_w_side").reshape(blades, n + 1)
+    root_xy = _select(const.root_xy, ids, run, s, "sel_root_xy").reshape(blades)
+    root_z = _select(const.root_z, ids, run, s, "sel_root_z").reshape(blades)
+    if counts is not None:  # eq 9: slots >= N collapse onto the root
+        mask = s["mask"][:cells]
+        np.less(const.slot, counts[layout.block_cells[ids]].reshape(cells, 1), out=mask)
+        mask = mask.reshape(blades, 1)
+        seg = np.multiply(seg, mask, out=s["seg"][:blades])
+        w_side = np.multiply(w_side, mask, out=s["w_side"][:blades])
+    t, dz = _segment_steps(const, s, ids, run, rest, cb_blade, seg, blades)
+    _write_joints(s, t, dz, root_xy, root_z, w_side, rot_blade, blades, n, out)
 
-    # Per cell: cumulative bend sum_{k<=j} bend[c, k] (complex) and cumulative twist
-    # Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}.
-    # Computed in slot 0 of cb_blade (cells, num, n); the other slots get copies below.
+
+def _cell_shapes(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.ndarray, twist: np.ndarray):
+    """(cumulative bend, twist rotation) of every blade of blocks ``ids``, (cells, num, n) and
+    (cells, num, n + 1) complex: a cell's values, shared by its blades (paper V.B).
+
+    Per cell: the cumulative bend sum_{k<=j} bend[c, k] (complex) and the cumulative twist
+    Phi_j = sum_{k<=j} twist[c, k] (Phi_n = Phi_{n-1}) as taper_j e^{i Phi_j}, computed in slot 0
+    and copied to the other slots as whole records."""
+    n, num, cells = const.n, const.num, len(ids) * const.P
     cb_blade = s["cb_blade"][:cells]
     cb = cb_blade[:, 0]  # (cells, n) complex
     _gather_cells(layout, const, bend, ids, cb_blade.view(np.float32).reshape(cells, num, n, 2)[:, 0])
@@ -340,32 +361,25 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
         if slot:
             np.copyto(records[:, slot], records[:, 0])
         np.copyto(_void(rot_blade)[:, slot], _void(rot))
+    return cb_blade, rot_blade
 
-    run = _consecutive(ids)
-    rest = _select(const.rest, ids, run, s, "sel_rest").reshape(blades, n)
-    seg = _select(const.seg, ids, run, s, "sel_seg").reshape(blades, n)
-    w_side = _select(const.w_side, ids, run, s, "sel_w_side").reshape(blades, n + 1)
-    root_xy = _select(const.root_xy, ids, run, s, "sel_root_xy").reshape(blades)
-    root_z = _select(const.root_z, ids, run, s, "sel_root_z").reshape(blades)
-    if counts is not None:  # eq 9: slots >= N collapse onto the root
-        mask = s["mask"][:cells]
-        np.less(const.slot, counts[layout.block_cells[ids]].reshape(cells, 1), out=mask)
-        mask = mask.reshape(blades, 1)
-        seg = np.multiply(seg, mask, out=s["seg"][:blades])
-        w_side = np.multiply(w_side, mask, out=s["w_side"][:blades])
 
-    # Tilt vector T_j = rest + cumulative bend; the tilt |T| is stopped by the ground at theta_g:
-    # GROUND_TILT on flat ground; on a slope g, the direction (sin theta u, cos theta) stays above
-    # the ground plane while cos theta >= sin theta (g . u), i.e. theta <= atan2(1, g . u), less
-    # the same clearance (g . u |T| = Re(conj(g) T), so no division). The segment's direction is
-    # (sin theta T/|T|, cos theta) times l/n.
+def _segment_steps(const: _Constants, s: dict, ids, run, rest, cb_blade, seg, blades: int):
+    """(horizontal steps dx + i dy, vertical steps dz) of every segment, (blades, n) each.
+
+    Tilt vector T_j = rest + cumulative bend; the tilt |T| is stopped by the ground at theta_g:
+    GROUND_TILT on flat ground; on a slope g, the direction (sin theta u, cos theta) stays above
+    the ground plane while cos theta >= sin theta (g . u), i.e. theta <= atan2(1, g . u), less
+    the same clearance (g . u |T| = Re(conj(g) T), so no division). The segment's direction is
+    (sin theta T/|T|, cos theta) times l/n."""
+    n = const.n
     t, a, b, dz = s["t"][:blades], s["a"][:blades], s["b"][:blades], s["dz"][:blades]
     np.add(rest, cb_blade.reshape(blades, n), out=t)
     np.abs(t, out=a)  # |T|
     if const.slope is None:
         np.minimum(a, const.ground_tilt[:blades], out=b)  # theta
     else:
-        along = s["p"][:blades, :n]  # (p is free until the joints are written below)
+        along = s["p"][:blades, :n]  # (p is free until the joints are written)
         slope = _select(const.slope, ids, run, s, "sel_slope").reshape(blades, 1)
         np.multiply(t, slope, out=along)
         np.arctan2(a, along.real, out=b)
@@ -378,8 +392,11 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     np.divide(b, a, out=b)
     np.multiply(b, seg, out=b)  # l/n sin theta / |T|
     np.multiply(t, b, out=t)  # horizontal steps dx + i dy
+    return t, dz
 
-    # Joints: p_0 = root, p_{j+1} = p_j + step_j (columns of the blade-major arrays).
+
+def _write_joints(s: dict, t, dz, root_xy, root_z, w_side, rot_blade, blades: int, n: int, out) -> None:
+    """Joints p_0 = root, p_{j+1} = p_j + step_j, each as its left and right vertex, into ``out``."""
     p, pz = s["p"][:blades], s["pz"][:blades]
     np.copyto(p[:, 0], root_xy)
     np.copyto(pz[:, 0], root_z)

@@ -248,6 +248,31 @@ class _Split:
     steady: np.ndarray | None
 
 
+@dataclass
+class _Rows:
+    """The rows of joints and cells one oscillator pass works on (views into the state and the
+    equilibrium): angles and rates, the gaps y = theta_eq - theta, the smooth factors x and the
+    masks of the joints that swing (1/0) or not (0/1)."""
+
+    bend: np.ndarray
+    vel: np.ndarray
+    twist: np.ndarray
+    twist_vel: np.ndarray
+    eq: np.ndarray
+    gap: np.ndarray
+    twist_gap: np.ndarray
+    twist_eq: np.ndarray
+    x: np.ndarray
+    xt: np.ndarray
+    swinging: np.ndarray
+    steady: np.ndarray
+
+
+def _limits(S: _Scratch, m: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """(-limit, limit) rows of m cells, kept in the scratch space."""
+    return S.const(f"lo{limit}", -limit, m), S.const(f"hi{limit}", limit, m)
+
+
 class BladeSolver:
     """Bending/twisting of every cell's representative blade (paper V.A). See the module doc."""
 
@@ -437,9 +462,16 @@ class BladeSolver:
 
     def _forcing(self, a: int, b: int, wind: np.ndarray, S: _Scratch, twist: bool = True) -> _Forcing:
         """Wind loads on cells [a, b) for the shape of the equilibrium estimate E (eqs 14-20)."""
-        n, m = self.n, b - a
-        eq_bend = self.state.bend_eq_t[:, :, a:b]  # the loads act on E, not on the swinging blade
+        v2, speed, w_hat, delta0 = self._wind_in_cells(a, b, wind, S, twist)
+        force, twist_torque, cos_tilt = self._segment_loads(a, b, v2, w_hat, S)
+        force_above, bend_torque = self._joint_torques(force, cos_tilt, twist_torque, S)
+        return _Forcing(w_hat, speed, delta0, force, force_above, cos_tilt, bend_torque, twist_torque)
 
+    def _wind_in_cells(self, a: int, b: int, wind: np.ndarray, S: _Scratch, twist: bool):
+        """(v^2, |v|, the horizontal unit wind direction, delta0) of cells [a, b); delta0 (with
+        ``twist``): the angle from the rest face normal (a line: both sides face) to the wind
+        line, in [-pi/2, pi/2)."""
+        m = b - a
         W = S.get("wind", (2, m))
         np.copyto(W, wind[a:b].T)
         v2 = S.get("wind_speed2", (m,))
@@ -454,8 +486,7 @@ class BladeSolver:
         np.divide(W, speed, out=w_hat)
         delta0 = None
         if twist:
-            # delta0: angle from the rest face normal (a line: both sides face) to the wind line, in
-            # [-pi/2, pi/2): arctan2(cross * dot, dot^2) of the rest face normal and the wind
+            # arctan2(cross * dot, dot^2) of the rest face normal and the wind
             delta0 = S.get("face_to_wind", (m,))
             dot, cross = S.get("face_dot_wind", (m,)), S.get("face_cross_wind", (m,))
             face = self._face[:, a:b]
@@ -468,6 +499,13 @@ class BladeSolver:
             cross *= dot
             dot *= dot
             np.arctan2(cross, dot, out=delta0)
+        return v2, speed, w_hat, delta0
+
+    def _segment_loads(self, a: int, b: int, v2, w_hat, S: _Scratch):
+        """(F^bend of eq 17, the twist load of eqs 19-20, cos |T_j|) of every segment of cells
+        [a, b) in the shape of the equilibrium estimate E, each (n, m), times l_length."""
+        n, m = self.n, b - a
+        eq_bend = self.state.bend_eq_t[:, :, a:b]  # the loads act on E, not on the swinging blade
         # v^2 rho_wind l_length l_width, times l_length: the lever unit of eq 18 (see below)
         area = S.get("wind_area", (n, m))
         np.multiply(self._area_seg[:, a:b], v2, out=area)
@@ -512,7 +550,12 @@ class BladeSolver:
         np.multiply(cos_phi, sin_tilt, out=twist_torque)  # per segment, summed over joints below
         np.abs(twist_torque, out=twist_torque)
         twist_torque *= area
+        return force, twist_torque, cos_tilt
 
+    def _joint_torques(self, force, cos_tilt, twist_torque, S: _Scratch):
+        """(S_i = sum_{j>=i} F_j, M_i of eq 18) of every joint; sums the segments' twist loads in
+        place into M_t,i of eq 20 (twisting joint i turns every segment above it)."""
+        n, m = force.shape
         # eq 18 with the statics of eqs 3-4: joint i carries the wind load of every segment
         # above it; M_i = sum_{j>=i} F_j * (vertical lever from joint i to segment j's centre),
         # directed along w. Recursively, with z_i = l cos|T_i| and S_{i+1} = sum_{j>i} F_j:
@@ -534,7 +577,7 @@ class BladeSolver:
         # twisting joint i turns every segment above: M_t,i = sum_{j>=i} F_twist,j
         for i in range(last - 1, -1, -1):
             np.add(twist_torque[i + 1], twist_torque[i], out=twist_torque[i])
-        return _Forcing(w_hat, speed, delta0, force, force_above, cos_tilt, bend_torque, twist_torque)
+        return force_above, bend_torque
 
     # ------------------------------------------------------------------ phase 2: eqs 21-27
 
@@ -542,13 +585,20 @@ class BladeSolver:
         """mu_i(t) (eqs 22-23), the equilibrium bend and twist (eqs 21, 24), E relaxed towards
         the reconfigured statics, and the gaps E - theta, phi_eq - phi."""
         n, m = self.n, b - a
-        st = self.state
-        bend, vel = st.bend_t[:, :, a:b], st.bend_vel_t[:, :, a:b]
-        twist = st.twist_t[:, a:b]
-        E = st.bend_eq_t[:, :, a:b]
         products = S.get("bend_products", (n, 2, m))
+        mu = self._stiffness(a, b, products, S)
+        # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)
+        e = S.get("equilibrium_bend", (n, m))
+        np.divide(forcing.bend_torque, mu, out=e)
+        _clip(e, S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m))
+        twist_eq = self._equilibrium_twist(mu, forcing, S)
+        self._relax_estimate(a, b, e, forcing, dt, products, S)
+        return self._gaps(a, b, mu, twist_eq, products, S)
 
-        # eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)
+    def _stiffness(self, a: int, b: int, products, S: _Scratch) -> np.ndarray:
+        """eqs 22-23: mu_i(t) = mu_i^base + k |theta_i(t - dt)| (bend of the previous step)."""
+        n, m = self.n, b - a
+        bend = self.state.bend_t[:, :, a:b]
         mu = S.get("stiffness", (n, m))
         np.multiply(bend, bend, out=products)
         np.add(products[:, 0], products[:, 1], out=mu)
@@ -556,19 +606,21 @@ class BladeSolver:
         np.minimum(mu, S.const("stiffen", self.stiffen_limit, m), out=mu)
         mu *= F32(self.k)
         mu += self._mu_base[:, a:b]
-        # eq 21/24: equilibrium bend = M_i^bend / mu_i(t), along the wind (vector e w_hat)
-        e = S.get("equilibrium_bend", (n, m))
-        np.divide(forcing.bend_torque, mu, out=e)
-        _clip(e, S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m))
-        # Twisting: the same process with stiffness K_t = twist_stiffness * mu_i(t). The paper
-        # gives the twisting torque's size (eq 20) but not its direction: it turns the face
-        # towards broadside to the wind and vanishes there, like M_t sin(2 (delta - phi)) with
-        # delta the angle from the face normal to the wind. Linearised, joint i's equilibrium
-        # turns the face by the fraction s_i = 2 M_t / (K_t + 2 M_t) = M_t / (K_t / 2 + M_t) of
-        # the angle still left by the joints below: phi_eq_i = s_i (delta0 - sum_{k<i} phi_eq_k).
-        # Self-limiting (the face never turns past broadside) and independent of the current
-        # twist, so it needs no fixed-point iteration (a twist-dependent torque on cumulative
-        # joints flutters).
+        return mu
+
+    def _equilibrium_twist(self, mu, forcing: _Forcing, S: _Scratch) -> np.ndarray:
+        """The twist of each joint at equilibrium (eq 24 for the twist).
+
+        The same process as the bend with stiffness K_t = twist_stiffness * mu_i(t). The paper
+        gives the twisting torque's size (eq 20) but not its direction: it turns the face
+        towards broadside to the wind and vanishes there, like M_t sin(2 (delta - phi)) with
+        delta the angle from the face normal to the wind. Linearised, joint i's equilibrium
+        turns the face by the fraction s_i = 2 M_t / (K_t + 2 M_t) = M_t / (K_t / 2 + M_t) of
+        the angle still left by the joints below: phi_eq_i = s_i (delta0 - sum_{k<i} phi_eq_k).
+        Self-limiting (the face never turns past broadside) and independent of the current
+        twist, so it needs no fixed-point iteration (a twist-dependent torque on cumulative
+        joints flutters)."""
+        n, m = mu.shape
         twist_eq = S.get("equilibrium_twist", (n, m))
         np.multiply(mu, F32(0.5 * self.twist_ratio), out=twist_eq)  # K_t / 2
         twist_eq += forcing.twist_torque  # > 0: mu >= mu_base > 0, M_t >= 0
@@ -579,19 +631,25 @@ class BladeSolver:
             twist_eq[i] *= left
             left -= twist_eq[i]
         _clip(twist_eq, S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m))
+        return twist_eq
 
-        # Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
-        # a bent segment catches less wind, on a shorter lever). Evaluated on the swinging blade
-        # of the previous frame, that feedback flutters (the target jumps frame to frame). As
-        # blade.rest_angles does for gravity, we solve the statics by under-relaxed fixed-point
-        # iteration, one iteration per step, on a persistent estimate E whose shape the loads
-        # act on: E += (eq(E) - E) r. The iteration is stable while d(eq)/dE > 1 - 2 / r, and
-        # that slope is about -RELAX_GAIN sum_j |eq_j| (the load, hence its loss by
-        # reconfiguration, grows with the bend it causes; the joints couple through the
-        # cumulative tilt, so the whole blade's bend counts), so the cell's
-        # r = 1 / (1 + RELAX_GAIN sum_j |eq_j|) per reference frame (scaled by dt / dt_ref for
-        # shorter steps): a full step when the wind drops (eq = 0, the blade is released at once
-        # and swings back), short steps in a storm. Written E = E (1 - r) + (e r) w_hat.
+    def _relax_estimate(self, a: int, b: int, e, forcing: _Forcing, dt: float, products, S: _Scratch) -> None:
+        """Move the equilibrium estimate E towards the statics e w_hat (in place).
+
+        Reconfiguration makes the equilibrium depend on the shape it is computed on (eqs 16-18:
+        a bent segment catches less wind, on a shorter lever). Evaluated on the swinging blade
+        of the previous frame, that feedback flutters (the target jumps frame to frame). As
+        blade.rest_angles does for gravity, we solve the statics by under-relaxed fixed-point
+        iteration, one iteration per step, on a persistent estimate E whose shape the loads
+        act on: E += (eq(E) - E) r. The iteration is stable while d(eq)/dE > 1 - 2 / r, and
+        that slope is about -RELAX_GAIN sum_j |eq_j| (the load, hence its loss by
+        reconfiguration, grows with the bend it causes; the joints couple through the
+        cumulative tilt, so the whole blade's bend counts), so the cell's
+        r = 1 / (1 + RELAX_GAIN sum_j |eq_j|) per reference frame (scaled by dt / dt_ref for
+        shorter steps): a full step when the wind drops (eq = 0, the blade is released at once
+        and swings back), short steps in a storm. Written E = E (1 - r) + (e r) w_hat."""
+        n, m = self.n, b - a
+        E = self.state.bend_eq_t[:, :, a:b]
         relax = S.get("relax", (m,))
         e_size = S.get("equilibrium_bend_size", (n, m))
         np.abs(e, out=e_size)
@@ -605,8 +663,13 @@ class BladeSolver:
         E *= relax
         E += products
 
-        # The gaps to the equilibrium position E: the angles "relative to the equilibrium
-        # position" of eq 28, and what the smooth update (eq 26) and the oscillator close.
+    def _gaps(self, a: int, b: int, mu, twist_eq, products, S: _Scratch) -> _Equilibrium:
+        """The gaps to the equilibrium position E: the angles "relative to the equilibrium
+        position" of eq 28, and what the smooth update (eq 26) and the oscillator close."""
+        n, m = self.n, b - a
+        st = self.state
+        bend, vel = st.bend_t[:, :, a:b], st.bend_vel_t[:, :, a:b]
+        twist, E = st.twist_t[:, a:b], st.bend_eq_t[:, :, a:b]
         gap = S.get("gap", (n, 2, m))
         np.subtract(E, bend, out=gap)
         gap_size = S.get("gap_size", (n, m))
@@ -759,28 +822,39 @@ class BladeSolver:
         (eq 31), theta_eq = E. With the wind gone E -> 0 and this is eq 29. theta_eq is held for
         the frame, so we integrate y = theta_eq - theta (the gap, in place). Eq 32 (symplectic
         Euler): acceleration, then velocity v += h a, then angle y -= h v; here v = p v + q y
-        with q = h K/I and p = 1 - h C/I.
-        Aerodynamic damping. Eq 29 is written for the wind gone; in wind, eq 17 depends on the
-        speed of the wind relative to the segment, v - u with u = theta' h_ij, and linearising
+        (``_oscillator_coefficients``). With one step a frame the smooth update is that same step
+        (``_step_once``); with several the two are blended (``_substeps``).
+        """
+        j0, j1 = split.j0, split.j1
+        st, js = self.state, slice(j0, j1)
+        rows = _Rows(bend=st.bend_t[js, :, a:b], vel=st.bend_vel_t[js, :, a:b], twist=st.twist_t[js, a:b],
+                     twist_vel=st.twist_vel_t[js, a:b], eq=st.bend_eq_t[js, :, a:b], gap=eqm.gap[js],
+                     twist_gap=eqm.twist_gap[js], twist_eq=eqm.twist_eq[js], x=x[js], xt=xt[js],
+                     swinging=split.swinging, steady=split.steady)
+        h = dt / substeps
+        coefficients = self._oscillator_coefficients(a, b, forcing, eqm.k_over_i[js], split, h, S)
+        if substeps == 1:
+            self._step_once(rows, coefficients, h, S)
+        else:
+            self._substeps(rows, coefficients, h, dt, substeps, S)
+
+    def _oscillator_coefficients(self, a: int, b: int, forcing: _Forcing, kI, split: _Split, h: float,
+                                 S: _Scratch) -> tuple:
+        """(q, p, q_twist, p_twist) of eq 32's step v <- p v + q y, y <- y - h v for the joints
+        that swing (0 for the others): q = h K/I, p = 1 - h C/I with C = alpha I + beta K (eq 31).
+
+        Bend, aerodynamic damping: eq 29 is written for the wind gone; in wind, eq 17 depends on
+        the speed of the wind relative to the segment, v - u with u = theta' h_ij, and linearising
         F = rho (v - u)^2 A sin(phi) in u gives the damping torque (2 / v) sum_j F_j h_ij^2
         theta' = (2 Q_i / v) theta'. It is what keeps real grass from resonating with gusts,
         while it sways freely once the wind stops (v = 0). It is integrated implicitly,
-        v_new = (p v + q y) / (1 + h c_aero / I): stable at any v.
+        v_new = (p v + q y) / (1 + h c_aero / I): stable at any v, so both q and p carry the
+        factor rc = 1 / (1 + h c_aero / I).
+        Twist (eq 30): the same with K = twist_stiffness * mu_i(t); the face turning in the wind
+        is not damped by it.
         """
         m, j0, j1 = b - a, split.j0, split.j1
-        st = self.state
-        js = slice(j0, j1)
-        nj = j1 - j0
-        bend, vel = st.bend_t[js, :, a:b], st.bend_vel_t[js, :, a:b]
-        twist, twist_vel = st.twist_t[js, a:b], st.twist_vel_t[js, a:b]
-        E = st.bend_eq_t[js, :, a:b]
-        Y, Yt = eqm.gap[js], eqm.twist_gap[js]
-        twist_eq = eqm.twist_eq[js]
-        x, xt, kI = x[js], xt[js], eqm.k_over_i[js]
-        bend_lo, bend_hi = S.const("bend_lo", -BEND_LIMIT, m), S.const("bend_hi", BEND_LIMIT, m)
-        twist_lo, twist_hi = S.const("twist_lo", -TWIST_LIMIT, m), S.const("twist_hi", TWIST_LIMIT, m)
-        swinging, steady = split.swinging, split.steady  # 1/0 and 0/1 per joint
-        h = dt / substeps
+        js, nj = slice(j0, j1), j1 - j0
         Q = self._aero_q(forcing, j0, S)
         hs = S.get("aero_lever", (m,))  # 2 h l_length / |v|: the last factor l_length of Q
         np.divide(F32(2.0 * h), forcing.speed, out=hs)
@@ -792,42 +866,6 @@ class BladeSolver:
         np.divide(F32(1.0), rc, out=rc)
         q, p = S.get("osc_q", (nj, m)), S.get("osc_p", (nj, m))
         qt, pt = S.get("osc_q_twist", (nj, m)), S.get("osc_p_twist", (nj, m))
-        delta, delta_t = S.get("osc_delta", (nj, 2, m)), S.get("osc_delta_twist", (nj, m))
-        if substeps == 1:
-            # One step: the smooth update is this same step with p = 0, q = f / h (v = f y / h
-            # is its rate, theta += h v its step), so each joint takes its own coefficients:
-            # the oscillator's times swinging plus the smooth ones (x = -f is 0 where it swings).
-            rc *= swinging
-            np.multiply(kI, rc, out=q)
-            q *= F32(h)
-            rc *= F32(1.0 - h * self.alpha)
-            np.multiply(q, F32(self.beta), out=p)
-            np.subtract(rc, p, out=p)
-            np.multiply(x, F32(-1.0 / h), out=delta_t)
-            q += delta_t
-            # twisting (eq 30): the same with K = twist_stiffness * mu_i(t) (the face turning
-            # in the wind is not damped by it: q = h K_t / I, p = 1 - h C / I)
-            np.multiply(kI, swinging, out=qt)
-            qt *= F32(h * self.twist_ratio)
-            np.multiply(swinging, F32(1.0 - h * self.alpha), out=pt)
-            np.multiply(qt, F32(self.beta), out=delta_t)
-            pt -= delta_t
-            np.multiply(xt, F32(-1.0 / h), out=delta_t)
-            qt += delta_t
-            np.multiply(Y, q[:, None, :], out=delta)
-            vel *= p[:, None, :]
-            vel += delta
-            np.multiply(vel, F32(h), out=delta)
-            bend += delta
-            _clip(bend, bend_lo, bend_hi)  # a forced swing can overshoot its target
-            np.multiply(Yt, qt, out=delta_t)
-            twist_vel *= pt
-            twist_vel += delta_t
-            np.multiply(twist_vel, F32(h), out=delta_t)
-            twist += delta_t
-            _clip(twist, twist_lo, twist_hi)
-            return
-
         np.multiply(kI, rc, out=q)
         q *= F32(h)
         rc *= F32(1.0 - h * self.alpha)
@@ -839,11 +877,44 @@ class BladeSolver:
         # Joints that do not oscillate take no sub-steps (v = 0, y held): they may be stiffer
         # than the sub-step can integrate, and their discarded values must stay finite.
         for coefficient in (q, p, qt, pt):
-            coefficient *= swinging
-        # Several sub-steps: the smooth step and the oscillator, blended.
+            coefficient *= split.swinging
+        return q, p, qt, pt
+
+    def _step_once(self, r: _Rows, coefficients: tuple, h: float, S: _Scratch) -> None:
+        """One step a frame: the smooth update is eq 32's step with p = 0, q = f / h (v = f y / h
+        is its rate, theta += h v its step), so each joint takes its own coefficients: the
+        oscillator's (zero where it does not swing) plus the smooth ones (x = -f is 0 where it
+        swings)."""
+        q, p, qt, pt = coefficients
+        nj, m = q.shape
+        delta, delta_t = S.get("osc_delta", (nj, 2, m)), S.get("osc_delta_twist", (nj, m))
+        np.multiply(r.x, F32(-1.0 / h), out=delta_t)
+        q += delta_t
+        np.multiply(r.xt, F32(-1.0 / h), out=delta_t)
+        qt += delta_t
+        np.multiply(r.gap, q[:, None, :], out=delta)
+        r.vel *= p[:, None, :]
+        r.vel += delta
+        np.multiply(r.vel, F32(h), out=delta)
+        r.bend += delta
+        _clip(r.bend, *_limits(S, m, BEND_LIMIT))  # a forced swing can overshoot its target
+        np.multiply(r.twist_gap, qt, out=delta_t)
+        r.twist_vel *= pt
+        r.twist_vel += delta_t
+        np.multiply(r.twist_vel, F32(h), out=delta_t)
+        r.twist += delta_t
+        _clip(r.twist, *_limits(S, m, TWIST_LIMIT))
+
+    def _substeps(self, r: _Rows, coefficients: tuple, h: float, dt: float, substeps: int, S: _Scratch) -> None:
+        """Several sub-steps a frame: the swinging joints take eq 32's sub-steps on the gap, the
+        others the smooth step (x, xt); blended by the masks."""
+        q, p, qt, pt = coefficients
+        nj, m = q.shape
+        delta, delta_t = S.get("osc_delta", (nj, 2, m)), S.get("osc_delta_twist", (nj, m))
         smooth, smooth_t = S.get("smooth_step", (nj, 2, m)), S.get("smooth_step_twist", (nj, m))
-        np.multiply(Y, x[:, None, :], out=smooth)
-        np.multiply(Yt, xt, out=smooth_t)
+        Y, Yt, vel, twist_vel = r.gap, r.twist_gap, r.vel, r.twist_vel
+        np.multiply(Y, r.x[:, None, :], out=smooth)
+        np.multiply(Yt, r.xt, out=smooth_t)
         qb, pb = q[:, None, :], p[:, None, :]
         for _ in range(substeps):
             np.multiply(Y, qb, out=delta)
@@ -856,19 +927,20 @@ class BladeSolver:
             twist_vel += delta_t
             np.multiply(twist_vel, F32(h), out=delta_t)
             Yt -= delta_t
+        swinging, steady = r.swinging, r.steady
         swing_b, steady_b = swinging[:, None, :], steady[:, None, :]
-        np.subtract(E, Y, out=delta)
-        _clip(delta, bend_lo, bend_hi)  # a forced swing can overshoot its target
-        bend -= smooth
-        bend *= steady_b
+        np.subtract(r.eq, Y, out=delta)
+        _clip(delta, *_limits(S, m, BEND_LIMIT))  # a forced swing can overshoot its target
+        r.bend -= smooth
+        r.bend *= steady_b
         delta *= swing_b
-        bend += delta
-        np.subtract(twist_eq, Yt, out=delta_t)
-        _clip(delta_t, twist_lo, twist_hi)
-        twist -= smooth_t
-        twist *= steady
+        r.bend += delta
+        np.subtract(r.twist_eq, Yt, out=delta_t)
+        _clip(delta_t, *_limits(S, m, TWIST_LIMIT))
+        r.twist -= smooth_t
+        r.twist *= steady
         delta_t *= swinging
-        twist += delta_t
+        r.twist += delta_t
         # rates: the oscillating joints keep their own (already in vel), the others -step / dt
         rate = S.get("smooth_rate_factor", (nj, m))
         np.multiply(steady, F32(-1.0 / dt), out=rate)

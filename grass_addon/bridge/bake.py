@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import WindgrassError
 from ..folders import ensure_writable
+from . import animation
 from . import scene as field_scene
 
 RECORD = "wg_bake"
@@ -45,22 +46,47 @@ def cache_folder(item) -> Path:
     return blend.parent / f"{blend.stem}_windgrass" / safe
 
 
+TRANSFORM = ("location", "rotation_euler", "rotation_quaternion", "scale")
+
+
+def _curves(id_block) -> dict[tuple[str, int], bytes]:
+    """{(data path, index): its keys and handles} of an ID's animation (Blender 5.0's layered
+    actions too, through ``animation.action_fcurves``)."""
+    out = {}
+    for fcurve in animation.action_fcurves(getattr(id_block, "animation_data", None)):
+        n = len(fcurve.keyframe_points)
+        keys = np.empty(n * 6, np.float32)
+        if n:
+            fcurve.keyframe_points.foreach_get("co", keys[:2 * n])
+            fcurve.keyframe_points.foreach_get("handle_left", keys[2 * n:4 * n])
+            fcurve.keyframe_points.foreach_get("handle_right", keys[4 * n:])
+        extra = f"{fcurve.extrapolation}|{fcurve.mute}|" + ",".join(k.interpolation for k in fcurve.keyframe_points)
+        out[(fcurve.data_path, fcurve.array_index)] = keys.tobytes() + extra.encode()
+    return out
+
+
 def camera_fingerprint(scene) -> str:
-    """What the scene camera's path depends on: which camera, its lens, placement and keys."""
+    """What the scene camera's path depends on: which camera, its lens, its keys, and the
+    transform values no key drives. Not its pose at the current frame: with an animated camera
+    that changes every frame, and the bake is no staler for it."""
     cam = scene.camera
     if cam is None:
         return ""
     h = hashlib.sha1(cam.name.encode())
-    h.update(np.array(cam.matrix_basis, dtype=np.float32).tobytes())
+    curves = _curves(cam)
+    for path in TRANSFORM:
+        for index, value in enumerate(getattr(cam, path)):
+            if (path, index) not in curves:
+                h.update(f"{path}[{index}]={value:.6g}".encode())
+    h.update(repr(cam.rotation_mode).encode())
+    for key in sorted(curves):
+        h.update(repr(key).encode() + curves[key])
     if cam.type == "CAMERA":
-        h.update(repr((round(cam.data.lens, 6), round(cam.data.sensor_width, 6), cam.data.type)).encode())
-    action = cam.animation_data.action if cam.animation_data is not None else None
-    if action is not None:
-        h.update(action.name.encode())
-        for fcurve in getattr(action, "fcurves", ()):
-            keys = np.empty(len(fcurve.keyframe_points) * 2, np.float32)
-            fcurve.keyframe_points.foreach_get("co", keys)
-            h.update(fcurve.data_path.encode() + keys.tobytes())
+        data = cam.data
+        h.update(repr((round(data.lens, 6), round(data.sensor_width, 6), data.sensor_fit, data.type,
+                       round(data.ortho_scale, 6), round(data.shift_x, 6), round(data.shift_y, 6))).encode())
+        for key, keys in sorted(_curves(data).items()):
+            h.update(repr(key).encode() + keys)
     return h.hexdigest()
 
 

@@ -122,7 +122,7 @@ def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
     assert bpy.ops.windgrass.field_bake(frame_start=2, frame_end=3) == {"FINISHED"}
     item.wind.speed = 3.0
     assert "stale: parameters changed" in runtime.bake_status(scene, item)
-    scene.camera.location.x += 0.5
+    scene.camera.data.lens += 5.0  # (its path is keyed: moving it without a key changes nothing)
     assert "camera changed" in runtime.bake_status(scene, item)
     assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
     assert runtime.bake_status(scene, item) is None
@@ -148,3 +148,23 @@ def test_a_stopped_bake_leaves_nothing_and_the_grass_live(bridge, tmp_path):
     assert not any(m.name.startswith("Windgrass") for o in item.collection.objects for m in o.modifiers)
     scene.frame_set(6)
     assert runtime.get_runtime(scene, item).frame == 6
+
+
+def test_the_bake_is_stale_when_the_camera_keys_change_not_when_it_moves_along_them(bridge, tmp_path):
+    """Issue: on Blender 5.0 the camera's keys were not seen (layered actions), and with an
+    animated camera every frame but one said "stale: camera changed" (its pose was hashed)."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    cam = scene.camera
+    cam.location = (0.0, -1.4, 0.45)
+    cam.keyframe_insert("location", frame=1)
+    cam.location = (0.3, -1.2, 0.45)
+    cam.keyframe_insert("location", frame=8)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "k.blend"))
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3) == {"FINISHED"}
+    for frame in (1, 2, 5, 8):
+        scene.frame_set(frame)  # the camera moves along its keys
+        assert "stale" not in runtime.bake_status(scene, item), frame
+    cam.location = (0.0, -1.0, 0.6)
+    cam.keyframe_insert("location", frame=5)  # a new key: another path
+    assert "camera changed" in runtime.bake_status(scene, item)

@@ -267,6 +267,9 @@ PARAMS: tuple[Param, ...] = (
        label="Epoch"),
     _p("simulation", "cache_mb", "int", 1024, "Memory for the blocks kept around the camera", unit="MB", minimum=16,
        maximum=1_000_000, label="Cache"),
+    _p("simulation", "memory_mb", "int", 4096, "Memory a field may take in Blender in all (its meshes, simulation and "
+       "blocks, and a render's copy of the meshes); settings that need more are refused, naming what fits",
+       unit="MB", minimum=256, maximum=1_000_000, label="Memory"),
 )
 
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))

@@ -29,8 +29,8 @@ from .layout import subset_layout
 from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
 PROGRESS_INTERVAL_S = 1.0
-CHECKPOINT_FRAMES = 24
-MAX_CHECKPOINT_BYTES = 1 << 29  # 512 MiB of saved states per trajectory at most
+CHECKPOINT_FRAMES = 24  # a saved state every this many frames, or every second at higher frame rates
+MAX_CHECKPOINT_BYTES = 1 << 27  # 128 MiB of saved states per trajectory at most (they only speed seeks back)
 
 
 @dataclass(eq=False)
@@ -230,7 +230,7 @@ class Simulation:
         self.solver.step(wind, self.frame_dt, self.substeps)
         traj.pos += 1
         self.steps += self.layout.n_cells
-        if (traj.pos - traj.start) % CHECKPOINT_FRAMES == 0 and traj.pos not in traj.checkpoints:
+        if (traj.pos - traj.start) % max(CHECKPOINT_FRAMES, self.fps) == 0 and traj.pos not in traj.checkpoints:
             if (len(traj.checkpoints) + 1) * traj.state.nbytes <= MAX_CHECKPOINT_BYTES:
                 traj.checkpoints[traj.pos] = traj.state.copy()
 

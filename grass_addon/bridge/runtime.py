@@ -38,7 +38,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from .. import schema, slots
+from .. import memory, schema, slots
 from ..errors import WindgrassError
 from ..field import GrassField
 from ..grid import FieldGrid
@@ -212,6 +212,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     if item.collection is None and not force:
         return
     params = properties.params_from_settings(item, scene)
+    memory.check(params)  # before anything is built: a card range that would run out of memory
     if force and getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()

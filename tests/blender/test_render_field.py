@@ -7,12 +7,14 @@ pixel for pixel.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
 import struct
 import subprocess
 import sys
+import textwrap
 import zlib
 from pathlib import Path
 
@@ -543,3 +545,62 @@ def test_a_long_range_keys_the_camera_on_every_frame(stage, tiny_params, scene):
         scene.frame_set(frame)
         location, _ = stage.camera_pose(params, frame)
         assert tuple(camera.matrix_world.translation) == pytest.approx(location, abs=1e-4)
+
+
+MEMORY_PROBE = textwrap.dedent("""
+    import json, os, resource, sys
+    sys.path.insert(0, sys.argv[-2])
+    import bpy, addon_loader
+    addon_loader.load_addon()
+    from windgrass.grass_addon import memory, schema
+    from windgrass.grass_addon.bridge import properties, runtime, stage
+    params = schema.load_toml(sys.argv[-1]).replace({"lod.card_far": 40.0, "render.resolution_x": 160,
+        "render.resolution_y": 90, "render.samples": 1})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    stage.pose_camera(scene, params, 1)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    scene.frame_set(2)
+    bpy.ops.render.render()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print("MEMORY", json.dumps({"peak": peak, "before": before, "estimate": memory.estimate(params).total}))
+    sys.stdout.flush()
+    os._exit(0)
+""")
+
+
+def test_memory_estimate_bounds_what_a_render_takes(tmp_path):
+    """Issue: memory followed lod.card_far, not the budget. The estimate that Windgrass checks
+    before building is an upper bound of what Blender really takes to build and render the
+    default 2 km scene (peak resident memory of a fresh process)."""
+    script = tmp_path / "probe.py"
+    script.write_text(MEMORY_PROBE)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
+    args = [sys.executable, str(script), str(REPO / "headless"), str(REPO / "scenes" / "default.toml")]
+    result = subprocess.run(args, capture_output=True, text=True, env=env, timeout=600)
+    line = next(line for line in result.stdout.splitlines() if line.startswith("MEMORY"))
+    measured = json.loads(line.split(" ", 1)[1])
+    assert measured["peak"] < measured["estimate"], measured
+    assert measured["estimate"] < 2.5 * measured["peak"], measured  # an estimate, not a wild guess
+
+
+def test_a_card_range_that_would_run_out_of_memory_is_refused_before_anything_is_built(with_bridge):
+    """Issue: --lod-card-far 300 passed 12 GB. Refused up front, naming lod.card_far and the
+    longest card range that fits, which does fit."""
+    import bpy
+    from windgrass.grass_addon import memory, schema
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    params = schema.load_toml(REPO / "scenes" / "default.toml").replace({"lod.card_far": 300.0})
+    scene = bpy.context.scene
+    item = properties.add_field(scene, params)
+    with pytest.raises(schema.ParameterError) as info:
+        runtime.build_field(scene, item)
+    assert info.value.key == "lod.card_far"
+    assert item.collection is None and not [o for o in bpy.data.objects if o.get("wg_uid")]  # nothing built
+    suggested = float(str(info.value).split("lod.card_far up to ")[1].split(" m")[0])
+    assert params.lod.card_near <= suggested < 300.0
+    fits = params.replace({"lod.card_far": suggested})
+    assert memory.estimate(fits).total <= fits.simulation.memory_mb << 20

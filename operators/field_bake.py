@@ -54,13 +54,24 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         wm = context.window_manager
         if event.type == "ESC":
             self._end(context)
-            self._baker.cancel()
+            try:
+                self._baker.cancel()
+            except ReferenceError:  # the scene is not the one the bake began in
+                self._baker.abandon()
             self.report({"WARNING"}, "Bake stopped: nothing was kept, the grass is live")
             return {"CANCELLED"}
         if event.type != "TIMER":
-            return {"PASS_THROUGH"}
+            # Keys would reach Blender's undo and edits under the bake (Ctrl+Z): only the view moves.
+            navigation = event.type.startswith(("MOUSE", "WHEEL", "TRACKPAD", "NDOF")) or event.type in (
+                "MIDDLEMOUSE", "WINDOW_DEACTIVATE")
+            return {"PASS_THROUGH"} if navigation else {"RUNNING_MODAL"}
         try:
             done = self._baker.step()
+        except ReferenceError:  # what it bakes is gone (an undo slipped through): keep nothing
+            self._end(context)
+            self._baker.abandon()
+            self.report({"WARNING"}, "Bake stopped: the field changed under it; nothing was kept")
+            return {"CANCELLED"}
         except WindgrassError as exc:
             self._end(context)
             self.report({"ERROR"}, str(exc))

@@ -8,12 +8,21 @@ is in its positions and UV maps (materials.py), which Alembic keeps per frame.
 
 The record ``item["wg_bake"]`` says what the bake was made from (parameters digest, camera), so a
 later edit or camera move is reported as a stale bake. Free Bake returns to the live simulation.
+
+The files on disk follow what a file refers to, through undo: every bake writes files of its own
+names (``group_00_<bake>.abc``), Free Bake and undo only drop references, and the files no field
+refers to are deleted when the .blend is saved (those the saved file does not use), when Blender
+leaves the file (open, new, quit: those the file on disk does not use). So undoing Free Bake finds
+its files, undoing a bake leaves nothing behind once the work is saved or left, and a field whose
+files are missing (a cache folder deleted by hand) says so and plays live (``files_present``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import shutil
+import uuid
 from pathlib import Path
 
 import bpy
@@ -113,11 +122,42 @@ def check(scene, item, first: int, last: int) -> Path:
         raise BakeError(f"bake: frames {first}-{last} are not within the scene's frames "
                         f"{scene.frame_start}-{scene.frame_end} (valid: start <= first <= last <= end)")
     folder = cache_folder(item)
+    need, free = estimate_bytes(item, first, last), free_bytes(folder)
+    if free is not None and need > free:
+        raise BakeError(f"bake: the cache of frames {first}-{last} needs about {need / 1e6:,.0f} MB but the disk "
+                        f"of {folder.parent} has {free / 1e6:,.0f} MB free; free some space or bake fewer frames")
     try:
         ensure_writable(folder)
     except OSError as exc:
         raise BakeError(f"bake: cannot write into {folder}: {exc.strerror or exc}") from None
     return folder
+
+
+# What Alembic may write per frame and slot vertex (position and velocity, 12 bytes each) and per
+# face corner and UV map (8 bytes): an upper estimate (the files measured a third of it; a full
+# disk aborts Blender's Alembic writer, so a bake checks first).
+BYTES_PER_VERTEX, BYTES_PER_CORNER_MAP, OVERHEAD = 24, 8, 1.0
+
+
+def estimate_bytes(item, first: int, last: int) -> int:
+    """About how many bytes a bake of frames ``first``-``last`` writes (an upper estimate)."""
+    per_frame = 0
+    for obj in _slots(item):
+        mesh = obj.data
+        per_frame += len(mesh.vertices) * BYTES_PER_VERTEX
+        per_frame += len(mesh.loops) * BYTES_PER_CORNER_MAP * len(mesh.uv_layers)
+    return int(OVERHEAD * per_frame * (int(last) - int(first) + 1)) + (1 << 20)
+
+
+def free_bytes(folder: Path) -> int | None:
+    """Free bytes on the disk that holds ``folder`` (or its nearest existing parent)."""
+    path = Path(folder)
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    try:
+        return shutil.disk_usage(path).free
+    except OSError:
+        return None
 
 
 def _slots(item) -> list:
@@ -150,6 +190,7 @@ class Baker:
         size = max(1, -(-len(objects) // max(1, int(groups))))
         self.groups = [objects[i:i + size] for i in range(0, len(objects), size)]
         self.done: list[Path] = []
+        self.tag = uuid.uuid4().hex[:8]  # this bake's file names: an undone bake's files stay its own
         self.frame = scene.frame_current
         self.blur = scene.render.use_motion_blur
         for obj in objects:
@@ -165,7 +206,7 @@ class Baker:
         index = len(self.done)
         if index == len(self.groups):
             return True
-        path = self.folder / f"group_{index:02d}.abc"
+        path = self.folder / f"group_{index:02d}_{self.tag}.abc"
         partial = path.with_name(f".{path.stem}.partial.abc")
         group = bpy.data.collections.new(f".windgrass bake {index}")
         self.scene.collection.children.link(group)
@@ -201,10 +242,16 @@ class Baker:
     def cancel(self) -> None:
         """Stop: the files written so far are deleted and the field stays live."""
         self._restore()
+        self.abandon()
+        self.scene.frame_set(self.frame)
+
+    def abandon(self) -> None:
+        """Delete the files written so far, touching no Blender data (the scene may be gone:
+        an undo during the bake); empty folders go too."""
         for path in self.done:
             path.unlink(missing_ok=True)
         self.done.clear()
-        self.scene.frame_set(self.frame)
+        _remove_empty(self.folder)
 
     def finish(self) -> Path:
         """Play the field from the written files (after the last ``step``); returns the folder."""
@@ -224,7 +271,8 @@ class Baker:
                 modifier.object_path = f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
                 modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
         self.item[RECORD] = {"folder": bpy.path.relpath(str(self.folder)), "first": self.first, "last": self.last,
-                             "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches}
+                             "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches,
+                             "tag": self.tag}
         self.scene.frame_set(self.frame)
         return self.folder
 
@@ -235,8 +283,9 @@ def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
 
 
 def free_bake(scene, item) -> bool:
-    """Remove the bake (modifiers, cache datablock and file); returns whether there was one. The
-    runtime then writes the field live again (``runtime.free_bake``)."""
+    """Remove the bake's modifiers, cache datablocks and record; returns whether there was one.
+    Its files stay until no file refers to them (``collect_garbage``), so an undo brings the bake
+    back whole. The runtime then writes the field live again (``runtime.free_bake``)."""
     record = item.get(RECORD)
     if record is None:
         return False
@@ -244,17 +293,68 @@ def free_bake(scene, item) -> bool:
         modifier = obj.modifiers.get(MODIFIER)
         if modifier is not None:
             obj.modifiers.remove(modifier)
+    caches = [bpy.data.cache_files.get(name) for name in record.get("caches", ())]
+    caches = [c for c in caches if c is not None]
+    if caches:
+        bpy.data.batch_remove(caches)  # (bpy.data.cache_files has no remove)
+    del item[RECORD]
+    return True
+
+
+def record_files(item) -> list[Path]:
+    """The cache files a field's bake plays (absolute paths; its cache datablocks' files)."""
+    record = item.get(RECORD)
+    if record is None:
+        return []
+    files = []
     for name in record.get("caches", ()):
         cache = bpy.data.cache_files.get(name)
         if cache is not None:
-            Path(bpy.path.abspath(cache.filepath)).unlink(missing_ok=True)
-            bpy.data.batch_remove([cache])  # (bpy.data.cache_files has no remove)
-    folder = Path(bpy.path.abspath(record.get("folder", "")))
-    for empty in (folder, folder.parent):  # the field's folder, then <blend>_windgrass, when empty
-        if record.get("folder") and empty.is_dir() and not any(empty.iterdir()):
+            files.append(Path(bpy.path.abspath(cache.filepath)).resolve())
+    return files
+
+
+def files_present(item) -> bool:
+    """Whether every file the field's bake plays is on disk (and it has some)."""
+    files = record_files(item)
+    return bool(files) and all(f.is_file() for f in files)
+
+
+def referenced_files() -> set[Path]:
+    """Every cache file a bake of this file refers to."""
+    return {f for s in bpy.data.scenes if hasattr(s, "windgrass") for item in s.windgrass.fields
+            for f in record_files(item)}
+
+
+def bake_root() -> Path | None:
+    """``<blend folder>/<blend name>_windgrass`` of the open file (None when it is not saved)."""
+    if not bpy.data.filepath:
+        return None
+    blend = Path(bpy.data.filepath)
+    return (blend.parent / f"{blend.stem}_windgrass").resolve()
+
+
+def collect_garbage(root: Path | None, keep: set[Path]) -> list[Path]:
+    """Delete the bake files under ``root`` (``<field>/group_*.abc`` and partial files) that are
+    not in ``keep``, then the folders left empty; returns what was deleted. Plain files only: it
+    runs at exit too, when Blender's data may be gone."""
+    if root is None or not Path(root).is_dir():
+        return []
+    gone = []
+    for folder in [f for f in Path(root).iterdir() if f.is_dir()]:
+        for path in list(folder.glob("group_*.abc")) + list(folder.glob(".group_*.partial.abc")):
+            if path.resolve() not in keep:
+                path.unlink(missing_ok=True)
+                gone.append(path)
+        _remove_empty(folder)
+    return gone
+
+
+def _remove_empty(folder: Path) -> None:
+    """The field's folder, then ``<blend>_windgrass``, when they hold nothing."""
+    for empty in (Path(folder), Path(folder).parent):
+        if empty.is_dir() and not any(empty.iterdir()):
             empty.rmdir()
-    del item[RECORD]
-    return True
 
 
 def status(scene, item, digest: str | None) -> str | None:
@@ -263,6 +363,9 @@ def status(scene, item, digest: str | None) -> str | None:
     if record is None:
         return None
     text = f"Baked frames {record['first']}-{record['last']}: what the scene camera saw"
+    if not files_present(item):
+        return (f"Baked frames {record['first']}-{record['last']}, but its cache files are missing "
+                f"({record.get('folder', '')}); the grass plays live: bake again or free the bake")
     stale = []
     if digest is not None and digest != record.get("digest"):
         stale.append("parameters changed")

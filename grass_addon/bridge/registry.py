@@ -25,6 +25,8 @@ class Registry:
     pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
     terrains: dict[Key, tuple] = field(default_factory=dict)  # (terrain key, heightfield, centre) sampled
     warned: set[str] = field(default_factory=set)  # console messages already printed
+    saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
+    bake_root: str | None = None  # <blend>_windgrass of the open file
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 

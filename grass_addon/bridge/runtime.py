@@ -30,9 +30,11 @@ so frames rendered apart equal frames rendered in one run.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import bpy
 import numpy as np
@@ -377,7 +379,7 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
     if item.collection is None:
         warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
         return None
-    if bake.is_baked(item):
+    if plays_cache(item):
         return None  # its objects play the cache
     views = None
     if camera_moved_only:
@@ -558,17 +560,54 @@ def on_load_post(*_args):
     topology than their settings give now (files of earlier versions), here rather than in a
     frame handler."""
     REGISTRY.clear()
+    REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
+    for scene, item in _fields():
+        if bake.is_baked(item) and not bake.files_present(item):
+            warn_once(f"field '{item.name}': {bake.status(scene, item, None)}")
     for scene, item in _live_fields():
         _guarded(apply_settings, scene, item)
         _guarded(update_field, scene, item)
 
 
-def _live_fields():
-    """(scene, item) of every field with objects that is not baked."""
+@persistent
+def on_load_pre(*_args):
+    """Leaving a file: delete the bake files that the file on disk does not refer to (bakes
+    undone or freed since it was saved, bakes never saved)."""
+    _collect_bakes(REGISTRY.saved_bakes)
+
+
+def _collect_bakes(keep) -> None:
+    root = REGISTRY.bake_root
+    try:
+        gone = bake.collect_garbage(None if root is None else Path(root), set(keep))
+    except OSError as exc:  # pragma: no cover (a read-only folder: the files stay)
+        warn_once(f"bake files could not be cleaned up: {exc}")
+        return
+    if gone:
+        print(f"Windgrass: deleted {len(gone)} bake file(s) no field refers to in {root}", flush=True)
+
+
+def _at_exit() -> None:
+    """Quitting Blender leaves the file: as on_load_pre, with plain files only."""
+    _collect_bakes(REGISTRY.saved_bakes)
+
+
+def plays_cache(item) -> bool:
+    """Whether the field plays its bake (baked, and its files are on disk; else it plays live)."""
+    return bake.is_baked(item) and bake.files_present(item)
+
+
+def _fields():
     for scene in bpy.data.scenes:
         for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
-            if item.collection is not None and not bake.is_baked(item):
-                yield scene, item
+            yield scene, item
+
+
+def _live_fields():
+    """(scene, item) of every field with objects that does not play a bake."""
+    for scene, item in _fields():
+        if item.collection is not None and not plays_cache(item):
+            yield scene, item
 
 
 @persistent
@@ -586,9 +625,12 @@ def on_save_pre(*_args):
 
 @persistent
 def on_save_post(*_args):
-    """After a save: the slot meshes get their quads and the current frame back."""
+    """After a save: the slot meshes get their quads and the current frame back; bake files the
+    saved file does not refer to are deleted (an undone bake, a freed one)."""
     for scene, item in _live_fields():
         _guarded(_refill, scene, item)
+    REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
+    _collect_bakes(REGISTRY.saved_bakes)
 
 
 def _refill(scene, item) -> None:
@@ -621,6 +663,7 @@ _HANDLERS = (
     (bpy.app.handlers.frame_change_post, on_frame_change_post),
     (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update_post),
     (bpy.app.handlers.load_post, on_load_post),
+    (bpy.app.handlers.load_pre, on_load_pre),
     (bpy.app.handlers.render_pre, on_render_pre),
     (bpy.app.handlers.render_post, on_render_post),
     (bpy.app.handlers.render_cancel, on_render_post),
@@ -643,6 +686,7 @@ def register() -> None:
             handlers.remove(existing)
         handlers.append(func)
     properties.on_edit = mark_dirty
+    atexit.register(_at_exit)
     if not bpy.app.background and not bpy.app.timers.is_registered(watch_views):
         bpy.app.timers.register(watch_views, first_interval=VIEW_POLL_S, persistent=True)
 
@@ -655,4 +699,5 @@ def unregister() -> None:
         if bpy.app.timers.is_registered(timer):
             bpy.app.timers.unregister(timer)
     properties.on_edit = None
+    atexit.unregister(_at_exit)
     REGISTRY.clear()

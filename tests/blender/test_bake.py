@@ -126,10 +126,12 @@ def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
     assert "camera changed" in runtime.bake_status(scene, item)
     assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
     assert runtime.bake_status(scene, item) is None
-    assert not (tmp_path / "g_windgrass").exists()
     assert not bpy.data.cache_files
     scene.frame_set(5)
     assert runtime.get_runtime(scene, item).frame == 5  # written live again
+    assert list((tmp_path / "g_windgrass").rglob("*.abc"))  # kept while an undo could bring the bake back
+    bpy.ops.wm.save_mainfile()
+    assert not (tmp_path / "g_windgrass").exists()  # the saved file refers to none: deleted
 
 
 def test_a_stopped_bake_leaves_nothing_and_the_grass_live(bridge, tmp_path):
@@ -168,3 +170,109 @@ def test_the_bake_is_stale_when_the_camera_keys_change_not_when_it_moves_along_t
     cam.location = (0.0, -1.0, 0.6)
     cam.keyframe_insert("location", frame=5)  # a new key: another path
     assert "camera changed" in runtime.bake_status(scene, item)
+
+
+def test_a_bake_that_would_fill_the_disk_is_refused_and_writes_nothing(bridge, tmp_path):
+    """Issue: a full disk during a bake aborted Blender (SIGABRT from the Alembic writer) and left
+    a partial .abc. The bake checks the space it needs first. The disk: a 3 MB tmpfs."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs (a nearly full disk) needs root")
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    small = tmp_path / "small"
+    small.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(small)], check=True)
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(small / "full.blend"))
+        with pytest.raises(RuntimeError, match=r"needs about [\d,]+ MB but the disk .* has [\d,]+ MB free"):
+            bpy.ops.windgrass.field_bake(frame_start=1, frame_end=8)
+        assert sorted(p.name for p in small.iterdir()) == ["full.blend"]  # no cache folder, no partial file
+        assert runtime.bake_status(scene, item) is None
+        assert not any(o.modifiers for o in item.collection.objects)
+    finally:
+        bpy.ops.wm.read_factory_settings(use_empty=True)  # let go of the file before unmounting
+        subprocess.run(["umount", str(small)], check=True)
+
+
+def _abc(tmp_path, stem):
+    return sorted(p.name for p in (tmp_path / f"{stem}_windgrass").rglob("*.abc"))
+
+
+def test_undo_of_free_bake_finds_its_files_and_undo_of_a_bake_leaves_none(bridge, tmp_path):
+    """Issue: undo of Free Bake brought back a bake whose files were gone (the grass froze, the
+    status said baked); undo of a bake left its .abc orphaned on disk."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "u.blend"))
+    bpy.ops.ed.undo_push(message="saved")
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="bake")
+    files = _abc(tmp_path, "u")
+    assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="free")
+    bpy.ops.ed.undo()  # Free Bake undone: baked again, and its files are there
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    status = runtime.bake_status(scene, item)
+    assert status.startswith("Baked frames 1-3") and "missing" not in status
+    assert _abc(tmp_path, "u") == files and runtime.plays_cache(item)
+    bpy.ops.ed.undo()  # the bake undone: live, and once the work is saved its files are gone
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert runtime.bake_status(scene, item) is None
+    bpy.ops.wm.save_mainfile()
+    assert not (tmp_path / "u_windgrass").exists()
+
+
+def test_a_baked_file_whose_cache_was_deleted_says_so_and_plays_live(bridge, tmp_path):
+    """Issue: opening a baked file whose cache folder was deleted said nothing; the grass froze."""
+    import shutil
+
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    path = tmp_path / "d.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3) == {"FINISHED"}
+    bpy.ops.wm.save_mainfile()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    shutil.rmtree(tmp_path / "d_windgrass")
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    status = runtime.bake_status(scene, item)
+    assert "cache files are missing" in status and "plays live" in status
+    scene.frame_set(2)
+    before = _frame_pixels_free_positions(item)
+    scene.frame_set(3)
+    assert runtime.get_runtime(scene, item).frame == 3  # written live
+    assert not np.array_equal(before, _frame_pixels_free_positions(item))  # and it moves
+
+
+def _frame_pixels_free_positions(item):
+    obj = next(o for o in item.collection.objects if o.get("wg_role") == "blades")
+    dg = bpy.context.evaluated_depsgraph_get()
+    mesh = obj.evaluated_get(dg).to_mesh()
+    try:
+        co = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.vertices.foreach_get("co", co)
+    finally:
+        obj.evaluated_get(dg).to_mesh_clear()
+    assert co.size and np.abs(co).max() > 0  # the renderer sees grass
+    return co
+
+
+def test_an_undo_during_a_panel_bake_keeps_nothing(bridge, tmp_path):
+    """Issue: Ctrl+Z during a panel bake raised ReferenceError in the modal step, never ended the
+    progress bar and left 5.9 MB of cache. The panel's bake now takes the keys itself (no undo
+    reaches Blender meanwhile); should the scene change under it all the same, the step's
+    ReferenceError ends it and what it wrote is deleted (Baker.abandon touches no Blender data)."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "z.blend"))
+    bpy.ops.ed.undo_push(message="saved")
+    baker = runtime.start_bake(scene, item, 1, 4, groups=2)
+    assert baker.step() is False and _abc(tmp_path, "z")
+    bpy.ops.ed.undo_push(message="baking")
+    bpy.ops.ed.undo()  # what the bake holds is gone
+    with pytest.raises(ReferenceError):
+        baker.step()
+    baker.abandon()
+    assert not (tmp_path / "z_windgrass").exists()

@@ -14,6 +14,7 @@ import argparse
 import hashlib
 import json
 import math
+import re
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -578,6 +579,11 @@ def _toml_value(v: Any) -> str:
     return str(v)
 
 
+# A number on the command line: ASCII digits, an optional sign, point and exponent (5, -2.5, +7, 3.,
+# .5, 1e-3); not Python's underscores (1_000) or other scripts' digits, which float() accepts.
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
 def cli_params() -> tuple[Param, ...]:
     """Parameters that have a command-line flag (tables only come from TOML files)."""
     return tuple(p for p in PARAMS if p.kind != "table_list")
@@ -636,10 +642,10 @@ def _parse_cli_value(p: Param, raw: Any) -> Any:
         return [_parse_cli_value(Param("", p.name, "float", 0.0, ""), x) for x in raw]
     if p.kind in ("bool", "enum", "str") or not isinstance(raw, str):
         return raw
-    try:
-        number = float(raw)
-    except ValueError:
-        raise ParameterError(p.name, f"{raw!r} is not a number (flag {p.cli_flag}; valid: {p.range_text()})") from None
+    if not _NUMBER.fullmatch(raw):  # (Python's float() would also take 1_000 and non-ASCII digits)
+        raise ParameterError(p.name, f"{raw!r} is not a number (flag {p.cli_flag}; valid: {p.range_text()}, "
+                             "written like 5, -2.5 or 1e-3)")
+    number = float(raw)
     if p.kind == "int" and number.is_integer():
         return int(number)
     return number

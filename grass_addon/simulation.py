@@ -245,6 +245,18 @@ class Simulation:
         self._shown.changed()
 
 
+def seek_note(params) -> str | None:
+    """What a jump to any frame costs at a high frame rate (None at 60 fps and below): the warm-up
+    and the epoch are seconds, so their frames grow with the frame rate."""
+    fps = int(params.render.fps)
+    if fps <= 60:
+        return None
+    frames = seek_cost_bound(params)
+    return (f"at {fps} fps a jump to any frame simulates up to {frames:,} frames ({frames / fps:.0f} s of "
+            f"wind), {fps / 24:.0f} times the work at 24 fps; shorter simulation.preroll and simulation.epoch "
+            "make jumps cheaper")
+
+
 def seek_cost_bound(params) -> int:
     """Most trajectory-frames a seek to any frame steps: W + E of one trajectory, W of the next."""
     epoch, warmup, _ = epoch_frames(params)

@@ -23,6 +23,7 @@ import argparse
 import importlib
 import os
 import signal
+import struct
 import sys
 import time
 from pathlib import Path
@@ -100,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render a grass field swaying in the wind (Windgrass) to numbered PNGs. "
                     "Precedence: schema defaults < --config < flags.",
         epilog="Run inside Blender: blender -b -P headless/render_field.py -- [options]. "
+               "Numbers are written as 5, -2.5, +7, 3. or 1e-3 (ASCII digits; no underscores). "
                "Exit codes: 0 done, 2 bad input, 1 failure inside Blender, 130 stopped by Ctrl-C "
                "after the frame in progress.")
     job = parser.add_argument_group("render job")
@@ -222,6 +224,23 @@ def prepare_out(out: Path) -> Path:
     except OSError as exc:
         raise BadInputError(f"--out: cannot write into {out}: {exc.strerror or exc}") from None
     return out
+
+
+TEXT_CHUNKS = (b"tEXt", b"zTXt", b"iTXt")  # PNG metadata: Cycles writes its render times there
+
+
+def strip_png_text(path: Path) -> None:
+    """Drop the text chunks of a PNG (Cycles' render-time metadata), so a frame is the same file
+    on any machine and in any run; the image chunks are kept byte for byte."""
+    data = path.read_bytes()
+    out, pos = [data[:len(PNG_SIGNATURE)]], len(PNG_SIGNATURE)
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        end = pos + 12 + length
+        if kind not in TEXT_CHUNKS:
+            out.append(data[pos:end])
+        pos = end
+    path.write_bytes(b"".join(out))
 
 
 def check_png(path: Path) -> None:
@@ -358,6 +377,7 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopA
                 raise FrameWriteError(f"Blender did not write frame {frame} to {out} (disk full or folder removed?)")
             try:
                 check_png(partial)
+                strip_png_text(partial)
             except OSError as exc:
                 raise FrameWriteError(f"frame {frame} could not be written to {out}: {exc}") from None
             os.replace(partial, final)
@@ -464,8 +484,10 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(script_argv(argv))  # argparse exits with 2 on unknown options
     try:
         params, frames, config = resolve(args)
-        variants = [variant_params(params, i, "wind.speed" in schema.cli_overrides(args))
-                    for i in range(args.variants)] if args.variants > 1 else [params]
+        keep_speed = "wind.speed" in schema.cli_overrides(args)
+        # made one at a time as they render: --variants 1000000000 starts at once, in constant memory
+        variants = (variant_params(params, i, keep_speed) for i in range(args.variants)) if args.variants > 1 \
+            else iter([params])
         out = prepare_out(args.out if args.out is not None else DEFAULT_OUT)
     except (BadInputError, ParameterError) as exc:
         print(f"render_field.py: error: {exc}\n(render_field.py --help lists the options)", file=sys.stderr)
@@ -487,11 +509,14 @@ def main(argv: list[str]) -> int:
             print(f"render_field.py: failed: --bake: {missing}", file=sys.stderr)
             return EXIT_FAILED
     print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
+    note = addon_module("grass_addon.simulation").seek_note(params)
+    if note:
+        print(f"note: {note}", flush=True)
     results = []
     try:
         with StopAfterFrame() as stop:
             for index, variant in enumerate(variants):
-                target = out / f"variant_{index:02d}" if len(variants) > 1 else out
+                target = out / f"variant_{index:02d}" if args.variants > 1 else out
                 results.append(run_variant(variant, frames, target, args, stop))
                 if stop.requested:
                     break

@@ -41,7 +41,8 @@ SUMMARY_BLADES = 100_000  # tip statistics of larger fields use evenly spread bl
 def parse_args(argv):
     parser = argparse.ArgumentParser(
         description="Simulate a Windgrass field (no Blender) and write a trace.",
-        epilog="Every parameter flag overrides the --config file, which overrides the defaults.")
+        epilog="Every parameter flag overrides the --config file, which overrides the defaults. Numbers are "
+               "written as 5, -2.5, +7, 3. or 1e-3 (ASCII digits; no underscores).")
     parser.add_argument("--config", metavar="FILE.toml", help="scene file (TOML); default: built-in defaults")
     parser.add_argument("--frames", metavar="N", type=int, default=None,
                         help="frames to simulate from render.frame_start (default: the scene's frame range)")

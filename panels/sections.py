@@ -5,6 +5,8 @@ import bpy
 
 from ..grass_addon import schema
 from ..grass_addon.bridge import properties
+from ..grass_addon.errors import WindgrassError
+from ..grass_addon.simulation import seek_note
 from .main import CATEGORY, WINDGRASS_PT_main, wrapped
 
 LABELS = {
@@ -69,6 +71,12 @@ def draw_section(layout, context, item, section: str) -> None:
         if render.fps_base != 1.0:
             text += f" (the scene's {fps:.3g} fps is simulated as {render.fps} fps)"
         wrapped(layout, context, text, icon="INFO")
+        try:
+            note = seek_note(properties.params_from_settings(item, context.scene))
+        except WindgrassError:
+            note = None  # a setting out of range: the main panel says which
+        if note:
+            wrapped(layout, context, note[0].upper() + note[1:], icon="TIME")
     if section in HEADLESS:
         wrapped(layout, context, "Used by headless renders; in Blender the scene's camera, frame rate and "
                 "frame range rule", icon="INFO")

@@ -379,6 +379,12 @@ def _link(coll, obj, parent) -> None:
         obj.parent = parent
 
 
+def _purge_orphan_meshes(uid: str) -> None:
+    """Delete the field's meshes that no object uses any more (objects deleted by hand)."""
+    for mesh in [m for m in bpy.data.meshes if m.get("wg_uid") == uid and m.users == 0]:
+        bpy.data.meshes.remove(mesh)
+
+
 def _remove_objects(objects) -> None:
     meshes = [o.data for o in objects if o.type == "MESH"]
     for obj in objects:
@@ -403,6 +409,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     old_ground = ground_object(item)
     placement = (old_ground.matrix_basis.copy(), old_ground.parent) if old_ground is not None else None
     _remove_objects(field_objects(item))
+    _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
         del item[REGISTRY][key]
 
@@ -540,18 +547,22 @@ def separate_copy(item) -> bool:
 
 def remove_datablocks(item) -> None:
     """Delete the field's objects, their meshes, its materials, image and collection (what its
-    settings item records, nothing else); no orphan data is left behind."""
+    settings item records, nothing else); no orphan data is left behind, also when the artist
+    deleted the collection or some objects by hand first (their meshes are then orphans)."""
     coll = item.collection
+    reg = registered(item)
+    tags = {d.get("wg_uid") for d in reg.values()} | ({coll.get("wg_uid")} if coll is not None else set())
+    _remove_objects(field_objects(item))
+    for tag in tags - {None}:
+        _purge_orphan_meshes(tag)  # (they use the materials)
+    if item.get(REGISTRY) is not None:
+        del item[REGISTRY]  # its pointers count as users of the materials and the image
+    data = [d for d in reg.values() if isinstance(d, (bpy.types.Material, bpy.types.Image))]
+    data.sort(key=lambda d: isinstance(d, bpy.types.Image))  # the materials use the image
+    for block in data:  # shared with a copied scene's field: kept while that one uses it
+        if block.users == 0:
+            (bpy.data.materials if isinstance(block, bpy.types.Material) else bpy.data.images).remove(block)
     if coll is not None:
-        reg = registered(item)
-        _remove_objects(field_objects(item))
-        if item.get(REGISTRY) is not None:
-            del item[REGISTRY]  # its pointers count as users of the materials and the image
-        data = [d for d in reg.values() if isinstance(d, (bpy.types.Material, bpy.types.Image))]
-        data.sort(key=lambda d: isinstance(d, bpy.types.Image))  # the materials use the image
-        for block in data:  # shared with a copied scene's field: kept while that one uses it
-            if block.users == 0:
-                (bpy.data.materials if isinstance(block, bpy.types.Material) else bpy.data.images).remove(block)
         bpy.data.collections.remove(coll)
     try:
         item.collection = None

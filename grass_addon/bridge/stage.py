@@ -204,7 +204,8 @@ def setup_render(scene, params) -> None:
     settings.color_mode = "RGB"
     settings.color_depth = "8"
     settings.compression = 15
-    # PNG metadata without wall-clock or host values: a frame is the same file on any machine.
+    # PNG metadata without wall-clock or host values (render_field.py also drops Cycles' render-time
+    # text chunks): a frame is the same file on any machine.
     for stamp in ("use_stamp_date", "use_stamp_time", "use_stamp_render_time", "use_stamp_memory",
                   "use_stamp_hostname", "use_stamp_filename"):
         if hasattr(render, stamp):

@@ -47,8 +47,12 @@ def package(tmp_path_factory) -> Path:
 
 
 def test_manifest_validates_in_place():
+    import tomllib
+
     result = _run(str(_blender_ext()), "validate", str(REPO))
     assert result.returncode == 0, result.stdout + result.stderr
+    manifest = tomllib.loads((REPO / "blender_manifest.toml").read_text())
+    assert "files" in manifest["permissions"]  # the bake writes caches beside the .blend
 
 
 def test_built_zip_validates_and_holds_only_the_extension(package):

@@ -157,3 +157,34 @@ def test_a_file_saved_with_another_topology_is_rebuilt_on_load(bridge, tmp_path)
     assert item.collection["wg_topology"] != "written by an earlier version"
     blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
     assert np.abs(_positions(blades)).max() > 0.0
+
+
+def _windgrass_data():
+    return sorted(d.name for d in (*bpy.data.objects, *bpy.data.meshes, *bpy.data.materials, *bpy.data.images,
+                                   *bpy.data.collections) if d.get("wg_uid"))
+
+
+def test_remove_after_deleting_the_collection_by_hand_leaves_nothing(bridge):
+    """Issue: removing a field after deleting its collection or objects by hand left orphan
+    meshes and materials."""
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    coll = item.collection
+    for obj in list(coll.objects):
+        bpy.data.objects.remove(obj)  # what Delete Hierarchy does: objects gone, meshes orphaned
+    bpy.data.collections.remove(coll)
+    assert item.collection is None and _windgrass_data()  # meshes and materials are left over
+    assert bpy.ops.windgrass.field_remove() == {"FINISHED"}
+    assert _windgrass_data() == []
+
+
+def test_rebuild_after_deleting_slots_by_hand_keeps_the_names(bridge):
+    """Issue: a Rebuild after deleting slot objects by hand named the new ones 'Grass blades 000.001'."""
+    field_scene, runtime = bridge
+    scene, item = _add_field()
+    names = sorted(o.name for o in item.collection.objects)
+    for obj in [o for o in item.collection.objects if o.get("wg_role") == "blades"]:
+        bpy.data.objects.remove(obj)
+    assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
+    assert sorted(o.name for o in item.collection.objects) == names
+    assert not [m for m in bpy.data.meshes if m.users == 0]

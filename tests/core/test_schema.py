@@ -101,6 +101,9 @@ def test_cli_flags_are_generated_from_the_schema():
     (["--wind-speed", "nan"], "wind.speed"),
     (["--field-blocks-x", "-1"], "field.blocks_x"),
     (["--wind-speed", "fast"], "wind.speed"),
+    (["--field-blocks-x", "1_000"], "field.blocks_x"),  # float() takes these; a flag does not
+    (["--wind-speed", "\uff15"], "wind.speed"),  # a full-width 5
+    (["--wind-speed", "0x10"], "wind.speed"),
 ])
 def test_bad_cli_values_name_the_parameter(argv, key):
     parser = argparse.ArgumentParser()
@@ -108,6 +111,15 @@ def test_bad_cli_values_name_the_parameter(argv, key):
     with pytest.raises(ParameterError) as info:
         schema.defaults().replace(schema.cli_overrides(parser.parse_args(argv)))
     assert info.value.key == key
+
+
+def test_cli_numbers_are_written_as_numbers_are():
+    parser = argparse.ArgumentParser()
+    schema.add_cli_arguments(parser)
+    args = parser.parse_args(["--wind-speed", "+7", "--wind-turbulence", "3.", "--wind-turbulence-scale", ".5",
+                              "--blade-root-stiffness", "1e-3"])
+    p = schema.defaults().replace(schema.cli_overrides(args))
+    assert (p.wind.speed, p.wind.turbulence, p.wind.turbulence_scale, p.blade.root_stiffness) == (7.0, 3.0, 0.5, 1e-3)
 
 
 def test_params_are_immutable_and_hash_by_value():

@@ -437,6 +437,69 @@ def test_renders_show_swaying_grass(bridge, engine, tmp_path):
     assert changed[-6:].mean() < 0.01
 
 
+def _meadow_from_inside(bridge, tmp_path, name, setup):
+    """The default 2 km scene from a camera 1.2 m up at its centre that ``setup`` shapes, rendered
+    at 192 x 108 (Cycles, 4 samples); the image's rows 55-75 % down (the field from a few metres
+    out to the card band) in 8 bands left to right, RGB 0..1."""
+    from pathlib import Path
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, stage
+
+    _, runtime = bridge
+    repo = Path(__file__).resolve().parents[2]
+    params = schema.load_toml(repo / "scenes" / "default.toml").replace({
+        "camera.mode": "fixed", "render.resolution_x": 192, "render.resolution_y": 108, "render.samples": 4})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    cam = scene.camera
+    cam.animation_data_clear()
+    setup(cam)
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    scene.frame_set(2)
+    scene.render.filepath = str(tmp_path / f"{name}.png")
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath)
+    w, h = image.size
+    pixels = np.array(image.pixels[:], np.float32).reshape(h, w, 4)[::-1, :, :3]  # row 0 at the top
+    bpy.data.images.remove(image)
+    return np.array_split(pixels[int(0.55 * h):int(0.75 * h)], 8, axis=1)
+
+
+def test_a_shifted_lens_shows_grass_in_the_shifted_part_of_the_image(bridge, tmp_path):
+    """Issue: with lens shift (shift_x = 0.6) the shifted part of the image showed bare ground
+    (culling assumed a centred frustum). Every band of the near field is as green as the rest:
+    the floor under culled cards is a dull olive (measured before: the right bands' green excess
+    fell to 0.035-0.063 against 0.09 elsewhere)."""
+    def shifted(cam):
+        cam.location = (0.0, 0.0, 1.2)
+        cam.rotation_euler = Vector((0.0, 10.0, -0.9)).to_track_quat("-Z", "Y").to_euler()
+        cam.data.shift_x = 0.6
+
+    bands = _meadow_from_inside(bridge, tmp_path, "shift", shifted)
+    excess = [float((b[..., 1] - np.maximum(b[..., 0], b[..., 2])).mean()) for b in bands]
+    assert min(excess) > 0.7 * float(np.median(excess)), excess
+
+
+def test_a_panoramic_camera_shows_grass_all_around(bridge, tmp_path):
+    """Issue: a panoramic (equirectangular) camera showed grass only in the ~40 degrees ahead.
+    Every azimuth shows grass, textured by its blades and cards (the bare floor and the far
+    canopy are flat: their green varied 5-12 thousandths across pixels, the grass 25-40)."""
+    def panoramic(cam):
+        cam.location = (0.0, 0.0, 1.2)
+        cam.rotation_euler = Vector((0.0, 10.0, 0.0)).to_track_quat("-Z", "Y").to_euler()
+        cam.data.type = "PANO"
+        if hasattr(cam.data, "panorama_type"):
+            cam.data.panorama_type = "EQUIRECTANGULAR"
+        else:  # pragma: no cover (Blender < 4.0)
+            cam.data.cycles.panorama_type = "EQUIRECTANGULAR"
+
+    bands = _meadow_from_inside(bridge, tmp_path, "pano", panoramic)
+    texture = [float(b[..., 1].std()) for b in bands]
+    assert min(texture) > 0.5 * max(texture), texture
+
+
 # --------------------------------------------------------------------------------------------
 # Files, removal, undo, damage
 

@@ -114,20 +114,22 @@ class RealBlender:
     def run(self, steps: list[dict], timeout: float = 300, width: int = 1280, height: int = 800,
             name: str | None = None) -> Run:
         """One fresh Blender session (the default startup file, the installed extension) running
-        ``steps`` (driver.py) in its window."""
+        ``steps`` (driver.py) in its window. ``{case}`` in a step's strings is this session's own
+        folder (as Blender sees it): files written there go away with the session."""
         self.counter += 1
         tag = name or f"run{self.counter}"
         case = self.work / tag
         shutil.rmtree(case, ignore_errors=True)
         (case / "shots").mkdir(parents=True)
         shutil.copy2(HERE / "driver.py", case / "driver.py")
-        (case / "scenario.json").write_text(json.dumps({"steps": steps}))
         inside = self.inside / tag
+        (case / "scenario.json").write_text(json.dumps({"steps": steps}).replace("{case}", str(inside)))
         crash = self.root / "tmp" / "blender.crash.txt"
         crash.unlink(missing_ok=True)
         try:
             result = self._chroot(
-                f"cd {inside} && xvfb-run -a -s '-screen 0 {width}x{height}x24' blender --python {inside}/driver.py "
+                f"cd {inside} && export TMPDIR={inside} && xvfb-run -a -s '-screen 0 {width}x{height}x24' "
+                f"blender --python {inside}/driver.py "
                 f"-- {inside}/scenario.json {inside}/report.json {inside}/shots", timeout=timeout)
             returncode, output = result.returncode, result.stdout + result.stderr
         except subprocess.TimeoutExpired as exc:

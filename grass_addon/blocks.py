@@ -18,12 +18,14 @@ import numpy as np
 from . import blade
 from .errors import ParameterError
 from .grid import FieldGrid
+from .paint import MIN_LENGTH_SCALE, Paint
 from .schema import Params
 from .terrain import Heightfield, ground_z
 
 # Purposes of the random streams: np.random.default_rng([seed, PURPOSE, block id]).
 RNG_BLADES = 1
 RNG_CELLS = 2
+MIN_BLADE_LENGTH = 1e-3  # m: a blade mown shorter is drawn this long (it does not grow, paint.py)
 DEFAULT_CACHE_BYTES = 1 << 30  # the block cache's budget unless the caller sets one
 
 
@@ -52,10 +54,17 @@ class Block:
     card_shade: np.ndarray
     card_center: np.ndarray  # (P, 2) float32: the card's foot, jittered inside its cell
     z_range: np.ndarray  # (2,) lowest, highest ground
+    blade_alive: np.ndarray | None = None  # (B,) bool: the blade grows (paint); None: every blade
+    cell_density: np.ndarray | None = None  # (P,) float32: share of the cell's blades that grow
 
     @property
     def nbytes(self) -> int:
         return sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray))
+
+    @property
+    def empty(self) -> bool:
+        """No blade grows in the block (painted out): nothing to simulate or draw there."""
+        return self.cell_density is not None and not bool(self.cell_density.any())
 
 
 class Species:
@@ -76,9 +85,25 @@ class Species:
         self.tallest_card = float(params.lod.card_height) * self.longest  # a tip is no higher than its length
 
 
-def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: Species):
-    """Species, length (l = l_base + lambda*N(0,1), kept positive), width, stiffness, alpha of `count` blades."""
-    kind = rng.choice(len(species.p), size=count, p=species.p).astype(np.int16)
+def _sample_blades(rng: np.random.Generator, count: int, params: Params, species: Species, local=None):
+    """Species, length (l = l_base + lambda*N(0,1), kept positive), width, stiffness, alpha of `count` blades.
+
+    ``local``: (count, species) shares where species maps are painted (paint.py), or None. The
+    species is the inverse CDF of one uniform number per blade: with the table's shares this is
+    the draw ``Generator.choice`` makes (bit for bit), with local ones the same number picks from
+    the shares where the blade stands. Blades where no species may grow get -1 (they do not grow)."""
+    u = rng.random(count)
+    if local is None:
+        cdf = species.p.cumsum()
+        cdf /= cdf[-1]
+        kind = cdf.searchsorted(u, side="right").astype(np.int16)
+    else:
+        total = local.sum(axis=1)
+        cdf = np.cumsum(local, axis=1) / np.where(total > 0.0, total, 1.0)[:, None]
+        kind = np.minimum((u[:, None] >= cdf).sum(axis=1), len(species.p) - 1).astype(np.int16)
+        kind[total <= 0.0] = -1
+    barren = kind < 0
+    kind = np.where(barren, 0, kind).astype(np.int16)
     base = species.length[kind]
     # paper III.A (1): delta_l = lambda * N(0,1); a blade keeps at least 15 % of the reference length,
     # and N(0,1) is held within +-4 so that the tallest blade is known from the parameters (culling)
@@ -87,6 +112,8 @@ def _sample_blades(rng: np.random.Generator, count: int, params: Params, species
     width = species.width[kind] * np.clip(1.0 + 0.12 * rng.standard_normal(count), 0.6, 1.4)
     stiffness = params.blade.root_stiffness * species.stiffness[kind]
     inclination = np.radians(params.blade.inclination) * rng.random(count)  # random initial alpha
+    if local is not None:
+        return kind, length, width, stiffness, inclination, barren
     return kind, length, width, stiffness, inclination
 
 
@@ -100,8 +127,12 @@ def _rest_tilt(params: Params, length, stiffness, inclination) -> np.ndarray:
 
 
 def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
-               terrain: Heightfield | None = None) -> Block:
-    """Block ``block``'s blades and cells, from random streams keyed by (seed, purpose, block)."""
+               terrain: Heightfield | None = None, paint: Paint | None = None) -> Block:
+    """Block ``block``'s blades and cells, from random streams keyed by (seed, purpose, block).
+
+    ``paint`` (paint.py): which blades grow (``blade_alive``, ``cell_density``), their species and
+    length where maps are painted. Its draws come after every draw of the plain field, so a field
+    without paint is the same bits as before, and each blade's numbers never depend on the paint."""
     f = params.field
     cs, num, P = grid.cell_size, int(f.blades_per_cell), grid.cells_per_block ** 2
     block = int(block)
@@ -115,8 +146,18 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     root[:, :2] = np.repeat(centre64, num, axis=0) + offset
     root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
     facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
-    kind, length, width, stiffness, inclination = _sample_blades(rng, n_blades, params, species)
+    painted = paint is not None and not paint.empty
+    local = paint.species_weights_at(root[:, :2], species.p) if painted else None
+    kind, length, width, stiffness, inclination, *barren = _sample_blades(rng, n_blades, params, species, local)
     shade = rng.random(n_blades).astype(np.float32)
+    alive = None
+    if painted:
+        grow_number = rng.random(n_blades)  # each blade's own: it grows where it is below the density
+        scale = paint.length_at(root[:, :2])
+        length = np.maximum(length * scale, MIN_BLADE_LENGTH)
+        alive = (grow_number < paint.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
+        if barren:
+            alive &= ~barren[0]
     n = int(params.blade.segments)
     rest_tilt = _rest_tilt(params, length, stiffness, inclination) if n_blades else np.zeros((0, n))
 
@@ -139,9 +180,17 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
     # (the blades' own lengths are the stochastic part), times lod.card_height.
     if num > 0:
-        tallest = blade.tip_height(length, rest_tilt).reshape(P, num).max(axis=1)
+        tips = blade.tip_height(length, rest_tilt).reshape(P, num)
+        if alive is not None:  # the card stands for the blades that grow
+            grown = alive.reshape(P, num)
+            tips = np.where(grown.any(axis=1)[:, None], np.where(grown, tips, 0.0), tips)
+        tallest = tips.max(axis=1)
     else:
         tallest = blade.tip_height(cell_length, cell_rest_tilt)
+    cell_density = None
+    if alive is not None:
+        cell_density = alive.reshape(P, num).mean(axis=1).astype(np.float32) if num > 0 \
+            else paint.density_at(centre64).astype(np.float32)
     card_height = params.lod.card_height * tallest
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)
@@ -163,18 +212,20 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
         card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
-        z_range=np.asarray(z_range, dtype=f32))
+        z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density)
 
 
 class BlockCache:
     """Blocks by id, generated on first use and kept within ``budget`` bytes (least recently
     used first out). ``get`` never drops a block it is returning."""
 
-    def __init__(self, params: Params, terrain: Heightfield | None = None, budget: int = DEFAULT_CACHE_BYTES):
+    def __init__(self, params: Params, terrain: Heightfield | None = None, budget: int = DEFAULT_CACHE_BYTES,
+                 paint: Paint | None = None):
         self.params = params
         self.grid = FieldGrid.of(params)
         self.species = Species(params)
         self.terrain = terrain
+        self.paint = None if paint is None or paint.empty else paint
         self.budget = int(budget)
         self._blocks: OrderedDict[int, Block] = OrderedDict()
         self.nbytes = 0
@@ -207,7 +258,7 @@ class BlockCache:
         for b in ids:
             block = self._blocks.get(b)
             if block is None:
-                block = make_block(self.params, self.grid, self.species, b, self.terrain)
+                block = make_block(self.params, self.grid, self.species, b, self.terrain, self.paint)
                 self._blocks[b] = block
                 self.nbytes += block.nbytes
                 self.made += 1

@@ -33,13 +33,14 @@ WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times th
 
 
 class GrassField:
-    """``GrassField(params, wind_keys=None, terrain=None)``; wind_keys: None (params.wind) or
-    (time_s, speed, deg) rows; terrain: a ``terrain.Heightfield`` in the field's frame or None (flat)."""
+    """``GrassField(params, wind_keys=None, terrain=None, paint=None)``; wind_keys: None
+    (params.wind) or (time_s, speed, deg) rows; terrain: a ``terrain.Heightfield`` in the field's
+    frame or None (flat); paint: a ``paint.Paint`` (where grass grows, how tall) or None."""
 
-    def __init__(self, params: Params, wind_keys=None, terrain=None):
+    def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None):
         self.params = params
         self.grid = FieldGrid.of(params)
-        self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20)
+        self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
         self._check_budget()
         self.notice: str | None = None
         cells = self.grid.n_blocks * self.grid.cells_per_block ** 2
@@ -97,7 +98,11 @@ class GrassField:
             z = self._z_ranges(ids)
             # the eye's height above the ground can only add distance: cells past card_far hold no cards
             found.append(ids[block_visible(self.grid.block_bounds(ids), z, cam, self.params, margin)])
-        return np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+        ids = np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+        if self.cache.paint is not None and self.cache.paint.thins and ids.size:
+            # blocks painted out hold nothing to simulate or draw (the far canopy shows them bare)
+            ids = ids[[not block.empty for block in self.cache.get(ids)]]
+        return ids
 
     def _z_ranges(self, ids: np.ndarray) -> np.ndarray:
         terrain = self.cache.terrain

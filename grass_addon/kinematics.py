@@ -134,6 +134,9 @@ class _Constants:
                       (slope[:, 0] - 1j * slope[:, 1]).astype(np.complex64).reshape(nb, bpb, 1))
         self.root_z = root[:, 2].astype(np.float32).reshape(nb, bpb)
         self.slot = np.arange(num, dtype=np.int32)[None, :]  # (1, num)
+        # blades that grow (paint.py): 1, the others 0 (they collapse onto their root); None: all grow
+        alive = layout.blade_alive
+        self.alive = None if alive is None else alive.astype(np.float32).reshape(nb, bpb)
         # Cells of block b = by * blocks_x + bx are the cpb x cpb square at (by, bx) of the
         # row-major field (layout.py): gathers of consecutive blocks of a block row are then
         # strided copies instead of per-cell takes.
@@ -320,9 +323,14 @@ def _blade_chunk(layout, const: _Constants, s: dict, ids: np.ndarray, bend: np.n
     w_side = _select(const.w_side, ids, run, s, "sel_w_side").reshape(blades, n + 1)
     root_xy = _select(const.root_xy, ids, run, s, "sel_root_xy").reshape(blades)
     root_z = _select(const.root_z, ids, run, s, "sel_root_z").reshape(blades)
-    if counts is not None:  # eq 9: slots >= N collapse onto the root
+    if counts is not None or const.alive is not None:
         mask = s["mask"][:cells]
-        np.less(const.slot, counts[layout.block_cells[ids]].reshape(cells, 1), out=mask)
+        if counts is not None:  # eq 9: slots >= N collapse onto the root
+            np.less(const.slot, counts[layout.block_cells[ids]].reshape(cells, 1), out=mask)
+        else:
+            mask.fill(1.0)
+        if const.alive is not None:  # blades painted out collapse too
+            mask *= _select(const.alive, ids, run, s, "sel_alive").reshape(cells, num)
         mask = mask.reshape(blades, 1)
         seg = np.multiply(seg, mask, out=s["seg"][:blades])
         w_side = np.multiply(w_side, mask, out=s["w_side"][:blades])

@@ -61,6 +61,8 @@ class FieldLayout:
     block_z_range: np.ndarray  # (n_blocks, 2) float32 lowest, highest ground (0, 0 on flat ground)
     terrain: Heightfield | None = None  # None = flat ground z = 0; blade_root z lies on it
     blade_ground_slope: np.ndarray | None = None  # (n_blades, 2) float32 dz/dx, dz/dy at each root; None: flat
+    blade_alive: np.ndarray | None = None  # (n_blades,) bool: the blade grows (paint.py); None: all do
+    cell_density: np.ndarray | None = None  # (n_cells,) float32 share of the cell's blades that grow
 
     # --- this set of blocks
     @property
@@ -148,6 +150,9 @@ def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[B
 
     arrays = {name: blades(name) for name in _BLADE_ARRAYS}
     arrays.update({name: cells(name) for name in _CELL_ARRAYS})
+    if cache.paint is not None:  # which blades grow (paint.py)
+        arrays["blade_alive"] = np.concatenate([b.blade_alive for b in blocks]) if blocks else np.zeros(0, bool)
+        arrays["cell_density"] = cells("cell_density")
     slope = None if cache.terrain is None else blades("blade_ground_slope")
     z_range = np.stack([b.z_range for b in blocks]) if blocks else np.zeros((0, 2), np.float32)
     return _layout(params, cache.grid, ids, block_cells, arrays, cache.species.color, cache.terrain, z_range, slope)
@@ -179,6 +184,8 @@ def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
     blades = (local[:, None] * bpb + np.arange(bpb)).ravel()
     arrays = {name: getattr(layout, name)[blades] for name in _BLADE_ARRAYS}
     arrays.update({name: getattr(layout, name)[cells] for name in _CELL_ARRAYS})
+    if layout.blade_alive is not None:
+        arrays["blade_alive"], arrays["cell_density"] = layout.blade_alive[blades], layout.cell_density[cells]
     slope = layout.blade_ground_slope
     block_cells = np.arange(local.size * P, dtype=np.int32).reshape(local.size, P)
     return _layout(layout.params, layout.grid, layout.block_ids[local], block_cells, arrays, layout.species_color,

@@ -129,12 +129,19 @@ def _write_uv(mesh, name: str, uv: np.ndarray) -> None:
     mesh.uv_layers[name].data.foreach_set("uv", np.ascontiguousarray(uv, dtype=np.float32).ravel())
 
 
+def _grows(layout) -> np.ndarray | bool:
+    """(n_blocks,) bool: some blade of the block grows (paint.py); True without paint."""
+    if layout.cell_density is None:
+        return True
+    return (layout.cell_density[layout.block_cells] > 0).any(axis=1)
+
+
 def blade_pool(field, shape: slots.PoolShape) -> SlotPool:
     """Blade strips: blocks where some cell has N > 0 (eq 9); colours rewritten where a position
     changed block (FREE positions cleared, so an object's data is a function of the frame alone)."""
 
     def needs(layout, lod):
-        return (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible
+        return (lod.blade_count[layout.block_cells] > 0).any(axis=1) & lod.block_visible & _grows(layout)
 
     def fill(layout, cells, blocks, lod, out):
         kinematics.blade_vertices(layout, cells, blocks, lod.blade_count, out)
@@ -163,7 +170,7 @@ def card_pool(field, shape: slots.PoolShape) -> SlotPool:
     camera every frame, not only when a position changes block."""
 
     def needs(layout, lod):
-        return (lod.k_billboard[layout.block_cells] > 0).any(axis=1) & lod.block_visible
+        return (lod.k_billboard[layout.block_cells] > 0).any(axis=1) & lod.block_visible & _grows(layout)
 
     def fill(layout, cells, blocks, lod, out):
         kinematics.card_vertices(layout, cells, blocks, out)
@@ -172,6 +179,8 @@ def card_pool(field, shape: slots.PoolShape) -> SlotPool:
         opacity = np.zeros((len(blocks), layout.cells_per_block_total), dtype=np.float32)
         shown = blocks >= 0
         opacity[shown] = lod.k_billboard[layout.block_cells[blocks[shown]]]
+        if layout.cell_density is not None:  # a card shows only its cell's blades that grow (paint)
+            opacity[shown] *= layout.cell_density[layout.block_cells[blocks[shown]]]
         _write_uv(mesh, materials.UV_FADE, np.repeat(opacity.ravel(), 8))  # (K_b, K_b) at 4 corners
 
     return SlotPool(field_scene.ROLE_CARDS, shape, needs, fill, attributes)

@@ -1,0 +1,248 @@
+"""Where grass grows and how tall: painted maps and keep-out shapes (numpy only).
+
+A ``Paint`` holds what the artist painted or placed on the field, in the field's frame:
+
+* ``density``: a map of 0..1, the share of a cell's blades that grow there (white: all of them);
+* ``length``: a map of 0..2 (stored 0..1 as an image, times LENGTH_RANGE), the scale of the blades'
+  length there: 1 as grown, 0.5 mown to half;
+* ``species``: per species row, a map that scales its share there (a patch of clover, a strip of
+  dry grass);
+* ``keep_out``: footprints (boxes, discs, the ground outline of objects) where nothing grows, with
+  a ``margin`` around them and a ``falloff`` over which the grass thins back to full.
+
+How a blade follows the paint (``blocks.make_block``): every blade draws its own uniform numbers
+once, from its block's stream, whatever is painted. It grows where its number is below the local
+density, takes the species its second number picks from the local shares (an inverse CDF: without
+species maps the very pick ``Generator.choice`` makes), and its length is scaled by the local
+length. So painting more grass adds blades and never moves the ones already there, and a stroke
+changes only the blades under it. A paint is part of what a block is a function of (``fingerprint``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ParameterError
+
+LENGTH_RANGE = 2.0  # a length map's white: blades twice their length
+MIN_LENGTH_SCALE = 0.02  # below this a blade is mown to nothing: it does not grow
+
+
+@dataclass(frozen=True, eq=False)
+class Raster:
+    """Values on a regular grid over a rectangle of the field: ``values`` (ny, nx), row 0 along
+    y0 (the bottom of an image), pixel (i, j) centred at x0 + (i + 1/2) (x1 - x0) / nx. Bilinear
+    between pixel centres, the edge value beyond them."""
+
+    values: np.ndarray
+    extent: tuple[float, float, float, float]
+    name: str = "map"  # the setting it came from, for messages
+
+    def __post_init__(self):
+        v = np.ascontiguousarray(self.values, dtype=np.float32)
+        if v.ndim != 2 or v.size == 0:
+            raise ParameterError(self.name, f"a map needs a 2-D image of values, got shape {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ParameterError(self.name, "the map holds values that are not finite numbers")
+        x0, y0, x1, y1 = (float(c) for c in self.extent)
+        check_extent(self.name, (x0, y0, x1, y1))
+        v.setflags(write=False)
+        object.__setattr__(self, "values", v)
+        object.__setattr__(self, "extent", (x0, y0, x1, y1))
+
+    def sample(self, xy) -> np.ndarray:
+        """Bilinear values at points xy (..., 2) -> (...) float64."""
+        xy = np.asarray(xy, dtype=np.float64)
+        x0, y0, x1, y1 = self.extent
+        ny, nx = self.values.shape
+        u = np.clip((xy[..., 0] - x0) / (x1 - x0) * nx - 0.5, 0.0, nx - 1)
+        v = np.clip((xy[..., 1] - y0) / (y1 - y0) * ny - 0.5, 0.0, ny - 1)
+        i = np.minimum(np.floor(u), max(nx - 2, 0)).astype(np.intp)
+        j = np.minimum(np.floor(v), max(ny - 2, 0)).astype(np.intp)
+        fu, fv = u - i, v - j
+        i1, j1 = np.minimum(i + 1, nx - 1), np.minimum(j + 1, ny - 1)
+        a = self.values
+        low = a[j, i] + (a[j, i1] - a[j, i]) * fu
+        high = a[j1, i] + (a[j1, i1] - a[j1, i]) * fu
+        return low + (high - low) * fv
+
+    def fingerprint(self) -> str:
+        h = hashlib.sha1(np.asarray(self.values.shape, np.int64).tobytes())
+        h.update(self.values.tobytes())
+        h.update(np.asarray(self.extent, np.float64).tobytes())
+        return h.hexdigest()
+
+
+def check_extent(name: str, extent) -> None:
+    x0, y0, x1, y1 = (float(c) for c in extent)
+    if not all(math.isfinite(c) for c in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+        raise ParameterError(name, f"extent {[x0, y0, x1, y1]} is not a rectangle (valid: [x0, y0, x1, y1] "
+                             "in metres with x1 > x0 and y1 > y0)")
+
+
+@dataclass(frozen=True, eq=False)
+class KeepOut:
+    """Footprints where nothing grows: triangles (T, 3, 2) on the ground, in the field's frame.
+    Grass is gone within ``margin`` metres of a footprint and thins back in over ``falloff``."""
+
+    triangles: np.ndarray
+    margin: float = 0.0
+    falloff: float = 0.0
+
+    def __post_init__(self):
+        t = np.ascontiguousarray(self.triangles, dtype=np.float64).reshape(-1, 3, 2)
+        t.setflags(write=False)
+        object.__setattr__(self, "triangles", t)
+
+    @property
+    def reach(self) -> float:
+        return float(self.margin) + float(self.falloff)
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """xmin, ymin, xmax, ymax of everything the footprints affect."""
+        lo, hi = self.triangles.reshape(-1, 2).min(axis=0), self.triangles.reshape(-1, 2).max(axis=0)
+        r = self.reach
+        return float(lo[0] - r), float(lo[1] - r), float(hi[0] + r), float(hi[1] + r)
+
+    def factor(self, xy) -> np.ndarray:
+        """How much grass grows at points xy (n, 2): 0 within the margin of a footprint, rising
+        to 1 over the falloff beyond it (a smoothstep), 1 further away."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.ones(len(xy))
+        if not len(self.triangles) or not len(xy):
+            return out
+        x0, y0, x1, y1 = self.bounds()
+        near = np.flatnonzero((xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1))
+        if near.size == 0:
+            return out
+        d = footprint_distance(xy[near], self.triangles, self.reach)
+        if self.falloff > 0.0:
+            s = np.clip((d - self.margin) / self.falloff, 0.0, 1.0)
+            out[near] = s * s * (3.0 - 2.0 * s)
+        else:
+            out[near] = (d > self.margin).astype(np.float64)
+        return out
+
+
+def footprint_distance(points: np.ndarray, triangles: np.ndarray, reach: float, chunk: int = 4096) -> np.ndarray:
+    """Distance from each point (n, 2) to the union of triangles (T, 3, 2): 0 inside one; beyond
+    ``reach`` the value is only known to be >= reach (the triangles whose boxes are out of reach
+    are skipped)."""
+    out = np.full(len(points), np.inf)
+    lo, hi = triangles.min(axis=1) - reach, triangles.max(axis=1) + reach
+    for start in range(0, len(points), chunk):
+        p = points[start:start + chunk]
+        box = ((p[:, None, 0] >= lo[None, :, 0]) & (p[:, None, 0] <= hi[None, :, 0])
+               & (p[:, None, 1] >= lo[None, :, 1]) & (p[:, None, 1] <= hi[None, :, 1]))
+        rows, tris = np.nonzero(box)
+        if rows.size == 0:
+            continue
+        d = _point_triangle_distance(p[rows], triangles[tris])
+        best = np.full(len(p), np.inf)
+        np.minimum.at(best, rows, d)
+        out[start:start + chunk] = best
+    return out
+
+
+def _point_triangle_distance(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Distance of points p (m, 2) to triangles t (m, 3, 2) (0 inside), pair by pair."""
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    s1, s2, s3 = cross(b - a, p - a), cross(c - b, p - b), cross(a - c, p - c)
+    inside = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
+
+    def segment(u, v):
+        e = v - u
+        length2 = np.maximum((e * e).sum(axis=1), 1e-30)
+        s = np.clip(((p - u) * e).sum(axis=1) / length2, 0.0, 1.0)
+        q = u + e * s[:, None]
+        return np.hypot(p[:, 0] - q[:, 0], p[:, 1] - q[:, 1])
+
+    d = np.minimum(np.minimum(segment(a, b), segment(b, c)), segment(c, a))
+    return np.where(inside, 0.0, d)
+
+
+def box_triangles(center, size, angle_deg: float = 0.0) -> np.ndarray:
+    """(2, 3, 2) triangles of a rectangle ``size`` (width, depth) centred on ``center``, turned by
+    ``angle_deg`` counter-clockwise."""
+    w, d = 0.5 * float(size[0]), 0.5 * float(size[1])
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    corners = np.array([(-w, -d), (w, -d), (w, d), (-w, d)]) @ np.array([[c, s], [-s, c]]) + np.asarray(center[:2])
+    return np.array([[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
+
+
+def disc_triangles(center, radius: float, sides: int = 48) -> np.ndarray:
+    """(sides, 3, 2) triangles of a disc (a polygon whose edges stay within 0.2 % of the radius)."""
+    a = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
+    ring = np.stack([np.cos(a), np.sin(a)], axis=1) * float(radius) / math.cos(math.pi / sides) \
+        + np.asarray(center[:2])
+    c = np.broadcast_to(np.asarray(center[:2], dtype=np.float64), (sides, 2))
+    return np.stack([c, ring, np.roll(ring, -1, axis=0)], axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Paint:
+    """The maps and keep-out shapes of a field (any may be None: nothing painted there)."""
+
+    density: Raster | None = None
+    length: Raster | None = None
+    species: tuple = field(default_factory=tuple)  # (Raster | None) per species row
+    keep_out: KeepOut | None = None
+
+    @property
+    def empty(self) -> bool:
+        return (self.density is None and self.length is None and self.keep_out is None
+                and not any(m is not None for m in self.species))
+
+    @property
+    def thins(self) -> bool:
+        """Whether some blades may not grow (density, keep-out or species maps)."""
+        return self.density is not None or self.keep_out is not None or any(m is not None for m in self.species)
+
+    def density_at(self, xy) -> np.ndarray:
+        """Share of the blades that grow at points xy (n, 2): the density map times keep-out."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.ones(len(xy)) if self.density is None else np.clip(self.density.sample(xy), 0.0, 1.0)
+        if self.keep_out is not None:
+            out = out * self.keep_out.factor(xy)
+        return out
+
+    def length_at(self, xy) -> np.ndarray:
+        """Scale of the blades' length at points xy (n,): 1 without a length map."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if self.length is None:
+            return np.ones(len(xy))
+        return np.clip(self.length.sample(xy), 0.0, 1.0) * LENGTH_RANGE
+
+    def species_weights_at(self, xy, weights: np.ndarray) -> np.ndarray | None:
+        """(n, species) local shares (the rows' weights times their maps), or None without maps."""
+        if not any(m is not None for m in self.species):
+            return None
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.broadcast_to(np.asarray(weights, dtype=np.float64), (len(xy), len(weights))).copy()
+        for k, m in enumerate(self.species[:len(weights)]):
+            if m is not None:
+                out[:, k] *= np.clip(m.sample(xy), 0.0, 1.0)
+        return out
+
+    def fingerprint(self) -> str:
+        h = hashlib.sha1(b"paint")
+        for name, m in (("density", self.density), ("length", self.length)):
+            h.update(f"{name}:{m.fingerprint() if m is not None else '-'}".encode())
+        for k, m in enumerate(self.species):
+            h.update(f"species{k}:{m.fingerprint() if m is not None else '-'}".encode())
+        if self.keep_out is not None:
+            k = self.keep_out
+            h.update(k.triangles.tobytes() + np.array([k.margin, k.falloff], np.float64).tobytes())
+        return h.hexdigest()
+
+
+def fingerprint(paint: Paint | None) -> str:
+    return "" if paint is None or paint.empty else paint.fingerprint()

@@ -58,6 +58,15 @@ class GrassField:
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
 
+    @classmethod
+    def of_scene(cls, params: Params, wind_keys=None) -> GrassField:
+        """The field of a scene file's settings with its ``[terrain]`` heightmap and ``[paint]``
+        maps read from disk (the numpy-only scripts; in Blender the bridge reads them)."""
+        from . import images, paint, terrain
+
+        return cls(params, wind_keys, terrain=terrain.from_params(params, images.read_map),
+                   paint=paint.from_params(params, images.read_map))
+
     # ------------------------------------------------------------------ the window of blocks
 
     def _check_budget(self) -> None:

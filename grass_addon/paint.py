@@ -246,3 +246,76 @@ class Paint:
 
 def fingerprint(paint: Paint | None) -> str:
     return "" if paint is None or paint.empty else paint.fingerprint()
+
+
+def field_extent(params) -> tuple[float, float, float, float]:
+    """The field's rectangle in its own frame (centred on the origin)."""
+    from .grid import FieldGrid
+
+    grid = FieldGrid.of(params)
+    (x0, y0), (w, h) = grid.origin, grid.size
+    return float(x0), float(y0), float(x0 + w), float(y0 + h)
+
+
+def map_extent(params, extent, name: str) -> tuple[float, float, float, float]:
+    """``extent`` as given ([x0, y0, x1, y1]), or the field's when it is all zeros."""
+    if not any(float(c) for c in extent):
+        return field_extent(params)
+    check_extent(name, extent)
+    return tuple(float(c) for c in extent)
+
+
+def keep_out_shapes(params) -> np.ndarray:
+    """(T, 3, 2) triangles of the scene file's ``[[keep_out.shapes]]`` boxes and discs."""
+    parts = []
+    for i, row in enumerate(params.keep_out.shapes):
+        if row["shape"] == "box":
+            if min(row["size"]) <= 0.0:
+                raise ParameterError(f"keep_out.shapes[{i}].size", f"{list(row['size'])} has a side of 0 "
+                                     "(valid: width and depth > 0 m)")
+            parts.append(box_triangles(row["center"], row["size"], row["angle"]))
+        else:
+            if row["radius"] <= 0.0:
+                raise ParameterError(f"keep_out.shapes[{i}].radius", "0 m draws no disc (valid: > 0 m)")
+            parts.append(disc_triangles(row["center"], row["radius"]))
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
+
+
+def from_params(params, load, extra: Paint | None = None) -> Paint | None:
+    """The paint of a scene file's settings (``[paint]``, the species rows' ``density_map``,
+    ``[[keep_out.shapes]]``), file maps read by ``load(path, setting name) -> values (ny, nx)``
+    (``images.read_map``). ``extra``: maps and footprints from Blender (the terrain's vertex
+    groups, a keep-out collection) that the file's settings do not name; a map named in both is
+    taken from the settings. None when nothing is painted."""
+    extent = None
+
+    def raster(path: str, name: str):
+        nonlocal extent
+        if not path:
+            return None
+        if extent is None:
+            extent = map_extent(params, params.paint.extent, "paint.extent")
+        return Raster(load(path, name), extent, name)
+
+    extra = extra or Paint()
+    density = _is_file_map(params.paint.density) and raster(params.paint.density, "paint.density") or extra.density
+    length = _is_file_map(params.paint.length) and raster(params.paint.length, "paint.length") or extra.length
+    species = []
+    for i, row in enumerate(params.species()):
+        mine = extra.species[i] if i < len(extra.species) else None
+        path = row.get("density_map", "")
+        species.append(_is_file_map(path) and raster(path, f"blade.species[{i}].density_map") or mine)
+    triangles = keep_out_shapes(params)
+    if extra.keep_out is not None:
+        triangles = np.concatenate([triangles, extra.keep_out.triangles])
+    keep = KeepOut(triangles, params.keep_out.margin, params.keep_out.falloff) if len(triangles) else None
+    paint = Paint(density=density or None, length=length or None, species=tuple(species), keep_out=keep)
+    return None if paint.empty else paint
+
+
+# Map sources that only Blender can read (bridge/maps.py): "vertex_group:NAME", "attribute:NAME", "image:NAME".
+BLENDER_SOURCES = ("vertex_group:", "attribute:", "image:")
+
+
+def _is_file_map(value: str) -> bool:
+    return bool(value) and not value.startswith(BLENDER_SOURCES)

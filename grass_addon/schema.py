@@ -71,6 +71,7 @@ class Param:
     fields: tuple[Param, ...] = ()  # for kind == "table_list": the columns of each row
     label: str = ""
     applies_when: tuple[str, str] = ()  # (enum key of the section, choice): only matters then
+    path: bool = False  # a "str" that names a file: relative paths in a scene file are from its folder
 
     @property
     def name(self) -> str:
@@ -125,7 +126,25 @@ SPECIES_FIELDS: tuple[Param, ...] = (
        "stiffer (multiplies mu_root, eq 1)", minimum=0.05, maximum=20.0, soft_max=5.0, label="Stiffness"),
     _p("", "color", "vec", (0.12, 0.32, 0.05), "Colour of the blade tips (linear RGB)", minimum=0.0, maximum=1.0,
        size=3, label="Color"),
+    _p("", "density_map", "str", "", "Where this species grows: a map that scales its share (white: its share, "
+       "black: none). See paint.density for the sources", label="Density Map", path=True),
 )
+
+# Columns of one ``[[keep_out.shapes]]`` row: where no grass grows.
+KEEP_OUT_FIELDS: tuple[Param, ...] = (
+    _p("", "shape", "enum", "box", "A rectangle or a disc on the ground", choices=("box", "disc"), label="Shape"),
+    _p("", "center", "vec", (0.0, 0.0), "Its centre on the ground (the field's centre is 0, 0)", unit="m",
+       minimum=-1e5, maximum=1e5, size=2, label="Center"),
+    _p("", "size", "vec", (1.0, 1.0), "Box: its width (along X before turning) and depth", unit="m", minimum=0.0,
+       maximum=1e5, size=2, label="Size"),
+    _p("", "radius", "float", 1.0, "Disc: its radius", unit="m", minimum=0.0, maximum=1e5, label="Radius"),
+    _p("", "angle", "float", 0.0, "Box: its turn, counter-clockwise", unit="deg", minimum=-3600.0, maximum=3600.0,
+       label="Angle"),
+)
+
+MAP_SOURCES = ("A PNG file (paths in a scene file are from its folder); in Blender also vertex_group:NAME or "
+               "attribute:NAME of the terrain mesh, or image:NAME of an image (over the terrain's UV map, else "
+               "the extent)")
 
 # Columns of one ``[[wind.keys]]`` row: the mean wind changes over time between keys.
 WIND_KEY_FIELDS: tuple[Param, ...] = (
@@ -223,6 +242,28 @@ PARAMS: tuple[Param, ...] = (
        unit="cells", minimum=0.1, maximum=10.0, label="Card Width"),
     _p("lod", "card_height", "float", 1.0, "Height of a card as a fraction of its cell's tallest blade at rest",
        unit="fraction", minimum=0.05, maximum=5.0, label="Card Height"),
+    # --- [terrain] the ground of batch renders (in Blender: the field's terrain mesh) -----------------
+    _p("terrain", "heightmap", "str", "", "Hills under the grass: a greyscale PNG over the extent, black the lowest "
+       "ground, white terrain.height above it; empty: flat (in Blender a terrain mesh rules)", label="Heightmap",
+       path=True),
+    _p("terrain", "height", "float", 10.0, "How high the heightmap's white stands above its black", unit="m",
+       minimum=0.0, maximum=10000.0, soft_max=200.0, label="Height"),
+    _p("terrain", "extent", "vec", (0.0, 0.0, 0.0, 0.0), "The rectangle the heightmap covers, [x0, y0, x1, y1]; "
+       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent"),
+    # --- [paint] where grass grows and how tall (paint.py) -------------------------------------------
+    _p("paint", "density", "str", "", "Where grass grows: a map of the share of blades that grow (white: all, "
+       "black: none). " + MAP_SOURCES, label="Density", path=True),
+    _p("paint", "length", "str", "", "How long the grass grows: a map of the blades' length (mid grey: as grown, "
+       "black: mown away, white: twice as long). " + MAP_SOURCES, label="Length", path=True),
+    _p("paint", "extent", "vec", (0.0, 0.0, 0.0, 0.0), "The rectangle the map files cover, [x0, y0, x1, y1]; "
+       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent"),
+    # --- [keep_out] footprints where nothing grows (houses, rocks, paths) ----------------------------
+    _p("keep_out", "margin", "float", 0.1, "Bare ground kept around every footprint", unit="m", minimum=0.0,
+       maximum=1000.0, soft_max=5.0, label="Margin"),
+    _p("keep_out", "falloff", "float", 0.3, "Beyond the margin the grass thins back in over this distance", unit="m",
+       minimum=0.0, maximum=1000.0, soft_max=10.0, label="Falloff"),
+    _p("keep_out", "shapes", "table_list", (), "Boxes and discs where nothing grows (in Blender also the objects "
+       "of the field's keep-out collection)", fields=KEEP_OUT_FIELDS, label="Shapes"),
     # --- [camera] headless renders and LOD without a Blender camera ---------------------------------
     _p("camera", "mode", "enum", "flythrough", "Fly over the field (the paper's tests) or a fixed view",
        choices=("flythrough", "fixed"), label="Mode"),
@@ -533,10 +574,12 @@ def load_toml(path: str | Path, base: Params | None = None) -> Params:
     except UnicodeDecodeError:
         raise ParameterError("config", f"{path} is not UTF-8 text (a TOML scene file is UTF-8; "
                              "binary files and UTF-16 cannot be read)") from None
-    return loads_toml(text, base, source=str(path))
+    return loads_toml(text, base, source=str(path), folder=path.resolve().parent)
 
 
-def loads_toml(text: str, base: Params | None = None, source: str = "<toml>") -> Params:
+def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", folder: Path | None = None) -> Params:
+    """Params of a scene file's text; ``folder``: where relative file paths in it start (the
+    scene file's folder; None: the current folder)."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -544,9 +587,28 @@ def loads_toml(text: str, base: Params | None = None, source: str = "<toml>") ->
     except RecursionError:
         raise ParameterError("config", f"{source} nests arrays or tables too deeply to be a scene file") from None
     try:
+        if folder is not None:
+            _resolve_paths(data, Path(folder))
         return from_dict(data, base)
     except ParameterError as exc:
         raise ParameterError(exc.key, f"{exc.message} (in {source})") from None
+
+
+def _resolve_paths(data: Any, folder: Path) -> None:
+    """File paths of a scene file (``Param.path``) made absolute from ``folder``, in place."""
+    if not isinstance(data, Mapping):
+        return
+    for p in PARAMS:
+        section = data.get(p.section)
+        if not isinstance(section, dict) or p.key not in section:
+            continue
+        if p.path and isinstance(section[p.key], str) and section[p.key]:
+            section[p.key] = str((folder / Path(section[p.key]).expanduser()).resolve())
+        if p.kind == "table_list" and isinstance(section[p.key], list):
+            for row in section[p.key]:
+                for f in p.fields:
+                    if f.path and isinstance(row, dict) and isinstance(row.get(f.key), str) and row[f.key]:
+                        row[f.key] = str((folder / Path(row[f.key]).expanduser()).resolve())
 
 
 def dumps_toml(params: Params) -> str:
@@ -607,6 +669,8 @@ def add_cli_arguments(parser: Any) -> None:
             elif p.kind == "vec":
                 kw["nargs"] = p.size
                 kw["metavar"] = "X"
+            elif p.kind == "str":
+                kw["metavar"] = "PATH" if p.path else "TEXT"
             else:
                 kw["metavar"] = "N" if p.kind == "int" else "X"
             group.add_argument(p.cli_flag, **kw)

@@ -243,3 +243,26 @@ def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
     hit = np.isfinite(best)
     heights = np.where(hit, best, 0.0).astype(np.float32).reshape(ny + 1, nx + 1)
     return heights, hit.reshape(ny + 1, nx + 1)
+
+
+def from_heightmap(values, extent, height: float, params, name: str = "terrain.heightmap") -> Heightfield:
+    """The heightfield of a greyscale heightmap (values 0..1, row 0 at y0) lying over ``extent``
+    ([x0, y0, x1, y1] in the field's frame), white ``height`` metres above black, sampled at the
+    field's heightfield grid (``grid_for``; bilinear between pixel centres)."""
+    from .paint import Raster
+
+    origin, spacing, nx, ny = grid_for(params)
+    heights = Raster(values, extent, name).sample(grid_points(origin, spacing, nx, ny)) * float(height)
+    return Heightfield(origin, spacing, heights.astype(np.float32))
+
+
+def from_params(params, load) -> Heightfield | None:
+    """The scene file's ``[terrain]`` heightmap (``load(path, setting name)`` reads it,
+    ``images.read_map``), or None for flat ground."""
+    t = params.terrain
+    if not t.heightmap:
+        return None
+    from .paint import map_extent
+
+    extent = map_extent(params, t.extent, "terrain.extent")
+    return from_heightmap(load(t.heightmap, "terrain.heightmap"), extent, t.height, params)

@@ -75,7 +75,7 @@ def _tips(layout, cells, blocks, out) -> np.ndarray:
 
 def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
     t0 = time.perf_counter()
-    field = GrassField(params)
+    field = GrassField.of_scene(params)
     if not field.whole:
         cells = field.grid.n_blocks * field.grid.cells_per_block ** 2
         raise ParameterError("field.blocks_x", f"simulate.py traces every cell of the field, which has {cells:,}; "

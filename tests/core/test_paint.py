@@ -172,3 +172,69 @@ def test_bad_maps_are_named(bad, key):
     with pytest.raises(schema.ParameterError) as info:
         bad()
     assert info.value.key == key
+
+
+# --------------------------------------------------------------------------------------------
+# Scene files: maps and heightmaps as PNG files, paths from the scene file's folder
+
+
+def test_a_scene_file_paints_with_png_maps_next_to_it(tmp_path):
+    """[paint] density = "stripe.png" (relative to the scene file), [[keep_out.shapes]] a disc:
+    blades grow as painted; simulate.py's numpy path reads the same files."""
+    from windgrass.grass_addon import images
+
+    stripe = np.ones((64, 64))
+    stripe[:, 28:36] = 0.0  # x in [-0.4, 0.4] of the 6.4 m field
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "stripe.png").write_bytes(images.encode_png(stripe))
+    (tmp_path / "scene.toml").write_text(
+        "[field]\nblocks_x = 8\nblocks_y = 8\ncells_per_block = 8\nblades_per_cell = 4\n"
+        '[paint]\ndensity = "maps/stripe.png"\n'
+        "[keep_out]\nmargin = 0.0\nfalloff = 0.0\n"
+        '[[keep_out.shapes]]\nshape = "disc"\ncenter = [2.0, 2.0]\nradius = 0.5\n')
+    params = schema.load_toml(tmp_path / "scene.toml")
+    assert params.paint.density == str(tmp_path / "maps" / "stripe.png")
+    field = GrassField.of_scene(params)
+    layout = field.layout
+    x, y = layout.blade_root[:, 0], layout.blade_root[:, 1]
+    assert not layout.blade_alive[np.abs(x) < 0.35].any()
+    assert not layout.blade_alive[np.hypot(x - 2.0, y - 2.0) < 0.5].any()
+    assert layout.blade_alive[(np.abs(x) > 0.5) & (np.hypot(x - 2.0, y - 2.0) > 0.55)].all()
+
+
+def test_a_heightmap_roots_every_blade_on_its_surface(tmp_path):
+    """[terrain] heightmap: a ramp from black (west) to white (east), height 2 m: every blade root
+    and cell lies on the surface the image describes (z = 2 (x - x0) / width, between pixel
+    centres)."""
+    from windgrass.grass_addon import images
+
+    ramp = np.tile((np.arange(256) + 0.5) / 256, (8, 1))
+    (tmp_path / "ramp.png").write_bytes(images.encode_png(ramp))
+    (tmp_path / "hills.toml").write_text("[field]\nblocks_x = 4\nblocks_y = 4\ncells_per_block = 8\n"
+                                         '[terrain]\nheightmap = "ramp.png"\nheight = 2.0\n')
+    field = GrassField.of_scene(schema.load_toml(tmp_path / "hills.toml"))
+    layout = field.layout
+    x = layout.blade_root[:, 0].astype(np.float64)
+    expected = 2.0 * (x + 1.6) / 3.2
+    np.testing.assert_allclose(layout.blade_root[:, 2], expected, atol=2.0 / 255 + 1e-3)  # 8-bit steps
+    assert layout.terrain is not None and layout.blade_ground_slope is not None
+
+
+@pytest.mark.parametrize("toml, key, words", [
+    ('[paint]\ndensity = "missing.png"\n', "paint.density", ["missing.png", "does not exist"]),
+    ('[paint]\ndensity = "scene.toml"\n', "paint.density", ["not an image"]),
+    ('[paint]\ndensity = "ok.png"\nextent = [2.0, 0.0, 1.0, 1.0]\n', "paint.extent", ["x1 > x0"]),
+    ('[terrain]\nheightmap = "nowhere.png"\n', "terrain.heightmap", ["does not exist"]),
+    ('[[keep_out.shapes]]\nshape = "box"\nsize = [0.0, 1.0]\n', "keep_out.shapes[0].size", ["> 0"]),
+    ('[[keep_out.shapes]]\nshape = "star"\n', "keep_out.shapes[0].shape", ["box", "disc"]),
+])
+def test_bad_maps_in_scene_files_name_the_setting(tmp_path, toml, key, words):
+    from windgrass.grass_addon import images
+
+    (tmp_path / "ok.png").write_bytes(images.encode_png(np.ones((4, 4))))
+    (tmp_path / "scene.toml").write_text(toml)
+    with pytest.raises(schema.ParameterError) as info:
+        GrassField.of_scene(schema.load_toml(tmp_path / "scene.toml"))
+    assert info.value.key == key
+    for word in words:
+        assert word in str(info.value)

@@ -1,0 +1,143 @@
+"""PNG files as arrays of values (numpy and zlib only): the maps and heightmaps of scene files.
+
+Batch renders and the numpy-only scripts read the same files the same way, so a painted field is
+the same bits in Blender and outside it. 8- and 16-bit greyscale, grey + alpha, RGB, RGBA and
+palette images, not interlaced (what image editors write by default). A map's value is the
+image's grey level 0..1 (colour images: the mean of R, G and B), row 0 at the image's bottom,
+so the image lies over the field as it looks on screen with +Y up.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ParameterError
+
+SIGNATURE = b"\x89PNG\r\n\x1a\n"
+CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}  # colour type -> samples per pixel
+MAX_PIXELS = 1 << 26  # 8192 x 8192
+
+
+def read_map(path, name: str) -> np.ndarray:
+    """(height, width) float32 grey levels 0..1 of the PNG at ``path``, row 0 at the bottom;
+    ParameterError naming the setting ``name`` when it is missing, unreadable or not a PNG."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise ParameterError(name, f"{path} does not exist (valid: a PNG image file)") from None
+    except IsADirectoryError:
+        raise ParameterError(name, f"{path} is a folder, not a PNG image file") from None
+    except OSError as exc:
+        raise ParameterError(name, f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        rgba = decode_png(data)
+    except ValueError as exc:
+        raise ParameterError(name, f"{path} is not an image this can read: {exc} (valid: a PNG, 8- or 16-bit, "
+                             "grey or colour, not interlaced)") from None
+    colour = rgba[..., :3].mean(axis=-1) if rgba.shape[-1] >= 3 else rgba[..., 0]
+    return np.ascontiguousarray(colour[::-1], dtype=np.float32)
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """(height, width, channels) float32 0..1 of a PNG (ValueError on anything else)."""
+    if data[:8] != SIGNATURE:
+        raise ValueError("no PNG signature")
+    pos, header, palette, idat = 8, None, None, []
+    while pos + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if len(body) != length:
+            raise ValueError("the file is cut short")
+        pos += 12 + length
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"PLTE":
+            palette = np.frombuffer(body, np.uint8).reshape(-1, 3)
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            break
+    if header is None or not idat:
+        raise ValueError("no image header or data")
+    width, height, depth, colour, _, _, interlace = header
+    if colour not in CHANNELS or depth not in (8, 16) or interlace != 0:
+        raise ValueError(f"colour type {colour}, {depth}-bit, interlace {interlace}")
+    if colour == 3 and palette is None:
+        raise ValueError("a palette image without its palette")
+    if width * height > MAX_PIXELS or width == 0 or height == 0:
+        raise ValueError(f"{width} x {height} pixels")
+    channels = CHANNELS[colour]
+    step = channels * depth // 8  # bytes per pixel
+    stride = width * step
+    try:
+        raw = np.frombuffer(zlib.decompress(b"".join(idat)), np.uint8)
+    except zlib.error as exc:
+        raise ValueError(f"damaged image data ({exc})") from None
+    if raw.size < height * (stride + 1):
+        raise ValueError("the image data is cut short")
+    rows = _unfilter(raw[:height * (stride + 1)].reshape(height, stride + 1), step)
+    if depth == 16:
+        samples = rows.reshape(height, width * channels, 2)
+        values = (samples[..., 0].astype(np.float32) * 256.0 + samples[..., 1]) / 65535.0
+    else:
+        values = rows.astype(np.float32) / 255.0
+    values = values.reshape(height, width, channels)
+    if colour == 3:
+        index = rows.reshape(height, width)
+        values = palette[np.minimum(index, len(palette) - 1)].astype(np.float32) / 255.0
+    return values
+
+
+def _unfilter(filtered: np.ndarray, step: int) -> np.ndarray:
+    """Undo the PNG row filters (None, Sub, Up, Average, Paeth), row by row: None, Sub and Up in
+    numpy, Average and Paeth (each byte needs the one before) on Python bytes."""
+    height, width = filtered.shape[0], filtered.shape[1] - 1
+    out = np.zeros((height, width), np.uint8)
+    prev = np.zeros(width, np.uint8)
+    for y in range(height):
+        kind, line = int(filtered[y, 0]), filtered[y, 1:]
+        if kind == 0:
+            row = line
+        elif kind == 1:  # Sub: a running sum along each byte lane
+            lanes = line.reshape(-1, step).astype(np.uint32) if width % step == 0 else None
+            if lanes is None:
+                raise ValueError("a row is not a whole number of pixels")
+            row = (np.cumsum(lanes, axis=0) & 0xFF).astype(np.uint8).ravel()
+        elif kind == 2:  # Up
+            row = (line.astype(np.uint16) + prev).astype(np.uint8)
+        elif kind in (3, 4):
+            cur, up, res = line.tobytes(), prev.tobytes(), bytearray(width)
+            for i in range(width):
+                left = res[i - step] if i >= step else 0
+                if kind == 3:
+                    res[i] = (cur[i] + ((left + up[i]) >> 1)) & 0xFF
+                else:
+                    upleft = up[i - step] if i >= step else 0
+                    p = left + up[i] - upleft
+                    pa, pb, pc = abs(p - left), abs(p - up[i]), abs(p - upleft)
+                    res[i] = (cur[i] + (left if pa <= pb and pa <= pc else up[i] if pb <= pc else upleft)) & 0xFF
+            row = np.frombuffer(bytes(res), np.uint8)
+        else:
+            raise ValueError(f"unknown row filter {kind}")
+        out[y] = row
+        prev = out[y]
+    return out
+
+
+def encode_png(values: np.ndarray) -> bytes:
+    """An 8-bit greyscale PNG (filter None) of values 0..1 (rows with row 0 at the bottom): what
+    the tests and scripts write as maps."""
+    grey = np.clip(np.round(np.asarray(values, np.float64)[::-1] * 255.0), 0, 255).astype(np.uint8)
+    height, width = grey.shape
+    raw = np.concatenate([np.zeros((height, 1), np.uint8), grey], axis=1).tobytes()
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return SIGNATURE + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")

@@ -247,6 +247,19 @@ class BlockCache:
         """How many blocks the budget holds."""
         return max(1, self.budget // max(1, self.block_bytes()))
 
+    def drop(self, region) -> int:
+        """Forget the blocks whose ground rectangle meets the box ``region`` (x0, y0, x1, y1; the
+        paint there changed): they are made again when asked for. Returns how many were dropped."""
+        x0, y0, x1, y1 = region
+        ids = np.fromiter(self._blocks, np.int64, len(self._blocks))
+        if ids.size == 0:
+            return 0
+        b = self.grid.block_bounds(ids)
+        gone = ids[(b[:, 2] >= x0) & (b[:, 0] <= x1) & (b[:, 3] >= y0) & (b[:, 1] <= y1)]
+        for block in gone.tolist():
+            self.nbytes -= self._blocks.pop(block).nbytes
+        return int(gone.size)
+
     def get(self, blocks) -> list[Block]:
         ids = [int(b) for b in np.asarray(blocks, dtype=np.int64).ravel()]
         if len(ids) > self.capacity():

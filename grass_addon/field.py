@@ -145,6 +145,40 @@ class GrassField:
         self._recent.clear()
         return True
 
+    def repaint(self, paint, frame: int | None = None) -> int:
+        """Grow by ``paint`` (a ``paint.Paint`` or None) from now on, making again only the blocks
+        its change touches (``paint.changed_region``); their cells are simulated again where the
+        blades' lengths changed, so the state is what a field made with this paint would have.
+        Returns how many blocks were made again."""
+        from .paint import changed_region
+
+        old, new = self.cache.paint, (None if paint is None or paint.empty else paint)
+        region = changed_region(old, new)
+        if region is None:
+            return 0
+        shapes = changed_region(old, new, shapes=True)  # where the blades' lengths or species changed
+        self.cache.paint = new
+        touched = self.cache.drop(region)
+        renewed = self.layout.block_ids[self._touching(self.layout.block_ids, shapes)] if shapes else ()
+        if self.whole:
+            layout = build_layout(self.params, self.cache.terrain, cache=self.cache)
+        else:
+            ids = self.layout.block_ids
+            if new is not None and new.thins and ids.size:
+                ids = ids[[not block.empty for block in self.cache.get(ids)]]
+            layout = window_layout(self.cache, ids)
+        self.sim.set_layout(layout, frame=frame, renewed=renewed)
+        self.layout = layout
+        self.cells = None
+        self._recent.clear()
+        return touched
+
+    def _touching(self, ids: np.ndarray, region) -> np.ndarray:
+        """(len(ids),) bool: the block's ground rectangle meets the box ``region``."""
+        b = self.grid.block_bounds(ids)
+        x0, y0, x1, y1 = region
+        return (b[:, 2] >= x0) & (b[:, 0] <= x1) & (b[:, 3] >= y0) & (b[:, 1] <= y1)
+
     # ------------------------------------------------------------------ time
 
     @property

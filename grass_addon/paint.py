@@ -319,3 +319,57 @@ BLENDER_SOURCES = ("vertex_group:", "attribute:", "image:")
 
 def _is_file_map(value: str) -> bool:
     return bool(value) and not value.startswith(BLENDER_SOURCES)
+
+
+EVERYWHERE = (-math.inf, -math.inf, math.inf, math.inf)
+
+
+def changed_region(old: Paint | None, new: Paint | None, shapes: bool = False):
+    """The box (x0, y0, x1, y1) in which ``new`` grows other blades than ``old`` (None: nothing
+    changed). ``shapes``: only where the blades themselves differ (their length or species: the
+    cells' representative blades, hence their sway), not merely which of them grow."""
+    old, new = old or Paint(), new or Paint()
+    boxes = [_raster_change(old.length, new.length)]
+    rows = max(len(old.species), len(new.species))
+    for k in range(rows):
+        a = old.species[k] if k < len(old.species) else None
+        b = new.species[k] if k < len(new.species) else None
+        boxes.append(_raster_change(a, b))
+    if not shapes:
+        boxes.append(_raster_change(old.density, new.density))
+        boxes.append(_keep_out_change(old.keep_out, new.keep_out))
+    boxes = [b for b in boxes if b is not None]
+    if not boxes:
+        return None
+    return (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
+
+
+def _raster_change(a: Raster | None, b: Raster | None):
+    if a is None and b is None:
+        return None
+    if a is None or b is None or a.values.shape != b.values.shape or a.extent != b.extent:
+        return EVERYWHERE  # beyond its extent a map takes its edge values: it reaches everywhere
+    if a.fingerprint() == b.fingerprint():
+        return None
+    ny, nx = a.values.shape
+    rows, cols = np.nonzero(a.values != b.values)
+    x0, y0, x1, y1 = a.extent
+    px, py = (x1 - x0) / nx, (y1 - y0) / ny
+    # a pixel's value reaches to its neighbours' centres (bilinear), and past the edge (clamped)
+    left = -math.inf if cols.min() == 0 else x0 + (cols.min() - 0.5) * px
+    right = math.inf if cols.max() == nx - 1 else x0 + (cols.max() + 1.5) * px
+    bottom = -math.inf if rows.min() == 0 else y0 + (rows.min() - 0.5) * py
+    top = math.inf if rows.max() == ny - 1 else y0 + (rows.max() + 1.5) * py
+    return left, bottom, right, top
+
+
+def _keep_out_change(a: KeepOut | None, b: KeepOut | None):
+    if a is None and b is None:
+        return None
+    if a is not None and b is not None and len(a.triangles) == len(b.triangles) \
+            and np.array_equal(a.triangles, b.triangles) and (a.margin, a.falloff) == (b.margin, b.falloff):
+        return None
+    boxes = [k.bounds() for k in (a, b) if k is not None and len(k.triangles)]
+    if not boxes:
+        return None
+    return (min(x[0] for x in boxes), min(x[1] for x in boxes), max(x[2] for x in boxes), max(x[3] for x in boxes))

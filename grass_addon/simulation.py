@@ -121,14 +121,16 @@ class Simulation:
             self.cell_wind = self._sample(frame)
             self._wind_frame = frame
 
-    def set_layout(self, layout, frame: int | None = None) -> None:
+    def set_layout(self, layout, frame: int | None = None, renewed=()) -> None:
         """Work on the cells of ``layout`` from now on (the whole field or a window of blocks;
         ``layout.block_ids``).
 
         Cells of blocks in both layouts keep their states; those of new blocks are stepped on
         their own from each live trajectory's start to its frame (the steps they would have
         taken in the window), so a cell's state never depends on when it joined. ``frame``: the
-        frame about to be shown; trajectories it does not need are dropped, not caught up."""
+        frame about to be shown; trajectories it does not need are dropped, not caught up.
+        ``renewed``: field-wide ids of blocks in both layouts whose cells changed (repainted
+        lengths): they are caught up like new ones."""
         if self.layout is layout:
             return
         old = self.layout
@@ -136,7 +138,8 @@ class Simulation:
             k, _ = self.epoch_of(frame)
             for j in [j for j, t in self._trajectories.items() if j not in (k, k + 1) or t.pos > frame]:
                 del self._trajectories[j]
-        where = {int(b): i for i, b in enumerate(old.block_ids)}
+        renewed = {int(b) for b in renewed}
+        where = {int(b): i for i, b in enumerate(old.block_ids) if int(b) not in renewed}
         keep_new = [i for i, b in enumerate(layout.block_ids) if int(b) in where]
         keep_old = [where[int(layout.block_ids[i])] for i in keep_new]
         fresh = [i for i, b in enumerate(layout.block_ids) if int(b) not in where]

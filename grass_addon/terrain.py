@@ -188,14 +188,16 @@ def fill_missing(heights, hit, fallback: float | None = None) -> np.ndarray:
 
 
 def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
-          chunk_pairs: int = 1 << 21) -> tuple[np.ndarray, np.ndarray]:
+          chunk_pairs: int = 1 << 21, corner_values=None):
     """Heights of a triangle mesh at the grid's samples, as a ray cast straight down from above
     would find them: the highest surface over each sample (the top of the terrain).
 
     triangles: (T, 3, 3) vertex positions in the field's frame. Returns (heights, hit), both
     (ny + 1, nx + 1): float32 heights (0 where nothing was hit) and bool hit. Vectorised: every
     triangle is tested against the samples inside its XY bounding box (barycentric coordinates),
-    in chunks of at most ``chunk_pairs`` (triangle, sample) pairs.
+    in chunks of at most ``chunk_pairs`` (triangle, sample) pairs. ``corner_values`` (T, 3, k):
+    values at each triangle's corners (a vertex group's weights, a UV map); then (heights, hit,
+    values) with values (ny + 1, nx + 1, k) interpolated on the top surface at each sample.
     """
     tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     ox, oy = np.asarray(origin_xy, dtype=np.float64).reshape(2)
@@ -205,6 +207,10 @@ def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
     scale = np.maximum(np.abs(e1[:, :2]).max(axis=1), np.abs(e2[:, :2]).max(axis=1))
     keep = np.abs(det) > 1e-12 * np.maximum(scale * scale, 1e-30)  # seen edge-on from above: no area
     tri, a, e1, e2, det = tri[keep], a[keep], e1[keep], e2[keep], det[keep]
+    if corner_values is not None:
+        corner_values = np.asarray(corner_values, dtype=np.float64)
+        corner_values = corner_values.reshape(corner_values.shape[0], 3, -1)[keep]
+        picked = np.zeros(((ny + 1) * (nx + 1), corner_values.shape[-1]))
     best = np.full((ny + 1) * (nx + 1), -np.inf)
     if len(tri):
         eps = 1e-9
@@ -240,8 +246,17 @@ def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
             z = a[t, 2] + l1 * e1[t, 2] + l2 * e2[t, 2]
             flat_id = pj * (nx + 1) + pi
             np.maximum.at(best, flat_id[inside], z[inside])
+            if corner_values is not None:  # the values of the highest surface found so far
+                sel = np.flatnonzero(inside)
+                order = sel[np.argsort(z[sel], kind="stable")]  # ascending: the highest written last
+                order = order[z[order] >= best[flat_id[order]]]
+                cv = corner_values[t[order]]
+                w1, w2 = l1[order, None], l2[order, None]
+                picked[flat_id[order]] = cv[:, 0] + w1 * (cv[:, 1] - cv[:, 0]) + w2 * (cv[:, 2] - cv[:, 0])
     hit = np.isfinite(best)
     heights = np.where(hit, best, 0.0).astype(np.float32).reshape(ny + 1, nx + 1)
+    if corner_values is not None:
+        return heights, hit.reshape(ny + 1, nx + 1), picked.reshape(ny + 1, nx + 1, -1)
     return heights, hit.reshape(ny + 1, nx + 1)
 
 

@@ -44,7 +44,7 @@ class WINDGRASS_OT_wind_preset(bpy.types.Operator):
         with properties.batch(item):
             for name, value in overrides.items():
                 p = schema.BY_NAME[name]
-                setattr(getattr(item, p.section), p.key, properties.to_blender(p, value))
+                setattr(properties.group(item, p.section), p.key, properties.to_blender(p, value))
         speed = overrides["wind.speed"]
         if _animated(context.scene, item, "speed"):
             self.report({"WARNING"}, f"Wind speed is keyframed: its keyframes override the preset {speed:g} m/s")

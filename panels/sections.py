@@ -50,7 +50,7 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
 
 
 def draw_section(layout, context, item, section: str) -> None:
-    group = getattr(item, section)
+    group = properties.group(item, section)
     params = schema.section_params(section)
     layout.use_property_split = True
     layout.use_property_decorate = True  # keyframe dots on the animatable ones (wind speed, direction)

@@ -214,6 +214,15 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
 # --------------------------------------------------------------------------------------------
 # Generated classes
 
+# Sections whose name the field item already uses for something else: ``item.terrain`` is the
+# terrain mesh, so the [terrain] section's settings are ``item.ground``.
+SECTION_ATTRS = {"terrain": "ground"}
+
+
+def group(item: Any, section: str) -> Any:
+    """The PropertyGroup of ``section``'s settings on a field item (``group(item, "wind").speed``)."""
+    return getattr(item, SECTION_ATTRS.get(section, section))
+
 ROW_CLASSES: dict[str, type] = {}      # "blade.species" -> row PropertyGroup
 SECTION_CLASSES: dict[str, type] = {}  # "wind" -> section PropertyGroup
 
@@ -267,7 +276,11 @@ WINDGRASS_PG_field = type(f"{_PREFIX}field", (bpy.types.PropertyGroup,), {
                                                 description="Collection holding the field's objects"),
         "terrain": bpy.props.PointerProperty(type=bpy.types.Object, name="Terrain", poll=_mesh_poll,
                                              description="Mesh the blades are rooted on (empty: flat ground)"),
-        **{s: bpy.props.PointerProperty(type=SECTION_CLASSES[s], name=s.capitalize())
+        "keep_out_collection": bpy.props.PointerProperty(
+            type=bpy.types.Collection, name="Keep Out",
+            description="Objects whose ground outline grows no grass (houses, rocks, a path made of a curve with "
+                        "a bevel), with the margin and falloff below"),
+        **{SECTION_ATTRS.get(s, s): bpy.props.PointerProperty(type=SECTION_CLASSES[s], name=s.capitalize())
            for s in schema.SECTIONS},
     },
 })
@@ -298,7 +311,7 @@ def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
 
     With ``scene`` the clock is the scene's: its frame rate (``render.fps``; a fractional
     ``fps_base`` such as 29.97 fps is not followed) and frame range."""
-    data = {s: {p.key: from_blender(p, getattr(getattr(item, s), p.key)) for p in schema.section_params(s)}
+    data = {s: {p.key: from_blender(p, getattr(group(item, s), p.key)) for p in schema.section_params(s)}
             for s in schema.SECTIONS}
     if scene is not None:
         last = schema.BY_NAME["render.frame_end"].maximum
@@ -317,13 +330,13 @@ def apply_params(item: Any, params: schema.Params) -> None:
     """Write every value of ``params`` into the field item's properties (one runtime update)."""
     with batch(item):
         for section in schema.SECTIONS:
-            group = getattr(item, section)
+            settings = group(item, section)
             for p in schema.section_params(section):
                 value = params.get(p.name)
                 if p.kind == "table_list":
                     write_rows(item, p, value)
                 else:
-                    setattr(group, p.key, to_blender(p, value))
+                    setattr(settings, p.key, to_blender(p, value))
 
 
 TABLES: tuple[schema.Param, ...] = tuple(p for p in schema.PARAMS if p.kind == "table_list")
@@ -340,20 +353,20 @@ def table_param(name: str) -> schema.Param:
 def table_rows(item: Any, name: str) -> tuple[schema.Param, Any, Any, str]:
     """(table parameter, its section group, its rows collection, active-index name) of ``item``."""
     p = table_param(name)
-    group = getattr(item, p.section)
-    return p, group, getattr(group, p.key), index_name(p)
+    settings = group(item, p.section)
+    return p, settings, getattr(settings, p.key), index_name(p)
 
 
 def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
     """Replace the rows of table ``p`` of a field item by ``rows`` (dicts of schema values)."""
-    collection = getattr(getattr(item, p.section), p.key)
+    collection = getattr(group(item, p.section), p.key)
     with batch(item):
         collection.clear()
         for values in rows:
             row = collection.add()
             for f in p.fields:
                 setattr(row, f.key, to_blender(f, values.get(f.key, f.default)))
-        setattr(getattr(item, p.section), index_name(p), 0)
+        setattr(group(item, p.section), index_name(p), 0)
 
 
 def active_field(scene: bpy.types.Scene) -> Any | None:

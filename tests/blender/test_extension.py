@@ -212,7 +212,7 @@ def test_every_parameter_has_a_property_with_the_schema_default_and_hard_range(s
     schema = _schema()
     item = properties.add_field(scene)
     for p in schema.PARAMS:
-        rna = getattr(item, p.section).bl_rna.properties[p.key]
+        rna = properties.group(item, p.section).bl_rna.properties[p.key]
         if p.kind != "table_list":
             _check_property(p, rna)
             continue
@@ -247,7 +247,8 @@ def test_labels_units_and_tooltips_follow_blenders_conventions(scene):
     from windgrass.grass_addon.bridge import properties
 
     item = properties.add_field(scene)
-    names = {f"{p.section}.{p.key}": getattr(item, p.section).bl_rna.properties[p.key] for p in _schema().PARAMS}
+    names = {f"{p.section}.{p.key}": properties.group(item, p.section).bl_rna.properties[p.key]
+             for p in _schema().PARAMS}
     assert names["field.blocks_x"].name == "Blocks X" and names["field.blocks_y"].name == "Blocks Y"
     assert names["simulation.cache_mb"].name == "Cache (MB)"
     assert names["simulation.sub_steps"].name == "Substeps"

@@ -1,0 +1,236 @@
+"""The field's paint in Blender: maps and keep-out footprints from the scene (paint.py is the engine).
+
+A map setting (``paint.density``, ``paint.length``, a species row's ``density_map``) names:
+  * a PNG file (read by ``images.read_map``, as batch renders read it);
+  * ``vertex_group:NAME`` or ``attribute:NAME`` of the terrain mesh (a float or colour attribute on
+    its points or face corners): painted in Weight or Vertex Paint mode, draped over the field
+    like the terrain itself (the top surface's values at a grid of the field's cells);
+  * ``image:NAME``, an image of the file: over the terrain's UV map, or over ``paint.extent`` (the
+    field's extent) on flat ground; painted in Texture Paint mode.
+The field's keep-out collection: the ground outline (the triangles of the evaluated mesh, seen from
+above) of every object in it, a curve with a bevel included.
+
+Everything is read in the field's frame (the ground object's inverse world matrix), so moving the
+field moves what it grows around. Numbers that make a map: ``fingerprint`` goes into the field's
+digest (renders stay a function of the scene), the rasters into ``GrassField(paint=...)``.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from .. import images
+from .. import paint as paint_core
+from .. import terrain as terrain_core
+from ..errors import ParameterError
+from . import scene as field_scene
+
+MAX_MAP_SAMPLES = 1024  # samples along a side of a map draped from the terrain (one per cell, or coarser)
+
+
+def sources(params) -> list[tuple[str, str]]:
+    """(setting name, value) of every map setting that names something."""
+    out = [("paint.density", params.paint.density), ("paint.length", params.paint.length)]
+    out += [(f"blade.species[{i}].density_map", row.get("density_map", "")) for i, row in enumerate(params.species())]
+    return [(name, value) for name, value in out if value]
+
+
+def _to_field(item):
+    """4x4 numpy matrix from world to the field's frame (the ground's inverse), or None."""
+    ground = field_scene.ground_object(item)
+    if ground is None:
+        return None
+    return np.array(ground.matrix_world.inverted_safe(), dtype=np.float64)
+
+
+def map_grid(params) -> tuple[np.ndarray, float, int, int]:
+    """(origin, spacing, nx, ny): the grid maps are draped onto, a sample per cell corner or coarser."""
+    return terrain_core.grid_for(params, max_cells=MAX_MAP_SAMPLES)
+
+
+def _grid_raster(values: np.ndarray, params, name: str) -> paint_core.Raster:
+    """A raster whose pixel centres are the map grid's samples."""
+    origin, spacing, nx, ny = map_grid(params)
+    h = 0.5 * spacing
+    extent = (origin[0] - h, origin[1] - h, origin[0] + nx * spacing + h, origin[1] + ny * spacing + h)
+    return paint_core.Raster(values.reshape(ny + 1, nx + 1), extent, name)
+
+
+def _mesh_corners(obj, to_field: np.ndarray):
+    """(triangles (T, 3, 3) in the field's frame, loop triangles' loop ids (T, 3), their vertex
+    ids (T, 3), the mesh) of the object's evaluated mesh (free it with ``_done``)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    mesh.calc_loop_triangles()
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    loops = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    verts = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+    mesh.loop_triangles.foreach_get("vertices", verts)
+    m = to_field @ np.array(evaluated.matrix_world, dtype=np.float64)
+    world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    return world[verts].reshape(-1, 3, 3), loops.reshape(-1, 3), verts.reshape(-1, 3), evaluated, mesh
+
+
+def _vertex_group_weights(obj, mesh, name: str, setting: str) -> np.ndarray:
+    group = obj.vertex_groups.get(name)
+    if group is None:
+        have = ", ".join(repr(g.name) for g in obj.vertex_groups) or "none"
+        raise ParameterError(setting, f"the terrain '{obj.name}' has no vertex group {name!r} (it has: {have})")
+    index, weights = group.index, np.zeros(len(mesh.vertices))
+    for v in mesh.vertices:  # (no bulk access to vertex group weights)
+        for g in v.groups:
+            if g.group == index:
+                weights[v.index] = g.weight
+    return weights
+
+
+def _attribute_values(obj, mesh, name: str, setting: str) -> tuple[np.ndarray, str]:
+    """(values, domain) of a float or colour attribute (colours: the mean of R, G and B)."""
+    attribute = mesh.attributes.get(name) if name not in ("position",) else None
+    usable = [a.name for a in mesh.attributes if a.data_type in ("FLOAT", "FLOAT_COLOR", "BYTE_COLOR")
+              and a.domain in ("POINT", "CORNER") and not a.name.startswith(".")]
+    if attribute is None or attribute.name not in usable:
+        raise ParameterError(setting, f"the terrain '{obj.name}' has no float or colour attribute {name!r} on its "
+                             f"points or face corners (it has: {', '.join(map(repr, usable)) or 'none'})")
+    n = len(attribute.data)
+    if attribute.data_type == "FLOAT":
+        values = np.empty(n, np.float32)
+        attribute.data.foreach_get("value", values)
+    else:
+        rgba = np.empty(n * 4, np.float32)
+        attribute.data.foreach_get("color", rgba)
+        values = rgba.reshape(n, 4)[:, :3].mean(axis=1)
+    return values.astype(np.float64), attribute.domain
+
+
+def _image_pixels(name: str, setting: str) -> np.ndarray:
+    """(h, w) grey levels 0..1 of an image datablock (row 0 at the bottom, as Blender stores it)."""
+    image = bpy.data.images.get(name)
+    if image is None:
+        have = ", ".join(repr(i.name) for i in bpy.data.images if i.type == "IMAGE") or "none"
+        raise ParameterError(setting, f"there is no image {name!r} in this file (images: {have})")
+    w, h = image.size
+    if w * h == 0:
+        raise ParameterError(setting, f"the image {name!r} has no pixels (is its file missing?)")
+    pixels = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(h, w, image.channels)
+    return pixels[..., :3].mean(axis=-1) if image.channels >= 3 else pixels[..., 0]
+
+
+def _sample_image(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear values of an image (row 0 at the bottom) at UVs (n, 2), repeating like a texture."""
+    h, w = pixels.shape
+    u = np.mod(uv[:, 0], 1.0) * w - 0.5
+    v = np.mod(uv[:, 1], 1.0) * h - 0.5
+    i0, j0 = np.floor(u).astype(np.intp), np.floor(v).astype(np.intp)
+    fu, fv = u - i0, v - j0
+    i0, i1 = np.mod(i0, w), np.mod(i0 + 1, w)
+    j0, j1 = np.mod(j0, h), np.mod(j0 + 1, h)
+    low = pixels[j0, i0] + (pixels[j0, i1] - pixels[j0, i0]) * fu
+    high = pixels[j1, i0] + (pixels[j1, i1] - pixels[j1, i0]) * fu
+    return low + (high - low) * fv
+
+
+def _blender_map(scene, item, params, setting: str, value: str, to_field) -> paint_core.Raster:
+    """The raster of a ``vertex_group:``, ``attribute:`` or ``image:`` map setting."""
+    kind, _, name = value.partition(":")
+    terrain = field_scene.terrain_object(scene, item)
+    if kind == "image" and terrain is None:  # flat ground: the image over the extent
+        extent = paint_core.map_extent(params, params.paint.extent, "paint.extent")
+        return paint_core.Raster(_image_pixels(name, setting), extent, setting)
+    if terrain is None:
+        raise ParameterError(setting, f"{value!r} is read from the terrain mesh, and field '{item.name}' has none "
+                             "(set its Terrain; on flat ground use image:NAME or a PNG file)")
+    if to_field is None:
+        raise ParameterError(setting, f"field '{item.name}' has no ground object yet (Rebuild it)")
+    triangles, loops, verts, evaluated, mesh = _mesh_corners(terrain, to_field)
+    try:
+        if kind == "vertex_group":
+            corner = _vertex_group_weights(terrain, mesh, name, setting)[verts]
+        elif kind == "attribute":
+            values, domain = _attribute_values(terrain, mesh, name, setting)
+            corner = values[verts] if domain == "POINT" else values[loops]
+        else:
+            uv_layer = mesh.uv_layers.active
+            if uv_layer is None:
+                raise ParameterError(setting, f"the terrain '{terrain.name}' has no UV map to lay {value!r} on "
+                                     "(add one, or paint a vertex group)")
+            uv = np.empty(len(mesh.loops) * 2, np.float32)
+            uv_layer.data.foreach_get("uv", uv)
+            corner_uv = uv.reshape(-1, 2)[loops]
+            pixels = _image_pixels(name, setting)
+            corner = None
+    finally:
+        evaluated.to_mesh_clear()
+    origin, spacing, nx, ny = map_grid(params)
+    if corner is not None:
+        _, hit, draped = terrain_core.drape(triangles, origin, spacing, nx, ny, corner_values=corner[..., None])
+        values = np.where(hit, draped[..., 0], 1.0)
+    else:
+        _, hit, draped = terrain_core.drape(triangles, origin, spacing, nx, ny, corner_values=corner_uv)
+        values = np.where(hit, _sample_image(pixels, draped.reshape(-1, 2)).reshape(hit.shape), 1.0)
+    return _grid_raster(values, params, setting)
+
+
+def keep_out_triangles(item, to_field) -> np.ndarray:
+    """(T, 3, 2) ground outlines of the objects of the field's keep-out collection."""
+    coll = getattr(item, "keep_out_collection", None)
+    if coll is None:
+        return np.zeros((0, 3, 2))
+    parts = []
+    for obj in coll.all_objects:
+        if obj.type not in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
+            raise ParameterError("keep_out_collection", f"'{obj.name}' in the keep-out collection '{coll.name}' is a "
+                                 f"{obj.type.lower()} with no surface (valid: meshes, curves with a bevel, text)")
+        if to_field is None:
+            continue
+        triangles, _, _, evaluated, _ = _mesh_corners(obj, to_field)
+        evaluated.to_mesh_clear()
+        if not len(triangles):
+            raise ParameterError("keep_out_collection", f"'{obj.name}' in the keep-out collection '{coll.name}' has "
+                                 "no faces (a curve needs a bevel or an extrusion to have a footprint)")
+        parts.append(triangles[..., :2])
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
+
+
+def paint_of(scene, item, params) -> paint_core.Paint | None:
+    """The field's paint now (None: nothing painted); ParameterError naming the setting for a
+    source that is not there (with what is)."""
+    to_field = _to_field(item)
+    extra = {}
+    for setting, value in sources(params):
+        if value.startswith(paint_core.BLENDER_SOURCES):
+            extra[setting] = _blender_map(scene, item, params, setting, value, to_field)
+    rows = len(params.species())
+    footprint = keep_out_triangles(item, to_field)
+    blender = paint_core.Paint(
+        density=extra.get("paint.density"), length=extra.get("paint.length"),
+        species=tuple(extra.get(f"blade.species[{i}].density_map") for i in range(rows)),
+        keep_out=paint_core.KeepOut(footprint) if len(footprint) else None)
+    return paint_core.from_params(params, images.read_map, extra=blender)
+
+
+def depends_on(scene, item, params) -> set:
+    """Names of the datablocks the field's paint reads (its terrain, images, keep-out objects):
+    an update to one of them is a stroke or an edit to apply."""
+    names = set()
+    terrain = field_scene.terrain_object(scene, item)
+    for _, value in sources(params):
+        kind, _, name = value.partition(":")
+        if kind in ("vertex_group", "attribute") and terrain is not None:
+            names.add(("OBJECT", terrain.name))
+            names.add(("MESH", terrain.data.name))
+        elif kind == "image":
+            names.add(("IMAGE", name))
+            if terrain is not None:
+                names.add(("OBJECT", terrain.name))
+    coll = getattr(item, "keep_out_collection", None)
+    if coll is not None:
+        names |= {("OBJECT", o.name) for o in coll.all_objects}
+        names.add(("COLLECTION", coll.name))
+    return names

@@ -150,12 +150,14 @@ class GrassField:
         its change touches (``paint.changed_region``); their cells are simulated again where the
         blades' lengths changed, so the state is what a field made with this paint would have.
         Returns how many blocks were made again."""
-        from .paint import changed_region
+        from .paint import EVERYWHERE, changed_region
 
         old, new = self.cache.paint, (None if paint is None or paint.empty else paint)
         region = changed_region(old, new)
         if region is None:
             return 0
+        if (old is None) != (new is None):  # every block gains (or loses) its blades' growing flags
+            region = EVERYWHERE
         shapes = changed_region(old, new, shapes=True)  # where the blades' lengths or species changed
         self.cache.paint = new
         touched = self.cache.drop(region)

@@ -123,14 +123,14 @@ def _image_pixels(name: str, setting: str) -> np.ndarray:
 
 
 def _sample_image(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear values of an image (row 0 at the bottom) at UVs (n, 2), repeating like a texture."""
+    """Bilinear values of an image (row 0 at the bottom) at UVs (n, 2), its edge pixels beyond it
+    (as an image texture set to Extend shows it: a map's edge is not its opposite edge)."""
     h, w = pixels.shape
-    u = np.mod(uv[:, 0], 1.0) * w - 0.5
-    v = np.mod(uv[:, 1], 1.0) * h - 0.5
+    u = np.clip(uv[:, 0] * w - 0.5, 0.0, w - 1)
+    v = np.clip(uv[:, 1] * h - 0.5, 0.0, h - 1)
     i0, j0 = np.floor(u).astype(np.intp), np.floor(v).astype(np.intp)
     fu, fv = u - i0, v - j0
-    i0, i1 = np.mod(i0, w), np.mod(i0 + 1, w)
-    j0, j1 = np.mod(j0, h), np.mod(j0 + 1, h)
+    i1, j1 = np.minimum(i0 + 1, w - 1), np.minimum(j0 + 1, h - 1)
     low = pixels[j0, i0] + (pixels[j0, i1] - pixels[j0, i0]) * fu
     high = pixels[j1, i0] + (pixels[j1, i1] - pixels[j1, i0]) * fu
     return low + (high - low) * fv

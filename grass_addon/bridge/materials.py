@@ -43,6 +43,8 @@ NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its 
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
 NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
 NODE_FIELD_HALF = "wg_field_half"  # Combine XYZ: half the field's extent along X and Y (m)
+NODE_PAINT_MAP = "wg_paint_map"  # Image Texture: the paint map (R: share of blades that grow) over the ground's UVs
+NODE_PAINTED = "wg_painted"  # Value: 1 when the field has a paint map, else 0
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
 BLADE_BASE_COLOUR = (*sward.BLADE_BASE_COLOUR, 1.0)
@@ -60,7 +62,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 2
+MATERIALS_VERSION = 3
 
 
 def _socket(sockets, *names: str):
@@ -357,9 +359,24 @@ def canopy_material(name: str, uid: str):
     # share K_t of its blades that the canopy stands for (the cards carry the rest).
     edge = t.math("MINIMUM", (gain, "Value"), (_sward_edge_opacity(t, coord, kt, -1900, -1100), "Value"),
                   -450, -650, clamp=True)
+    # Painted grass (paint.py): the canopy stands for the share of blades that grow at each place
+    # (a path is bare ground to the horizon), from the field's paint map over the ground's UVs.
+    paint_map = t.add("ShaderNodeTexImage", -900, -1250, name=NODE_PAINT_MAP)
+    paint_map.interpolation = "Linear"
+    paint_map.extension = "EXTEND"
+    t.link(t.attribute("UVMap", -1100, -1250), "Vector", paint_map, "Vector")
+    density = t.add("ShaderNodeSeparateColor", -700, -1250)
+    t.link(paint_map, "Color", density, "Color")
+    painted = t.add("ShaderNodeValue", -700, -1450, name=NODE_PAINTED)  # 1 with a paint map, else 0
+    painted.outputs[0].default_value = 0.0
+    grows = t.add("ShaderNodeMapRange", -500, -1350)  # 1 - painted + painted * density
+    t.link(painted, "Value", grows, "Value")
+    _set(grows, 1.0, "To Min")
+    t.link(density, density.outputs[0], grows, "To Max")
+    share = t.math("MULTIPLY", (edge, "Value"), (grows, "Result"), -350, -900, clamp=True)
     light_path = t.add("ShaderNodeLightPath", -700, -900)
     # no shadow: clear to shadow rays
-    opacity = t.math("SUBTRACT", (edge, "Value"), (light_path, "Is Shadow Ray"), -300, -700, clamp=True)
+    opacity = t.math("SUBTRACT", (share, "Value"), (light_path, "Is Shadow Ray"), -300, -700, clamp=True)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
@@ -449,6 +466,17 @@ def update_haze(params, *mats) -> None:
         node = mat.node_tree.nodes.get(NODE_HAZE_COLOUR)
         if node is not None:
             node.outputs[0].default_value = (*params.render.haze_color, 1.0)
+
+
+def set_paint_map(canopy, image) -> None:
+    """Let the canopy read the field's paint map ``image`` (None: no paint, the canopy is whole)."""
+    if canopy is None or canopy.node_tree is None:
+        return
+    node, flag = canopy.node_tree.nodes.get(NODE_PAINT_MAP), canopy.node_tree.nodes.get(NODE_PAINTED)
+    if node is not None:
+        node.image = image
+    if flag is not None:
+        flag.outputs[0].default_value = 1.0 if image is not None else 0.0
 
 
 def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy=None) -> None:

@@ -277,7 +277,7 @@ WINDGRASS_PG_field = type(f"{_PREFIX}field", (bpy.types.PropertyGroup,), {
         "terrain": bpy.props.PointerProperty(type=bpy.types.Object, name="Terrain", poll=_mesh_poll,
                                              description="Mesh the blades are rooted on (empty: flat ground)"),
         "keep_out_collection": bpy.props.PointerProperty(
-            type=bpy.types.Collection, name="Keep Out",
+            type=bpy.types.Collection, name="Keep Out", update=lambda self, context: notify(self),
             description="Objects whose ground outline grows no grass (houses, rocks, a path made of a curve with "
                         "a bevel), with the margin and falloff below"),
         **{SECTION_ATTRS.get(s, s): bpy.props.PointerProperty(type=SECTION_CLASSES[s], name=s.capitalize())

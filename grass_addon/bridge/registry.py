@@ -24,9 +24,13 @@ class Registry:
     errors: dict[Key, str] = field(default_factory=dict)  # why a field cannot be simulated now
     pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
     terrains: dict[Key, tuple] = field(default_factory=dict)  # (terrain key, heightfield, centre) sampled
+    paints: dict[Key, tuple] = field(default_factory=dict)  # (what it was read from, paint.Paint | None)
+    paint_deps: dict[Key, set] = field(default_factory=dict)  # (ID type, name) of what a field's paint reads
+    strokes: dict[Key, int] = field(default_factory=dict)  # edits of those datablocks since (painting)
     warned: set[str] = field(default_factory=set)  # console messages already printed
     saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
     bake_root: str | None = None  # <blend>_windgrass of the open file
+    last_repaint: tuple = ()  # (seconds, blocks made again) of the last stroke applied
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
@@ -35,11 +39,15 @@ class Registry:
         self.errors.clear()
         self.pending.clear()
         self.terrains.clear()
+        self.paints.clear()
+        self.paint_deps.clear()
+        self.strokes.clear()
         self.warned.clear()
 
     def forget_missing(self, alive: set[Key]) -> None:
         """Drop the runtimes of scenes or fields that no longer exist."""
-        for table in (self.fields, self.errors, self.pending, self.terrains):
+        for table in (self.fields, self.errors, self.pending, self.terrains, self.paints, self.paint_deps,
+                      self.strokes):
             for key in [k for k in table if k not in alive]:
                 del table[key]
 

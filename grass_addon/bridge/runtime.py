@@ -33,6 +33,7 @@ from __future__ import annotations
 import atexit
 import hashlib
 import time
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,10 +42,10 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from .. import memory, schema, slots
+from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
-from ..grid import FieldGrid
-from . import animation, bake, pools, properties
+from . import animation, bake, maps, pools, properties
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
@@ -73,6 +74,8 @@ class FieldRuntime:
     blades: pools.SlotPool
     cards: pools.SlotPool
     topology: str  # slots.topology_key: what the slot objects must be built for
+    paint: str = ""  # paint.fingerprint of the paint the engine grows
+    paint_shown: str | None = None  # and of the one the ground and paint map show (update_paint_look)
     dirty: bool = False  # the settings were edited since: resolve again
     frame: int | None = None  # the frame last written
     subframe: float = 0.0  # and its sub-frame (motion-blur steps)
@@ -132,9 +135,34 @@ def terrain_of(scene, item, params, force: bool = False) -> tuple:
     return heightfield, centre, t_key
 
 
-def topology_of(params, heightfield) -> str:
-    """What the field's objects must be built for (``slots.topology_key``)."""
-    return slots.topology_key(FieldGrid.of(params), params, heightfield)
+def paint_of(scene, item, params):
+    """The field's paint (``maps.paint_of``), read again only when its settings, its terrain or
+    keep-out collection, or one of the datablocks it reads changed since (``REGISTRY.strokes``,
+    counted by ``on_depsgraph_update_post``)."""
+    key = key_of(scene, item)
+    coll = getattr(item, "keep_out_collection", None)
+    outline = [] if coll is None else sorted((o.name, [round(v, 6) for row in o.matrix_world for v in row])
+                                             for o in coll.all_objects)
+    signature = (tuple(maps.sources(params)), tuple(params.paint.extent), params.to_dict()["keep_out"],
+                 field_scene.terrain_key(scene, item, params), getattr(coll, "name", ""), outline,
+                 REGISTRY.strokes.get(key, 0), _ground_matrix(item))
+    kept = REGISTRY.paints.get(key)
+    if kept is not None and kept[0] == signature:
+        return kept[1]
+    paint = maps.paint_of(scene, item, params)
+    REGISTRY.paints[key] = (signature, paint)
+    REGISTRY.paint_deps[key] = maps.depends_on(scene, item, params)
+    return paint
+
+
+def _ground_matrix(item) -> tuple:
+    ground = field_scene.ground_object(item)
+    return () if ground is None else tuple(round(v, 6) for row in ground.matrix_world for v in row)
+
+
+def topology_of(params, heightfield, item) -> str:
+    """What the field's objects must be built for (``scene.topology``)."""
+    return field_scene.topology(params, heightfield, field_scene.painted_settings(params, item))
 
 
 def resolve(scene, item) -> FieldRuntime:
@@ -148,19 +176,28 @@ def resolve(scene, item) -> FieldRuntime:
                                  for f in s.windgrass.fields})
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, centre, t_key = terrain_of(scene, item, params)
-    digest = hashlib.sha1((params.digest() + fingerprint
+    topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
+    digest = hashlib.sha1((params.digest() + fingerprint + topology
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
+    paint = paint_of(scene, item, params)
+    painted = paint_core.fingerprint(paint)
     if previous is not None and previous.digest == digest:
+        if previous.paint != painted:  # a stroke: make again only the blocks it touched
+            started = time.perf_counter()
+            made = previous.field.repaint(paint, frame=scene.frame_current)
+            previous.paint, previous.frame = painted, None
+            REGISTRY.last_repaint = (time.perf_counter() - started, made)
         previous.dirty = False
         previous.clock = _clock(scene)
         return previous
-    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield)
+    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint)
     field.sim.progress = _seek_progress(item.name)
     blade_shape, card_shape = slots.pool_shapes(field.grid, params)
     rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
                       wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
                       field=field, blades=pools.blade_pool(field, blade_shape),
-                      cards=pools.card_pool(field, card_shape), topology=topology_of(params, heightfield))
+                      cards=pools.card_pool(field, card_shape), topology=topology,
+                      paint=painted)
     REGISTRY.fields[key] = rt
     return rt
 
@@ -223,7 +260,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     heightfield, centre, _ = terrain_of(scene, item, params, force=force)
     field_scene.separate_copy(item)
     coll = item.collection
-    if force or coll is None or coll.get(field_scene.TOPOLOGY) != topology_of(params, heightfield):
+    if force or coll is None or coll.get(field_scene.TOPOLOGY) != topology_of(params, heightfield, item):
         field_scene.build_slots(scene, item, params, heightfield, centre)
         _forget_slots(scene, item, dirty=True)
     else:
@@ -290,11 +327,14 @@ def bake_status(scene, item) -> str | None:
 
 
 def params_digest(scene, item) -> str | None:
-    """Digest of the field's settings now (None when a setting is out of range)."""
+    """Digest of the field's settings and paint now (None when a setting is out of range)."""
     try:
-        return properties.params_from_settings(item, scene).digest()
+        digest = properties.params_from_settings(item, scene).digest()
     except WindgrassError:
         return None
+    kept = REGISTRY.paints.get(key_of(scene, item))
+    painted = paint_core.fingerprint(kept[1]) if kept is not None else ""
+    return f"{digest}|{painted}" if painted else digest
 
 
 READ_ME = "Windgrass - read me"
@@ -396,6 +436,9 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         # gets here, and a frame handler must not add or delete datablocks.
         raise WindgrassError(f"the objects of field '{item.name}' were not built for its settings "
                              "(changed outside Windgrass); press Rebuild")
+    if rt.paint_shown != rt.paint:
+        field_scene.update_paint_look(item, rt.params, rt.field.cache.paint)
+        rt.paint_shown = rt.paint
     _write(scene, item, rt, depsgraph, views)
     return rt
 
@@ -421,6 +464,8 @@ def _guarded(work, scene, item, *args, camera_moved_only: bool = False) -> None:
             work(scene, item, *args)
     except Exception as exc:  # a handler must not break playback or rendering
         message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
+        if not isinstance(exc, WindgrassError):  # a fault of Windgrass, not a setting: its trace for a report
+            traceback.print_exc()
         REGISTRY.errors[key] = message
         warn_once(f"field '{item.name}' cannot be simulated, its grass is hidden: {message}")
         try:
@@ -551,7 +596,28 @@ def on_depsgraph_update_post(scene, depsgraph=None):
     mesh edits made here (which trigger another update) end the chain at once."""
     if not REGISTRY.fields or bpy.app.is_job_running("RENDER"):
         return
+    if depsgraph is not None and REGISTRY.paint_deps:
+        _note_strokes(depsgraph)
     update_scene(scene, depsgraph, camera_moved_only=True)
+
+
+def _note_strokes(depsgraph) -> None:
+    """An edit of what a field's paint reads (a weight or vertex paint stroke on its terrain, an
+    image, a keep-out object moved): count it, and apply it once the strokes settle (a timer)."""
+    changed = set()
+    for update in depsgraph.updates:
+        original = getattr(update.id, "original", None) or update.id
+        changed.add((original.id_type, original.name))
+        if original.id_type == "OBJECT" and getattr(original, "data", None) is not None and update.is_updated_geometry:
+            changed.add((original.data.id_type, original.data.name))
+    touched = [key for key, deps in REGISTRY.paint_deps.items() if deps & changed]
+    for key in touched:
+        REGISTRY.strokes[key] = REGISTRY.strokes.get(key, 0) + 1
+        rt = REGISTRY.fields.get(key)
+        if rt is not None:
+            rt.dirty = True
+    if touched and not bpy.app.background:
+        _refresh_later(touched)
 
 
 @persistent

@@ -27,11 +27,12 @@ This module builds and removes datablocks; when to build is ``runtime.py``'s bus
 from __future__ import annotations
 
 import json
+import os
 
 import bpy
 import numpy as np
 
-from .. import atlas, slots, sward
+from .. import atlas, images, slots, sward
 from .. import kinematics as kin
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
@@ -189,17 +190,15 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
         corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
         faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
         uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
-        grid = np.arange((ny + 1) * (nx + 1)).reshape(ny + 1, nx + 1)
         smooth = True
     else:
         hx, hy = 0.5 * size[0], 0.5 * size[1]
         floor = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
         faces = np.array([[0, 1, 2, 3]])
         uv_of_vertex = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
-        grid = np.array([[0, 1], [3, 2]])
+        nx = ny = 1
         smooth = False
-    # the field's edge, counter-clockwise seen from above (the fringe faces outwards)
-    ring = np.concatenate([grid[0, :-1], grid[:-1, -1], grid[-1, ::-1][:-1], grid[::-1, 0][:-1]])
+    ring = edge_ring(nx, ny) if heightfield is not None else np.array([0, 1, 2, 3])
     top = max(top, canopy)
     plane = floor + np.array([0.0, 0.0, canopy], dtype=np.float32)
     rim = floor[ring] + np.array([0.0, 0.0, top], dtype=np.float32)
@@ -208,7 +207,9 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
     following = np.roll(np.arange(len(ring)), -1)
     skirt = np.stack([n + ring, n + ring[following], 2 * n + following, 2 * n + np.arange(len(ring))], axis=1)
     layer_faces = np.concatenate([faces, faces + n, skirt])
-    uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [np.zeros((len(skirt) * 4, 2), np.float32)])
+    # the fringe's UVs: where it stands on the field's edge (the canopy reads its paint map there)
+    skirt_uv = uv_of_vertex[np.stack([ring, ring[following], ring[following], ring], axis=1).ravel()]
+    uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [skirt_uv])
     mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {}, (materials.UV_SWARD_Z,))
     height = np.zeros((len(layer_faces), 4, 2), np.float32)
     height[len(faces):, :, 1] = canopy
@@ -220,8 +221,95 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
     index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
     mesh.polygons.foreach_set("material_index", index)
     mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
+    # floor vertices, heights, grid (0, 0: one quad) for update_paint_look
+    mesh["wg_layers"] = [n, canopy, top, nx, ny] if heightfield is not None else [n, canopy, top, 0, 0]
     mesh.update()
     return mesh
+
+
+# The ground of a painted field on flat ground is a grid of this many cells along its longer side,
+# so the canopy can follow a length map (a mown patch stands lower).
+PAINT_GROUND_CELLS = 64
+PAINT_MAP_PIXELS = 512  # the paint map image's longer side (the canopy's share of growing blades)
+ROLE_PAINT_MAP = "paint_map"
+
+
+def painted_settings(params, item) -> bool:
+    """Whether the field's settings paint it (maps, keep-out shapes or a keep-out collection):
+    its ground is then a grid and its canopy reads a paint map (part of the slot topology)."""
+    from . import maps
+
+    return bool(maps.sources(params) or params.keep_out.shapes or getattr(item, "keep_out_collection", None))
+
+
+def paint_ground(params, heightfield):
+    """The heightfield the ground mesh of a painted field follows (a flat grid on flat ground)."""
+    if heightfield is not None:
+        return heightfield
+    grid = FieldGrid.of(params)
+    spacing = max(grid.size) / PAINT_GROUND_CELLS
+    nx, ny = (max(1, int(np.ceil(s / spacing - 1e-9))) for s in grid.size)
+    return terrain_core.Heightfield.flat(grid.origin, spacing, nx, ny)
+
+
+def update_paint_look(item, params, paint) -> None:
+    """What the far grass shows of the paint: the paint map image (R: the share of blades that
+    grow, G: their length / 2 over the field's extent) and the canopy and fringe heights of the
+    ground (scaled by the length map). Data writes only (no datablock is added or removed)."""
+    image = registered(item).get(ROLE_PAINT_MAP)
+    ground = ground_object(item)
+    grid = FieldGrid.of(params)
+    (x0, y0), (w, h) = grid.origin, grid.size
+    if isinstance(image, bpy.types.Image):
+        iw, ih = image.size
+        px = x0 + (np.arange(iw) + 0.5) / iw * w
+        py = y0 + (np.arange(ih) + 0.5) / ih * h
+        xy = np.stack(np.meshgrid(px, py), axis=-1).reshape(-1, 2)
+        rgba = np.ones((len(xy), 4), np.float32)
+        if paint is not None:
+            rgba[:, 0] = paint.density_at(xy)
+            rgba[:, 1] = 0.5 * paint.length_at(xy)
+        else:
+            rgba[:, 1] = 0.5
+        rgba[:, 2] = 0.0
+        image.pixels.foreach_set(rgba.ravel())
+        image.update()
+    if ground is None or ground.data.get("wg_layers") is None:
+        return
+    mesh = ground.data
+    n, canopy, top, nx, ny = (float(v) for v in mesh["wg_layers"])
+    n, nx, ny = int(n), int(nx), int(ny)
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.attributes["position"].data.foreach_get("vector", co)
+    co = co.reshape(-1, 3)
+    floor_z = co[:n, 2]
+    scale = np.ones(len(co)) if paint is None else paint.length_at(co[:, :2])
+    lift = np.zeros(len(co))
+    lift[n:2 * n] = canopy * scale[n:2 * n]
+    # the fringe's top vertices stand over the edge's floor vertices (the ring, in order)
+    ring_floor = edge_ring(nx, ny) if nx else np.array([0, 1, 2, 3])
+    lift[2 * n:] = max(top, canopy) * scale[2 * n:]
+    z = np.concatenate([floor_z, floor_z + lift[n:2 * n], floor_z[ring_floor] + lift[2 * n:]])
+    co[:, 2] = z
+    mesh.attributes["position"].data.foreach_set("vector", co.ravel())
+    first = mesh.vertices[0]
+    first.co = first.co  # (positions changed: bounds)
+    corners = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", corners)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    layer = mesh.uv_layers[materials.UV_SWARD_Z]
+    layer.data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    uv[:, 1] = lift[corners]
+    layer.data.foreach_set("uv", uv.ravel())
+    mesh.update()
+
+
+def edge_ring(nx: int, ny: int) -> np.ndarray:
+    """Floor vertex ids along the field's edge, counter-clockwise seen from above (the fringe
+    faces outwards), of a grid of (nx + 1) x (ny + 1) vertices."""
+    grid = np.arange((ny + 1) * (nx + 1)).reshape(ny + 1, nx + 1)
+    return np.concatenate([grid[0, :-1], grid[:-1, -1], grid[-1, ::-1][:-1], grid[::-1, 0][:-1]])
 
 
 # --------------------------------------------------------------------------------------------
@@ -240,9 +328,17 @@ def terrain_key(scene, item, params) -> str:
     """Cheap key of what the terrain samples depend on besides the mesh data (the object and the
     grid): the runtime keeps its samples while it holds; Rebuild re-samples anyway."""
     obj = terrain_object(scene, item)
-    if obj is None:
-        return ""
     _, spacing, nx, ny = terrain_core.grid_for(params)
+    if obj is None:
+        t = params.terrain
+        if not t.heightmap:
+            return ""
+        try:
+            stat = os.stat(t.heightmap)
+            mark = [stat.st_mtime_ns, stat.st_size]
+        except OSError:
+            mark = None  # read (and reported) by sample_terrain
+        return json.dumps(["heightmap", t.heightmap, mark, t.height, list(t.extent), round(spacing, 9), nx, ny])
     return json.dumps([obj.name, round(spacing, 9), nx, ny])
 
 
@@ -281,6 +377,8 @@ def sample_terrain(scene, item, params):
     """
     obj = terrain_object(scene, item)
     coll = item.collection
+    if obj is None and params.terrain.heightmap and getattr(item, "terrain", None) is None:
+        return terrain_core.from_params(params, images.read_map), None  # a scene file's heightmap
     if obj is None:
         lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
         if lost:
@@ -413,8 +511,10 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     for key in [k for k, v in registered(item).items() if not isinstance(v, (bpy.types.Material, bpy.types.Image))]:
         del item[REGISTRY][key]
 
-    mesh = ground_mesh(f"{base} ground", grid.size, heightfield, sward.canopy_height(params),
-                       sward.sward_top(params))
+    painted = painted_settings(params, item)
+    mesh = ground_mesh(f"{base} ground", grid.size, paint_ground(params, heightfield) if painted else heightfield,
+                       sward.canopy_height(params), sward.sward_top(params))
+    _paint_map(item, uid, base, grid if painted else None, canopy_mat)
     ground = bpy.data.objects.new(f"{base} ground", mesh)
     mesh.materials.append(ground_mat)
     mesh.materials.append(canopy_mat)
@@ -446,9 +546,39 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
             _tag(mesh, uid, role, i)
             _link(coll, obj, ground)
             _register(item, _slot_key(role, i), obj)
-    coll[TOPOLOGY] = slots.topology_key(grid, params, heightfield)
+    coll[TOPOLOGY] = topology(params, heightfield, painted)
     update_field_materials(item, params, scene)
     return coll
+
+
+def topology(params, heightfield, painted: bool) -> str:
+    """What the field's objects are built for: ``slots.topology_key`` and whether it is painted
+    (its ground a grid, its canopy reading a paint map)."""
+    key = slots.topology_key(FieldGrid.of(params), params, heightfield)
+    return key + (" painted" if painted else "")
+
+
+def _paint_map(item, uid: str, base: str, grid, canopy) -> None:
+    """The field's paint map image (``grid``: the field's, when it is painted; None: none), packed
+    and read by the canopy; written by ``update_paint_look``."""
+    image = registered(item).get(ROLE_PAINT_MAP)
+    if grid is None:
+        if isinstance(image, bpy.types.Image):
+            del item[REGISTRY][ROLE_PAINT_MAP]
+            if image.users == 0:
+                bpy.data.images.remove(image)
+        materials.set_paint_map(canopy, None)
+        return
+    w, h = grid.size
+    size = (PAINT_MAP_PIXELS, max(1, round(PAINT_MAP_PIXELS * h / w))) if w >= h else \
+        (max(1, round(PAINT_MAP_PIXELS * w / h)), PAINT_MAP_PIXELS)
+    if not isinstance(image, bpy.types.Image) or tuple(image.size) != size:
+        image = bpy.data.images.new(f"{base} paint map", width=size[0], height=size[1], alpha=False, float_buffer=True)
+        image.colorspace_settings.name = "Non-Color"
+        image.pack()
+        _tag(image, uid, ROLE_PAINT_MAP)
+        _register(item, ROLE_PAINT_MAP, image)
+    materials.set_paint_map(canopy, image)
 
 
 class _SlotTopology:

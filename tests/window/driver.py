@@ -87,7 +87,8 @@ def field_state(scene, item) -> dict:
         out["settings_error"] = str(exc)
         return out
     heightfield = runtime.terrain_of(scene, item, params)[0]
-    out["topology_matches"] = item.collection.get(field_scene.TOPOLOGY) == runtime.topology_of(params, heightfield)
+    wanted = runtime.topology_of(params, heightfield, item)
+    out["topology_matches"] = item.collection.get(field_scene.TOPOLOGY) == wanted
     rt = runtime.get_runtime(scene, item)
     out["runtime_matches"] = rt is not None and not rt.dirty and rt.params.digest() == params.digest()
     out["frame_written"] = None if rt is None else rt.frame

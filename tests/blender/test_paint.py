@@ -1,0 +1,177 @@
+"""Painting in Blender (bridge/maps.py): the terrain's vertex groups, attributes and images, images
+on flat ground, keep-out collections; strokes applied to the blocks they touch; bad sources named.
+
+The terrain: a 4 m grid mesh of 40 x 40 quads at the origin; the field: 5 x 5 blocks of 8 cells of
+0.1 m on it (4 m), 4 blades a cell.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def bridge(with_bridge):
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    return properties, runtime
+
+
+def _terrain():
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=40, y_subdivisions=40, size=4.0, location=(0.0, 0.0, 0.0))
+    return bpy.context.active_object
+
+
+def _field(bridge, terrain=None, **paint):
+    properties, runtime = bridge
+    options = {"blocks_x": 5, "blocks_y": 5, "cells_per_block": 8, "blades_per_cell": 4}
+    if terrain is not None:
+        bpy.ops.object.select_all(action="DESELECT")
+        terrain.select_set(True)
+        bpy.context.view_layer.objects.active = terrain
+        options["use_selected_mesh"] = True
+    assert bpy.ops.windgrass.field_add(**options) == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[-1]
+    with properties.batch(item):
+        for key, value in paint.items():
+            setattr(item.paint, key, value)
+    return scene, item
+
+
+def _grown_roots(runtime, scene, item) -> np.ndarray:
+    scene.frame_set(scene.frame_current)
+    rt = runtime.get_runtime(scene, item)
+    assert rt is not None, runtime.field_error(scene, item)
+    layout = rt.field.layout
+    alive = layout.blade_alive if layout.blade_alive is not None else np.ones(layout.n_blades, bool)
+    return layout.blade_root[alive]
+
+
+def _weights(terrain, name, func):
+    group = terrain.vertex_groups.get(name) or terrain.vertex_groups.new(name=name)
+    for v in terrain.data.vertices:
+        group.add([v.index], float(func(v.co)), "REPLACE")
+    terrain.data.update()
+    bpy.context.view_layer.update()
+    return group
+
+
+def test_a_vertex_group_paints_the_density_on_the_terrain(bridge):
+    """Weight 0 on a 1 m stripe (|x| < 0.5), 1 elsewhere: no blade grows in the stripe."""
+    _, runtime = bridge
+    terrain = _terrain()
+    _weights(terrain, "meadow", lambda co: 0.0 if abs(co.x) < 0.5 else 1.0)
+    scene, item = _field(bridge, terrain, density="vertex_group:meadow")
+    roots = _grown_roots(runtime, scene, item)
+    assert len(roots) > 0.6 * 25 * 64 * 4
+    assert not np.any(np.abs(roots[:, 0]) < 0.4)  # (the weights blend over one quad, 0.1 m)
+    assert np.sum(np.abs(roots[:, 0]) > 0.7) > 0.9 * np.sum(np.abs(_all_roots(runtime, scene, item)[:, 0]) > 0.7)
+
+
+def _all_roots(runtime, scene, item):
+    return runtime.get_runtime(scene, item).field.layout.blade_root
+
+
+def test_a_stroke_is_applied_to_the_blocks_it_touches(bridge, capsys):
+    """Painting more weight in one corner (a stroke, then the depsgraph update Blender sends):
+    the next frame grows blades there, the others stay, and only the touched blocks are made again."""
+    _, runtime = bridge
+    terrain = _terrain()
+    group = _weights(terrain, "meadow", lambda co: 0.2)
+    scene, item = _field(bridge, terrain, density="vertex_group:meadow")
+    before = _grown_roots(runtime, scene, item)
+    corner = [v.index for v in terrain.data.vertices if v.co.x > 1.0 and v.co.y > 1.0]
+    group.add(corner, 1.0, "REPLACE")
+    terrain.data.update()
+    bpy.context.view_layer.update()  # what a stroke's end sends
+    scene.frame_set(scene.frame_current + 1)
+    after = _grown_roots(runtime, scene, item)
+    seconds, made = runtime.REGISTRY.last_repaint
+    print(f"stroke on a 4 m field: {seconds * 1000:.0f} ms, {made} blocks made again")
+    assert 0 < made < 25
+    kept = {tuple(r) for r in before.tolist()}
+    assert kept <= {tuple(r) for r in after.tolist()}  # every blade that grew still grows, in place
+    new = np.array([r for r in after.tolist() if tuple(r) not in kept])
+    # about 0.8 of the 400 blades of the corner's square metre grow now, and only there
+    assert len(new) > 250 and np.all(new[:, 0] > 0.9) and np.all(new[:, 1] > 0.9)
+
+
+def test_an_attribute_and_an_image_paint_the_terrain(bridge):
+    """A float point attribute for the length (0.25: half length) and an image over the terrain's
+    UV map for the density (black west half)."""
+    _, runtime = bridge
+    terrain = _terrain()
+    mesh = terrain.data
+    attr = mesh.attributes.new("mown", "FLOAT", "POINT")
+    attr.data.foreach_set("value", np.full(len(mesh.vertices), 0.25, np.float32))
+    image = bpy.data.images.new("density", 64, 64, alpha=False, float_buffer=True)
+    pixels = np.ones((64, 64, 4), np.float32)
+    pixels[:, :32, :3] = 0.0  # west half black (UV u < 0.5 is x < 0 on the grid)
+    image.pixels.foreach_set(pixels.ravel())
+    scene, item = _field(bridge, terrain, density="image:density", length="attribute:mown")
+    roots = _grown_roots(runtime, scene, item)
+    east = np.sum(_all_roots(runtime, scene, item)[:, 0] > 0.1)
+    assert not np.any(roots[:, 0] < -0.1) and np.sum(roots[:, 0] > 0.1) > 0.9 * east
+    rt = runtime.get_runtime(scene, item)
+    plain_length = rt.field.params.species()[0]["length"]
+    assert np.median(rt.field.layout.blade_length) == pytest.approx(0.5 * plain_length, rel=0.1)
+
+
+def test_keep_out_objects_leave_bare_ground_around_them(bridge):
+    """A cube (1 m) and a curve with a bevel (a path) in the keep-out collection: no blade within
+    their ground outline and the margin."""
+    properties, runtime = bridge
+    scene, item = _field(bridge)
+    rocks = bpy.data.collections.new("Rocks")
+    scene.collection.children.link(rocks)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-1.0, -1.0, 0.5))
+    cube = bpy.context.active_object
+    curve_data = bpy.data.curves.new("Path", "CURVE")
+    curve_data.dimensions = "3D"
+    spline = curve_data.splines.new("POLY")
+    spline.points.add(1)
+    spline.points[0].co = (0.5, -1.8, 0.0, 1.0)
+    spline.points[1].co = (0.5, 1.8, 0.0, 1.0)
+    curve_data.bevel_depth = 0.2  # a round path 0.4 m wide
+    path = bpy.data.objects.new("Path", curve_data)
+    for obj in (cube, path):
+        for c in list(obj.users_collection):
+            c.objects.unlink(obj)
+        rocks.objects.link(obj)
+    item.keep_out.margin, item.keep_out.falloff = 0.1, 0.0
+    item.keep_out_collection = rocks
+    roots = _grown_roots(runtime, scene, item)
+    out = np.maximum(np.abs(roots[:, :2] + 1.0) - 0.5, 0.0)  # beyond the cube's 1 m square
+    in_cube = np.hypot(out[:, 0], out[:, 1]) < 0.1 - 1e-3  # within the margin
+    on_path = (np.abs(roots[:, 0] - 0.5) < 0.3 - 1e-3) & (np.abs(roots[:, 1]) < 1.8)
+    assert not in_cube.any() and not on_path.any()
+    assert len(roots) > 0.7 * len(_all_roots(runtime, scene, item))
+
+
+@pytest.mark.parametrize("value, words", [
+    ("vertex_group:nowhere", ["no vertex group 'nowhere'", "it has: 'meadow'"]),
+    ("attribute:nothing", ["no float or colour attribute 'nothing'"]),
+    ("image:absent", ["no image 'absent'"]),
+    ("/no/such/map.png", ["does not exist"]),
+])
+def test_a_missing_source_is_named_with_what_there_is(bridge, value, words):
+    properties, runtime = bridge
+    terrain = _terrain()
+    _weights(terrain, "meadow", lambda co: 1.0)
+    scene, item = _field(bridge, terrain, density=value)
+    scene.frame_set(2)
+    error = runtime.field_error(scene, item)
+    assert error and "paint.density" in error
+    for word in words:
+        assert word in error
+
+
+def test_a_terrain_map_on_flat_ground_says_what_works_there(bridge):
+    properties, runtime = bridge
+    scene, item = _field(bridge, density="vertex_group:meadow")
+    scene.frame_set(2)
+    error = runtime.field_error(scene, item)
+    assert error and "has none" in error and "image:NAME or a PNG file" in error

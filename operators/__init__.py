@@ -8,6 +8,7 @@ from . import (
     field_bake_free,
     field_rebuild,
     field_remove,
+    map_pick,
     row_add,
     row_remove,
     simulation_reset,
@@ -16,7 +17,7 @@ from . import (
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
-            species_preset, row_add, row_remove)
+            species_preset, row_add, row_remove, map_pick)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

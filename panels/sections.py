@@ -11,6 +11,9 @@ from .main import CATEGORY, WINDGRASS_PT_main, wrapped
 
 LABELS = {
     "field": "Field",
+    "terrain": "Terrain from a Heightmap",
+    "paint": "Paint",
+    "keep_out": "Keep Out",
     "blade": "Blades & Species",
     "wind": "Wind",
     "lod": "Levels of Detail",
@@ -19,7 +22,7 @@ LABELS = {
     "simulation": "Simulation",
 }
 # Sections only used by headless renders (headless/render_field.py) start closed.
-HEADLESS = frozenset({"camera", "render"})
+HEADLESS = frozenset({"camera", "render", "terrain"})
 # Preset operators drawn on top of a section: (operator, its enum property, button text).
 PRESETS = {
     "blade": ("windgrass.species_preset", "preset", "Species Preset"),
@@ -43,10 +46,22 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
     if not len(rows):
         wrapped(box, context, f"No {word.lower()} rows: {p.help}", icon="INFO")
         return
-    selected = rows[min(getattr(group, index), len(rows) - 1)]
+    chosen = min(getattr(group, index), len(rows) - 1)
+    selected = rows[chosen]
     col = box.column()
     for f in p.fields:
-        col.prop(selected, f.key)
+        if f.path:
+            draw_map(col, selected, f.key, f"{p.name}[{chosen}].{f.key}")
+        else:
+            col.prop(selected, f.key)
+
+
+def draw_map(layout, owner, key: str, setting: str) -> None:
+    """A map setting: its text (a file, or vertex_group:/attribute:/image: NAME) with a button that
+    lists what the terrain and the file offer."""
+    row = layout.row(align=True)
+    row.prop(owner, key)
+    row.operator("windgrass.map_pick", text="", icon="GROUP_VERTEX").setting = setting
 
 
 def draw_section(layout, context, item, section: str) -> None:
@@ -62,8 +77,12 @@ def draw_section(layout, context, item, section: str) -> None:
             continue  # e.g. the gust front's settings while the wind is not a blast
         if p.kind == "table_list":
             draw_table(layout, context, group, p)
+        elif p.path and section == "paint":
+            draw_map(layout, group, p.key, p.name)
         else:
             layout.prop(group, p.key)
+    if section == "keep_out":
+        layout.prop(item, "keep_out_collection")
     if section == "simulation":
         render = context.scene.render
         fps = render.fps / render.fps_base

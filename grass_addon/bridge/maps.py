@@ -111,7 +111,7 @@ def _image_pixels(name: str, setting: str) -> np.ndarray:
     """(h, w) grey levels 0..1 of an image datablock (row 0 at the bottom, as Blender stores it)."""
     image = bpy.data.images.get(name)
     if image is None:
-        have = ", ".join(repr(i.name) for i in bpy.data.images if i.type == "IMAGE") or "none"
+        have = ", ".join(repr(i.name) for i in bpy.data.images if i.type in ("IMAGE", "UV_TEST")) or "none"
         raise ParameterError(setting, f"there is no image {name!r} in this file (images: {have})")
     w, h = image.size
     if w * h == 0:
@@ -212,7 +212,12 @@ def paint_of(scene, item, params) -> paint_core.Paint | None:
         density=extra.get("paint.density"), length=extra.get("paint.length"),
         species=tuple(extra.get(f"blade.species[{i}].density_map") for i in range(rows)),
         keep_out=paint_core.KeepOut(footprint) if len(footprint) else None)
-    return paint_core.from_params(params, images.read_map, extra=blender)
+    return paint_core.from_params(params, read_file, extra=blender)
+
+
+def read_file(path: str, name: str):
+    """A map file's values; Blender's relative paths (``//map.png``) are from the .blend's folder."""
+    return images.read_map(bpy.path.abspath(path), name)
 
 
 def depends_on(scene, item, params) -> set:

@@ -207,6 +207,8 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
         return bpy.props.EnumProperty(items=items, default=value, **kw)
     if p.kind == "str":
         kw.pop("options")
+        if p.path:  # a file browser button; the map picker (windgrass.map_pick) offers Blender's sources
+            kw["subtype"] = "FILE_PATH"
         return bpy.props.StringProperty(default=str(value), **kw)
     raise TypeError(f"{p.name}: parameter kind {p.kind!r} has no single Blender property")
 
@@ -367,6 +369,21 @@ def write_rows(item: Any, p: schema.Param, rows: Any) -> None:
             for f in p.fields:
                 setattr(row, f.key, to_blender(f, values.get(f.key, f.default)))
         setattr(group(item, p.section), index_name(p), 0)
+
+
+_SPECIES_MAP = re.compile(r"blade\.species\[(\d+)\]\.density_map")
+
+
+def map_owner(item: Any, setting: str) -> tuple[Any, str]:
+    """(settings group, key) of a map setting: ``paint.density``, ``paint.length`` or
+    ``blade.species[i].density_map``; ParameterError for anything else."""
+    if setting in ("paint.density", "paint.length"):
+        return group(item, "paint"), setting.split(".")[1]
+    match = _SPECIES_MAP.fullmatch(setting)
+    if match and int(match.group(1)) < len(item.blade.species):
+        return item.blade.species[int(match.group(1))], "density_map"
+    raise ParameterError(setting, "not a map setting (valid: paint.density, paint.length, "
+                         "blade.species[i].density_map)")
 
 
 def active_field(scene: bpy.types.Scene) -> Any | None:

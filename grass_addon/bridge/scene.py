@@ -32,7 +32,7 @@ import os
 import bpy
 import numpy as np
 
-from .. import atlas, images, slots, sward
+from .. import atlas, slots, sward
 from .. import kinematics as kin
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
@@ -334,7 +334,7 @@ def terrain_key(scene, item, params) -> str:
         if not t.heightmap:
             return ""
         try:
-            stat = os.stat(t.heightmap)
+            stat = os.stat(bpy.path.abspath(t.heightmap))
             mark = [stat.st_mtime_ns, stat.st_size]
         except OSError:
             mark = None  # read (and reported) by sample_terrain
@@ -378,7 +378,9 @@ def sample_terrain(scene, item, params):
     obj = terrain_object(scene, item)
     coll = item.collection
     if obj is None and params.terrain.heightmap and getattr(item, "terrain", None) is None:
-        return terrain_core.from_params(params, images.read_map), None  # a scene file's heightmap
+        from .maps import read_file
+
+        return terrain_core.from_params(params, read_file), None  # a scene file's heightmap
     if obj is None:
         lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
         if lost:

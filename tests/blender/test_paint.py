@@ -175,3 +175,26 @@ def test_a_terrain_map_on_flat_ground_says_what_works_there(bridge):
     scene.frame_set(2)
     error = runtime.field_error(scene, item)
     assert error and "has none" in error and "image:NAME or a PNG file" in error
+
+
+def test_the_map_picker_lists_the_terrains_sources_and_sets_the_setting(bridge):
+    """windgrass.map_pick (the button beside a map in the Paint panel) offers the terrain's vertex
+    groups and float/colour attributes and the file's images, and writes the chosen one."""
+    properties, runtime = bridge
+    terrain = _terrain()
+    _weights(terrain, "meadow", lambda co: 1.0)
+    terrain.data.attributes.new("mown", "FLOAT", "POINT")
+    bpy.data.images.new("paths", 8, 8)
+    scene, item = _field(bridge, terrain)
+    from windgrass.operators.map_pick import _sources
+
+    values = [v for v, _, _ in _sources(None, bpy.context)]
+    assert {"NONE", "vertex_group:meadow", "attribute:mown", "image:paths"} <= set(values)
+    assert not [v for v in values if "card texture" in v]  # a field's own images are not maps
+    assert bpy.ops.windgrass.map_pick(setting="paint.density", source="vertex_group:meadow") == {"FINISHED"}
+    assert item.paint.density == "vertex_group:meadow"
+    bpy.ops.windgrass.row_add(table="blade.species")
+    assert bpy.ops.windgrass.map_pick(setting="blade.species[0].density_map", source="image:paths") == {"FINISHED"}
+    assert item.blade.species[0].density_map == "image:paths"
+    with pytest.raises(RuntimeError, match="not a map setting"):
+        bpy.ops.windgrass.map_pick(setting="wind.speed", source="NONE")

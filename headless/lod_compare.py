@@ -47,8 +47,9 @@ def parse_args(argv):
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--engine", default="cycles", choices=["cycles", "eevee"])
     parser.add_argument("--lights", nargs="+", default=["sun", "overcast"], choices=["sun", "overcast"])
-    parser.add_argument("--presets", nargs="+", default=["default", "meadow"],
-                        help=f"species presets: default (the scene's) or one of {', '.join(presets.PRESET_NAMES)}")
+    parser.add_argument("--presets", nargs="+", default=["default", "meadow", "painted"],
+                        help=f"species presets: default (the scene's), one of {', '.join(presets.PRESET_NAMES)}, or "
+                             "painted (the scene's, with a path and a density gradient painted)")
     parser.add_argument("--flythrough-frames", type=int, default=3, help="frames of the slow fly-through (0: none)")
     parser.add_argument("--blocks", type=int, default=24,
                         help="blocks per side of the compared field (all geometry must fit: default 24, 38.4 m)")
@@ -76,12 +77,30 @@ def scene_params(args, preset: str, fixed: bool):
     else:
         changes.update({"camera.mode": "flythrough", "camera.speed": 0.5})
     params = params.replace(changes)
-    if preset != "default":
+    if preset == "painted":
+        params = params.replace({"paint.density": str(painted_map(args.out, params))})
+    elif preset != "default":
         if preset not in presets.PRESET_NAMES:
-            valid = ", ".join(("default", *presets.PRESET_NAMES))
+            valid = ", ".join(("default", "painted", *presets.PRESET_NAMES))
             raise ParameterError("presets", f"unknown preset {preset!r} (valid: {valid})")
         params = presets.apply_preset(params, preset)
     return params
+
+
+def painted_map(out: Path, params) -> Path:
+    """A density map over the compared field: a path 2 m wide from the camera to the far edge
+    (x = 2 m, density 0) and a gradient across the field (1 on the west edge, 0.3 on the east)."""
+    import numpy as np
+    from windgrass.grass_addon import images
+
+    size_x = FieldGrid.of(params).size[0]
+    xs = ((np.arange(512) + 0.5) / 512 - 0.5) * size_x
+    row = 1.0 - 0.7 * (xs - xs[0]) / (xs[-1] - xs[0])
+    row[np.abs(xs - 2.0) < 1.0] = 0.0
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "painted_density.png"
+    path.write_bytes(images.encode_png(np.tile(row, (64, 1))))
+    return path
 
 
 def render(params, lod: bool, light: str, frames, out: Path, tag: str):
@@ -137,7 +156,8 @@ def compare(args) -> dict:
             params = scene_params(args, preset, fixed=True)
             lod, = render(params, True, light, [1], args.out, tag)
             geo, = render(params, False, light, [1], args.out, tag)
-            np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1))
+            np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1),
+                     lod_image=lod, geometry_image=geo)
             rows = np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max()
             case = {"row_diff_max": round(float(rows), 4),
                     "mean_abs_diff": round(float(np.abs(lod - geo).mean()), 4),

@@ -45,6 +45,7 @@ NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
 NODE_FIELD_HALF = "wg_field_half"  # Combine XYZ: half the field's extent along X and Y (m)
 NODE_PAINT_MAP = "wg_paint_map"  # Image Texture: the paint map (R: share of blades that grow) over the ground's UVs
 NODE_PAINTED = "wg_painted"  # Value: 1 when the field has a paint map, else 0
+NODE_PAINT_MAPPING = "wg_paint_mapping"  # Mapping: the ground's UVs (the field) to the paint map's (its extent)
 
 # Dark, slightly brown base of a blade (linear RGB): the root sits in the shade of the sward.
 BLADE_BASE_COLOUR = (*sward.BLADE_BASE_COLOUR, 1.0)
@@ -364,7 +365,10 @@ def canopy_material(name: str, uid: str):
     paint_map = t.add("ShaderNodeTexImage", -900, -1250, name=NODE_PAINT_MAP)
     paint_map.interpolation = "Linear"
     paint_map.extension = "EXTEND"
-    t.link(t.attribute("UVMap", -1100, -1250), "Vector", paint_map, "Vector")
+    # the ground's UVs span the field; the map spans what is painted (set_paint_map)
+    to_map = t.add("ShaderNodeMapping", -1100, -1250, name=NODE_PAINT_MAPPING)
+    t.link(t.attribute("UVMap", -1300, -1250), "Vector", to_map, "Vector")
+    t.link(to_map, "Vector", paint_map, "Vector")
     density = t.add("ShaderNodeSeparateColor", -700, -1250)
     t.link(paint_map, "Color", density, "Color")
     painted = t.add("ShaderNodeValue", -700, -1450, name=NODE_PAINTED)  # 1 with a paint map, else 0
@@ -468,15 +472,21 @@ def update_haze(params, *mats) -> None:
             node.outputs[0].default_value = (*params.render.haze_color, 1.0)
 
 
-def set_paint_map(canopy, image) -> None:
-    """Let the canopy read the field's paint map ``image`` (None: no paint, the canopy is whole)."""
+def set_paint_map(canopy, image, field_extent=None, map_extent=None) -> None:
+    """Let the canopy read the field's paint map ``image`` (None: no paint, the canopy is whole),
+    which covers ``map_extent`` of the field's ``field_extent`` (both x0, y0, x1, y1)."""
     if canopy is None or canopy.node_tree is None:
         return
-    node, flag = canopy.node_tree.nodes.get(NODE_PAINT_MAP), canopy.node_tree.nodes.get(NODE_PAINTED)
+    nodes = canopy.node_tree.nodes
+    node, flag, mapping = nodes.get(NODE_PAINT_MAP), nodes.get(NODE_PAINTED), nodes.get(NODE_PAINT_MAPPING)
     if node is not None:
         node.image = image
     if flag is not None:
         flag.outputs[0].default_value = 1.0 if image is not None else 0.0
+    if mapping is not None and field_extent is not None and map_extent is not None:
+        (fx0, fy0, fx1, fy1), (mx0, my0, mx1, my1) = field_extent, map_extent
+        _set(mapping, ((fx1 - fx0) / (mx1 - mx0), (fy1 - fy0) / (my1 - my0), 1.0), "Scale")
+        _set(mapping, ((fx0 - mx0) / (mx1 - mx0), (fy0 - my0) / (my1 - my0), 0.0), "Location")
 
 
 def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy=None) -> None:

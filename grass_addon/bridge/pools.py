@@ -174,6 +174,12 @@ def card_pool(field, shape: slots.PoolShape) -> SlotPool:
 
     def fill(layout, cells, blocks, lod, out):
         kinematics.card_vertices(layout, cells, blocks, out)
+        if layout.cell_density is not None:
+            # a cell where nothing grows has no card at all: collapsed, so rays do not cross it
+            # (many see-through cards along a path would use up a renderer's transparent layers)
+            bare = layout.cell_density[layout.block_cells[blocks]] <= 0.0
+            quads = out.reshape(len(blocks), layout.cells_per_block_total, 4, 3)
+            quads[bare] = quads[bare][:, :1]
 
     def attributes(layout, mesh, blocks, lod, changed):
         opacity = np.zeros((len(blocks), layout.cells_per_block_total), dtype=np.float32)

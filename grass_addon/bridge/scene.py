@@ -34,6 +34,7 @@ import numpy as np
 
 from .. import atlas, slots, sward
 from .. import kinematics as kin
+from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
 from . import materials, textures
@@ -229,8 +230,8 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
 
 # The ground of a painted field on flat ground is a grid of this many cells along its longer side,
 # so the canopy can follow a length map (a mown patch stands lower).
-PAINT_GROUND_CELLS = 64
-PAINT_MAP_PIXELS = 512  # the paint map image's longer side (the canopy's share of growing blades)
+PAINT_GROUND_CELLS = 256
+PAINT_MAP_PIXELS = 1024  # the paint map image's longer side (the canopy's share of growing blades)
 ROLE_PAINT_MAP = "paint_map"
 
 
@@ -252,16 +253,36 @@ def paint_ground(params, heightfield):
     return terrain_core.Heightfield.flat(grid.origin, spacing, nx, ny)
 
 
+def paint_map_extent(paint, field) -> tuple[float, float, float, float]:
+    """What the paint map covers: the painted density map's rectangle and the keep-out footprints'
+    reach, within the field (outside it the map's edge values go on, as a raster's do)."""
+    boxes = []
+    if paint is not None and paint.density is not None:
+        boxes.append(paint.density.extent)
+    if paint is not None and paint.keep_out is not None and len(paint.keep_out.triangles):
+        boxes.append(paint.keep_out.bounds())
+    if not boxes:
+        return field
+    x0, y0 = max(field[0], min(b[0] for b in boxes)), max(field[1], min(b[1] for b in boxes))
+    x1, y1 = min(field[2], max(b[2] for b in boxes)), min(field[3], max(b[3] for b in boxes))
+    return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else field
+
+
 def update_paint_look(item, params, paint) -> None:
     """What the far grass shows of the paint: the paint map image (R: the share of blades that
     grow, G: their length / 2 over the field's extent) and the canopy and fringe heights of the
     ground (scaled by the length map). Data writes only (no datablock is added or removed)."""
     image = registered(item).get(ROLE_PAINT_MAP)
     ground = ground_object(item)
-    grid = FieldGrid.of(params)
-    (x0, y0), (w, h) = grid.origin, grid.size
+    field = paint_core.field_extent(params)
     if isinstance(image, bpy.types.Image):
-        iw, ih = image.size
+        x0, y0, x1, y1 = extent = paint_map_extent(paint, field)
+        w, h = x1 - x0, y1 - y0
+        size = (PAINT_MAP_PIXELS, max(1, round(PAINT_MAP_PIXELS * h / w))) if w >= h else \
+            (max(1, round(PAINT_MAP_PIXELS * w / h)), PAINT_MAP_PIXELS)
+        if tuple(image.size) != size:
+            image.scale(*size)
+        iw, ih = size
         px = x0 + (np.arange(iw) + 0.5) / iw * w
         py = y0 + (np.arange(ih) + 0.5) / ih * h
         xy = np.stack(np.meshgrid(px, py), axis=-1).reshape(-1, 2)
@@ -274,6 +295,7 @@ def update_paint_look(item, params, paint) -> None:
         rgba[:, 2] = 0.0
         image.pixels.foreach_set(rgba.ravel())
         image.update()
+        materials.set_paint_map(registered(item).get(ROLE_CANOPY_MATERIAL), image, field, extent)
     if ground is None or ground.data.get("wg_layers") is None:
         return
     mesh = ground.data
@@ -571,11 +593,9 @@ def _paint_map(item, uid: str, base: str, grid, canopy) -> None:
                 bpy.data.images.remove(image)
         materials.set_paint_map(canopy, None)
         return
-    w, h = grid.size
-    size = (PAINT_MAP_PIXELS, max(1, round(PAINT_MAP_PIXELS * h / w))) if w >= h else \
-        (max(1, round(PAINT_MAP_PIXELS * w / h)), PAINT_MAP_PIXELS)
-    if not isinstance(image, bpy.types.Image) or tuple(image.size) != size:
-        image = bpy.data.images.new(f"{base} paint map", width=size[0], height=size[1], alpha=False, float_buffer=True)
+    if not isinstance(image, bpy.types.Image):
+        image = bpy.data.images.new(f"{base} paint map", width=PAINT_MAP_PIXELS, height=PAINT_MAP_PIXELS,
+                                    alpha=False)
         image.colorspace_settings.name = "Non-Color"
         image.pack()
         _tag(image, uid, ROLE_PAINT_MAP)

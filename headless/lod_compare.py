@@ -78,7 +78,11 @@ def scene_params(args, preset: str, fixed: bool):
         changes.update({"camera.mode": "flythrough", "camera.speed": 0.5})
     params = params.replace(changes)
     if preset == "painted":
-        params = params.replace({"paint.density": str(painted_map(args.out, params))})
+        # the LOD bands brought close, so the path crosses blades, cards and the far canopy in the field
+        size = FieldGrid.of(params).size[1]
+        params = params.replace({"paint.density": str(painted_map(args.out, params)), "lod.blade_near": 0.1 * size,
+                                 "lod.blade_far": 0.2 * size, "lod.card_near": 0.35 * size,
+                                 "lod.card_far": 0.9 * size})  # (the far edge stays in the card band)
     elif preset != "default":
         if preset not in presets.PRESET_NAMES:
             valid = ", ".join(("default", "painted", *presets.PRESET_NAMES))

@@ -2,7 +2,8 @@
 
 Cycles renders of a fixed camera over a calm 25.6 m field at tiny resolution, in sun and under an
 overcast sky, for the default and the meadow species and a painted field (a path to the far edge
-and a density gradient): the LOD render against the same frame with every blade as geometry
+and a density gradient, with the LOD bands brought close so the path crosses blades, cards and the
+far canopy): the LOD render against the same frame with every blade as geometry
 (``headless/lod_compare.py``, which prints the same figures at full size).
 """
 

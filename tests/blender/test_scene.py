@@ -484,8 +484,11 @@ def test_a_shifted_lens_shows_grass_in_the_shifted_part_of_the_image(bridge, tmp
 
 def test_a_panoramic_camera_shows_grass_all_around(bridge, tmp_path):
     """Issue: a panoramic (equirectangular) camera showed grass only in the ~40 degrees ahead.
-    Every azimuth shows grass, textured by its blades and cards (the bare floor and the far
-    canopy are flat: their green varied 5-12 thousandths across pixels, the grass 25-40)."""
+    Every azimuth is as green as the greenest: blades and cards, not the olive floor under culled
+    grass (measured on the old culling: green excess 0.021 behind the camera against 0.056-0.070
+    ahead; now 0.052-0.083 all around). A mean, so it does not hang on how the denoiser smooths
+    4 samples on a given CPU (the per-pixel texture did: 0.016-0.041 on one machine, 0.021-0.041
+    on another)."""
     def panoramic(cam):
         cam.location = (0.0, 0.0, 1.2)
         cam.rotation_euler = Vector((0.0, 10.0, 0.0)).to_track_quat("-Z", "Y").to_euler()
@@ -496,8 +499,8 @@ def test_a_panoramic_camera_shows_grass_all_around(bridge, tmp_path):
             cam.data.cycles.panorama_type = "EQUIRECTANGULAR"
 
     bands = _meadow_from_inside(bridge, tmp_path, "pano", panoramic)
-    texture = [float(b[..., 1].std()) for b in bands]
-    assert min(texture) > 0.5 * max(texture), texture
+    excess = [float((b[..., 1] - np.maximum(b[..., 0], b[..., 2])).mean()) for b in bands]
+    assert min(excess) > 0.5 * max(excess), excess
 
 
 # --------------------------------------------------------------------------------------------

@@ -203,7 +203,15 @@ def main(argv=None) -> int:
     parser.add_argument("--peers", action="store_true", help="also time the Blender peers (bench_peers.py)")
     parser.add_argument("--scale", action="store_true",
                         help="cost against field size: 25.6 m to 10 km (bench_scale.py); other flags ignored")
+    parser.add_argument("--paint", action="store_true",
+                        help="a paint stroke's cost at 100 m and 1 km, a half-painted field's frame against a "
+                             "plain one (bench_paint.py); other flags ignored")
     args = parser.parse_args(argv)
+    if args.paint:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_paint.py"))]
+                               + (["--json"] if args.json else []))
     if args.scale:
         import bench_scale
 

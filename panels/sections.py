@@ -4,7 +4,7 @@ parameter shows up without touching this file."""
 import bpy
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties
+from ..grass_addon.bridge import properties, runtime
 from ..grass_addon.errors import WindgrassError
 from ..grass_addon.simulation import seek_note
 from .main import CATEGORY, WINDGRASS_PT_main, wrapped
@@ -83,6 +83,11 @@ def draw_section(layout, context, item, section: str) -> None:
             layout.prop(group, p.key)
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
+    if section == "paint":
+        seconds = runtime.stroke_seconds(context.scene, item)
+        if seconds > runtime.STROKE_GOAL_S:
+            wrapped(layout, context, f"A stroke takes {seconds:.1f} s to show on this field: the grass follows "
+                    "when you leave paint mode (or change frame)", icon="TIME")
     if section == "simulation":
         render = context.scene.render
         fps = render.fps / render.fps_base

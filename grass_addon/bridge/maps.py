@@ -24,6 +24,7 @@ from .. import images
 from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..errors import ParameterError
+from ..grid import FieldGrid
 from . import scene as field_scene
 
 MAX_MAP_SAMPLES = 1024  # samples along a side of a map draped from the terrain (one per cell, or coarser)
@@ -44,14 +45,28 @@ def _to_field(item):
     return np.array(ground.matrix_world.inverted_safe(), dtype=np.float64)
 
 
-def map_grid(params) -> tuple[np.ndarray, float, int, int]:
-    """(origin, spacing, nx, ny): the grid maps are draped onto, a sample per cell corner or coarser."""
-    return terrain_core.grid_for(params, max_cells=MAX_MAP_SAMPLES)
+def map_grid(params, detail: float = 0.0) -> tuple[np.ndarray, float, int, int]:
+    """(origin, spacing, nx, ny): the grid maps are draped onto, a sample per cell corner, or per
+    ``detail`` metres where the mesh holds no finer detail (half its mean edge), or coarser for
+    large fields (at most MAX_MAP_SAMPLES along a side)."""
+    grid = FieldGrid.of(params)
+    step = max(1, int(detail // grid.cell_size))
+    cells = max(grid.cells_x, grid.cells_y)
+    return terrain_core.grid_for(params, max_cells=max(1, min(MAX_MAP_SAMPLES, cells // step)))
 
 
-def _grid_raster(values: np.ndarray, params, name: str) -> paint_core.Raster:
+def _detail(triangles: np.ndarray) -> float:
+    """Half the mean edge length of a mesh's triangles (seen from above): the finest detail that
+    values on its vertices can hold."""
+    if not len(triangles):
+        return 0.0
+    edges = np.linalg.norm(triangles[:, [1, 2, 0], :2] - triangles[:, :, :2], axis=-1)
+    return 0.5 * float(edges.mean())
+
+
+def _grid_raster(values: np.ndarray, params, name: str, detail: float = 0.0) -> paint_core.Raster:
     """A raster whose pixel centres are the map grid's samples."""
-    origin, spacing, nx, ny = map_grid(params)
+    origin, spacing, nx, ny = map_grid(params, detail)
     h = 0.5 * spacing
     extent = (origin[0] - h, origin[1] - h, origin[0] + nx * spacing + h, origin[1] + ny * spacing + h)
     return paint_core.Raster(values.reshape(ny + 1, nx + 1), extent, name)
@@ -167,14 +182,15 @@ def _blender_map(scene, item, params, setting: str, value: str, to_field) -> pai
             corner = None
     finally:
         evaluated.to_mesh_clear()
-    origin, spacing, nx, ny = map_grid(params)
+    detail = _detail(triangles) if corner is not None else 0.0  # (an image holds its own detail)
+    origin, spacing, nx, ny = map_grid(params, detail)
     if corner is not None:
         _, hit, draped = terrain_core.drape(triangles, origin, spacing, nx, ny, corner_values=corner[..., None])
         values = np.where(hit, draped[..., 0], 1.0)
     else:
         _, hit, draped = terrain_core.drape(triangles, origin, spacing, nx, ny, corner_values=corner_uv)
         values = np.where(hit, _sample_image(pixels, draped.reshape(-1, 2)).reshape(hit.shape), 1.0)
-    return _grid_raster(values, params, setting)
+    return _grid_raster(values, params, setting, detail)
 
 
 def keep_out_triangles(item, to_field) -> np.ndarray:

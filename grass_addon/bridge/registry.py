@@ -27,6 +27,8 @@ class Registry:
     paints: dict[Key, tuple] = field(default_factory=dict)  # (what it was read from, paint.Paint | None)
     paint_deps: dict[Key, set] = field(default_factory=dict)  # (ID type, name) of what a field's paint reads
     strokes: dict[Key, int] = field(default_factory=dict)  # edits of those datablocks since (painting)
+    stroke_s: dict[Key, float] = field(default_factory=dict)  # seconds the field's last stroke took to show
+    stroked: set = field(default_factory=set)  # fields with a stroke waiting to be shown
     warned: set[str] = field(default_factory=set)  # console messages already printed
     saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
     bake_root: str | None = None  # <blend>_windgrass of the open file
@@ -42,12 +44,14 @@ class Registry:
         self.paints.clear()
         self.paint_deps.clear()
         self.strokes.clear()
+        self.stroke_s.clear()
+        self.stroked.clear()
         self.warned.clear()
 
     def forget_missing(self, alive: set[Key]) -> None:
         """Drop the runtimes of scenes or fields that no longer exist."""
         for table in (self.fields, self.errors, self.pending, self.terrains, self.paints, self.paint_deps,
-                      self.strokes):
+                      self.strokes, self.stroke_s):
             for key in [k for k in table if k not in alive]:
                 del table[key]
 

@@ -55,6 +55,8 @@ from .registry import REGISTRY, Key, key_of, warn_once
 EDIT_SETTLE_S = 0.15
 # How often the viewport's views are looked at (orbiting changes no data, so no handler runs).
 VIEW_POLL_S = 0.1
+STROKE_GOAL_S = 0.5  # a field whose strokes take longer to show follows when paint mode is left
+PAINT_MODE_POLL_S = 0.25
 
 
 @dataclass(eq=False)
@@ -525,20 +527,44 @@ def _refresh_later(keys) -> None:
 
 def _flush_pending() -> float | None:
     """Timer: write the fields whose edits settled; run again shortly while the user is still
-    dragging."""
+    dragging. A field whose strokes take longer than STROKE_GOAL_S to show (a large field) waits
+    while its terrain is in a paint mode: it follows when the artist leaves it."""
     latest = max(REGISTRY.pending.values(), default=0.0)
     wait = latest + EDIT_SETTLE_S - time.monotonic()
     if wait > 0:
         return wait
-    pending = list(REGISTRY.pending)
-    REGISTRY.pending.clear()
     scenes = {s.session_uid: s for s in bpy.data.scenes}
-    for scene_uid, uid in pending:
-        scene = scenes.get(scene_uid)
-        item = next((f for f in scene.windgrass.fields if f.uid == uid), None) if scene else None
-        if item is not None and item.collection is not None:
-            _guarded(update_field, scene, item)
-    return None
+    waiting = False
+    for key in list(REGISTRY.pending):
+        scene = scenes.get(key[0])
+        item = next((f for f in scene.windgrass.fields if f.uid == key[1]), None) if scene else None
+        if item is None or item.collection is None:
+            del REGISTRY.pending[key]
+            continue
+        if REGISTRY.stroke_s.get(key, 0.0) > STROKE_GOAL_S and painting(scene, item):
+            waiting = True
+            continue
+        del REGISTRY.pending[key]
+        stroke, started = key in REGISTRY.stroked, time.perf_counter()
+        REGISTRY.stroked.discard(key)
+        _guarded(update_field, scene, item)
+        if stroke:
+            REGISTRY.stroke_s[key] = time.perf_counter() - started
+    return PAINT_MODE_POLL_S if waiting else None
+
+
+def stroke_seconds(scene, item) -> float:
+    """How long the field's last stroke took to show (0 before any)."""
+    return REGISTRY.stroke_s.get(key_of(scene, item), 0.0)
+
+
+PAINT_MODES = {"WEIGHT_PAINT", "VERTEX_PAINT", "TEXTURE_PAINT", "SCULPT"}
+
+
+def painting(scene, item) -> bool:
+    """The field's terrain is being painted (weight, vertex, texture paint or sculpt mode)."""
+    terrain = field_scene.terrain_object(scene, item)
+    return terrain is not None and terrain.mode in PAINT_MODES
 
 
 # --------------------------------------------------------------------------------------------
@@ -613,6 +639,7 @@ def _note_strokes(depsgraph) -> None:
     touched = [key for key, deps in REGISTRY.paint_deps.items() if deps & changed]
     for key in touched:
         REGISTRY.strokes[key] = REGISTRY.strokes.get(key, 0) + 1
+        REGISTRY.stroked.add(key)
         rt = REGISTRY.fields.get(key)
         if rt is not None:
             rt.dirty = True

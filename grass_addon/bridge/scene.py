@@ -278,8 +278,13 @@ def update_paint_look(item, params, paint) -> None:
     if isinstance(image, bpy.types.Image):
         x0, y0, x1, y1 = extent = paint_map_extent(paint, field)
         w, h = x1 - x0, y1 - y0
-        size = (PAINT_MAP_PIXELS, max(1, round(PAINT_MAP_PIXELS * h / w))) if w >= h else \
-            (max(1, round(PAINT_MAP_PIXELS * w / h)), PAINT_MAP_PIXELS)
+        longest = PAINT_MAP_PIXELS
+        if paint is not None and paint.density is not None and paint.keep_out is None:
+            raster = paint.density  # no finer than the density map's own pixels
+            pixel = min((raster.extent[2] - raster.extent[0]) / raster.values.shape[1],
+                        (raster.extent[3] - raster.extent[1]) / raster.values.shape[0])
+            longest = int(min(PAINT_MAP_PIXELS, max(16, np.ceil(max(w, h) / pixel))))
+        size = (longest, max(1, round(longest * h / w))) if w >= h else (max(1, round(longest * w / h)), longest)
         if tuple(image.size) != size:
             image.scale(*size)
         iw, ih = size

@@ -99,6 +99,35 @@ def test_a_stroke_is_applied_to_the_blocks_it_touches(bridge, capsys):
     assert len(new) > 250 and np.all(new[:, 0] > 0.9) and np.all(new[:, 1] > 0.9)
 
 
+def test_a_slow_field_follows_strokes_when_weight_paint_is_left(bridge):
+    """A field whose strokes take over half a second to show (a 1 km field: about 1 s) does not
+    stall each stroke: while its terrain is in Weight Paint the strokes wait (the timer looks
+    again), and the grass follows when the artist goes back to Object mode."""
+    import time
+
+    _, runtime = bridge
+    terrain = _terrain()
+    group = _weights(terrain, "meadow", lambda co: 0.2)
+    scene, item = _field(bridge, terrain, density="vertex_group:meadow")
+    before = len(_grown_roots(runtime, scene, item))
+    key = runtime.key_of(scene, item)
+    runtime.REGISTRY.stroke_s[key] = 1.0  # its last stroke took a second
+    bpy.ops.object.mode_set(mode="WEIGHT_PAINT")
+    group.add([v.index for v in terrain.data.vertices if v.co.x > 1.0 and v.co.y > 1.0], 1.0, "REPLACE")
+    terrain.data.update()
+    bpy.context.view_layer.update()  # the stroke's end
+    assert key in runtime.REGISTRY.stroked
+    runtime._refresh_later([key])  # (the UI's timer; background Blender applies at the next frame)
+    time.sleep(runtime.EDIT_SETTLE_S)
+    assert runtime._flush_pending() == runtime.PAINT_MODE_POLL_S  # still painting: looked at again
+    rt = runtime.get_runtime(scene, item)
+    assert int(rt.field.layout.blade_alive.sum()) == before
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert runtime._flush_pending() is None
+    assert int(runtime.get_runtime(scene, item).field.layout.blade_alive.sum()) > before + 250
+    assert key not in runtime.REGISTRY.pending and 0.0 < runtime.stroke_seconds(scene, item) < 1.0
+
+
 def test_an_attribute_and_an_image_paint_the_terrain(bridge):
     """A float point attribute for the length (0.25: half length) and an image over the terrain's
     UV map for the density (black west half)."""

@@ -18,6 +18,7 @@ import textwrap
 import zlib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
@@ -218,6 +219,37 @@ def test_a_split_far_into_a_long_range_renders_the_same_pixels(env, tiny_config,
     assert frames_in(runs[1]) == ["frame_10000.png"]
     assert pixels(runs[1] / "frame_10000.png") == pixels(runs[0] / "frame_10000.png")
     assert lower_green_share(runs[1] / "frame_10000.png") > 0.6
+
+
+def test_a_painted_path_on_a_heightmap_renders_bare_and_splits_the_same(addon, env, tiny_config, tmp_path):
+    """A batch render painted from the command line: a density map with a bare stripe down the
+    middle (x in -0.4..0.4 m, the camera looking along it) and hills from a heightmap. The stripe is
+    bare ground in the image's lower middle while the sides are grass, and frame 4 rendered alone
+    equals frame 4 of 1-4 with the maps (they are part of what each frame is a function of)."""
+    from windgrass.grass_addon import images
+
+    density = np.ones((64, 64), np.float32)
+    density[:, 22:42] = 0.0  # 0.8 m of the 3.2 m field
+    (tmp_path / "path.png").write_bytes(images.encode_png(density))
+    hills = np.fromfunction(lambda y, x: 0.5 + 0.5 * np.sin(x / 10.0) * np.cos(y / 13.0), (64, 64))
+    (tmp_path / "hills.png").write_bytes(images.encode_png(hills.astype(np.float32)))
+    flags = ["--config", tiny_config, "--engine", "cycles", "--paint-density", tmp_path / "path.png",
+             "--terrain-heightmap", tmp_path / "hills.png", "--terrain-height", "0.3", "--camera-mode", "fixed",
+             "--camera-position", "0", "-2.2", "1.3", "--camera-target", "0", "0.6", "0",
+             "--render-resolution-x", "128", "--render-resolution-y", "72"]
+    runs = []
+    for frames in ("1-4", "4"):
+        out = tmp_path / frames
+        proc = render(env, *flags, "--frames", frames, "--out", out)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        runs.append(out)
+    assert pixels(runs[1] / "frame_0004.png") == pixels(runs[0] / "frame_0004.png")
+    width, height, _, _ = read_png(runs[0] / "frame_0004.png")
+    image = np.array(pixels(runs[0] / "frame_0004.png"), np.float32).reshape(height, width, 3) / 255.0
+    lower = image[int(0.8 * height):]
+    excess = lower[..., 1] - np.maximum(lower[..., 0], lower[..., 2])  # grass is green, the floor olive-brown
+    middle, sides = excess[:, int(0.42 * width):int(0.58 * width)], excess[:, list(range(8)) + list(range(width - 8, width))]
+    assert float(middle.mean()) < 0.5 * float(sides.mean()), (float(middle.mean()), float(sides.mean()))
 
 
 def test_eevee_frames_show_grass(env, tiny_config, tmp_path):

@@ -15,7 +15,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import atlas, kinematics, slots
+from . import atlas, forces, interaction, kinematics, slots
 from .blocks import BlockCache
 from .celldata import CellData, cell_data
 from .errors import ParameterError
@@ -33,11 +33,14 @@ WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times th
 
 
 class GrassField:
-    """``GrassField(params, wind_keys=None, terrain=None, paint=None)``; wind_keys: None
-    (params.wind) or (time_s, speed, deg) rows; terrain: a ``terrain.Heightfield`` in the field's
-    frame or None (flat); paint: a ``paint.Paint`` (where grass grows, how tall) or None."""
+    """``GrassField(params, wind_keys=None, terrain=None, paint=None, colliders=None,
+    effectors=None)``; wind_keys: None (params.wind) or (time_s, speed, deg) rows; terrain: a
+    ``terrain.Heightfield`` in the field's frame or None (flat); paint: a ``paint.Paint`` (where
+    grass grows, how tall) or None; colliders: objects with ``at(t) -> interaction.Spheres``
+    (None: the scene file's ``[[colliders]]``); effectors: an object with ``at(t) -> [forces.Effector]``
+    (None: the scene file's ``[[effectors]]``)."""
 
-    def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None):
+    def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None):
         self.params = params
         self.grid = FieldGrid.of(params)
         self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
@@ -54,9 +57,13 @@ class GrassField:
         self._viewed = self.whole
         self.layout: FieldLayout = layout
         self.wind = WindField(layout, params, keys=wind_keys)
+        self.interaction: interaction.Interaction | None = None
+        self.effectors = None
         self.sim = Simulation(layout, params, self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
+        self.set_interaction(interaction.colliders_from_params(params) if colliders is None else colliders,
+                             forces.effectors_from_params(params) if effectors is None else effectors)
 
     @classmethod
     def of_scene(cls, params: Params, wind_keys=None) -> GrassField:
@@ -181,6 +188,36 @@ class GrassField:
         x0, y0, x1, y1 = region
         return (b[:, 2] >= x0) & (b[:, 0] <= x1) & (b[:, 3] >= y0) & (b[:, 1] <= y1)
 
+    def set_interaction(self, colliders, effectors) -> None:
+        """Colliders (a list, empty for none) and effectors (None for none) from now on. New
+        effectors change the wind the solver steps in, so the simulation starts again; colliders
+        only change what is shown on top of it."""
+        colliders = list(colliders or [])
+        if colliders:
+            terrain = self.cache.terrain
+            ground = (lambda xy: np.zeros(len(xy))) if terrain is None else terrain.sample
+            top = max(float(sp["length"]) for sp in self.params.species())
+            self.interaction = interaction.Interaction(colliders, self.params, self.grid, ground, top)
+        else:
+            self.interaction = None
+        if effectors is not self.effectors:
+            self.effectors = effectors
+            wind = forces.ForcedWind(self.wind, effectors) if effectors is not None else self.wind
+            self.sim = Simulation(self.layout, self.params, wind)
+        self.cells = None
+        self._recent.clear()
+
+    def _interacted(self, frame: int, state) -> CellData:
+        """The cell data of ``state`` at ``frame`` with the colliders' push and trample on top."""
+        bend_t = state.bend_t
+        if self.interaction is not None:
+            omega2, damping = self.sim.solver.recovery_oscillator()
+            over = self.interaction.bend(frame, self.layout, bend_t, omega2, damping)
+            if over is not None:
+                state = state.overlaid(over)
+        return CellData(wind=self.sim.cell_wind, bend_t=state.bend_t, twist_t=state.twist_t, state=state,
+                        card_height=self.layout.card_height)
+
     # ------------------------------------------------------------------ time
 
     @property
@@ -193,7 +230,8 @@ class GrassField:
         if camera is not None or not self._viewed:
             self.view(camera, frame)
         self.sim.seek(int(frame))
-        self.cells = cell_data(self.layout, self.sim)
+        self.cells = self._interacted(int(frame), self.sim.state) if self.interaction is not None \
+            else cell_data(self.layout, self.sim)
         return self.cells
 
     def cells_at(self, frame: int) -> CellData:
@@ -204,6 +242,8 @@ class GrassField:
         if cells is None:
             self.sim.seek(frame)
             state = self.sim.state.copy()
+            if self.interaction is not None:
+                state = self._interacted(frame, state).state
             cells = CellData(wind=self.sim.cell_wind.copy(), bend_t=state.bend_t, twist_t=state.twist_t,
                              state=state, card_height=self.layout.card_height)
             self._recent[frame] = cells
@@ -241,7 +281,8 @@ class GrassField:
 
     def _current(self) -> CellData:
         if self.cells is None:
-            self.cells = cell_data(self.layout, self.sim)
+            self.cells = self._interacted(self.sim.frame, self.sim.state) if self.interaction is not None \
+                else cell_data(self.layout, self.sim)
         return self.cells
 
     # ------------------------------------------------------------------ LOD
@@ -274,7 +315,34 @@ class GrassField:
     def blade_vertices(self, blocks, lod: LodWeights | None = None, out: np.ndarray | None = None) -> np.ndarray:
         """Blade strip vertices of `blocks` at the current frame; lod: hide blades beyond N (eq 9)."""
         counts = None if lod is None else lod.blade_count
-        return kinematics.blade_vertices(self.layout, self._current(), blocks, counts, out)
+        out = kinematics.blade_vertices(self.layout, self._current(), blocks, counts, out)
+        if self.interaction is not None:
+            self._clear_colliders(np.asarray(blocks, np.int64).reshape(-1), out)
+        return out
+
+    def _clear_colliders(self, blocks: np.ndarray, vertices: np.ndarray) -> None:
+        """Joints of the blades of ``blocks`` still inside a collider at this frame are moved to
+        its surface (the leaning of ``interaction`` clears most; this keeps every tip out)."""
+        spheres = self.interaction.spheres(self.interaction.time(self.sim.frame))
+        if not len(spheres) or not len(blocks):
+            return
+        reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5
+        bounds = self.grid.block_bounds(self.layout.block_ids[blocks])
+        lo = spheres.centres[:, :2] - (spheres.radii + reach)[:, None]
+        hi = spheres.centres[:, :2] + (spheres.radii + reach)[:, None]
+        near = ((bounds[:, None, 0] <= hi[None, :, 0]) & (bounds[:, None, 2] >= lo[None, :, 0])
+                & (bounds[:, None, 1] <= hi[None, :, 1]) & (bounds[:, None, 3] >= lo[None, :, 1])).any(axis=1)
+        if not near.any():
+            return
+        n, bpb = self.layout.segments, self.layout.blades_per_block
+        view = vertices.reshape(len(blocks), bpb, n + 1, 2, 3)
+        for i in np.flatnonzero(near):
+            pairs = view[i]
+            joints = pairs.mean(axis=2, dtype=np.float64)
+            before = joints.copy()
+            roots_z = joints[:, 0, 2].copy()
+            if interaction.project_joints(joints, roots_z, spheres, self.interaction.tolerance):
+                pairs += (joints - before).astype(np.float32)[:, :, None, :]
 
     def card_vertices(self, blocks, out: np.ndarray | None = None) -> np.ndarray:
         """Card vertices of `blocks` at the current frame (paper III.B, eq 34)."""

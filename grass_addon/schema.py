@@ -54,7 +54,8 @@ MAX_FIELD_EXTENT = 16384.0  # m along X and along Y
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter. ``kind`` is one of: int, float, bool, enum, vec (floats), table_list."""
+    """One parameter. ``kind`` is one of: int, float, bool, enum, str, vec (floats), table_list,
+    keys (a list of ``{time, position}`` points: a collider's path)."""
 
     section: str
     key: str
@@ -72,6 +73,7 @@ class Param:
     label: str = ""
     applies_when: tuple[str, str] = ()  # (enum key of the section, choice): only matters then
     path: bool = False  # a "str" that names a file: relative paths in a scene file are from its folder
+    blender: bool = True  # False: scene files only (in Blender the field's collections give it)
 
     @property
     def name(self) -> str:
@@ -140,6 +142,49 @@ KEEP_OUT_FIELDS: tuple[Param, ...] = (
     _p("", "radius", "float", 1.0, "Disc: its radius", unit="m", minimum=0.0, maximum=1e5, label="Radius"),
     _p("", "angle", "float", 0.0, "Box: its turn, counter-clockwise", unit="deg", minimum=-3600.0, maximum=3600.0,
        label="Angle"),
+)
+
+# Columns of one ``[[colliders]]`` row (``[[interaction.colliders]]``): what moves through the grass.
+COLLIDER_FIELDS: tuple[Param, ...] = (
+    _p("", "shape", "enum", "sphere", "A ball, or a vertical capsule (a walker)", choices=("sphere", "capsule"),
+       label="Shape"),
+    _p("", "radius", "float", 0.3, "Radius of the sphere or of the capsule's ends", unit="m", minimum=0.01,
+       maximum=100.0, label="Radius"),
+    _p("", "length", "float", 0.0, "Capsule: distance between the centres of its ends (its middle follows the "
+       "path)", unit="m", minimum=0.0, maximum=100.0, label="Length"),
+    _p("", "path", "keys", (), "Keyed points {time = s, position = [x, y, z]}: straight between keys, held "
+       "before the first and after the last (at least 2 keys, times increasing)", label="Path"),
+)
+
+EFFECTOR_TYPES = ("wind", "force", "vortex", "turbulence")
+
+# Columns of one ``[[effectors]]`` row (``[[interaction.effectors]]``): Blender's force fields.
+EFFECTOR_FIELDS: tuple[Param, ...] = (
+    _p("", "type", "enum", "wind", "Blender's force field type: wind blows along the field's Z axis, force "
+       "pushes away from its centre (negative: pulls), vortex turns around its Z axis, turbulence is noise",
+       choices=EFFECTOR_TYPES, label="Type"),
+    _p("", "position", "vec", (0.0, 0.0, 0.0), "Where the field is", unit="m", minimum=-1e5, maximum=1e5, size=3,
+       label="Position"),
+    _p("", "rotation", "vec", (0.0, 0.0, 0.0), "Its turn (Euler XYZ, as Blender's Rotation): Z points along "
+       "the rotated Z axis", unit="deg", minimum=-3600.0, maximum=3600.0, size=3, label="Rotation"),
+    _p("", "shape", "enum", "point", "Distances from its centre (point) or from its XY plane (plane)",
+       choices=("point", "plane"), label="Shape"),
+    _p("", "strength", "float", 5.0, "Blender's strength: on the grass, m/s of wind at full effect", minimum=-1000.0,
+       maximum=1000.0, label="Strength"),
+    _p("", "falloff", "float", 0.0, "Falloff power: the effect is (1 + d - min_distance)^-power", minimum=0.0,
+       maximum=10.0, label="Falloff Power"),
+    _p("", "falloff_type", "enum", "sphere", "Blender's falloff shape: by distance (sphere), by distance along Z "
+       "and from the axis (tube), or by angle from Z (cone)", choices=("sphere", "tube", "cone"),
+       label="Falloff Type"),
+    _p("", "min_distance", "float", 0.0, "Full effect within this distance; 0: off", unit="m", minimum=0.0,
+       maximum=1e5, label="Min Distance"),
+    _p("", "max_distance", "float", 0.0, "No effect beyond this distance; 0: no limit", unit="m", minimum=0.0,
+       maximum=1e5, label="Max Distance"),
+    _p("", "noise", "float", 0.0, "Blender's noise: random change of the effect, a share of the strength",
+       minimum=0.0, maximum=10.0, label="Noise"),
+    _p("", "size", "float", 1.0, "Turbulence: size of its eddies", unit="m", minimum=0.01, maximum=1e4,
+       label="Size"),
+    _p("", "seed", "int", 1, "Seed of the noise", minimum=0, maximum=2**31 - 1, label="Seed"),
 )
 
 MAP_SOURCES = ("A PNG file (paths in a scene file are from its folder); in Blender also vertex_group:NAME or "
@@ -264,6 +309,18 @@ PARAMS: tuple[Param, ...] = (
        minimum=0.0, maximum=1000.0, soft_max=10.0, label="Falloff"),
     _p("keep_out", "shapes", "table_list", (), "Boxes and discs where nothing grows (in Blender also the objects "
        "of the field's keep-out collection)", fields=KEEP_OUT_FIELDS, label="Shapes"),
+    # --- [interaction] colliders and force fields (interaction.py, forces.py) ------------------------
+    _p("interaction", "recovery", "float", 4.0, "How long trampled grass takes to stand up again (it rises "
+       "slowly, then sways back as the paper's blades recover)", unit="s", minimum=0.1, maximum=600.0,
+       soft_max=60.0, label="Recovery"),
+    _p("interaction", "tolerance", "float", 0.01, "How far a blade tip may reach into a collider", unit="m",
+       minimum=0.0, maximum=1.0, soft_max=0.1, label="Tolerance"),
+    _p("interaction", "colliders", "table_list", (), "Spheres and capsules moving along keyed paths (in Blender: "
+       "the objects of the field's Colliders collection)", fields=COLLIDER_FIELDS, label="Colliders",
+       blender=False),
+    _p("interaction", "effectors", "table_list", (), "Force fields that add to the wind (in Blender: the force "
+       "fields of the field's Force Fields collection)", fields=EFFECTOR_FIELDS, label="Force Fields",
+       blender=False),
     # --- [camera] headless renders and LOD without a Blender camera ---------------------------------
     _p("camera", "mode", "enum", "flythrough", "Fly over the field (the paper's tests) or a fixed view",
        choices=("flythrough", "fixed"), label="Mode"),
@@ -453,6 +510,8 @@ def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
         if not isinstance(value, str):
             raise ParameterError(name, f"{value!r} is not a text string")
         return value
+    if p.kind == "keys":
+        return _check_keys(value, name)
     if p.kind == "enum":
         if not isinstance(value, str) or value not in p.choices:
             raise ParameterError(name, f"unknown value {value!r} ({expect})")
@@ -468,6 +527,29 @@ def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
             raise ParameterError(name, f"{value!r} is not a list of tables ([[{name}]] in TOML)")
         return tuple(_check_row(p, row, f"{name}[{i}]") for i, row in enumerate(value))
     return _check_number(p, value, name, int if p.kind == "int" else float)
+
+
+_KEY_TIME = Param("", "time", "float", 0.0, "", unit="s", minimum=-1e7, maximum=1e7)
+_KEY_POSITION = Param("", "position", "vec", (0.0, 0.0, 0.0), "", unit="m", minimum=-1e5, maximum=1e5, size=3)
+
+
+def _check_keys(value: Any, name: str) -> tuple[dict[str, Any], ...]:
+    """A keyed path: at least two ``{time, position}`` tables with increasing times."""
+    if not isinstance(value, (list, tuple)):
+        raise ParameterError(name, f"{value!r} is not a list of {{time = s, position = [x, y, z]}} keys")
+    keys = []
+    for i, key in enumerate(value):
+        if not isinstance(key, Mapping) or set(key) != {"time", "position"}:
+            raise ParameterError(f"{name}[{i}]", f"{key!r} is not a key {{time = s, position = [x, y, z]}}")
+        keys.append({"time": _check_value(_KEY_TIME, key["time"], f"{name}[{i}].time"),
+                     "position": _check_value(_KEY_POSITION, key["position"], f"{name}[{i}].position")})
+    if len(keys) < 2:
+        raise ParameterError(name, f"{len(keys)} key(s); a path needs at least 2 (time, position) keys")
+    times = [k["time"] for k in keys]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ParameterError(name, f"times {times} are not increasing; each key's time must be later than "
+                                   "the one before")
+    return tuple(keys)
 
 
 def _check_number(p: Param, value: Any, name: str, kind: type) -> float | int:
@@ -504,6 +586,7 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
     if not isinstance(data, Mapping):
         raise ParameterError("", f"expected a table of sections, got {type(data).__name__}")
     values = (base or defaults()).to_dict()
+    data = _lift_tables(data)
     for section, entries in data.items():
         if section not in SECTIONS:
             raise ParameterError(section, f"unknown section [{section}] (valid: {', '.join(SECTIONS)})")
@@ -523,6 +606,23 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
     checked = {s: {p.key: _check_value(p, values[s][p.key]) for p in section_params(s)} for s in SECTIONS}
     _check_relations(checked)
     return Params(checked)
+
+
+TOP_LEVEL_TABLES = {"colliders": "interaction", "effectors": "interaction"}  # [[colliders]] = [[interaction.colliders]]
+
+
+def _lift_tables(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A scene file's top-level ``[[colliders]]`` and ``[[effectors]]`` into their section."""
+    out = {k: v for k, v in data.items() if k not in TOP_LEVEL_TABLES}
+    for key, section in TOP_LEVEL_TABLES.items():
+        if key in data:
+            entries = dict(out.get(section) or {}) if isinstance(out.get(section, {}), Mapping) else out[section]
+            if isinstance(entries, dict):
+                if key in entries:
+                    raise ParameterError(key, f"given twice: as [[{key}]] and as [[{section}.{key}]]")
+                entries[key] = data[key]
+            out[section] = entries
+    return out
 
 
 def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
@@ -634,6 +734,8 @@ def _toml_value(v: Any) -> str:
         return "true" if v else "false"
     if isinstance(v, str):
         return json.dumps(v)
+    if isinstance(v, Mapping):
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, float):

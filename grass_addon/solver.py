@@ -139,6 +139,15 @@ class SolverState:
     def twist_vel(self) -> np.ndarray:
         return self._public("twist_vel")
 
+    def overlaid(self, bend_t: np.ndarray) -> SolverState:
+        """A state sharing this one's arrays but with ``bend_t`` as its bend (what is shown
+        with the colliders on top of the wind's state; the solver never steps it)."""
+        out = SolverState.__new__(SolverState)
+        out.bend_t, out.bend_vel_t, out.twist_t = bend_t, self.bend_vel_t, self.twist_t
+        out.twist_vel_t, out.bend_eq_t = self.twist_vel_t, self.bend_eq_t
+        out._views, out._fresh, out._lock = {}, set(), threading.Lock()
+        return out
+
     def copy(self) -> SolverState:
         out = SolverState(self.n_cells, self.segments)
         out.assign(self)
@@ -356,6 +365,12 @@ class BladeSolver:
 
     def close(self) -> None:
         """Nothing to release: the lanes run on the engine's shared pool (workers.py)."""
+
+    def recovery_oscillator(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K/M, C/M) of each cell's base joint at rest, (C,) float64 each (eqs 29-31): how a
+        blade released from a bend sways back (interaction.py's trampled grass)."""
+        omega2 = np.asarray(self._mu_base[0], np.float64) * self._inv_inertia[0]
+        return omega2, self.alpha + self.beta * omega2
 
     def stable_substeps(self, frame_dt: float) -> int:
         """Sub-steps per frame that keep eq 32 stable (>= simulation.sub_steps).

@@ -1,0 +1,223 @@
+"""Blender's force fields blowing the grass (issue #19): Wind, Force, Vortex and Turbulence.
+
+Each effector adds, at every cell (at half the grass's height), the horizontal part of the force
+Blender's own effector code gives a particle there, read as wind in m/s (strength 1 = 1 m/s at
+full effect). The settings mean what they mean in Blender:
+
+* the point's vector from the field's centre ``v`` and distance ``d``: ``|v|`` for a point shape,
+  the distance along the field's Z axis for a plane;
+* falloff ``(1 + d - min)^-power``: full effect within ``min_distance`` (when used), none beyond
+  ``max_distance`` (when used); ``sphere`` by ``d``, ``tube`` by the distance along Z times the
+  same law across it (radial settings), ``cone`` by the distance along Z times the law of the
+  angle from Z in degrees;
+* wind: along the field's Z axis; force: along ``v`` (positive strength pushes away); vortex:
+  around the Z axis, ``Z x v`` (positive strength turns counter-clockwise seen from +Z);
+  turbulence: a noise vector field of eddies ``size`` (fixed to the field, as Blender's);
+* noise: the strength changes randomly by up to ``noise`` times it (smoothly, a few times a second).
+
+The effectors at time t come from a track (``SampledEffectors``: Blender's, once per frame) or
+are fixed (a scene file's ``[[effectors]]``), so frame N is still a function of the scene and N.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+NOISE_RATE = 4.0  # Hz: how fast an effector's noise changes
+
+
+@dataclass(frozen=True)
+class Effector:
+    """One force field at one instant; ``matrix`` (4, 4) its world transform (Z axis: its direction)."""
+
+    kind: str  # wind | force | vortex | turbulence
+    matrix: np.ndarray
+    strength: float
+    shape: str = "point"  # point | plane
+    power: float = 0.0
+    falloff_type: str = "sphere"  # sphere | tube | cone
+    min_distance: float = 0.0
+    use_min: bool = False
+    max_distance: float = 0.0
+    use_max: bool = False
+    radial_power: float = 0.0
+    radial_min: float = 0.0
+    use_radial_min: bool = False
+    radial_max: float = 0.0
+    use_radial_max: bool = False
+    noise: float = 0.0
+    size: float = 1.0
+    seed: int = 1
+
+    def with_matrix(self, matrix) -> Effector:
+        return replace(self, matrix=np.asarray(matrix, np.float64))
+
+
+def euler_matrix(position, rotation_deg) -> np.ndarray:
+    """(4, 4) world matrix of an object at ``position`` turned by Euler XYZ ``rotation_deg``
+    (Blender's default rotation mode: X first, then Y, then Z)."""
+    x, y, z = (math.radians(a) for a in rotation_deg)
+    rx = np.array([[1, 0, 0], [0, math.cos(x), -math.sin(x)], [0, math.sin(x), math.cos(x)]])
+    ry = np.array([[math.cos(y), 0, math.sin(y)], [0, 1, 0], [-math.sin(y), 0, math.cos(y)]])
+    rz = np.array([[math.cos(z), -math.sin(z), 0], [math.sin(z), math.cos(z), 0], [0, 0, 1]])
+    m = np.eye(4)
+    m[:3, :3] = rz @ ry @ rx
+    m[:3, 3] = position
+    return m
+
+
+def from_row(row) -> Effector:
+    """A scene file's ``[[effectors]]`` row (validated by the schema)."""
+    return Effector(kind=row["type"], matrix=euler_matrix(row["position"], row["rotation"]),
+                    strength=float(row["strength"]), shape=row["shape"], power=float(row["falloff"]),
+                    falloff_type=row["falloff_type"], min_distance=float(row["min_distance"]),
+                    use_min=row["min_distance"] > 0.0, max_distance=float(row["max_distance"]),
+                    use_max=row["max_distance"] > 0.0, radial_power=float(row["falloff"]), noise=float(row["noise"]),
+                    size=float(row["size"]), seed=int(row["seed"]))
+
+
+class FixedEffectors:
+    """Effectors that do not change over time (a scene file's)."""
+
+    def __init__(self, effectors):
+        self.effectors = list(effectors)
+
+    def at(self, t: float) -> list[Effector]:
+        return self.effectors
+
+
+class SampledEffectors:
+    """Effectors sampled at ``times`` (ascending; Blender's, once per frame): those of the
+    sample nearest to t (an effector switched off at a sample is absent from it)."""
+
+    def __init__(self, times, samples):
+        self.times = np.asarray(times, np.float64)
+        self.samples = [list(s) for s in samples]
+
+    def at(self, t: float) -> list[Effector]:
+        if not len(self.times):
+            return []
+        k = int(np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1))
+        if k > 0 and t - self.times[k - 1] < self.times[k] - t:
+            k -= 1
+        return self.samples[k]
+
+
+def effectors_from_params(params) -> FixedEffectors | None:
+    rows = params.interaction.effectors
+    return FixedEffectors([from_row(r) for r in rows]) if rows else None
+
+
+# ------------------------------------------------------------------------------------------------
+# Blender's falloff and forces
+
+
+def falloff_law(d: np.ndarray, use_min: bool, minimum: float, use_max: bool, maximum: float,
+                power: float) -> np.ndarray:
+    """Blender's falloff function: 0 beyond the maximum, 1 within the minimum, else
+    (1 + d - min)^-power."""
+    d = np.asarray(d, np.float64)
+    low = minimum if use_min else 0.0
+    out = np.power(np.maximum(1.0 + d - low, 1e-9), -power) if power else np.ones_like(d)
+    if use_min:
+        out = np.where(d < minimum, 1.0, out)
+    if use_max:
+        out = np.where(d > maximum, 0.0, out)
+    return out
+
+
+def _geometry(e: Effector, points: np.ndarray):
+    """(vector from the field to each point (m, 3), distance (m,), axis (3,), along-axis (m,))."""
+    origin, axis = e.matrix[:3, 3], e.matrix[:3, 2] / max(np.linalg.norm(e.matrix[:3, 2]), 1e-12)
+    vec = points - origin
+    along = vec @ axis
+    if e.shape == "plane":
+        return axis[None, :] * along[:, None], np.abs(along), axis, along
+    return vec, np.linalg.norm(vec, axis=1), axis, along
+
+
+def falloff(e: Effector, points: np.ndarray) -> np.ndarray:
+    """(m,) the effect's share at ``points`` (Blender's effector_falloff)."""
+    vec, distance, axis, along = _geometry(e, points)
+    if e.falloff_type == "sphere":
+        return falloff_law(distance, e.use_min, e.min_distance, e.use_max, e.max_distance, e.power)
+    out = falloff_law(np.abs(along), e.use_min, e.min_distance, e.use_max, e.max_distance, e.power)
+    full = points - e.matrix[:3, 3]
+    if e.falloff_type == "tube":
+        radial = np.linalg.norm(full - along[:, None] * axis[None, :], axis=1)
+    else:  # cone: the angle from the axis, in degrees
+        length = np.maximum(np.linalg.norm(full, axis=1), 1e-12)
+        radial = np.degrees(np.arccos(np.clip(along / length, -1.0, 1.0)))
+    return out * falloff_law(radial, e.use_radial_min, e.radial_min, e.use_radial_max, e.radial_max,
+                             e.radial_power)
+
+
+def _hash(ix, iy, iz, seed: int) -> np.ndarray:
+    """Deterministic pseudo-random values in [-1, 1) of integer lattice points."""
+    h = (ix.astype(np.int64) * 73856093) ^ (iy.astype(np.int64) * 19349663) ^ (iz.astype(np.int64) * 83492791) \
+        ^ (seed * 2654435761)
+    h = (h ^ (h >> 13)) * 1274126177
+    h = h ^ (h >> 16)
+    return (h & 0xFFFFFF).astype(np.float64) / float(1 << 23) - 1.0
+
+
+def value_noise(p: np.ndarray, seed: int) -> np.ndarray:
+    """(m,) smooth noise in [-1, 1] of points (m, 3): trilinear between hashed lattice values."""
+    base = np.floor(p)
+    f = p - base
+    f = f * f * (3.0 - 2.0 * f)
+    i = base.astype(np.int64)
+    out = np.zeros(len(p))
+    weights = [(1 - f, f)[k] for k in (0, 1)]  # weights[corner][:, axis]
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                w = weights[dx][:, 0] * weights[dy][:, 1] * weights[dz][:, 2]
+                out += w * _hash(i[:, 0] + dx, i[:, 1] + dy, i[:, 2] + dz, seed)
+    return out
+
+
+def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
+    """(m, 3) the force field's push at ``points`` at time ``t``, in m/s of wind."""
+    vec, distance, axis, _ = _geometry(e, points)
+    share = falloff(e, points)
+    strength = np.full(len(points), e.strength)
+    if e.noise > 0.0:
+        cell = np.column_stack([points[:, :2] * 0.5, np.full(len(points), t * NOISE_RATE)])
+        strength = strength + e.noise * abs(e.strength) * value_noise(cell, e.seed)
+    if e.kind == "wind":
+        direction = np.broadcast_to(axis, points.shape)
+    elif e.kind == "force":
+        direction = vec / np.maximum(distance, 1e-9)[:, None]
+    elif e.kind == "vortex":
+        turn = np.cross(np.broadcast_to(axis, points.shape), vec)
+        direction = turn / np.maximum(np.linalg.norm(turn, axis=1), 1e-9)[:, None]
+    else:  # turbulence: noise fixed to the field
+        local = (points - e.matrix[:3, 3]) / max(e.size, 1e-6)
+        direction = np.column_stack([value_noise(local, e.seed + k) for k in range(3)])
+    return direction * (strength * share)[:, None]
+
+
+class ForcedWind:
+    """A wind field (``sample_layout``) plus the effectors' pushes at the cells, at half the
+    grass's height above the ground. Everything else is the wind field's."""
+
+    def __init__(self, wind, effectors):
+        self.wind = wind
+        self.effectors = effectors
+
+    def __getattr__(self, name):
+        return getattr(self.wind, name)
+
+    def sample_layout(self, t: float, layout) -> np.ndarray:
+        out = np.array(self.wind.sample_layout(t, layout), dtype=np.float32)
+        active = self.effectors.at(t)
+        if active and layout.n_cells:
+            points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length])
+            points = points.astype(np.float64)
+            total = sum(force(e, points, t) for e in active)
+            out += total[:, :2].astype(np.float32)
+        return out

@@ -1,0 +1,418 @@
+"""Grass that reacts to what moves through it: colliders push it aside and trample it (issue #19).
+
+Colliders are sphere sets over time (``Track``): a scene file's ``[[colliders]]`` (a sphere, or a
+capsule as spheres along its axis) moving along keyed path points, or, in Blender, the objects of
+the field's collider collection sampled from the evaluated scene once per frame (bridge/tracks.py).
+
+What a collider does to a cell is a pure function of the track and the frame, never of frames
+shown before, so any frame is still seconds away and farm splits stay pixel-identical:
+
+* **Push** (frame N only): blades near a collider lean away from it, as far as a straight blade
+  of the cell's length must lean to clear the sphere (``push_lean``); the wind's bend towards the
+  collider is blocked. ``project_joints`` then moves any joint still inside a sphere to its
+  surface (the tolerance), so no blade tip is inside a collider.
+* **Trample** (frames N - W .. N, W = interaction.recovery): at each frame a collider's contacts
+  press the cells under it by ``a`` (1 where it reaches the ground, 0 where its lowest point is
+  above the grass) along its direction of travel. A cell shows ``max over contacts of a R(t - s)``,
+  ``R`` the recovery curve: flattened, rising slowly, then released into the paper's damped
+  oscillation (eqs 29-32, the cell's own K/M and C/M) so that it is back at its wind-only pose
+  when ``interaction.recovery`` has passed. The wind keeps acting on trampled grass, weaker while
+  it is flat (``WIND_WHEN_FLAT``).
+
+Contacts are computed per frame for the cells under each sphere only and kept for the window W,
+so the work is proportional to the cells the colliders reach (Fan et al. 2015): a field with no
+collider does nothing here, a collider outside the window of simulated blocks touches nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from .blade import GROUND_TILT
+
+FLAT_TILT = 1.45  # rad (83 deg): how far a fully trampled blade leans
+HOLD = 0.6  # share of interaction.recovery a trampled blade spends rising slowly before its release
+HELD_FLAT = 0.5  # how flat it still is at the release
+FADE = 0.1  # share of interaction.recovery over which the last of the oscillation is faded out
+WIND_WHEN_FLAT = 0.25  # the wind's bend on fully flattened grass, against standing grass
+PUSH_MARGIN = 1.1  # the lean clears a sphere this much larger than the collider
+LEAN_STEPS = 24  # lean angles tried between 0 and GROUND_TILT (push_lean)
+# How the lean of a blade is shared between its joints (mostly at the base: it bends where it is
+# weakest under a load from above); the last entry is for every joint above.
+JOINT_SHARE = (0.55, 0.25, 0.12, 0.08)
+CAPSULE_SPHERES_PER_RADIUS = 2.0  # a capsule is spheres along its axis, this many per radius
+STILL_SPEED = 0.05  # m/s: slower colliders press the grass outwards, not along their travel
+
+
+# ------------------------------------------------------------------------------------------------
+# Tracks: where the colliders are
+
+
+@dataclass(frozen=True)
+class Spheres:
+    """Spheres at one instant: centres (m, 3), radii (m,), horizontal velocities (m, 2) (float64)."""
+
+    centres: np.ndarray
+    radii: np.ndarray
+    velocity: np.ndarray
+
+    @staticmethod
+    def none() -> Spheres:
+        return Spheres(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 2)))
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+    @staticmethod
+    def join(parts) -> Spheres:
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            return Spheres.none()
+        return Spheres(np.concatenate([p.centres for p in parts]), np.concatenate([p.radii for p in parts]),
+                       np.concatenate([p.velocity for p in parts]))
+
+
+class PathCollider:
+    """A scene file's collider: a sphere (or a vertical capsule: ``length`` between its end
+    spheres' centres, ``position`` its middle) moving through keyed ``(time, position)`` points,
+    in straight lines between them and held before the first and after the last."""
+
+    def __init__(self, shape: str, radius: float, length: float, times, positions):
+        self.times = np.asarray(times, np.float64)
+        self.positions = np.asarray(positions, np.float64).reshape(-1, 3)
+        self.radius = float(radius)
+        if shape == "capsule" and length > 0.0:
+            count = max(2, int(math.ceil(length / self.radius * CAPSULE_SPHERES_PER_RADIUS)) + 1)
+            z = np.linspace(-0.5 * length, 0.5 * length, count)
+        else:
+            z = np.zeros(1)
+        self.offsets = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+
+    def at(self, t: float) -> Spheres:
+        times, pos = self.times, self.positions
+        centre = np.array([np.interp(t, times, pos[:, i]) for i in range(3)])
+        k = int(np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2))
+        span = times[k + 1] - times[k]
+        inside = times[0] <= t < times[-1]
+        velocity = (pos[k + 1, :2] - pos[k, :2]) / span if inside and span > 0 else np.zeros(2)
+        m = len(self.offsets)
+        return Spheres(centre + self.offsets, np.full(m, self.radius), np.tile(velocity, (m, 1)))
+
+
+class SampledTrack:
+    """Sphere sets sampled at given times (Blender's colliders, once per frame): the set of the
+    sample nearest to ``t``. ``times`` (K,) ascending; ``offsets`` (K + 1,) the rows of each sample
+    in ``centres`` (S, 3), ``radii`` (S,), ``velocity`` (S, 2)."""
+
+    def __init__(self, times, offsets, centres, radii, velocity):
+        self.times = np.asarray(times, np.float64)
+        self.offsets = np.asarray(offsets, np.int64)
+        self.centres = np.asarray(centres, np.float64).reshape(-1, 3)
+        self.radii = np.asarray(radii, np.float64)
+        self.velocity = np.asarray(velocity, np.float64).reshape(-1, 2)
+
+    def at(self, t: float) -> Spheres:
+        if not len(self.times):
+            return Spheres.none()
+        k = int(np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1))
+        if k > 0 and t - self.times[k - 1] < self.times[k] - t:
+            k -= 1
+        a, b = self.offsets[k], self.offsets[k + 1]
+        return Spheres(self.centres[a:b], self.radii[a:b], self.velocity[a:b])
+
+
+def colliders_from_params(params) -> list[PathCollider]:
+    """The ``[[colliders]]`` of a scene file (validated by the schema)."""
+    out = []
+    for row in params.interaction.colliders:
+        path = row["path"]
+        out.append(PathCollider(row["shape"], row["radius"], row["length"], [p["time"] for p in path],
+                                [p["position"] for p in path]))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# The recovery curve
+
+
+def recovery_curve(tau: np.ndarray, recovery: float, omega2: np.ndarray, damping: np.ndarray) -> np.ndarray:
+    """R(tau): how flat a cell pressed ``tau`` seconds ago still is (1 pressed, 0 recovered).
+
+    Held: 1 - (1 - HELD_FLAT) (tau / h)^2 up to h = HOLD * recovery (the stems slowly straighten);
+    then released: HELD_FLAT g(tau - h), g the free damped oscillation of eqs 29-32 from rest at
+    1 (K/M = ``omega2``, C/M = ``damping``, the cell's base joint), faded out over the last FADE
+    of the recovery; 0 from ``recovery`` on."""
+    tau = np.asarray(tau, np.float64)
+    h = HOLD * recovery
+    held = 1.0 - (1.0 - HELD_FLAT) * np.square(np.clip(tau / max(h, 1e-9), 0.0, 1.0))
+    x = np.maximum(tau - h, 0.0)
+    a = 0.5 * np.asarray(damping, np.float64)
+    w2 = np.asarray(omega2, np.float64)
+    wd = np.sqrt(np.maximum(w2 - a * a, 0.0))
+    under = wd > 1e-6
+    safe = np.where(under, wd, 1.0)
+    g_under = np.exp(-a * x) * (np.cos(safe * x) + a / safe * np.sin(safe * x))
+    slow = np.sqrt(np.maximum(w2, 0.0))  # overdamped: the critically damped curve of the slower rate
+    g_over = np.exp(-slow * x) * (1.0 + slow * x)
+    g = np.where(under, g_under, g_over)
+    u = np.clip((tau - (1.0 - FADE) * recovery) / (FADE * recovery), 0.0, 1.0)
+    fade = 1.0 - u * u * (3.0 - 2.0 * u)
+    released = HELD_FLAT * g * fade
+    out = np.where(tau < h, held, released)
+    return np.where((tau >= 0.0) & (tau < recovery), out, 0.0)
+
+
+# ------------------------------------------------------------------------------------------------
+# Contacts: the cells under the spheres at one instant
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Cells pressed at one frame: global cell ids (m,), press (m,) in (0, 1], direction (m, 2)."""
+
+    cells: np.ndarray
+    press: np.ndarray
+    direction: np.ndarray
+
+    @staticmethod
+    def none() -> Contacts:
+        return Contacts(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)))
+
+
+def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
+    """(sphere index, global cell id, cell centre (., 2)) of the field's cells whose centres lie
+    within ``reach`` (m,) of each sphere's centre, horizontally."""
+    cs = grid.cell_size
+    origin = np.asarray(grid.origin, np.float64)
+    k = int(math.ceil(float(reach.max()) / cs)) + 1
+    offsets = np.arange(-k, k + 1)
+    ox, oy = np.meshgrid(offsets, offsets)
+    ox, oy = ox.ravel(), oy.ravel()
+    ix0 = np.floor((spheres.centres[:, 0] - origin[0]) / cs).astype(np.int64)
+    iy0 = np.floor((spheres.centres[:, 1] - origin[1]) / cs).astype(np.int64)
+    ix = ix0[:, None] + ox[None, :]
+    iy = iy0[:, None] + oy[None, :]
+    cx = origin[0] + (ix + 0.5) * cs
+    cy = origin[1] + (iy + 0.5) * cs
+    d2 = (cx - spheres.centres[:, 0:1]) ** 2 + (cy - spheres.centres[:, 1:2]) ** 2
+    keep = (d2 <= (reach[:, None] ** 2)) & (ix >= 0) & (iy >= 0) & (ix < grid.cells_x) & (iy < grid.cells_y)
+    s, j = np.nonzero(keep)
+    ids = iy[s, j] * grid.cells_x + ix[s, j]
+    return s, ids, np.stack([cx[s, j], cy[s, j]], axis=1)
+
+
+def contacts(grid, spheres: Spheres, ground, top: float) -> Contacts:
+    """The cells ``spheres`` press: a cell at horizontal distance d < r from a sphere's centre is
+    pressed by ``a = clip((top - z_low) / top, 0, 1)``, ``z_low`` the height of the sphere's
+    lowest point over the cell above the ground (``ground(xy) -> z``) and ``top`` the grass's
+    height; along the sphere's horizontal travel, or outwards when it stands still."""
+    if not len(spheres):
+        return Contacts.none()
+    s, ids, xy = _cells_around(grid, spheres, spheres.radii)
+    if not len(ids):
+        return Contacts.none()
+    c = spheres.centres[s]
+    r = spheres.radii[s]
+    rel = xy - c[:, :2]
+    d2 = np.sum(rel * rel, axis=1)
+    z_low = c[:, 2] - np.sqrt(np.maximum(r * r - d2, 0.0)) - ground(xy)
+    press = np.clip((top - z_low) / top, 0.0, 1.0)
+    v = spheres.velocity[s]
+    speed = np.hypot(v[:, 0], v[:, 1])
+    moving = speed > STILL_SPEED
+    out = np.where(moving[:, None], v / np.maximum(speed, 1e-9)[:, None],
+                   rel / np.maximum(np.sqrt(d2), 1e-9)[:, None])
+    keep = press > 0.0
+    # one contact per cell: the strongest press
+    order = np.lexsort((press[keep], ids[keep]))
+    cells, a, direction = ids[keep][order], press[keep][order], out[keep][order]
+    last = np.r_[cells[1:] != cells[:-1], True] if len(cells) else np.zeros(0, bool)
+    return Contacts(cells[last], a[last], direction[last])
+
+
+# ------------------------------------------------------------------------------------------------
+# Push: the lean that clears a sphere
+
+
+def push_lean(root: np.ndarray, length: np.ndarray, centre: np.ndarray, radius: np.ndarray):
+    """(angle (m,), direction (m, 2)): how far a straight blade of ``length`` rooted at ``root``
+    (m, 3) must lean away from the sphere (``centre`` (m, 3), ``radius`` (m,)) horizontally for
+    its whole length to clear it (0 when it stands clear, GROUND_TILT when nothing clears)."""
+    rel = root[:, :2] - centre[:, :2]
+    d = np.hypot(rel[:, 0], rel[:, 1])
+    direction = np.where(d[:, None] > 1e-9, rel / np.maximum(d, 1e-9)[:, None], np.array([1.0, 0.0]))
+    angles = np.linspace(0.0, GROUND_TILT, LEAN_STEPS + 1)
+    sin, cos = np.sin(angles)[None, :], np.cos(angles)[None, :]
+    # the blade's axis in the vertical plane through the sphere's centre: (d + s sin, z0 + s cos)
+    p = np.stack([-d, centre[:, 2] - root[:, 2]], axis=1)  # the centre in (away, up) coordinates
+    along = np.clip(p[:, 0:1] * sin + p[:, 1:2] * cos, 0.0, length[:, None])
+    gx, gz = p[:, 0:1] - along * sin, p[:, 1:2] - along * cos
+    clear = gx * gx + gz * gz >= (radius[:, None] * PUSH_MARGIN) ** 2
+    first = np.where(clear.any(axis=1), clear.argmax(axis=1), LEAN_STEPS)
+    return angles[first], direction
+
+
+# ------------------------------------------------------------------------------------------------
+# The overlay on a frame's bend
+
+
+def joint_shares(segments: int) -> np.ndarray:
+    """(n,) how a blade's lean is shared between its joints (sums to 1)."""
+    share = np.array([JOINT_SHARE[min(j, len(JOINT_SHARE) - 1)] for j in range(segments)], np.float64)
+    if segments > len(JOINT_SHARE) - 1:
+        share[len(JOINT_SHARE) - 1:] = JOINT_SHARE[-1] / (segments - len(JOINT_SHARE) + 1)
+    return share / share.sum()
+
+
+class Interaction:
+    """The colliders of a field and their effect on the cells of a frame.
+
+    ``colliders``: objects with ``at(t) -> Spheres``; ``grid``: the field's ``FieldGrid``;
+    ``ground(xy) -> z``; ``top``: the grass's height (m)."""
+
+    def __init__(self, colliders, params, grid, ground, top: float):
+        self.colliders = list(colliders)
+        self.params = params
+        self.recovery = float(params.interaction.recovery)
+        self.tolerance = float(params.interaction.tolerance)
+        self.grid = grid
+        self.ground = ground
+        self.top = max(float(top), 1e-3)
+        self.fps = int(params.render.fps)
+        self.frame_start = int(params.render.frame_start)
+        self.window = int(math.ceil(self.recovery * self.fps))
+        self._contacts: OrderedDict[int, Contacts] = OrderedDict()
+        self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
+
+    def time(self, frame: int) -> float:
+        return (frame - self.frame_start) / self.fps
+
+    def spheres(self, t: float) -> Spheres:
+        return Spheres.join(c.at(t) for c in self.colliders)
+
+    def contacts(self, frame: int) -> Contacts:
+        """The cells pressed at ``frame`` (kept for the recovery window)."""
+        found = self._contacts.get(frame)
+        if found is None:
+            found = contacts(self.grid, self.spheres(self.time(frame)), self.ground, self.top)
+            self._contacts[frame] = found
+            while len(self._contacts) > self.window + 8:
+                self._contacts.popitem(last=False)
+        return found
+
+    def trample(self, frame: int, window_ids: np.ndarray, omega2: np.ndarray, damping: np.ndarray):
+        """(local cell index (m,), flatness (m,), direction (m, 2)) of the window's trampled cells
+        at ``frame``; ``window_ids`` (C,) the window cells' global ids, sorted order not needed."""
+        t = self.time(frame)
+        parts = [(f, self.contacts(f)) for f in range(frame - self.window, frame + 1)]
+        parts = [(f, c) for f, c in parts if len(c.cells)]
+        if not parts or not len(window_ids):
+            return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
+        cells = np.concatenate([c.cells for _, c in parts])
+        press = np.concatenate([c.press for _, c in parts])
+        direction = np.concatenate([c.direction for _, c in parts])
+        when = np.concatenate([np.full(len(c.cells), self.time(f)) for f, c in parts])
+        order = np.argsort(window_ids, kind="stable")
+        pos = np.searchsorted(window_ids[order], cells)
+        pos = np.minimum(pos, len(order) - 1)
+        found = window_ids[order][pos] == cells
+        local = order[pos[found]]
+        value = press[found] * recovery_curve(t - when[found], self.recovery, omega2[local], damping[local])
+        keep = value > 1e-4
+        local, value, direction = local[keep], value[keep], direction[found][keep]
+        order = np.lexsort((value, local))
+        local, value, direction = local[order], value[order], direction[order]
+        last = np.r_[local[1:] != local[:-1], True] if len(local) else np.zeros(0, bool)
+        return local[last], value[last], direction[last]
+
+    def push(self, frame: int, layout, window_ids: np.ndarray):
+        """(local cell index (m,), lean (m,), direction (m, 2)) of the window's cells a collider
+        leans aside at ``frame``: the largest lean over the spheres near each cell."""
+        spheres = self.spheres(self.time(frame))
+        if not len(spheres):
+            return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
+        reach = spheres.radii * PUSH_MARGIN + float(np.max(layout.cell_length, initial=0.0)) * 1.5
+        s, ids, xy = _cells_around(self.grid, spheres, reach)
+        order = np.argsort(window_ids, kind="stable")
+        pos = np.minimum(np.searchsorted(window_ids[order], ids), max(len(order) - 1, 0))
+        found = (window_ids[order][pos] == ids) if len(order) else np.zeros(len(ids), bool)
+        local, s = order[pos[found]], s[found]
+        if not len(local):
+            return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
+        root = np.column_stack([layout.cell_center[local], layout.cell_ground[local]]).astype(np.float64)
+        length = layout.cell_length[local].astype(np.float64) * 1.15 + self.tolerance
+        lean, direction = push_lean(root, length, spheres.centres[s], spheres.radii[s] + self.tolerance)
+        keep = lean > 0.0
+        local, lean, direction = local[keep], lean[keep], direction[keep]
+        order = np.lexsort((lean, local))
+        local, lean, direction = local[order], lean[order], direction[order]
+        last = np.r_[local[1:] != local[:-1], True] if len(local) else np.zeros(0, bool)
+        return local[last], lean[last], direction[last]
+
+    def bend(self, frame: int, layout, bend_t: np.ndarray, omega2: np.ndarray, damping: np.ndarray):
+        """``bend_t`` (n, 2, C) of the wind alone with the colliders' push and trample at
+        ``frame`` (a new array), or None when no collider reaches the window's cells."""
+        ids = window_cell_ids(layout, self.grid)
+        t_local, flat, t_dir = self.trample(frame, ids, omega2, damping)
+        p_local, lean, p_dir = self.push(frame, layout, ids)
+        if not len(t_local) and not len(p_local):
+            return None
+        touched = np.union1d(t_local, p_local)
+        self.work += len(touched)
+        n = bend_t.shape[0]
+        out = bend_t.copy()
+        f = np.zeros(len(touched))
+        f[np.searchsorted(touched, t_local)] = flat
+        wind = bend_t[:, :, touched].astype(np.float64)  # (n, 2, m)
+        wind *= (1.0 - (1.0 - WIND_WHEN_FLAT) * f)[None, None, :]
+        lean_vec = np.zeros((len(touched), 2))
+        lean_vec[np.searchsorted(touched, t_local)] += (FLAT_TILT * flat)[:, None] * t_dir
+        if len(p_local):
+            i = np.searchsorted(touched, p_local)
+            # the collider blocks the wind's bend towards it
+            towards = np.einsum("jcm,mc->jm", wind[:, :, i], p_dir)
+            wind[:, :, i] -= np.minimum(towards, 0.0)[:, None, :] * p_dir.T[None, :, :]
+            lean_vec[i] += lean[:, None] * p_dir
+        size = np.hypot(lean_vec[:, 0], lean_vec[:, 1])
+        lean_vec *= (np.minimum(size, GROUND_TILT) / np.maximum(size, 1e-9))[:, None]
+        share = joint_shares(n)
+        out[:, :, touched] = (wind + share[:, None, None] * lean_vec.T[None, :, :]).astype(np.float32)
+        return out
+
+
+def window_cell_ids(layout, grid) -> np.ndarray:
+    """(C,) the global cell id (row-major on the field's grid) of each cell of ``layout``."""
+    cached = getattr(layout, "_global_cell_ids", None)
+    if cached is not None:
+        return cached
+    cs, origin = grid.cell_size, np.asarray(grid.origin, np.float64)
+    xy = np.asarray(layout.cell_center, np.float64)
+    ix = np.floor((xy[:, 0] - origin[0]) / cs).astype(np.int64)
+    iy = np.floor((xy[:, 1] - origin[1]) / cs).astype(np.int64)
+    ids = iy * grid.cells_x + ix
+    try:
+        object.__setattr__(layout, "_global_cell_ids", ids)
+    except (AttributeError, TypeError):  # pragma: no cover (a layout that takes no new attributes)
+        pass
+    return ids
+
+
+def project_joints(joints: np.ndarray, roots_z: np.ndarray, spheres: Spheres, tolerance: float) -> int:
+    """Move every joint (b, n + 1, 3) inside a sphere (by more than ``tolerance``) out to its
+    surface, radially, no lower than its root's ground ``roots_z`` (b,); returns how many moved."""
+    moved = 0
+    for c, r in zip(spheres.centres, spheres.radii):
+        rel = joints - c
+        d = np.sqrt(np.einsum("bjk,bjk->bj", rel, rel))
+        inside = d < r - tolerance
+        if not inside.any():
+            continue
+        scale = np.where(inside, r / np.maximum(d, 1e-9), 1.0)
+        joints[...] = np.where(inside[..., None], c + rel * scale[..., None], joints)
+        joints[..., 2] = np.maximum(joints[..., 2], roots_z[:, None])
+        moved += int(inside.sum())
+    return moved

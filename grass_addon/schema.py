@@ -379,6 +379,11 @@ def section_params(section: str) -> tuple[Param, ...]:
     return tuple(p for p in PARAMS if p.section == section)
 
 
+def blender_params(section: str) -> tuple[Param, ...]:
+    """The section's parameters that are Blender properties (not those of scene files only)."""
+    return tuple(p for p in PARAMS if p.section == section and p.blender)
+
+
 # --------------------------------------------------------------------------------------------
 # Values
 

@@ -13,11 +13,12 @@ from . import (
     row_remove,
     simulation_reset,
     species_preset,
+    track_update,
     wind_preset,
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
-            species_preset, row_add, row_remove, map_pick)
+            species_preset, row_add, row_remove, map_pick, track_update)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

@@ -4,7 +4,7 @@ parameter shows up without touching this file."""
 import bpy
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.bridge import properties, runtime, tracks
 from ..grass_addon.errors import WindgrassError
 from ..grass_addon.simulation import seek_note
 from .main import CATEGORY, WINDGRASS_PT_main, wrapped
@@ -14,6 +14,7 @@ LABELS = {
     "terrain": "Terrain from a Heightmap",
     "paint": "Paint",
     "keep_out": "Keep Out",
+    "interaction": "Colliders & Force Fields",
     "blade": "Blades & Species",
     "wind": "Wind",
     "lod": "Levels of Detail",
@@ -66,7 +67,7 @@ def draw_map(layout, owner, key: str, setting: str) -> None:
 
 def draw_section(layout, context, item, section: str) -> None:
     group = properties.group(item, section)
-    params = schema.section_params(section)
+    params = schema.blender_params(section)
     layout.use_property_split = True
     layout.use_property_decorate = True  # keyframe dots on the animatable ones (wind speed, direction)
     if section in PRESETS:
@@ -83,6 +84,16 @@ def draw_section(layout, context, item, section: str) -> None:
             layout.prop(group, p.key)
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
+    if section == "interaction":
+        layout.prop(item, "collider_collection")
+        layout.prop(item, "effector_collection")
+        layout.operator("windgrass.track_update", icon="FILE_REFRESH")
+        try:
+            note = tracks.status(context.scene, item, properties.params_from_settings(item, context.scene))
+        except WindgrassError:
+            note = None
+        if note:
+            wrapped(layout, context, note, icon="INFO")
     if section == "paint":
         seconds = runtime.stroke_seconds(context.scene, item)
         if seconds > runtime.STROKE_GOAL_S:

@@ -243,7 +243,7 @@ def _row_class(p: schema.Param) -> type:
 
 def _section_class(section: str) -> type:
     annotations: dict[str, Any] = {}
-    for p in schema.section_params(section):
+    for p in schema.blender_params(section):
         if p.kind == "table_list":
             row = ROW_CLASSES[p.name] = _row_class(p)
             annotations[p.key] = bpy.props.CollectionProperty(type=row, name=p.ui_name,
@@ -278,6 +278,14 @@ WINDGRASS_PG_field = type(f"{_PREFIX}field", (bpy.types.PropertyGroup,), {
                                                 description="Collection holding the field's objects"),
         "terrain": bpy.props.PointerProperty(type=bpy.types.Object, name="Terrain", poll=_mesh_poll,
                                              description="Mesh the blades are rooted on (empty: flat ground)"),
+        "collider_collection": bpy.props.PointerProperty(
+            type=bpy.types.Collection, name="Colliders", update=lambda self, context: notify(self),
+            description="Objects that push the grass aside and trample it as they move through it (any mesh: a ball, "
+                        "a character); their motion is sampled over the frame range and saved with the file"),
+        "effector_collection": bpy.props.PointerProperty(
+            type=bpy.types.Collection, name="Force Fields", update=lambda self, context: notify(self),
+            description="Force fields (Wind, Force, Vortex, Turbulence) that blow the grass, as in Blender's particle "
+                        "and cloth settings"),
         "keep_out_collection": bpy.props.PointerProperty(
             type=bpy.types.Collection, name="Keep Out", update=lambda self, context: notify(self),
             description="Objects whose ground outline grows no grass (houses, rocks, a path made of a curve with "
@@ -313,7 +321,7 @@ def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
 
     With ``scene`` the clock is the scene's: its frame rate (``render.fps``; a fractional
     ``fps_base`` such as 29.97 fps is not followed) and frame range."""
-    data = {s: {p.key: from_blender(p, getattr(group(item, s), p.key)) for p in schema.section_params(s)}
+    data = {s: {p.key: from_blender(p, getattr(group(item, s), p.key)) for p in schema.blender_params(s)}
             for s in schema.SECTIONS}
     if scene is not None:
         last = schema.BY_NAME["render.frame_end"].maximum
@@ -333,7 +341,7 @@ def apply_params(item: Any, params: schema.Params) -> None:
     with batch(item):
         for section in schema.SECTIONS:
             settings = group(item, section)
-            for p in schema.section_params(section):
+            for p in schema.blender_params(section):
                 value = params.get(p.name)
                 if p.kind == "table_list":
                     write_rows(item, p, value)
@@ -341,7 +349,7 @@ def apply_params(item: Any, params: schema.Params) -> None:
                     setattr(settings, p.key, to_blender(p, value))
 
 
-TABLES: tuple[schema.Param, ...] = tuple(p for p in schema.PARAMS if p.kind == "table_list")
+TABLES: tuple[schema.Param, ...] = tuple(p for p in schema.PARAMS if p.kind == "table_list" and p.blender)
 
 
 def table_param(name: str) -> schema.Param:

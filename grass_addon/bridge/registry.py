@@ -33,6 +33,9 @@ class Registry:
     saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
     bake_root: str | None = None  # <blend>_windgrass of the open file
     last_repaint: tuple = ()  # (seconds, blocks made again) of the last stroke applied
+    tracks: dict[str, tuple] = field(default_factory=dict)  # stored motion decoded: fingerprint -> (colliders, fields)
+    motion: set = field(default_factory=set)  # fields whose colliders or force fields were edited
+    sampling: bool = False  # tracks.sample is stepping the scene's frames: the handlers stay out
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
@@ -46,6 +49,8 @@ class Registry:
         self.strokes.clear()
         self.stroke_s.clear()
         self.stroked.clear()
+        self.tracks.clear()
+        self.motion.clear()
         self.warned.clear()
 
     def forget_missing(self, alive: set[Key]) -> None:

@@ -45,7 +45,7 @@ from .. import memory, schema, slots
 from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
-from . import animation, bake, maps, pools, properties
+from . import animation, bake, maps, pools, properties, tracks
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
@@ -78,6 +78,7 @@ class FieldRuntime:
     topology: str  # slots.topology_key: what the slot objects must be built for
     paint: str = ""  # paint.fingerprint of the paint the engine grows
     paint_shown: str | None = None  # and of the one the ground and paint map show (update_paint_look)
+    track: str = ""  # tracks.fingerprint of the stored collider motion the engine uses
     dirty: bool = False  # the settings were edited since: resolve again
     frame: int | None = None  # the frame last written
     subframe: float = 0.0  # and its sub-frame (motion-blur steps)
@@ -179,11 +180,16 @@ def resolve(scene, item) -> FieldRuntime:
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, centre, t_key = terrain_of(scene, item, params)
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
-    digest = hashlib.sha1((params.digest() + fingerprint + topology
+    tracks.collider_objects(item), tracks.effector_objects(item)  # a bad collection is named here
+    colliders, effectors, track = tracks.stored(item)
+    digest = hashlib.sha1((params.digest() + fingerprint + topology + tracks.effector_digest(item)
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
     paint = paint_of(scene, item, params)
     painted = paint_core.fingerprint(paint)
     if previous is not None and previous.digest == digest:
+        if previous.track != track:  # the colliders moved: the wind's simulation stays
+            previous.field.set_interaction(colliders, previous.field.effectors)
+            previous.track, previous.frame = track, None
         if previous.paint != painted:  # a stroke: make again only the blocks it touched
             started = time.perf_counter()
             made = previous.field.repaint(paint, frame=scene.frame_current)
@@ -192,14 +198,15 @@ def resolve(scene, item) -> FieldRuntime:
         previous.dirty = False
         previous.clock = _clock(scene)
         return previous
-    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint)
+    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint, colliders=colliders,
+                       effectors=effectors)
     field.sim.progress = _seek_progress(item.name)
     blade_shape, card_shape = slots.pool_shapes(field.grid, params)
     rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
                       wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
                       field=field, blades=pools.blade_pool(field, blade_shape),
                       cards=pools.card_pool(field, card_shape), topology=topology,
-                      paint=painted)
+                      paint=painted, track=track)
     REGISTRY.fields[key] = rt
     return rt
 
@@ -509,7 +516,13 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
     if rt is not None:
         rt.dirty = True
     _guarded(apply_settings, scene, item)
+    if getattr(item, "collider_collection", None) is not None or getattr(item, "effector_collection", None) \
+            is not None or tracks.TRACK_KEY in item.collection:
+        REGISTRY.motion.add(key_of(scene, item))
     if not (defer if defer is not None else not bpy.app.background):
+        if REGISTRY.motion:
+            REGISTRY.motion.discard(key_of(scene, item))
+            _guarded(update_track, scene, item)
         _guarded(update_field, scene, item)
         return
     _refresh_later([key_of(scene, item)])
@@ -544,6 +557,12 @@ def _flush_pending() -> float | None:
         if REGISTRY.stroke_s.get(key, 0.0) > STROKE_GOAL_S and painting(scene, item):
             waiting = True
             continue
+        if key in REGISTRY.motion:
+            if _playing():
+                waiting = True  # sampled when the playback stops (it steps the scene's frames)
+                continue
+            REGISTRY.motion.discard(key)
+            _guarded(_update_motion, scene, item)
         del REGISTRY.pending[key]
         stroke, started = key in REGISTRY.stroked, time.perf_counter()
         REGISTRY.stroked.discard(key)
@@ -551,6 +570,26 @@ def _flush_pending() -> float | None:
         if stroke:
             REGISTRY.stroke_s[key] = time.perf_counter() - started
     return PAINT_MODE_POLL_S if waiting else None
+
+
+def _playing() -> bool:
+    wm = bpy.context.window_manager
+    return any(w.screen is not None and w.screen.is_animation_playing for w in wm.windows)
+
+
+def _update_motion(scene, item) -> None:
+    """``update_track`` with the progress cursor (the window)."""
+    wm = bpy.context.window_manager
+
+    def progress(done, total):
+        if done == 1:
+            wm.progress_begin(0, total)
+        wm.progress_update(done)
+
+    try:
+        update_track(scene, item, progress=progress)
+    finally:
+        wm.progress_end()
 
 
 def stroke_seconds(scene, item) -> float:
@@ -574,6 +613,8 @@ def painting(scene, item) -> bool:
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
     """Simulate and write the new frame."""
+    if REGISTRY.sampling:
+        return  # tracks.sample steps the frames to read the colliders, not to show grass
     update_scene(scene)
 
 
@@ -582,6 +623,8 @@ def on_frame_change_post(scene, depsgraph=None):
     """Before evaluation (``_pre``) an animated or just-moved camera still has its old matrix.
     After evaluation the camera is where it is at this frame: redo the LOD (eqs 7-11) and the
     writes if it moved; Blender then evaluates the edited meshes in a second pass."""
+    if REGISTRY.sampling:
+        return
     update_scene(scene, depsgraph, camera_moved_only=True)
 
 
@@ -620,10 +663,12 @@ def on_depsgraph_update_post(scene, depsgraph=None):
     """The camera was moved in the viewport (no frame change): follow it with the LOD. Only
     fields already written at this frame are touched, and only when the camera moved, so the
     mesh edits made here (which trigger another update) end the chain at once."""
-    if not REGISTRY.fields or bpy.app.is_job_running("RENDER"):
+    if not REGISTRY.fields or bpy.app.is_job_running("RENDER") or REGISTRY.sampling:
         return
     if depsgraph is not None and REGISTRY.paint_deps:
         _note_strokes(depsgraph)
+    if depsgraph is not None and not bpy.app.background:
+        _note_motion(scene, depsgraph)
     update_scene(scene, depsgraph, camera_moved_only=True)
 
 
@@ -645,6 +690,50 @@ def _note_strokes(depsgraph) -> None:
             rt.dirty = True
     if touched and not bpy.app.background:
         _refresh_later(touched)
+
+
+def _note_motion(scene, depsgraph) -> None:
+    """An edit of a field's colliders or force fields (moved, keyed, a setting): look at its
+    stored motion again once the edits settle (``update_track``)."""
+    updated = {getattr(u.id, "original", u.id).name for u in depsgraph.updates if isinstance(u.id, bpy.types.Object)}
+    actions = any(isinstance(u.id, bpy.types.Action) for u in depsgraph.updates)
+    if not updated and not actions:
+        return
+    for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+        colls = [c for c in (getattr(item, "collider_collection", None), getattr(item, "effector_collection", None))
+                 if c is not None]
+        if colls and (actions or any(o.name in updated for c in colls for o in c.all_objects)):
+            key = key_of(scene, item)
+            REGISTRY.motion.add(key)
+            _refresh_later([key])
+
+
+def update_track(scene, item, progress=None, cancelled=None) -> bool:
+    """Sample the field's colliders and force fields again when what they were sampled from
+    changed (``tracks.fingerprint``); returns True when it did. Steps the scene's frames: never
+    from a frame or render handler."""
+    params = properties.params_from_settings(item, scene)
+    wanted = tracks.fingerprint(scene, item, params)
+    have = item.collection.get(tracks.TRACK_KEY) if item.collection is not None else None
+    if not wanted:
+        if have is not None:
+            tracks.clear(item)
+            rt = get_runtime(scene, item)
+            if rt is not None:
+                rt.dirty = True
+            return True
+        return False
+    if have is not None and str(have.get("fingerprint", "")) == wanted:
+        return False
+    terrain_of(scene, item, params)  # (the ground's height bounds the colliders' spheres)
+    track = tracks.sample(scene, item, params, progress=progress, cancelled=cancelled)
+    if track is None:
+        return False
+    tracks.store(item, track, wanted)
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = True
+    return True
 
 
 @persistent

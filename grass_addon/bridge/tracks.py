@@ -1,0 +1,323 @@
+"""Colliders and force fields of a field in Blender: their motion sampled once per frame.
+
+A collider moves by keys, constraints, parents or an armature; only the evaluated scene knows
+where it is, and only at the current frame. So the motion is sampled once, frame by frame over
+the range the grass can show (``frame_range``: the recovery, or the simulation's warm-up, before
+the scene's start, to its end), and stored on the field's collection (``TRACK_KEY``): frame N is
+then a function of the stored track and N, a render or a farm node reads the same track, and a
+.blend rendered without the window still has it. It is made again when what it was sampled from
+changes (``fingerprint``: the objects, their keys, constraints, parents, armatures and field
+settings) — by the panel's Update Motion (``windgrass.track_update``), and in the window by a
+timer once the edits settle.
+
+Colliders become spheres (``spheres_of``): the part of the object's evaluated mesh below the
+grass's top, cut into pieces at most ``CLUSTER`` wide, each in its bounding sphere (a ball is
+itself, a foot one sphere, a car or a wall a row of them). Force fields become
+``forces.Effector`` with Blender's own settings; their transform and strength are sampled per
+frame, so a field switched on at a frame (its strength keyed) acts from that frame.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+
+import bpy
+import numpy as np
+
+from .. import forces
+from ..errors import ParameterError
+from ..interaction import SampledTrack
+from . import scene as field_scene
+from .animation import action_fcurves
+from .registry import REGISTRY, key_of
+
+TRACK_KEY = "wg_track"
+BLENDER_TYPES = {"WIND": "wind", "FORCE": "force", "VORTEX": "vortex", "TURBULENCE": "turbulence"}
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+CLUSTER = 0.8  # m: a collider's part near the ground is cut into pieces at most this wide, a sphere each
+
+
+# --------------------------------------------------------------------------------------------
+# What a field's motion is read from
+
+
+def collider_objects(item) -> list:
+    """The objects of the field's Colliders collection that have geometry (never its own)."""
+    coll = getattr(item, "collider_collection", None)
+    if coll is None:
+        return []
+    own = {o.name for o in field_scene.field_objects(item)}
+    objects = [o for o in coll.all_objects if o.name not in own]
+    found = [o for o in objects if o.type in GEOMETRY_TYPES]
+    if not found:
+        kinds = ", ".join(sorted({o.type.lower() for o in objects})) or "nothing"
+        raise ParameterError("collider_collection", f"the Colliders collection '{coll.name}' holds {kinds}; "
+                             "colliders are objects with geometry (a mesh, a curve, text, metaballs)")
+    return found
+
+
+def effector_objects(item) -> list:
+    """The force fields of the field's Force Fields collection."""
+    coll = getattr(item, "effector_collection", None)
+    if coll is None:
+        return []
+    found = []
+    for obj in coll.all_objects:
+        kind = obj.field.type if obj.field is not None else "NONE"
+        if kind == "NONE":
+            continue
+        if kind not in BLENDER_TYPES:
+            raise ParameterError("effector_collection", f"'{obj.name}' is a {kind.title()} force field; the grass "
+                                 f"feels {', '.join(t.title() for t in BLENDER_TYPES)} fields")
+        found.append(obj)
+    if coll.all_objects and not found:
+        raise ParameterError("effector_collection", f"the Force Fields collection '{coll.name}' holds no force "
+                             f"field (valid: objects with a {', '.join(t.title() for t in BLENDER_TYPES)} field)")
+    return found
+
+
+def frame_range(scene, params) -> range:
+    """The frames sampled: the recovery (or the simulation's warm-up) before the start, to the end."""
+    fps = int(params.render.fps)
+    before = max(math.ceil(params.interaction.recovery * fps), math.ceil(params.simulation.preroll * fps))
+    return range(int(scene.frame_start) - before, int(scene.frame_end) + 1)
+
+
+def _animation(obj, seen: set) -> list:
+    """What moves ``obj``: its keys, constraints (and their targets), parent and modifiers' objects."""
+    if obj is None or obj.name in seen:
+        return []
+    seen.add(obj.name)
+    out = [obj.name, obj.type, [round(v, 6) for row in obj.matrix_basis for v in row]]
+    for owner in (obj, getattr(obj, "data", None)):
+        anim = getattr(owner, "animation_data", None)
+        for fc in action_fcurves(anim):
+            n = len(fc.keyframe_points)
+            co = np.empty(2 * n, np.float32)
+            if n:
+                fc.keyframe_points.foreach_get("co", co)
+            out.append([fc.data_path, fc.array_index, hashlib.sha1(co.tobytes()).hexdigest(), fc.mute])
+    for con in obj.constraints:
+        out.append([con.type, con.mute, con.influence])
+        out.extend(_animation(getattr(con, "target", None), seen))
+    out.extend(_animation(obj.parent, seen))
+    for mod in getattr(obj, "modifiers", ()):
+        out.append([mod.type, mod.show_render])
+        out.extend(_animation(getattr(mod, "object", None), seen))
+    if obj.type == "MESH":
+        out.append(len(obj.data.vertices))
+    if obj.type == "ARMATURE" and obj.pose is not None:
+        out.append([[round(v, 5) for v in (*b.location, *b.rotation_quaternion)] for b in obj.pose.bones])
+    return out
+
+
+def _field_settings(obj) -> dict:
+    f = obj.field
+    names = ("type", "shape", "strength", "flow", "falloff_type", "falloff_power", "use_min_distance",
+             "distance_min", "use_max_distance", "distance_max", "use_radial_min", "radial_min", "use_radial_max",
+             "radial_max", "radial_falloff", "noise", "size", "seed", "z_direction")
+    return {n: getattr(f, n) for n in names if hasattr(f, n)}
+
+
+def fingerprint(scene, item, params) -> str:
+    """What the stored track was sampled from: the frame range, the grass's reach and every
+    collider's and force field's motion and settings."""
+    colliders, effectors = collider_objects(item), effector_objects(item)
+    if not colliders and not effectors:
+        return ""
+    frames = frame_range(scene, params)
+    seen: set = set()
+    data = [frames.start, frames.stop, int(params.render.fps), _top(params), params.field.cell_size,
+            field_scene.terrain_key(scene, item, params),
+            [_animation(o, seen) for o in colliders],
+            [[_animation(o, seen), _field_settings(o)] for o in effectors]]
+    ground = field_scene.ground_object(item)
+    if ground is not None:
+        data.append([round(v, 6) for row in ground.matrix_world for v in row])
+    return hashlib.sha1(json.dumps(data, default=str).encode()).hexdigest()
+
+
+def _top(params) -> float:
+    """How high above the ground grass can reach (the longest species, twice as long by a length map)."""
+    return 2.0 * max(float(sp["length"]) for sp in params.species())
+
+
+# --------------------------------------------------------------------------------------------
+# Sampling
+
+
+def spheres_of(points: np.ndarray, cluster: float, top_z: float) -> tuple[np.ndarray, np.ndarray]:
+    """(centres (m, 3), radii (m,)) covering the points (k, 3) below ``top_z``: the part of an
+    object the grass can touch, cut into pieces at most ``cluster`` metres across, each piece in
+    its bounding sphere (a ball is one sphere, exactly; a foot one, a car or a wall several)."""
+    low = points[points[:, 2] < top_z]
+    if not len(low):
+        return np.zeros((0, 3)), np.zeros(0)
+    lo = low[:, :2].min(axis=0)
+    counts = np.maximum(1, np.ceil((low[:, :2].max(axis=0) - lo) / cluster - 1e-9)).astype(np.int64)
+    size = (low[:, :2].max(axis=0) - lo) / counts + 1e-12
+    ij = np.minimum(((low[:, :2] - lo) / size).astype(np.int64), counts - 1)
+    piece = ij[:, 0] * counts[1] + ij[:, 1]
+    pieces, inverse = np.unique(piece, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    bmin = np.full((len(pieces), 3), np.inf)
+    bmax = np.full((len(pieces), 3), -np.inf)
+    np.minimum.at(bmin, inverse, low)
+    np.maximum.at(bmax, inverse, low)
+    centres = 0.5 * (bmin + bmax)
+    radii = np.zeros(len(pieces))
+    np.maximum.at(radii, inverse, np.linalg.norm(low - centres[inverse], axis=1))
+    return centres, radii
+
+
+def _object_points(obj_eval, to_field: np.ndarray) -> np.ndarray:
+    """The evaluated object's vertices and triangle centres in the field's frame (k, 3)."""
+    mesh = obj_eval.to_mesh()
+    try:
+        n = len(mesh.vertices)
+        co = np.empty(n * 3, np.float32)
+        mesh.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3).astype(np.float64)
+        mesh.calc_loop_triangles()
+        tris = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tris)
+    finally:
+        obj_eval.to_mesh_clear()
+    if len(tris):
+        co = np.concatenate([co, co[tris.reshape(-1, 3)].mean(axis=1)])
+    m = to_field @ np.array(obj_eval.matrix_world, np.float64)
+    return co @ m[:3, :3].T + m[:3, 3]
+
+
+def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
+    f = obj_eval.field
+    get = lambda name, default=0.0: getattr(f, name, default)  # noqa: E731
+    return forces.Effector(
+        kind=BLENDER_TYPES[f.type], matrix=to_field @ np.array(obj_eval.matrix_world, np.float64),
+        strength=float(f.strength), shape="plane" if f.shape == "PLANE" else "point",
+        power=float(get("falloff_power")), falloff_type={"TUBE": "tube", "CONE": "cone"}.get(f.falloff_type, "sphere"),
+        min_distance=float(get("distance_min")), use_min=bool(get("use_min_distance", False)),
+        max_distance=float(get("distance_max")), use_max=bool(get("use_max_distance", False)),
+        radial_power=float(get("radial_falloff")), radial_min=float(get("radial_min")),
+        use_radial_min=bool(get("use_radial_min", False)), radial_max=float(get("radial_max")),
+        use_radial_max=bool(get("use_radial_max", False)), noise=float(get("noise")), size=float(get("size", 1.0)),
+        seed=int(get("seed", 1)))
+
+
+def sample(scene, item, params, progress=None, cancelled=None) -> dict | None:
+    """Sample the field's colliders and force fields at every frame of ``frame_range``: the
+    track to store (``store``), or None when cancelled (``cancelled()`` true). ``progress(done,
+    total)`` after each frame. The scene is back at its frame afterwards."""
+    colliders, effectors = collider_objects(item), effector_objects(item)
+    ground = field_scene.ground_object(item)
+    to_field = np.array(ground.matrix_world.inverted_safe(), np.float64) if ground is not None else np.eye(4)
+    kept = REGISTRY.terrains.get(key_of(scene, item))  # (terrain key, heightfield, centre)
+    ground_top = float(kept[1].heights.max()) if kept is not None and kept[1] is not None else 0.0
+    top_z = ground_top + _top(params)
+    frames = frame_range(scene, params)
+    fps = float(params.render.fps)
+    frame, subframe = scene.frame_current, scene.frame_subframe
+    per_object: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[] for _ in colliders]
+    fields: list[list[dict]] = []
+    REGISTRY.sampling = True
+    try:
+        for i, f in enumerate(frames):
+            if cancelled is not None and cancelled():
+                return None
+            scene.frame_set(f)
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            for j, obj in enumerate(colliders):
+                points = _object_points(obj.evaluated_get(depsgraph), to_field)
+                centres, radii = spheres_of(points, CLUSTER, top_z)
+                mid = points.mean(axis=0) if len(points) else np.zeros(3)
+                per_object[j].append((centres, radii, mid))
+            fields.append([_effector_dict(_effector(o.evaluated_get(depsgraph), to_field)) for o in effectors])
+            if progress is not None:
+                progress(i + 1, len(frames))
+    finally:
+        scene.frame_set(frame, subframe=subframe)
+        REGISTRY.sampling = False
+    times = [(f - int(scene.frame_start)) / fps for f in frames]
+    offsets, centres, radii, velocity = [0], [], [], []
+    for k in range(len(frames)):
+        for j in range(len(colliders)):
+            c, r, _ = per_object[j][k]
+            before, after = per_object[j][max(k - 1, 0)][2], per_object[j][min(k + 1, len(frames) - 1)][2]
+            span = (min(k + 1, len(frames) - 1) - max(k - 1, 0)) / fps
+            v = (after - before)[:2] / span if span > 0 else np.zeros(2)
+            centres.append(c)
+            radii.append(r)
+            velocity.append(np.tile(v, (len(r), 1)))
+        offsets.append(offsets[-1] + sum(len(per_object[j][k][1]) for j in range(len(colliders))))
+    cat = lambda parts, width: np.concatenate(parts) if parts else np.zeros((0, width))  # noqa: E731
+    return {"times": times, "offsets": offsets, "centres": cat(centres, 3).reshape(-1).tolist(),
+            "radii": cat([r[:, None] for r in radii], 1).reshape(-1).tolist(),
+            "velocity": cat(velocity, 2).reshape(-1).tolist(), "colliders": len(colliders),
+            "effectors": json.dumps(fields) if effectors else ""}
+
+
+def _effector_dict(e: forces.Effector) -> dict:
+    out = {k: getattr(e, k) for k in e.__dataclass_fields__ if k != "matrix"}
+    out["matrix"] = [round(float(v), 7) for v in np.asarray(e.matrix).reshape(-1)]
+    return out
+
+
+def store(item, track: dict, digest: str) -> None:
+    """Keep the track with the file, on the field's collection."""
+    item.collection[TRACK_KEY] = {**track, "fingerprint": digest}
+
+
+def clear(item) -> None:
+    if item.collection is not None and TRACK_KEY in item.collection:
+        del item.collection[TRACK_KEY]
+
+
+def stored(item):
+    """(colliders [SampledTrack] or [], effectors SampledEffectors or None, fingerprint) of the
+    stored track; ([], None, '') without one."""
+    coll = item.collection
+    raw = coll.get(TRACK_KEY) if coll is not None else None
+    if raw is None:
+        return [], None, ""
+    digest = str(raw.get("fingerprint", ""))
+    cached = REGISTRY.tracks.get(digest)
+    if cached is not None:
+        return cached[0], cached[1], digest
+    times = np.array(raw["times"], np.float64)
+    colliders = []
+    if int(raw.get("colliders", 0)):
+        colliders = [SampledTrack(times, np.array(raw["offsets"], np.int64), np.array(raw["centres"], np.float64),
+                                  np.array(raw["radii"], np.float64), np.array(raw["velocity"], np.float64))]
+    effectors = None
+    text = str(raw.get("effectors", "") or "")
+    if text:
+        samples = [[forces.Effector(**{**e, "matrix": np.array(e["matrix"], np.float64).reshape(4, 4)}) for e in s]
+                   for s in json.loads(text)]
+        effectors = forces.SampledEffectors(times, samples)
+    REGISTRY.tracks[digest] = (colliders, effectors)
+    return colliders, effectors, digest
+
+
+def effector_digest(item) -> str:
+    """Changes only when the stored force fields do (their part of the track)."""
+    coll = item.collection
+    raw = coll.get(TRACK_KEY) if coll is not None else None
+    text = str(raw.get("effectors", "") or "") if raw is not None else ""
+    return hashlib.sha1(text.encode()).hexdigest() if text else ""
+
+
+def status(scene, item, params) -> str | None:
+    """A line for the panel: what the stored motion is, or that it is out of date."""
+    try:
+        wanted = fingerprint(scene, item, params)
+    except ParameterError as exc:
+        return str(exc)
+    have = item.collection.get(TRACK_KEY) if item.collection is not None else None
+    if not wanted:
+        return None
+    if have is None or str(have.get("fingerprint", "")) != wanted:
+        return "Motion of the colliders and force fields not sampled yet: press Update Motion"
+    frames = len(have["times"])
+    return f"Motion sampled over {frames} frames ({frames / params.render.fps:.1f} s)"

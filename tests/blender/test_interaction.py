@@ -1,0 +1,213 @@
+"""Colliders and force fields in Blender (bridge/tracks.py): a keyed ball parts and tramples the
+grass, its motion is sampled once and saved with the file, frame N alone equals frame N of a
+sequence; Blender's force fields blow the grass the way they move Blender's own particles.
+
+The field: 4 x 4 blocks of 8 cells of 0.1 m (3.2 m square), 4 blades a cell, calm air.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Euler
+
+
+@pytest.fixture
+def bridge(with_bridge):
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    return properties, runtime
+
+
+def _field(bridge, **wind):
+    properties, runtime = bridge
+    assert bpy.ops.windgrass.field_add(blocks_x=4, blocks_y=4, cells_per_block=8, blades_per_cell=4) == {"FINISHED"}
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 48
+    item = scene.windgrass.fields[-1]
+    with properties.batch(item):
+        item.wind.speed = wind.get("speed", 0.0)
+        item.wind.turbulence = wind.get("turbulence", 0.0)
+    return scene, item
+
+
+def _ball(radius=0.3, keys=((1, (-1.2, 0.0, 0.3)), (25, (1.2, 0.0, 0.3)))):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, segments=32, ring_count=16)
+    ball = bpy.context.active_object
+    for frame, where in keys:
+        ball.location = where
+        ball.keyframe_insert("location", frame=frame)
+    coll = bpy.data.collections.new("Colliders")
+    bpy.context.scene.collection.children.link(coll)
+    coll.objects.link(ball)
+    return ball, coll
+
+
+def _tips(runtime, scene, item, frame):
+    scene.frame_set(frame)
+    rt = runtime.get_runtime(scene, item)
+    assert rt is not None, runtime.field_error(scene, item)
+    field = rt.field
+    v = field.blade_vertices(field.all_blocks())
+    n = field.layout.segments
+    return v.reshape(-1, n + 1, 2, 3)[:, -1].mean(axis=1)
+
+
+def test_a_keyed_ball_parts_the_grass_and_its_motion_is_saved(bridge, tmp_path):
+    """The ball (r = 0.3 m) rolls from x = -1.2 to 1.2 m over frames 1-25. Frame 13: no blade tip
+    is inside it by more than the tolerance (and 5 mm: the mesh's facets); without the collider
+    over 50 tips would be inside. The motion is sampled once,
+    stored with the field (saved and read back, frame 20 the same, no new sampling)."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    ball, coll = _ball()
+    before = _tips(runtime, scene, item, 13)
+    centre = np.array([0.0, 0.0, 0.3])
+    inside_before = np.sum(np.linalg.norm(before - centre, axis=1) < 0.3)
+    assert inside_before > 50
+    item.collider_collection = coll  # (background Blender samples the motion at once)
+    assert "wg_track" in item.collection
+    tips = _tips(runtime, scene, item, 13)
+    depth = 0.3 - np.linalg.norm(tips - centre, axis=1)
+    assert depth.max() < 0.005 + item.interaction.tolerance, depth.max()
+    frame20 = _tips(runtime, scene, item, 20).copy()
+    path = str(tmp_path / "ball.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    sampled = []
+    original = runtime.tracks.sample
+    runtime.tracks.sample = lambda *a, **k: sampled.append(1) or original(*a, **k)
+    try:
+        again = _tips(runtime, scene, item, 20)
+    finally:
+        runtime.tracks.sample = original
+    assert not sampled and np.array_equal(again, frame20)
+
+
+def test_the_trail_is_trampled_and_frame_n_alone_equals_the_sequence(bridge):
+    """Frame 30 (the ball stopped at x = 1.2 m at frame 25): blades along its path near x = 0 lie
+    flatter than the grass far from it, leaning along +x; a fresh runtime seeking frame 30 alone
+    shows the same vertices as one stepped through 1-30."""
+    properties, runtime = bridge
+    scene, item = _field(bridge)
+    _, coll = _ball()
+    item.collider_collection = coll
+    for frame in range(1, 31):
+        scene.frame_set(frame)
+    rt = runtime.get_runtime(scene, item)
+    seq = rt.field.blade_vertices(rt.field.all_blocks()).copy()
+    runtime.reset_field(scene, item)
+    scene.frame_set(30)
+    rt = runtime.get_runtime(scene, item)
+    alone = rt.field.blade_vertices(rt.field.all_blocks())
+    assert np.array_equal(seq, alone)
+    layout = rt.field.layout
+    n = layout.segments
+    tips = alone.reshape(-1, n + 1, 2, 3)[:, -1].mean(axis=1)
+    roots = layout.blade_root
+    height = tips[:, 2] - roots[:, 2]
+    trail = (np.abs(roots[:, 0]) < 0.3) & (np.abs(roots[:, 1]) < 0.1)
+    away = np.abs(roots[:, 1]) > 1.0
+    assert np.median(height[trail]) < 0.5 * np.median(height[away])
+    assert np.median(tips[trail, 0] - roots[trail, 0]) > 0.1
+
+
+def _cell_bends(runtime, scene, item, frame):
+    scene.frame_set(frame)
+    rt = runtime.get_runtime(scene, item)
+    assert rt is not None, runtime.field_error(scene, item)
+    return rt.field.layout.cell_center.astype(np.float64), rt.field.cells.bend.sum(axis=1)
+
+
+def _force_field(kind, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0), **settings):
+    bpy.ops.object.effector_add(type=kind, location=location, rotation=rotation)
+    obj = bpy.context.active_object
+    for key, value in settings.items():
+        setattr(obj.field, key, value)
+    coll = bpy.data.collections.new("Fields")
+    bpy.context.scene.collection.children.link(coll)
+    for c in list(obj.users_collection):
+        c.objects.unlink(obj)
+    coll.objects.link(obj)
+    return obj, coll
+
+
+def test_a_vortex_field_swirls_the_grass(bridge):
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    _force_field("VORTEX", strength=8.0, use_max_distance=True, distance_max=1.4)
+    item.effector_collection = bpy.data.collections["Fields"]
+    xy, bend = _cell_bends(runtime, scene, item, 24)
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    within = (r > 0.3) & (r < 1.3)
+    b = bend[within] / np.maximum(np.hypot(bend[within, 0], bend[within, 1]), 1e-12)[:, None]
+    radial = xy[within] / r[within, None]
+    angle = np.degrees(np.arccos(np.clip(np.abs(np.sum(radial * b, axis=1)), 0.0, 1.0)))
+    assert np.all(angle > 60.0), np.percentile(angle, [0, 50])
+    assert np.abs(bend[r > 1.6]).max() < 1e-6
+
+
+def test_a_wind_field_blows_the_grass_where_it_blows_blenders_particles(bridge):
+    """Blender is the oracle: particles born at rest at points of the field, no gravity, in the
+    same Wind field (its Z axis turned 30 deg up from +X towards +Y, falloff power 1 from a point
+    at x = -2 m): where they drift is where the grass bends (within 10 deg), and both move less far
+    from the field's centre."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    rotation = Euler((0.0, math.radians(90.0), math.radians(30.0)), "XYZ")  # Z axis -> (cos 30, sin 30, 0)
+    wind, coll = _force_field("WIND", location=(-2.0, 0.0, 0.15), rotation=rotation, strength=6.0,
+                              falloff_power=1.0, shape="POINT")
+    item.effector_collection = coll
+    xy, bend = _cell_bends(runtime, scene, item, 24)
+    # particles: a grid emitter at the grass's mid-height, all born at frame 1 at rest
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=3, y_subdivisions=3, size=2.0, location=(0.0, 0.0, 0.15))
+    emitter = bpy.context.active_object
+    mod = emitter.modifiers.new("P", "PARTICLE_SYSTEM")
+    ps = mod.particle_system.settings
+    ps.count, ps.frame_start, ps.frame_end, ps.lifetime = len(emitter.data.vertices), 1, 1, 200
+    ps.emit_from, ps.use_emit_random, ps.normal_factor = "VERT", False, 0.0
+    ps.effector_weights.gravity = 0.0
+    ps.effector_weights.collection = coll
+    positions = []
+    for f in range(1, 13):
+        scene.frame_set(f)
+        if f in (1, 12):
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            parts = emitter.evaluated_get(depsgraph).particle_systems[0].particles
+            positions.append(np.array([p.location[:] for p in parts]))
+    starts, moved = positions[0], positions[1] - positions[0]
+    assert len(starts) == len(emitter.data.vertices)
+    assert np.all(np.linalg.norm(moved[:, :2], axis=1) > 1e-3), moved
+    for start, drift in zip(starts, moved):
+        cell = np.argmin(np.hypot(xy[:, 0] - start[0], xy[:, 1] - start[1]))
+        b = bend[cell]
+        cosine = float(np.dot(b, drift[:2]) / (np.linalg.norm(b) * np.linalg.norm(drift[:2])))
+        assert cosine > math.cos(math.radians(10.0)), (start, b, drift)
+    near, far = np.argmin(starts[:, 0]), np.argmax(starts[:, 0])
+    near_cell = np.argmin(np.hypot(xy[:, 0] - starts[near, 0], xy[:, 1] - starts[near, 1]))
+    far_cell = np.argmin(np.hypot(xy[:, 0] - starts[far, 0], xy[:, 1] - starts[far, 1]))
+    assert np.linalg.norm(moved[near]) > np.linalg.norm(moved[far])
+    assert np.linalg.norm(bend[near_cell]) > np.linalg.norm(bend[far_cell])
+
+
+def test_bad_collider_and_force_field_collections_are_named(bridge):
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    bpy.ops.object.empty_add()
+    empty = bpy.context.active_object
+    coll = bpy.data.collections.new("Empties")
+    scene.collection.children.link(coll)
+    coll.objects.link(empty)
+    item.collider_collection = coll
+    error = runtime.field_error(scene, item)
+    assert error and "collider_collection" in error and "geometry" in error, error
+    item.collider_collection = None
+    _force_field("HARMONIC")
+    item.effector_collection = bpy.data.collections["Fields"]
+    error = runtime.field_error(scene, item)
+    assert error and "effector_collection" in error and "Vortex" in error, error

@@ -106,6 +106,22 @@ class SampledEffectors:
         return self.samples[k]
 
 
+class JoinedEffectors:
+    """The effectors of several sources (Blender's sampled ones and a scene file's)."""
+
+    def __init__(self, *sources):
+        self.sources = sources
+
+    def at(self, t: float) -> list[Effector]:
+        return [e for s in self.sources for e in s.at(t)]
+
+
+def join(*sources):
+    """One source of the effectors of ``sources`` (None for none)."""
+    found = [s for s in sources if s is not None]
+    return None if not found else found[0] if len(found) == 1 else JoinedEffectors(*found)
+
+
 def effectors_from_params(params) -> FixedEffectors | None:
     rows = params.interaction.effectors
     return FixedEffectors([from_row(r) for r in rows]) if rows else None

@@ -206,7 +206,15 @@ def main(argv=None) -> int:
     parser.add_argument("--paint", action="store_true",
                         help="a paint stroke's cost at 100 m and 1 km, a half-painted field's frame against a "
                              "plain one (bench_paint.py); other flags ignored")
+    parser.add_argument("--interaction", action="store_true",
+                        help="what 10 colliders and a vortex add to a 1 km field's frame (bench_interaction.py); "
+                             "other flags ignored")
     args = parser.parse_args(argv)
+    if args.interaction:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_interaction.py"))]
+                               + (["--json"] if args.json else []))
     if args.paint:
         import subprocess
 

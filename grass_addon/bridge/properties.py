@@ -11,6 +11,7 @@ decimal that maps onto the same stored float32, so values typed by a user or wri
 """
 
 import contextlib
+import json
 import math
 import re
 from collections.abc import Iterator
@@ -323,6 +324,9 @@ def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
     ``fps_base`` such as 29.97 fps is not followed) and frame range."""
     data = {s: {p.key: from_blender(p, getattr(group(item, s), p.key)) for p in schema.blender_params(s)}
             for s in schema.SECTIONS}
+    for name, value in json.loads(item.get(SCENE_FILE_KEY, "{}") or "{}").items():
+        section, key = name.split(".", 1)
+        data[section][key] = value
     if scene is not None:
         last = schema.BY_NAME["render.frame_end"].maximum
         data["render"].update(fps=int(scene.render.fps), frame_start=int(scene.frame_start),
@@ -336,8 +340,19 @@ def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
     return schema.from_dict(data)
 
 
+# Settings of scene files only (a headless render's [[colliders]] and [[effectors]]), kept on the
+# field item as JSON: Blender has no properties for them (its collections give them instead).
+SCENE_FILE_KEY = "wg_scene_file"
+
+
 def apply_params(item: Any, params: schema.Params) -> None:
     """Write every value of ``params`` into the field item's properties (one runtime update)."""
+    scene_only = {p.name: params.to_dict()[p.section][p.key] for p in schema.PARAMS
+                  if not p.blender and params.get(p.name)}
+    if scene_only:
+        item[SCENE_FILE_KEY] = json.dumps(scene_only)
+    elif SCENE_FILE_KEY in item:
+        del item[SCENE_FILE_KEY]
     with batch(item):
         for section in schema.SECTIONS:
             settings = group(item, section)

@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from .. import memory, schema, slots
+from .. import forces, interaction, memory, schema, slots
 from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
@@ -182,6 +182,8 @@ def resolve(scene, item) -> FieldRuntime:
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
     tracks.collider_objects(item), tracks.effector_objects(item)  # a bad collection is named here
     colliders, effectors, track = tracks.stored(item)
+    colliders = colliders + interaction.colliders_from_params(params)  # (a scene file's, in headless renders)
+    effectors = forces.join(effectors, forces.effectors_from_params(params))
     digest = hashlib.sha1((params.digest() + fingerprint + topology + tracks.effector_digest(item)
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
     paint = paint_of(scene, item, params)

@@ -393,8 +393,60 @@ def pose_camera(scene, params, frame: int) -> None:
 
 
 def setup_stage(scene, params) -> bpy.types.Object:
-    """Render settings, sun, sky world and camera for ``params``; returns the camera object."""
+    """Render settings, sun, sky world, the scene file's colliders and camera for ``params``;
+    returns the camera object."""
     setup_render(scene, params)
     setup_sun(scene, params)
     setup_world(scene, params)
+    setup_colliders(scene, params)
     return setup_camera(scene, params)
+
+
+def setup_colliders(scene, params) -> list:
+    """A visible ball or capsule for each ``[[colliders]]`` row, keyed along its path (straight
+    between keys, as the grass feels it). The grass reads the rows themselves, not these objects."""
+    from .animation import action_fcurves
+
+    fps, start = int(params.render.fps), int(params.render.frame_start)
+    material = bpy.data.materials.get("Windgrass Collider") or bpy.data.materials.new("Windgrass Collider")
+    material.diffuse_color = (0.55, 0.12, 0.08, 1.0)
+    material.use_nodes = True
+    bsdf = material.node_tree.nodes.get("Principled BSDF")
+    if bsdf is not None:
+        bsdf.inputs["Base Color"].default_value = (0.55, 0.12, 0.08, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.6
+    made = []
+    for i, row in enumerate(params.interaction.colliders):
+        name = f"Collider {i + 1}"
+        mesh = bpy.data.meshes.new(name)
+        _capsule_mesh(mesh, row["radius"], row["length"] if row["shape"] == "capsule" else 0.0)
+        mesh.materials.append(material)
+        obj = bpy.data.objects.new(name, mesh)
+        scene.collection.objects.link(obj)
+        for key in row["path"]:
+            obj.location = key["position"]
+            obj.keyframe_insert("location", frame=start + key["time"] * fps)
+        for fc in action_fcurves(obj.animation_data):
+            for point in fc.keyframe_points:
+                point.interpolation = "LINEAR"
+        made.append(obj)
+    return made
+
+
+def _capsule_mesh(mesh, radius: float, length: float, rings: int = 12, segments: int = 24) -> None:
+    """A UV sphere of ``radius``, its halves ``length`` apart along Z (a capsule when > 0)."""
+    verts, faces = [], []
+    for r in range(rings + 1):
+        phi = math.pi * r / rings
+        z = radius * math.cos(phi) + (0.5 * length if r <= rings // 2 else -0.5 * length)
+        for k in range(segments):
+            a = 2.0 * math.pi * k / segments
+            verts.append((radius * math.sin(phi) * math.cos(a), radius * math.sin(phi) * math.sin(a), z))
+    for r in range(rings):
+        for k in range(segments):
+            a, b = r * segments + k, r * segments + (k + 1) % segments
+            faces.append((a, b, b + segments, a + segments))
+    mesh.from_pydata(verts, [], faces)
+    for poly in mesh.polygons:
+        poly.use_smooth = True
+    mesh.update()

@@ -253,6 +253,33 @@ def test_a_painted_path_on_a_heightmap_renders_bare_and_splits_the_same(addon, e
     assert float(middle.mean()) < 0.5 * float(sides.mean()), (float(middle.mean()), float(sides.mean()))
 
 
+def test_a_scene_files_colliders_render_split_the_same_and_show_their_balls(env, tmp_path):
+    """A ball ([[colliders]]) rolls through the tiny field while a vortex ([[effectors]]) turns
+    the grass: the batch render shows the ball (its red) and frame 5 rendered alone equals frame 5
+    of 1-5, pixel for pixel (the colliders' trail and the vortex are functions of the frame)."""
+    config = tmp_path / "ball.toml"
+    config.write_text(TINY_SCENE + """
+[[colliders]]
+radius = 0.25
+path = [{time = 0.0, position = [-1.0, 0.6, 0.25]}, {time = 0.3, position = [1.0, 0.6, 0.25]}]
+
+[[effectors]]
+type = "vortex"
+strength = 4.0
+""")
+    flags = ["--config", config, "--engine", "cycles", "--camera-mode", "fixed", "--camera-position", "0", "-1.5",
+             "1.0", "--camera-target", "0", "0.8", "0.1"]
+    runs = []
+    for frames in ("1-5", "5"):
+        out = tmp_path / frames
+        proc = render(env, *flags, "--frames", frames, "--out", out)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        runs.append(out)
+    assert pixels(runs[1] / "frame_0005.png") == pixels(runs[0] / "frame_0005.png")
+    red = [p for p in pixels(runs[0] / "frame_0005.png") if p[0] > p[1] + 30 and p[0] > p[2] + 30]
+    assert len(red) > 20, len(red)
+
+
 def test_eevee_frames_show_grass(env, tiny_config, tmp_path):
     proc = render(env, "--config", tiny_config, "--engine", "eevee", "--samples", "1", "--frames", "1-3",
                   "--out", tmp_path)

@@ -1,0 +1,86 @@
+#!/usr/bin/env python3
+"""Benchmark of colliders and force fields: what they add to a frame of a 1 km field.
+
+    python3.11 dev.py bench --interaction [--json]   (or headless/bench_interaction.py in the project's .venv)
+
+Prints one JSON object: the engine's frame update (wind, solver, cell data, LOD, the blade and
+card vertices of every block that needs them) of a 1 km field seen from near its centre,
+
+* ``plain``: no collider, no force field (the floor);
+* ``colliders``: 10 balls (0.3-0.6 m) rolling across the view at 1-3 m/s, with their trails
+  (interaction.recovery 4 s), ``ratio`` against the floor (goal: under 1.2);
+* ``vortex``: a Vortex force field over the view, ``ratio`` against the floor;
+* ``far_colliders``: the same 10 balls 400 m away (outside the simulated window): ``ratio``
+  (about 1.0: a collider that reaches no simulated cell costs nothing).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+import addon_loader  # noqa: E402
+
+addon_loader.load_package()
+from windgrass.grass_addon import schema  # noqa: E402
+from windgrass.grass_addon.field import GrassField  # noqa: E402
+from windgrass.grass_addon.lod import Camera  # noqa: E402
+
+
+def balls(offset: float = 0.0) -> list[dict]:
+    """10 balls crossing the view (x from -15 to 15 m, y from 2 to 20 m ahead of the camera)."""
+    rows = []
+    for i in range(10):
+        r = 0.3 + 0.03 * i
+        y = offset + 2.0 + 2.0 * i
+        speed = 1.0 + 0.2 * i
+        rows.append({"radius": r, "path": [{"time": 0.0, "position": [offset - 15.0, y, r]},
+                                           {"time": 30.0 / speed, "position": [offset + 15.0, y, r]}]})
+    return rows
+
+
+def frame_ms(params, cam, frames: int) -> float:
+    field = GrassField(params)
+    times = []
+    for frame in range(1, frames + 4):
+        t0 = time.perf_counter()
+        field.seek(frame, cam)
+        lod = field.lod(cam)
+        field.blade_vertices(field.blade_blocks(lod), lod)
+        field.card_vertices(field.card_blocks(lod))
+        if frame > 3:
+            times.append(time.perf_counter() - t0)
+    return round(1000 * statistics.median(times), 2)
+
+
+def run(frames: int = 24) -> dict:
+    base = schema.defaults().replace({"field.blocks_x": 625, "field.blocks_y": 625})
+    cam = Camera.look_at((0.0, -1.0, 1.7), (0.0, 20.0, 0.0), math.radians(70.0))
+    vortex = [{"type": "vortex", "position": [0.0, 8.0, 0.0], "strength": 6.0, "max_distance": 12.0}]
+    out = {"plain": {"frame_ms": frame_ms(base, cam, frames)}}
+    cases = {"colliders": {"interaction.colliders": balls()},
+             "vortex": {"interaction.effectors": vortex},
+             "far_colliders": {"interaction.colliders": balls(400.0)}}
+    for name, change in cases.items():
+        ms = frame_ms(base.replace(change), cam, frames)
+        out[name] = {"frame_ms": ms, "ratio": round(ms / out["plain"]["frame_ms"], 3)}
+    out["goal"] = "colliders ratio < 1.2"
+    return out
+
+
+def main(argv) -> int:
+    result = run()
+    print(json.dumps(result, separators=(",", ":")) if "--json" in argv else json.dumps(result, indent=2), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -322,27 +322,28 @@ class GrassField:
 
     def _clear_colliders(self, blocks: np.ndarray, vertices: np.ndarray) -> None:
         """Joints of the blades of ``blocks`` still inside a collider at this frame are moved to
-        its surface (the leaning of ``interaction`` clears most; this keeps every tip out)."""
+        its surface (the leaning of ``interaction`` clears most; this keeps every tip out). Each
+        sphere looks only at the blocks within its reach."""
         spheres = self.interaction.spheres(self.interaction.time(self.sim.frame))
         if not len(spheres) or not len(blocks):
             return
         reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5
         bounds = self.grid.block_bounds(self.layout.block_ids[blocks])
-        lo = spheres.centres[:, :2] - (spheres.radii + reach)[:, None]
-        hi = spheres.centres[:, :2] + (spheres.radii + reach)[:, None]
-        near = ((bounds[:, None, 0] <= hi[None, :, 0]) & (bounds[:, None, 2] >= lo[None, :, 0])
-                & (bounds[:, None, 1] <= hi[None, :, 1]) & (bounds[:, None, 3] >= lo[None, :, 1])).any(axis=1)
-        if not near.any():
-            return
         n, bpb = self.layout.segments, self.layout.blades_per_block
         view = vertices.reshape(len(blocks), bpb, n + 1, 2, 3)
-        for i in np.flatnonzero(near):
-            pairs = view[i]
+        for k in range(len(spheres)):
+            c, r = spheres.centres[k], spheres.radii[k] + reach
+            rows = np.flatnonzero((bounds[:, 0] <= c[0] + r) & (bounds[:, 2] >= c[0] - r)
+                                  & (bounds[:, 1] <= c[1] + r) & (bounds[:, 3] >= c[1] - r))
+            if not len(rows):
+                continue
+            one = interaction.Spheres(spheres.centres[k:k + 1], spheres.radii[k:k + 1], spheres.velocity[k:k + 1])
+            pairs = view[rows].reshape(len(rows) * bpb, n + 1, 2, 3)
             joints = pairs.mean(axis=2, dtype=np.float64)
             before = joints.copy()
-            roots_z = joints[:, 0, 2].copy()
-            if interaction.project_joints(joints, roots_z, spheres, self.interaction.tolerance):
+            if interaction.project_joints(joints, joints[:, 0, 2].copy(), one, self.interaction.tolerance):
                 pairs += (joints - before).astype(np.float32)[:, :, None, :]
+                view[rows] = pairs.reshape(len(rows), bpb, n + 1, 2, 3)
 
     def card_vertices(self, blocks, out: np.ndarray | None = None) -> np.ndarray:
         """Card vertices of `blocks` at the current frame (paper III.B, eq 34)."""

@@ -224,6 +224,7 @@ class ForcedWind:
     def __init__(self, wind, effectors):
         self.wind = wind
         self.effectors = effectors
+        self._kept = None
 
     def __getattr__(self, name):
         return getattr(self.wind, name)
@@ -232,8 +233,30 @@ class ForcedWind:
         out = np.array(self.wind.sample_layout(t, layout), dtype=np.float32)
         active = self.effectors.at(t)
         if active and layout.n_cells:
-            points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length])
-            points = points.astype(np.float64)
-            total = sum(force(e, points, t) for e in active)
-            out += total[:, :2].astype(np.float32)
+            points = self._points(layout)
+            for e in active:
+                reach = _reach(e)
+                if reach is None:
+                    out += force(e, points, t)[:, :2].astype(np.float32)
+                    continue
+                centre = e.matrix[:3, 3]  # only the cells within its maximum distance
+                near = np.flatnonzero((np.abs(points[:, 0] - centre[0]) <= reach)
+                                      & (np.abs(points[:, 1] - centre[1]) <= reach))
+                if len(near):
+                    out[near] += force(e, points[near], t)[:, :2].astype(np.float32)
         return out
+
+    def _points(self, layout) -> np.ndarray:
+        """The cells' centres at half the grass's height (kept for the layout)."""
+        kept = self._kept
+        if kept is None or kept[0] is not layout:
+            points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length])
+            kept = self._kept = (layout, points.astype(np.float64))
+        return kept[1]
+
+
+def _reach(e: Effector) -> float | None:
+    """How far from its centre an effector of point shape and sphere falloff acts (None: any distance)."""
+    if e.use_max and e.shape == "point" and e.falloff_type == "sphere":
+        return e.max_distance
+    return None

@@ -286,6 +286,8 @@ class Interaction:
         self.frame_start = int(params.render.frame_start)
         self.window = int(math.ceil(self.recovery * self.fps))
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
+        self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
+        self._local: OrderedDict[int, tuple] = OrderedDict()  # frame -> its contacts on the window's cells
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
     def time(self, frame: int) -> float:
@@ -304,32 +306,40 @@ class Interaction:
                 self._contacts.popitem(last=False)
         return found
 
-    def trample(self, frame: int, window_ids: np.ndarray, omega2: np.ndarray, damping: np.ndarray):
+    def trample(self, frame: int, window: WindowCells, omega2: np.ndarray, damping: np.ndarray):
         """(local cell index (m,), flatness (m,), direction (m, 2)) of the window's trampled cells
-        at ``frame``; ``window_ids`` (C,) the window cells' global ids, sorted order not needed."""
+        at ``frame``."""
         t = self.time(frame)
         parts = [(f, self.contacts(f)) for f in range(frame - self.window, frame + 1)]
         parts = [(f, c) for f, c in parts if len(c.cells)]
-        if not parts or not len(window_ids):
+        if not parts:
             return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
-        cells = np.concatenate([c.cells for _, c in parts])
-        press = np.concatenate([c.press for _, c in parts])
-        direction = np.concatenate([c.direction for _, c in parts])
-        when = np.concatenate([np.full(len(c.cells), self.time(f)) for f, c in parts])
-        order = np.argsort(window_ids, kind="stable")
-        pos = np.searchsorted(window_ids[order], cells)
-        pos = np.minimum(pos, len(order) - 1)
-        found = window_ids[order][pos] == cells
-        local = order[pos[found]]
-        value = press[found] * recovery_curve(t - when[found], self.recovery, omega2[local], damping[local])
+        mine = [self._in_window(f, c, window) for f, c in parts]  # (local, press, direction) in the window
+        local = np.concatenate([m[0] for m in mine])
+        press = np.concatenate([m[1] for m in mine])
+        direction = np.concatenate([m[2] for m in mine])
+        when = np.concatenate([np.full(len(m[0]), self.time(f)) for (f, _), m in zip(parts, mine)])
+        value = press * recovery_curve(t - when, self.recovery, omega2[local], damping[local])
         keep = value > 1e-4
-        local, value, direction = local[keep], value[keep], direction[found][keep]
+        local, value, direction = local[keep], value[keep], direction[keep]
         order = np.lexsort((value, local))
         local, value, direction = local[order], value[order], direction[order]
         last = np.r_[local[1:] != local[:-1], True] if len(local) else np.zeros(0, bool)
         return local[last], value[last], direction[last]
 
-    def push(self, frame: int, layout, window_ids: np.ndarray):
+    def _in_window(self, frame: int, found: Contacts, window: WindowCells):
+        """(local index, press, direction) of a frame's contacts on the window's cells (kept with
+        the contacts while the window lasts)."""
+        memo = self._local.get(frame)
+        if memo is None or memo[0] is not window:
+            inside, local = window.find(found.cells)
+            memo = (window, local, found.press[inside], found.direction[inside])
+            self._local[frame] = memo
+            while len(self._local) > self.window + 8:
+                self._local.popitem(last=False)
+        return memo[1], memo[2], memo[3]
+
+    def push(self, frame: int, layout, window: WindowCells):
         """(local cell index (m,), lean (m,), direction (m, 2)) of the window's cells a collider
         leans aside at ``frame``: the largest lean over the spheres near each cell."""
         spheres = self.spheres(self.time(frame))
@@ -337,10 +347,8 @@ class Interaction:
             return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
         reach = spheres.radii * PUSH_MARGIN + float(np.max(layout.cell_length, initial=0.0)) * 1.5
         s, ids, xy = _cells_around(self.grid, spheres, reach)
-        order = np.argsort(window_ids, kind="stable")
-        pos = np.minimum(np.searchsorted(window_ids[order], ids), max(len(order) - 1, 0))
-        found = (window_ids[order][pos] == ids) if len(order) else np.zeros(len(ids), bool)
-        local, s = order[pos[found]], s[found]
+        found, local = window.find(ids)
+        s = s[found]
         if not len(local):
             return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
         root = np.column_stack([layout.cell_center[local], layout.cell_ground[local]]).astype(np.float64)
@@ -356,9 +364,11 @@ class Interaction:
     def bend(self, frame: int, layout, bend_t: np.ndarray, omega2: np.ndarray, damping: np.ndarray):
         """``bend_t`` (n, 2, C) of the wind alone with the colliders' push and trample at
         ``frame`` (a new array), or None when no collider reaches the window's cells."""
-        ids = window_cell_ids(layout, self.grid)
-        t_local, flat, t_dir = self.trample(frame, ids, omega2, damping)
-        p_local, lean, p_dir = self.push(frame, layout, ids)
+        if self._window is None or self._window[0] is not layout:
+            self._window = (layout, WindowCells(layout, self.grid))
+        window = self._window[1]
+        t_local, flat, t_dir = self.trample(frame, window, omega2, damping)
+        p_local, lean, p_dir = self.push(frame, layout, window)
         if not len(t_local) and not len(p_local):
             return None
         touched = np.union1d(t_local, p_local)
@@ -384,21 +394,26 @@ class Interaction:
         return out
 
 
-def window_cell_ids(layout, grid) -> np.ndarray:
-    """(C,) the global cell id (row-major on the field's grid) of each cell of ``layout``."""
-    cached = getattr(layout, "_global_cell_ids", None)
-    if cached is not None:
-        return cached
-    cs, origin = grid.cell_size, np.asarray(grid.origin, np.float64)
-    xy = np.asarray(layout.cell_center, np.float64)
-    ix = np.floor((xy[:, 0] - origin[0]) / cs).astype(np.int64)
-    iy = np.floor((xy[:, 1] - origin[1]) / cs).astype(np.int64)
-    ids = iy * grid.cells_x + ix
-    try:
-        object.__setattr__(layout, "_global_cell_ids", ids)
-    except (AttributeError, TypeError):  # pragma: no cover (a layout that takes no new attributes)
-        pass
-    return ids
+class WindowCells:
+    """The global cell id (row-major on the field's grid) of each cell of a layout, and their
+    sorted order for lookups (made once per layout)."""
+
+    def __init__(self, layout, grid):
+        cs, origin = grid.cell_size, np.asarray(grid.origin, np.float64)
+        xy = np.asarray(layout.cell_center, np.float64)
+        ix = np.floor((xy[:, 0] - origin[0]) / cs).astype(np.int64)
+        iy = np.floor((xy[:, 1] - origin[1]) / cs).astype(np.int64)
+        self.ids = iy * grid.cells_x + ix
+        self.order = np.argsort(self.ids, kind="stable")
+        self.sorted = self.ids[self.order]
+
+    def find(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(found (m,) bool, local index of the found ones) of global cell ``ids``."""
+        if not len(self.sorted):
+            return np.zeros(len(ids), bool), np.zeros(0, np.int64)
+        pos = np.minimum(np.searchsorted(self.sorted, ids), len(self.sorted) - 1)
+        found = self.sorted[pos] == ids
+        return found, self.order[pos[found]]
 
 
 def project_joints(joints: np.ndarray, roots_z: np.ndarray, spheres: Spheres, tolerance: float) -> int:

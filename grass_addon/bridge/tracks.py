@@ -148,18 +148,26 @@ def _top(params) -> float:
 # Sampling
 
 
-def spheres_of(points: np.ndarray, cluster: float, top_z: float) -> tuple[np.ndarray, np.ndarray]:
+def spheres_of(points: np.ndarray, cluster: float, top_z: float, islands: np.ndarray | None = None):
     """(centres (m, 3), radii (m,)) covering the points (k, 3) below ``top_z``: the part of an
-    object the grass can touch, cut into pieces at most ``cluster`` metres across, each piece in
-    its bounding sphere (a ball is one sphere, exactly; a foot one, a car or a wall several)."""
-    low = points[points[:, 2] < top_z]
+    object the grass can touch, per island of the mesh (``islands`` (k,): two feet are two),
+    cut into pieces at most ``cluster`` metres across, each piece in its bounding sphere (a ball
+    is one sphere, exactly; a foot one, a car or a wall several)."""
+    below = points[:, 2] < top_z
+    low = points[below]
     if not len(low):
         return np.zeros((0, 3)), np.zeros(0)
-    lo = low[:, :2].min(axis=0)
-    counts = np.maximum(1, np.ceil((low[:, :2].max(axis=0) - lo) / cluster - 1e-9)).astype(np.int64)
-    size = (low[:, :2].max(axis=0) - lo) / counts + 1e-12
-    ij = np.minimum(((low[:, :2] - lo) / size).astype(np.int64), counts - 1)
-    piece = ij[:, 0] * counts[1] + ij[:, 1]
+    island = islands[below] if islands is not None else np.zeros(len(low), np.int64)
+    _, island = np.unique(island, return_inverse=True)
+    island = island.reshape(-1)
+    lo = np.full((island.max() + 1, 2), np.inf)
+    hi = np.full((island.max() + 1, 2), -np.inf)
+    np.minimum.at(lo, island, low[:, :2])
+    np.maximum.at(hi, island, low[:, :2])
+    counts = np.maximum(1, np.ceil((hi - lo) / cluster - 1e-9)).astype(np.int64)
+    size = (hi - lo) / counts + 1e-12
+    ij = np.minimum(((low[:, :2] - lo[island]) / size[island]).astype(np.int64), counts[island] - 1)
+    piece = (island * 1_000_003 + ij[:, 0]) * 1_000_003 + ij[:, 1]
     pieces, inverse = np.unique(piece, return_inverse=True)
     inverse = inverse.reshape(-1)
     bmin = np.full((len(pieces), 3), np.inf)
@@ -172,23 +180,46 @@ def spheres_of(points: np.ndarray, cluster: float, top_z: float) -> tuple[np.nda
     return centres, radii
 
 
-def _object_points(obj_eval, to_field: np.ndarray) -> np.ndarray:
-    """The evaluated object's vertices and triangle centres in the field's frame (k, 3)."""
+def mesh_islands(n: int, edges: np.ndarray) -> np.ndarray:
+    """(n,) the connected part of the mesh each vertex belongs to (the smallest vertex index of
+    it), by spreading the smallest label along the edges (e, 2) until nothing changes."""
+    labels = np.arange(n)
+    if not len(edges):
+        return labels
+    a, b = edges[:, 0], edges[:, 1]
+    while True:
+        low = np.minimum(labels[a], labels[b])
+        before = labels.copy()
+        np.minimum.at(labels, a, low)
+        np.minimum.at(labels, b, low)
+        labels = labels[labels]  # (jump along: converges in a few rounds)
+        if np.array_equal(labels, before):
+            return labels
+
+
+def _object_points(obj_eval, to_field: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The evaluated object's vertices and triangle centres in the field's frame (k, 3), and the
+    island of each (k,)."""
     mesh = obj_eval.to_mesh()
     try:
         n = len(mesh.vertices)
         co = np.empty(n * 3, np.float32)
         mesh.vertices.foreach_get("co", co)
         co = co.reshape(-1, 3).astype(np.float64)
+        edges = np.empty(len(mesh.edges) * 2, np.int64)
+        mesh.edges.foreach_get("vertices", edges)
         mesh.calc_loop_triangles()
-        tris = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+        tris = np.empty(len(mesh.loop_triangles) * 3, np.int64)
         mesh.loop_triangles.foreach_get("vertices", tris)
     finally:
         obj_eval.to_mesh_clear()
+    islands = mesh_islands(n, edges.reshape(-1, 2))
     if len(tris):
-        co = np.concatenate([co, co[tris.reshape(-1, 3)].mean(axis=1)])
+        tris = tris.reshape(-1, 3)
+        co = np.concatenate([co, co[tris].mean(axis=1)])
+        islands = np.concatenate([islands, islands[tris[:, 0]]])
     m = to_field @ np.array(obj_eval.matrix_world, np.float64)
-    return co @ m[:3, :3].T + m[:3, 3]
+    return co @ m[:3, :3].T + m[:3, 3], islands
 
 
 def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
@@ -229,8 +260,8 @@ def sample(scene, item, params, progress=None, cancelled=None) -> dict | None:
             scene.frame_set(f)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             for j, obj in enumerate(colliders):
-                points = _object_points(obj.evaluated_get(depsgraph), to_field)
-                centres, radii = spheres_of(points, CLUSTER, top_z)
+                points, islands = _object_points(obj.evaluated_get(depsgraph), to_field)
+                centres, radii = spheres_of(points, CLUSTER, top_z, islands)
                 mid = points.mean(axis=0) if len(points) else np.zeros(3)
                 per_object[j].append((centres, radii, mid))
             fields.append([_effector_dict(_effector(o.evaluated_get(depsgraph), to_field)) for o in effectors])

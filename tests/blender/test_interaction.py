@@ -211,3 +211,57 @@ def test_bad_collider_and_force_field_collections_are_named(bridge):
     item.effector_collection = bpy.data.collections["Fields"]
     error = runtime.field_error(scene, item)
     assert error and "effector_collection" in error and "Vortex" in error, error
+
+
+def test_an_armature_walker_tramples_along_its_feet(bridge):
+    """Two feet (boxes of a mesh deformed by an armature): their bones are keyed to walk from
+    x = -1 m to x = 1 m over frames 1-25, the armature object stays put. Frame 30: the grass along
+    each foot's path (y = +-0.2 m) is flatter than between them (y = 0) and far away, leaning +x."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    arm_data = bpy.data.armatures.new("Walker")
+    rig = bpy.data.objects.new("Walker", arm_data)
+    scene.collection.objects.link(rig)
+    bpy.context.view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode="EDIT")
+    for side, y in (("L", 0.2), ("R", -0.2)):
+        bone = arm_data.edit_bones.new(f"foot.{side}")
+        bone.head, bone.tail = (0.0, y, 0.0), (0.0, y, 0.3)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    verts, faces, groups = [], [], {}
+    for side, y in (("L", 0.2), ("R", -0.2)):
+        base = len(verts)
+        for dx in (-0.12, 0.12):
+            for dy in (-0.06, 0.06):
+                for z in (0.0, 0.08):
+                    verts.append((dx, y + dy, z))
+        groups[side] = list(range(base, base + 8))
+        faces += [tuple(base + i for i in f) for f in ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6),
+                                                         (0, 2, 6, 4), (1, 5, 7, 3))]
+    mesh = bpy.data.meshes.new("Feet")
+    mesh.from_pydata(verts, [], faces)
+    feet = bpy.data.objects.new("Feet", mesh)
+    for side, members in groups.items():
+        feet.vertex_groups.new(name=f"foot.{side}").add(members, 1.0, "REPLACE")
+    feet.modifiers.new("Armature", "ARMATURE").object = rig
+    coll = bpy.data.collections.new("Walkers")
+    scene.collection.children.link(coll)
+    coll.objects.link(feet)
+    for side in ("L", "R"):
+        pose = rig.pose.bones[f"foot.{side}"]
+        for frame, x in ((1, -1.0), (25, 1.0)):
+            pose.location = (x, 0.0, 0.0)  # bone space: X is the world's X for a bone along +Z
+            pose.keyframe_insert("location", frame=frame)
+    scene.frame_set(13)
+    moved = feet.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    assert abs(sum(v.co.x for v in moved.vertices) / len(moved.vertices)) < 0.2  # the feet are mid-way
+    feet.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh_clear()
+    item.collider_collection = coll
+    xy, bend = _cell_bends(runtime, scene, item, 30)
+    size = np.hypot(bend[:, 0], bend[:, 1])
+    path = (np.abs(np.abs(xy[:, 1]) - 0.2) < 0.05) & (np.abs(xy[:, 0]) < 0.6)
+    between = (np.abs(xy[:, 1]) < 0.06) & (np.abs(xy[:, 0]) < 0.6)
+    away = np.abs(xy[:, 1]) > 1.0
+    assert np.median(size[path]) > 0.8 and np.median(size[path]) > 4 * np.median(size[away])
+    assert np.median(size[path]) > 2 * np.median(size[between])
+    assert np.median(bend[path, 0]) > 3 * np.median(np.abs(bend[path, 1]))

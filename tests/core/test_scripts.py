@@ -34,9 +34,9 @@ def trace(tmp_path_factory):
 def test_trace_has_documented_keys_shapes_and_units(trace):
     tr, _ = trace
     F, Ny, Nx, n, B = 6, 4, 8, 4, 4 * 8 * 3
-    documented = (REPO / "README.md").read_text()
+    documented = (REPO / "docs" / "headless.md").read_text()
     for key in tr:
-        assert f"`{key}`" in documented, f"trace key {key} is not documented in README.md"
+        assert f"`{key}`" in documented, f"trace key {key} is not documented in docs/headless.md"
     shapes = {"frame": (F,), "time": (F,), "wind_speed": (F,), "wind_direction": (F,),
               "cell_wind": (F, Ny, Nx, 2), "cell_bend": (F, Ny, Nx, n), "cell_bend_vector": (F, Ny, Nx, n, 2),
               "cell_twist": (F, Ny, Nx, n), "card_offset": (F, Ny, Nx, 3), "cell_x": (Nx,), "cell_y": (Ny,),

@@ -2,7 +2,7 @@
 
 The bpy module runs in background mode: no window, no event loop, no keymap, no viewport, no real
 undo stack as the window pushes it. These tests run Debian 13's Blender (4.3) in a Debian 13 root
-made by ``dev.py`` (``debootstrap``; see README "Tests"), with its window on a virtual screen
+made by ``dev.py`` (``debootstrap``; see README "Get going"), with its window on a virtual screen
 (Xvfb, Mesa's software OpenGL), the extension built and installed by Blender's own tool, and drive
 it as an artist would through ``driver.py``: operators as the UI calls them, property edits
 followed by the undo step the window pushes, keys typed with ``xdotool``, screenshots.

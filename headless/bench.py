@@ -209,7 +209,15 @@ def main(argv=None) -> int:
     parser.add_argument("--interaction", action="store_true",
                         help="what 10 colliders and a vortex add to a 1 km field's frame (bench_interaction.py); "
                              "other flags ignored")
+    parser.add_argument("--render", action="store_true",
+                        help="where a rendered frame of the default scene spends its time, against the same "
+                             "frame rendered again (bench_render.py); other flags ignored")
     args = parser.parse_args(argv)
+    if args.render:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_render.py"))]
+                               + (["--json"] if args.json else []))
     if args.interaction:
         import subprocess
 

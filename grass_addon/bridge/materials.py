@@ -63,7 +63,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 3
+MATERIALS_VERSION = 4
 
 
 def _socket(sockets, *names: str):
@@ -98,6 +98,12 @@ def _new_material(name: str, uid: str):
     mat["wg_uid"] = uid
     mat["wg_version"] = MATERIALS_VERSION
     mat.use_backface_culling = False  # blades and cards are two-sided strips
+    cycles = getattr(mat, "cycles", None)
+    if cycles is not None and hasattr(cycles, "emission_sampling"):
+        # The haze is an Emission mixed into every grass material: sampled as a light, every blade
+        # triangle would be a lamp Cycles builds a light tree over each frame (issue #20: ~3 s of
+        # "Updating Lights" a frame). It is seen, never a source of light for the rest.
+        cycles.emission_sampling = "NONE"
     return mat
 
 

@@ -216,6 +216,9 @@ def setup_render(scene, params) -> None:
     if r.engine == "cycles":
         cycles = scene.cycles
         cycles.device = "CPU"
+        # Keep Cycles' scene between frames: only the grass's edited meshes and the camera are
+        # sent again (the ground, materials, atlas and world stay).
+        render.use_persistent_data = True
         cycles.samples = r.samples
         cycles.preview_samples = min(r.samples, 32)
         cycles.seed = params.field.seed % (2**31)  # fixed: frame N renders the same on any node

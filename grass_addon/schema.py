@@ -270,6 +270,12 @@ PARAMS: tuple[Param, ...] = (
        maximum=1000.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Vortex Radius"),
     _p("wind", "vortex_speed", "float", 9.0, "Whirlwind: fastest swirl, at the core's radius", unit="m/s", minimum=0.0,
        maximum=60.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Vortex Speed"),
+    _p("wind", "gust_waves", "float", 0.0, "Gust waves: patches of stronger and weaker wind, tens of metres wide, "
+       "carried downwind; the mean wind's speed varies by up to this share, and the cards and the far field "
+       "brighten and darken with them to the horizon (0: none)", unit="fraction", minimum=0.0, maximum=1.0,
+       label="Gust Waves"),
+    _p("wind", "gust_wave_size", "float", 30.0, "Size of a gust wave's patch", unit="m", minimum=2.0,
+       maximum=1000.0, soft_max=200.0, label="Gust Wave Size"),
     _p("wind", "keys", "table_list", (), "Changes of the mean wind's speed and direction over time",
        fields=WIND_KEY_FIELDS, label="Keys"),
     # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------

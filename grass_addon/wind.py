@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from . import gusts
 from .errors import ParameterError
 
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
@@ -174,6 +175,10 @@ class WindField:
         self._keys_cache: OrderedDict[int, tuple[tuple[int, int, int, int], np.ndarray]] = OrderedDict()
         # The whirlwind repeats with these periods (m) over very large fields (the fronts: _gust_half).
         self.vortex_period = tuple(min(v, PATTERN_PERIOD_MAX) for v in self.size)
+        # Gust waves (gusts.py): a large pattern scaling the mean wind, carried downwind with it.
+        self.gust_waves = float(w.gust_waves)
+        self.gust_tile = gusts.pattern(self.seed) if self.gust_waves > 0.0 else None
+        self.gust_metres = gusts.tile_metres(params)
 
     # ------------------------------------------------------------------ mean wind (eq 12)
 
@@ -381,7 +386,11 @@ class WindField:
 
     def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out`` (v' at points ``xy``) plus the mean wind (eq 12) and the type's gusts or vortex."""
-        out += self._mean_vector(t).astype(np.float32)  # uniform over the field (eq 12)
+        mean = self._mean_vector(t)
+        out += mean.astype(np.float32)  # uniform over the field (eq 12)
+        if self.gust_tile is not None:  # the gust waves scale it where they pass (gusts.py)
+            g = gusts.sample(self.gust_tile, xy - self.displacement(t)[None, :], self.gust_metres)
+            out += (self.gust_waves * (2.0 * g - 1.0))[:, None].astype(np.float32) * mean.astype(np.float32)
         if self.kind == "blast":
             self._add_gusts(t, xy, out)
         elif self.kind == "whirlwind":

@@ -23,7 +23,7 @@ import warnings
 import bpy
 import numpy as np
 
-from .. import sward
+from .. import gusts, sward
 from ..grid import FieldGrid
 
 UV_TINT_RG = "wg_tint_rg"
@@ -31,6 +31,13 @@ UV_TINT_BS = "wg_tint_bs"
 UV_FADE = "wg_fade"
 UV_SWARD_Z = "wg_sward_z"  # ground mesh: (1 on the fringe, height above the ground) of the canopy
 ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
+
+# The gust waves (gusts.py): the pattern image, its mapping (scale 1 / tile, offset the mean wind's
+# displacement, set every frame by ``set_gust_offset``) and how much it brightens (update_materials).
+NODE_GUST_IMAGE = "wg_gust_image"
+NODE_GUST_MAPPING = "wg_gust_mapping"
+NODE_GUST_AMOUNT = "wg_gust_amount"
+GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
 
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
@@ -63,7 +70,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 4
+MATERIALS_VERSION = 5
 
 
 def _socket(sockets, *names: str):
@@ -191,6 +198,27 @@ class _Tree:
         self.link(glow, "Emission", mix, mix.inputs[2])
         return mix
 
+    def gusted(self, colour_node, colour_out: str, gust_image, x: float, y: float):
+        """The colour brightened and darkened by the gust waves where they pass:
+        colour * (1 + amount (2 g - 1)), g the pattern at the place (object coordinates: the
+        field's frame) moved back by the mean wind's displacement (NODE_GUST_MAPPING)."""
+        coord = self.add("ShaderNodeTexCoord", x - 800, y - 200)
+        mapping = self.add("ShaderNodeMapping", x - 600, y - 200, name=NODE_GUST_MAPPING)
+        self.link(coord, "Object", mapping, "Vector")
+        tex = self.add("ShaderNodeTexImage", x - 400, y - 200, name=NODE_GUST_IMAGE, image=gust_image,
+                       interpolation="Linear", extension="REPEAT")
+        self.link(mapping, "Vector", tex, "Vector")
+        amount = self.add("ShaderNodeValue", x - 400, y - 450, name=NODE_GUST_AMOUNT)
+        amount.outputs[0].default_value = 0.0
+        swing = self.math("MULTIPLY_ADD", (tex, "Color"), 2.0, x - 200, y - 200)
+        swing.inputs[2].default_value = -1.0
+        gain = self.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x - 50, y - 200)
+        gain.inputs[2].default_value = 1.0
+        out = self.mix_rgb(x + 100, y, blend="MULTIPLY")
+        self.link(colour_node, colour_out, out, "A_Color")
+        self.link(gain, "Value", out, "B_Color")
+        return out
+
     def foliage(self, colour_node, colour_out: str, x: float, y: float, specular: float = 0.35,
                 roughness: float = 0.55):
         """Principled (reflection) + Translucent (light through the blade), mixed."""
@@ -256,7 +284,7 @@ def set_card_image(mat, image) -> None:
             node.image = image
 
 
-def card_material(name: str, uid: str, image):
+def card_material(name: str, uid: str, image, gust_image=None):
     """Cards (paper III.B): the atlas of the field's own blades (``atlas.card_atlas``), shaded
     like the blades (the same foliage shader); its alpha times ``wg_fade`` (K_b of eqs 7 and 11)
     mixes that with a Transparent BSDF."""
@@ -280,7 +308,9 @@ def card_material(name: str, uid: str, image):
     alpha = t.math("MULTIPLY", (cover, "Value"), (opacity, "X"), -800, -300, clamp=True)
     # A card is one flat plane where its blades turn every way: their highlights scatter, the
     # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
-    shader = t.hazed(t.foliage(tex, "Color", -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
+    colour, colour_out = (tex, "Color") if gust_image is None else \
+        (t.gusted(tex, "Color", gust_image, -800, 300), "Result_Color")
+    shader = t.hazed(t.foliage(colour, colour_out, -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
                      "Shader", -100, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 150, 0)
@@ -314,7 +344,7 @@ def ground_material(name: str, uid: str):
     return mat
 
 
-def canopy_material(name: str, uid: str):
+def canopy_material(name: str, uid: str, gust_image=None):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
     (``sward.canopy_height``). Its colour is the blades' (``sward.sward_colour``, darkened
     by SWARD_SHADE) with fine streaks; its opacity is K_t of eq 10 = clamp((d - d_s1) /
@@ -352,7 +382,10 @@ def canopy_material(name: str, uid: str):
     bsdf = t.add("ShaderNodeBsdfPrincipled", -450, 0)
     _set(bsdf, 1.0, "Roughness")
     _set(bsdf, 0.0, "Specular IOR Level", "Specular")
-    t.link(grass, "Result_Color", bsdf, "Base Color")
+    if gust_image is None:
+        t.link(grass, "Result_Color", bsdf, "Base Color")
+    else:
+        t.link(t.gusted(grass, "Result_Color", gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
     camera = t.add("ShaderNodeCameraData", -900, -650)
     kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
     t.link(camera, "View Distance", kt, "Value")
@@ -509,6 +542,30 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
         mat.diffuse_color = (*[float(c) for c in rgb], 1.0)
         mat.roughness = 0.9
         mat.metallic = 0.0
+
+
+def update_gusts(params, *mats) -> None:
+    """The gust waves' brightness swing and the pattern's scale (one tile per gusts.tile_metres)."""
+    scale = 1.0 / gusts.tile_metres(params)
+    for mat in mats:
+        nodes = mat.node_tree.nodes if mat is not None and mat.node_tree is not None else None
+        if nodes is None or nodes.get(NODE_GUST_AMOUNT) is None:
+            continue
+        nodes[NODE_GUST_AMOUNT].outputs[0].default_value = GUST_SHADE * float(params.wind.gust_waves)
+        _set(nodes[NODE_GUST_MAPPING], (scale, scale, 1.0), "Scale")
+
+
+def set_gust_offset(displacement, params, *mats) -> None:
+    """Carry the pattern downwind: the mapping's location is minus the mean wind's displacement
+    (gusts.py), in tiles. Called every frame for fields with gust waves."""
+    scale = 1.0 / gusts.tile_metres(params)
+    location = (-float(displacement[0]) * scale, -float(displacement[1]) * scale, 0.0)
+    for mat in mats:
+        node = mat.node_tree.nodes.get(NODE_GUST_MAPPING) if mat is not None and mat.node_tree else None
+        if node is not None:
+            socket = _socket(node.inputs, "Location")
+            if tuple(socket.default_value) != location:
+                socket.default_value = location
 
 
 def update_materials(params, canopy=None) -> None:

@@ -45,7 +45,7 @@ from .. import forces, interaction, memory, schema, slots
 from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
-from . import animation, bake, maps, pools, properties, tracks
+from . import animation, bake, maps, materials, pools, properties, tracks
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
@@ -417,6 +417,11 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
         motion = (frame, subframe, float(rt.params.render.fps))
     rt.blades.write(item, rt.field, lod, block_distance, motion)
     rt.cards.write(item, rt.field, lod, block_distance, motion)
+    if rt.params.wind.gust_waves > 0.0:  # the far grass's gust waves travel with the mean wind
+        reg = field_scene.registered(item)
+        t = (frame + subframe - rt.params.render.frame_start) / rt.params.render.fps
+        materials.set_gust_offset(rt.field.wind.displacement(t), rt.params, reg.get(field_scene.ROLE_CARD_MATERIAL),
+                                  reg.get(field_scene.ROLE_CANOPY_MATERIAL))
     rt.frame, rt.subframe, rt.lod = frame, subframe, lod
     rt.camera_signature = field_camera.signature(views)
 

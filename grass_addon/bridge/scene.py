@@ -54,6 +54,7 @@ ROLE_CARD_MATERIAL = "card_material"
 ROLE_GROUND_MATERIAL = "ground_material"
 ROLE_CANOPY_MATERIAL = "canopy_material"
 ROLE_CARD_IMAGE = "card_image"
+ROLE_GUST_IMAGE = "gust_image"
 
 
 
@@ -464,10 +465,17 @@ def field_materials(item):
         image = textures.ensure_card_image(f"{base_name} card texture")
         _tag(image, uid, ROLE_CARD_IMAGE)
         _register(item, ROLE_CARD_IMAGE, image)
+    gusts = registered(item).get(ROLE_GUST_IMAGE)
+    if not isinstance(gusts, bpy.types.Image):
+        gusts = textures.ensure_gust_image(f"{base_name} gust waves")
+        _tag(gusts, uid, ROLE_GUST_IMAGE)
+        _register(item, ROLE_GUST_IMAGE, gusts)
     blade = _material(item, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
-    card = _material(item, ROLE_CARD_MATERIAL, lambda: materials.card_material(f"{base_name} cards", uid, image))
+    card = _material(item, ROLE_CARD_MATERIAL,
+                     lambda: materials.card_material(f"{base_name} cards", uid, image, gusts))
     ground = _material(item, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
-    canopy = _material(item, ROLE_CANOPY_MATERIAL, lambda: materials.canopy_material(f"{base_name} canopy", uid))
+    canopy = _material(item, ROLE_CANOPY_MATERIAL,
+                       lambda: materials.canopy_material(f"{base_name} canopy", uid, gusts))
     return blade, card, ground, canopy
 
 
@@ -496,6 +504,10 @@ def update_field_materials(item, params, scene=None) -> None:
     image = reg.get(ROLE_CARD_IMAGE)
     if isinstance(image, bpy.types.Image):
         textures.paint_card_image(image, params)
+    gust_image = reg.get(ROLE_GUST_IMAGE)
+    if isinstance(gust_image, bpy.types.Image):
+        textures.paint_gust_image(gust_image, params)
+    materials.update_gusts(params, reg.get(ROLE_CARD_MATERIAL), reg.get(ROLE_CANOPY_MATERIAL))
     if coll is not None:
         coll[MATERIALS_DIGEST] = digest
 

@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 
-from .. import atlas
+from .. import atlas, gusts
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -65,3 +65,35 @@ def paint_card_image(image, params) -> None:
     image.pixels.foreach_set(np.ascontiguousarray(pixels).ravel())
     image.pack()
     image[DIGEST_KEY] = digest
+
+
+GUST_KEY = "wg_gusts"  # custom property of the gust image: the seed it was painted from
+
+
+def ensure_gust_image(name: str):
+    """The packed float image of the gust waves' pattern (``gusts.pattern``), linear values."""
+    import bpy
+
+    n = gusts.TILE_PIXELS
+    image = bpy.data.images.get(name)
+    if image is not None and tuple(image.size) == (n, n) and image.packed_file is not None:
+        return image
+    if image is not None:
+        bpy.data.images.remove(image)
+    image = bpy.data.images.new(name, width=n, height=n, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pack()
+    return image
+
+
+def paint_gust_image(image, params) -> None:
+    """Write the gust pattern of the field's seed into ``image`` unless it already holds it."""
+    seed = int(params.field.seed)
+    if image.get(GUST_KEY) == seed:
+        return
+    tile = gusts.pattern(seed)  # row 0 is y = 0, as Blender's pixel rows
+    rgba = np.ones((*tile.shape, 4), np.float32)
+    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = tile
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    image[GUST_KEY] = seed

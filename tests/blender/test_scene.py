@@ -622,3 +622,48 @@ def test_deleting_a_slot_by_hand_does_not_break_frame_changes(bridge, capsys):
     bpy.data.collections.remove(item.collection)
     scene.frame_set(26)  # the whole collection gone: still no exception
     assert "Windgrass" in capsys.readouterr().out
+
+
+def _far_field_frames(bridge, tmp_path, gust_waves: float, frames=(1, 13)):
+    """A 51 m field seen from 6 m up, the cards ending 3 m out so the far canopy fills the image's
+    lower half; rendered at 96x54 (Cycles, 4 samples) at ``frames``: their rows 55-95 % down."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, stage
+
+    _, runtime = bridge
+    params = schema.defaults().replace({
+        "field.blocks_x": 32, "field.blocks_y": 32, "lod.blade_near": 0.5, "lod.blade_far": 1.0,
+        "lod.card_near": 2.0, "lod.card_far": 3.0, "wind.type": "calm", "wind.speed": 6.0, "wind.direction": 0.0,
+        "wind.gust_waves": gust_waves, "wind.gust_wave_size": 4.0, "camera.mode": "fixed",
+        "camera.position": [0.0, -24.0, 6.0], "camera.target": [0.0, 0.0, 0.0], "render.resolution_x": 96,
+        "render.resolution_y": 54, "render.samples": 4})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    scene.camera.animation_data_clear()
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    out = []
+    for frame in frames:
+        scene.frame_set(frame)
+        scene.render.filepath = str(tmp_path / f"gust{gust_waves}_{frame}.png")
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(scene.render.filepath)
+        w, h = image.size
+        pixels = np.array(image.pixels[:], np.float32).reshape(h, w, 4)[::-1, :, :3]
+        bpy.data.images.remove(image)
+        out.append(pixels[int(0.55 * h):int(0.95 * h)].mean(axis=2))
+    return out
+
+
+def test_gust_waves_run_across_the_far_field(bridge, tmp_path):
+    """Issue: the far field was a still plane while the near grass swayed. With gust waves the far
+    canopy brightens and darkens where they pass, and they move: half a second later its pixels
+    changed several times more than in calm air (where only the render's noise and the near cards
+    change), and a frame's far field shows patches (its spread is larger than calm's)."""
+    calm = _far_field_frames(bridge, tmp_path, 0.0)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    gusty = _far_field_frames(bridge, tmp_path, 0.8)
+    change_calm = float(np.abs(calm[1] - calm[0]).mean())
+    change_gusty = float(np.abs(gusty[1] - gusty[0]).mean())
+    assert change_gusty > 4.0 * change_calm + 0.002, (change_gusty, change_calm)
+    assert float(gusty[0].std()) > 1.5 * float(calm[0].std()), (gusty[0].std(), calm[0].std())

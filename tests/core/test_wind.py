@@ -326,3 +326,35 @@ def test_advection_integral_of_turning_keys():
     np.testing.assert_allclose(wind.displacement(-1.0), [-2.0, 0.0], atol=1e-9)
     np.testing.assert_allclose(wind.displacement(math.pi + 1.0) - wind.displacement(math.pi),
                                [-2.0, 2.0 * math.sin(math.radians(179.999))], atol=1e-6)
+
+
+def test_gust_waves_travel_downwind_at_the_mean_wind_and_scale_it():
+    """Gust waves (gusts.py): the wind's speed pattern at t + dt is the one at t carried dt * v-bar
+    downwind (frozen, like the turbulence); it scales the mean wind by 1 +- gust_waves; none when
+    gust_waves is 0 (the same bits as before)."""
+    from windgrass.grass_addon import gusts
+    from windgrass.grass_addon.layout import build_layout
+
+    params = schema.defaults().replace({"field.blocks_x": 2, "field.blocks_y": 2, "wind.turbulence": 0.0,
+                                        "wind.speed": 6.0, "wind.direction": 30.0, "wind.gust_waves": 0.5,
+                                        "wind.gust_wave_size": 12.0})
+    layout = build_layout(params)
+    wind = WindField(layout, params)
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(-200.0, 200.0, (500, 2))
+    t, dt = 4.0, 1.5
+    carried = xy + dt * 6.0 * np.array([math.cos(math.radians(30.0)), math.sin(math.radians(30.0))])
+    now, later = wind.sample(t, xy), wind.sample(t + dt, carried)
+    assert np.allclose(np.hypot(*now.T), np.hypot(*later.T), atol=1e-4)
+    speed = np.hypot(*now.T)
+    assert speed.min() >= 6.0 * 0.5 - 1e-4 and speed.max() <= 6.0 * 1.5 + 1e-4
+    assert speed.std() > 0.5  # patches of stronger and weaker wind
+    assert np.allclose(np.degrees(np.arctan2(now[:, 1], now[:, 0])), 30.0, atol=1e-3)  # along the mean wind
+    tile = gusts.pattern(7)
+    assert tile.shape == (64, 64) and abs(float(tile.mean()) - 0.5) < 0.05
+    # it tiles: the value just inside one edge continues from the opposite edge
+    m = gusts.tile_metres(params)
+    inside, beyond = np.array([[0.001, 5.0]]), np.array([[m + 0.001, 5.0]])
+    assert np.allclose(gusts.sample(tile, inside, m), gusts.sample(tile, beyond, m))
+    plain = WindField(layout, params.replace({"wind.gust_waves": 0.0}))
+    assert np.allclose(np.hypot(*plain.sample(t, xy).T), 6.0)

@@ -1,0 +1,57 @@
+"""Gust waves: patches of stronger and weaker wind tens of metres wide, carried downwind.
+
+In a real meadow the wind is most visible far away: gusts run across the field as waves of
+lighter and darker grass. The turbulence of eq 13 is finer than a metre, so at a distance it
+averages out. ``wind.gust_waves`` adds a large, smooth pattern that scales the mean wind
+(``1 + gust_waves (2 g - 1)``, g in 0..1) and travels with it (frozen, like the turbulence):
+
+* the engine bends the near grass by it (``WindField``);
+* the cards and the far canopy brighten and darken by the same pattern at their place and time
+  (a packed image of it, ``pattern``, read by their materials at the mean wind's displacement),
+  so a gust that crosses the near grass is seen travelling on to the horizon with no simulation
+  of the far field.
+
+The pattern is one tile of ``TILE_PIXELS`` squared values (a Gaussian random field of the seed,
+low-pass filtered in Fourier space so it tiles), ``TILE_SIZES`` gust sizes wide; it is sampled
+bilinearly between pixel centres and wraps, exactly as Blender's Linear / Repeat image texture.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TILE_PIXELS = 64
+TILE_SIZES = 8.0  # a tile spans this many gust sizes (wind.gust_wave_size)
+GUST_PURPOSE = 29  # np.random.default_rng([seed, 29]) draws the pattern
+
+
+def tile_metres(params) -> float:
+    return TILE_SIZES * float(params.wind.gust_wave_size)
+
+
+def pattern(seed: int) -> np.ndarray:
+    """(TILE_PIXELS, TILE_PIXELS) float32 in [0, 1], mean 0.5: smooth patches about
+    TILE_PIXELS / TILE_SIZES pixels across, tiling without a seam (row 0 is y = 0)."""
+    n = TILE_PIXELS
+    white = np.random.default_rng([int(seed), GUST_PURPOSE]).standard_normal((n, n))
+    k = np.fft.fftfreq(n) * n  # cycles per tile
+    k2 = k[:, None] ** 2 + k[None, :] ** 2
+    cutoff = 0.5 * TILE_SIZES  # patches of one gust size: half a cycle each
+    field = np.real(np.fft.ifft2(np.fft.fft2(white) * np.exp(-k2 / (cutoff * cutoff))))
+    field = (field - field.mean()) / max(field.std(), 1e-12)
+    return np.clip(0.5 + field / 4.0, 0.0, 1.0).astype(np.float32)  # +-2 sigma -> 0 .. 1
+
+
+def sample(tile: np.ndarray, xy: np.ndarray, metres: float) -> np.ndarray:
+    """(m,) the pattern at points ``xy`` (m, 2), the tile spanning ``metres``: bilinear between
+    pixel centres, wrapping (Blender's Linear interpolation, Repeat extension)."""
+    n = tile.shape[0]
+    p = np.asarray(xy, np.float64) / metres * n - 0.5
+    i0 = np.floor(p).astype(np.int64)
+    f = p - i0
+    x0, y0 = i0[:, 0] % n, i0[:, 1] % n
+    x1, y1 = (x0 + 1) % n, (y0 + 1) % n
+    fx, fy = f[:, 0], f[:, 1]
+    top = tile[y0, x0] * (1 - fx) + tile[y0, x1] * fx
+    bottom = tile[y1, x0] * (1 - fx) + tile[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy

@@ -287,6 +287,7 @@ class Interaction:
         self.window = int(math.ceil(self.recovery * self.fps))
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
+        self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
         self._local: OrderedDict[int, tuple] = OrderedDict()  # frame -> its contacts on the window's cells
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
@@ -294,7 +295,11 @@ class Interaction:
         return (frame - self.frame_start) / self.fps
 
     def spheres(self, t: float) -> Spheres:
-        return Spheres.join(c.at(t) for c in self.colliders)
+        """Every collider's spheres at time ``t`` (the last instant asked is kept: a frame asks
+        for it three times)."""
+        if self._spheres_at is None or self._spheres_at[0] != t:
+            self._spheres_at = (t, Spheres.join(c.at(t) for c in self.colliders))
+        return self._spheres_at[1]
 
     def contacts(self, frame: int) -> Contacts:
         """The cells pressed at ``frame`` (kept for the recovery window)."""

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The README's pictures: a still and a short animation of the default scene, and the LOD comparison.
 
-    python headless/docs_media.py [--frames 1-30] [--resolution 400x225] [--out docs]
+    python headless/docs_media.py [--frames 1-30] [--resolution 960x540] [--out docs]
     python3.11 dev.py docs ...    # the same inside the project's .venv (installs Pillow there)
 
 Renders ``scenes/default.toml`` with ``render_field.py`` into ``renders/docs/``, then writes
@@ -24,7 +24,7 @@ REPO = HEADLESS.parent
 def parse_args(argv):
     parser = argparse.ArgumentParser(prog="docs_media.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", default="1-30", help="frame range of the animation (default 1-30)")
-    parser.add_argument("--resolution", default="400x225", help="WIDTHxHEIGHT (default 400x225)")
+    parser.add_argument("--resolution", default="960x540", help="WIDTHxHEIGHT (default 960x540)")
     parser.add_argument("--out", type=Path, default=REPO / "docs", help="folder of the README's pictures")
     parser.add_argument("--skip-render", action="store_true", help="use the frames already in renders/docs")
     return parser.parse_args(argv)

@@ -90,15 +90,21 @@ def _animation(obj, seen: set) -> list:
     if obj is None or obj.name in seen:
         return []
     seen.add(obj.name)
-    out = [obj.name, obj.type, [round(v, 6) for row in obj.matrix_basis for v in row]]
+    out = [obj.name, obj.type]
+    keyed = False
     for owner in (obj, getattr(obj, "data", None)):
         anim = getattr(owner, "animation_data", None)
         for fc in action_fcurves(anim):
             n = len(fc.keyframe_points)
-            co = np.empty(2 * n, np.float32)
+            co = np.empty(6 * n, np.float32)
             if n:
-                fc.keyframe_points.foreach_get("co", co)
+                fc.keyframe_points.foreach_get("co", co[:2 * n])
+                fc.keyframe_points.foreach_get("handle_left", co[2 * n:4 * n])
+                fc.keyframe_points.foreach_get("handle_right", co[4 * n:])
             out.append([fc.data_path, fc.array_index, hashlib.sha1(co.tobytes()).hexdigest(), fc.mute])
+            keyed = True
+    if not keyed:  # (a keyed object's pose changes with the frame; its keys say where it goes)
+        out.append([round(v, 6) for row in obj.matrix_basis for v in row])
     for con in obj.constraints:
         out.append([con.type, con.mute, con.influence])
         out.extend(_animation(getattr(con, "target", None), seen))
@@ -108,7 +114,7 @@ def _animation(obj, seen: set) -> list:
         out.extend(_animation(getattr(mod, "object", None), seen))
     if obj.type == "MESH":
         out.append(len(obj.data.vertices))
-    if obj.type == "ARMATURE" and obj.pose is not None:
+    if obj.type == "ARMATURE" and obj.pose is not None and not keyed:
         out.append([[round(v, 5) for v in (*b.location, *b.rotation_quaternion)] for b in obj.pose.bones])
     return out
 

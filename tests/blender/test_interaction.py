@@ -265,3 +265,23 @@ def test_an_armature_walker_tramples_along_its_feet(bridge):
     assert np.median(size[path]) > 0.8 and np.median(size[path]) > 4 * np.median(size[away])
     assert np.median(size[path]) > 2 * np.median(size[between])
     assert np.median(bend[path, 0]) > 3 * np.median(np.abs(bend[path, 1]))
+
+
+def test_the_motion_is_not_sampled_again_for_playing_its_keys(bridge):
+    """The stored motion's fingerprint reads a keyed object's keys, not where it is at the current
+    frame: stepping through the frames leaves it fresh; a new key makes it stale."""
+    properties, runtime = bridge
+    from windgrass.grass_addon.bridge import tracks
+
+    scene, item = _field(bridge)
+    ball, coll = _ball()
+    item.collider_collection = coll
+    params = properties.params_from_settings(item, scene)
+    stored = item.collection[tracks.TRACK_KEY]["fingerprint"]
+    for frame in (5, 17, 30):
+        scene.frame_set(frame)
+        assert tracks.fingerprint(scene, item, params) == stored
+    ball.location = (0.0, 1.0, 0.3)
+    ball.keyframe_insert("location", frame=40)
+    assert tracks.fingerprint(scene, item, params) != stored
+    assert runtime.update_track(scene, item) is True

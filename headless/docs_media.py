@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 HEADLESS = Path(__file__).resolve().parent
+ANIMATION_WIDTH = 640
 REPO = HEADLESS.parent
 
 
@@ -50,6 +51,10 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     images = [Image.open(p).convert("RGB") for p in frames]
     images[len(images) // 2].save(args.out / "default_scene.png", optimize=True)
+    # the animation at most ANIMATION_WIDTH wide (the still keeps the full size): a README loads it
+    if images[0].width > ANIMATION_WIDTH:
+        size = (ANIMATION_WIDTH, round(images[0].height * ANIMATION_WIDTH / images[0].width))
+        images = [im.resize(size, Image.LANCZOS) for im in images]
     images[0].save(args.out / "default_scene.webp", save_all=True, append_images=images[1:], duration=1000 // 24,
                    loop=0, quality=70, method=6)
     print(f"wrote {args.out / 'default_scene.png'} and {args.out / 'default_scene.webp'} ({len(images)} frames)")

@@ -26,6 +26,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .interaction import nearest_sample
+
 NOISE_RATE = 4.0  # Hz: how fast an effector's noise changes
 
 
@@ -100,10 +102,7 @@ class SampledEffectors:
     def at(self, t: float) -> list[Effector]:
         if not len(self.times):
             return []
-        k = int(np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1))
-        if k > 0 and t - self.times[k - 1] < self.times[k] - t:
-            k -= 1
-        return self.samples[k]
+        return self.samples[nearest_sample(self.times, t)]
 
 
 class JoinedEffectors:

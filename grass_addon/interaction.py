@@ -118,11 +118,17 @@ class SampledTrack:
     def at(self, t: float) -> Spheres:
         if not len(self.times):
             return Spheres.none()
-        k = int(np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1))
-        if k > 0 and t - self.times[k - 1] < self.times[k] - t:
-            k -= 1
+        k = nearest_sample(self.times, t)
         a, b = self.offsets[k], self.offsets[k + 1]
         return Spheres(self.centres[a:b], self.radii[a:b], self.velocity[a:b])
+
+
+def nearest_sample(times: np.ndarray, t: float) -> int:
+    """Index of the sample time (ascending ``times``, not empty) nearest to ``t`` (the earlier on a tie)."""
+    k = int(np.clip(np.searchsorted(times, t), 0, len(times) - 1))
+    if k > 0 and t - times[k - 1] <= times[k] - t:
+        k -= 1
+    return k
 
 
 def colliders_from_params(params) -> list[PathCollider]:

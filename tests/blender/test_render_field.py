@@ -147,6 +147,20 @@ def render(env, *args, timeout=300) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout)
 
 
+def split_renders(env, flags, tmp_path: Path, last: int) -> list[Path]:
+    """Frames 1..last and frame ``last`` alone with ``flags``: both folders, after checking that
+    frame ``last`` came out pixel for pixel the same (the render-farm contract)."""
+    runs = []
+    for frames in (f"1-{last}", str(last)):
+        out = tmp_path / frames
+        proc = render(env, *flags, "--frames", frames, "--out", out)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        runs.append(out)
+    name = f"frame_{last:04d}.png"
+    assert pixels(runs[1] / name) == pixels(runs[0] / name)
+    return runs
+
+
 def frames_in(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.glob("*.png"))
 
@@ -237,13 +251,7 @@ def test_a_painted_path_on_a_heightmap_renders_bare_and_splits_the_same(addon, e
              "--terrain-heightmap", tmp_path / "hills.png", "--terrain-height", "0.3", "--camera-mode", "fixed",
              "--camera-position", "0", "-2.2", "1.3", "--camera-target", "0", "0.6", "0",
              "--render-resolution-x", "128", "--render-resolution-y", "72"]
-    runs = []
-    for frames in ("1-4", "4"):
-        out = tmp_path / frames
-        proc = render(env, *flags, "--frames", frames, "--out", out)
-        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        runs.append(out)
-    assert pixels(runs[1] / "frame_0004.png") == pixels(runs[0] / "frame_0004.png")
+    runs = split_renders(env, flags, tmp_path, 4)
     width, height, _, _ = read_png(runs[0] / "frame_0004.png")
     image = np.array(pixels(runs[0] / "frame_0004.png"), np.float32).reshape(height, width, 3) / 255.0
     lower = image[int(0.8 * height):]
@@ -269,13 +277,7 @@ strength = 4.0
 """)
     flags = ["--config", config, "--engine", "cycles", "--camera-mode", "fixed", "--camera-position", "0", "-1.5",
              "1.0", "--camera-target", "0", "0.8", "0.1"]
-    runs = []
-    for frames in ("1-5", "5"):
-        out = tmp_path / frames
-        proc = render(env, *flags, "--frames", frames, "--out", out)
-        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        runs.append(out)
-    assert pixels(runs[1] / "frame_0005.png") == pixels(runs[0] / "frame_0005.png")
+    runs = split_renders(env, flags, tmp_path, 5)
     red = [p for p in pixels(runs[0] / "frame_0005.png") if p[0] > p[1] + 30 and p[0] > p[2] + 30]
     assert len(red) > 20, len(red)
 

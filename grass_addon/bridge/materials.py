@@ -38,6 +38,7 @@ NODE_GUST_IMAGE = "wg_gust_image"
 NODE_GUST_MAPPING = "wg_gust_mapping"
 NODE_GUST_AMOUNT = "wg_gust_amount"
 GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
+GUST_REFERENCE_SPEED = 5.0  # m/s: the swing is full from this mean wind on, as (speed / it)^2 below (the bend)
 
 # Node names that ``update_materials`` looks up.
 NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
@@ -544,28 +545,42 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
         mat.metallic = 0.0
 
 
+def gust_swing(params, speed: float) -> float:
+    """How much the gust waves brighten the far grass at a mean wind ``speed``: they show by the
+    bend they cause, which grows as the speed squared (full from GUST_REFERENCE_SPEED on; calm
+    air shows none)."""
+    return GUST_SHADE * float(params.wind.gust_waves) * min(1.0, (speed / GUST_REFERENCE_SPEED) ** 2)
+
+
 def update_gusts(params, *mats) -> None:
-    """The gust waves' brightness swing and the pattern's scale (one tile per gusts.tile_metres)."""
+    """The gust waves' brightness swing (at the settings' wind speed; ``set_gust_offset`` follows
+    keyed wind every frame) and the pattern's scale (one tile per gusts.tile_metres)."""
     scale = 1.0 / gusts.tile_metres(params)
     for mat in mats:
         nodes = mat.node_tree.nodes if mat is not None and mat.node_tree is not None else None
         if nodes is None or nodes.get(NODE_GUST_AMOUNT) is None:
             continue
-        nodes[NODE_GUST_AMOUNT].outputs[0].default_value = GUST_SHADE * float(params.wind.gust_waves)
+        nodes[NODE_GUST_AMOUNT].outputs[0].default_value = gust_swing(params, float(params.wind.speed))
         _set(nodes[NODE_GUST_MAPPING], (scale, scale, 1.0), "Scale")
 
 
-def set_gust_offset(displacement, params, *mats) -> None:
+def set_gust_offset(displacement, speed: float, params, *mats) -> None:
     """Carry the pattern downwind: the mapping's location is minus the mean wind's displacement
-    (gusts.py), in tiles. Called every frame for fields with gust waves."""
+    (gusts.py), in tiles; the swing follows the mean wind's ``speed``. Called every frame for
+    fields with gust waves."""
     scale = 1.0 / gusts.tile_metres(params)
     location = (-float(displacement[0]) * scale, -float(displacement[1]) * scale, 0.0)
+    swing = gust_swing(params, speed)
     for mat in mats:
-        node = mat.node_tree.nodes.get(NODE_GUST_MAPPING) if mat is not None and mat.node_tree else None
+        nodes = mat.node_tree.nodes if mat is not None and mat.node_tree else None
+        node = nodes.get(NODE_GUST_MAPPING) if nodes is not None else None
         if node is not None:
             socket = _socket(node.inputs, "Location")
             if tuple(socket.default_value) != location:
                 socket.default_value = location
+            amount = nodes[NODE_GUST_AMOUNT].outputs[0]
+            if amount.default_value != swing:
+                amount.default_value = swing
 
 
 def update_materials(params, canopy=None) -> None:

@@ -420,8 +420,8 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
     if rt.params.wind.gust_waves > 0.0:  # the far grass's gust waves travel with the mean wind
         reg = field_scene.registered(item)
         t = (frame + subframe - rt.params.render.frame_start) / rt.params.render.fps
-        materials.set_gust_offset(rt.field.wind.displacement(t), rt.params, reg.get(field_scene.ROLE_CARD_MATERIAL),
-                                  reg.get(field_scene.ROLE_CANOPY_MATERIAL))
+        materials.set_gust_offset(rt.field.wind.displacement(t), rt.field.wind.mean(t)[0], rt.params,
+                                  reg.get(field_scene.ROLE_CARD_MATERIAL), reg.get(field_scene.ROLE_CANOPY_MATERIAL))
     rt.frame, rt.subframe, rt.lod = frame, subframe, lod
     rt.camera_signature = field_camera.signature(views)
 

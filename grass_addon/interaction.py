@@ -333,10 +333,16 @@ class Interaction:
         value = press * recovery_curve(t - when, self.recovery, omega2[local], damping[local])
         keep = value > 1e-4
         local, value, direction = local[keep], value[keep], direction[keep]
-        order = np.lexsort((value, local))
-        local, value, direction = local[order], value[order], direction[order]
-        last = np.r_[local[1:] != local[:-1], True] if len(local) else np.zeros(0, bool)
-        return local[last], value[last], direction[last]
+        # per cell the strongest contact (the last one of equal strength), by a maximum over the
+        # window's cells (scratch kept per window, cleared after use): no sort of the contacts
+        best, heading = window.scratch()
+        np.maximum.at(best, local, value)
+        winner = value == best[local]
+        heading[local[winner]] = direction[winner]
+        cells = np.flatnonzero(best)
+        out = cells, best[cells].copy(), heading[cells].copy()
+        best[cells] = 0.0
+        return out
 
     def _in_window(self, frame: int, found: Contacts, window: WindowCells):
         """(local index, press, direction) of a frame's contacts on the window's cells (kept with
@@ -417,6 +423,13 @@ class WindowCells:
         self.ids = iy * grid.cells_x + ix
         self.order = np.argsort(self.ids, kind="stable")
         self.sorted = self.ids[self.order]
+
+    def scratch(self) -> tuple[np.ndarray, np.ndarray]:
+        """(C,) zeros and (C, 2) for per-cell reductions (callers leave the first at zero)."""
+        if not hasattr(self, "_best"):
+            self._best = np.zeros(len(self.ids))
+            self._heading = np.zeros((len(self.ids), 2))
+        return self._best, self._heading
 
     def find(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(found (m,) bool, local index of the found ones) of global cell ``ids``."""

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import atlas, forces, interaction, kinematics, slots
 from .blocks import BlockCache
-from .celldata import CellData, cell_data
+from .celldata import CellData
 from .errors import ParameterError
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
@@ -207,15 +207,15 @@ class GrassField:
         self.cells = None
         self._recent.clear()
 
-    def _interacted(self, frame: int, state) -> CellData:
-        """The cell data of ``state`` at ``frame`` with the colliders' push and trample on top."""
-        bend_t = state.bend_t
+    def _cell_data(self, frame: int, state, wind: np.ndarray) -> CellData:
+        """The cell data of ``state`` at ``frame`` (``celldata.cell_data``'s, views, no copy), with
+        the colliders' push and trample on top when there are colliders."""
         if self.interaction is not None:
             omega2, damping = self.sim.solver.recovery_oscillator()
-            over = self.interaction.bend(frame, self.layout, bend_t, omega2, damping)
+            over = self.interaction.bend(frame, self.layout, state.bend_t, omega2, damping)
             if over is not None:
                 state = state.overlaid(over)
-        return CellData(wind=self.sim.cell_wind, bend_t=state.bend_t, twist_t=state.twist_t, state=state,
+        return CellData(wind=wind, bend_t=state.bend_t, twist_t=state.twist_t, state=state,
                         card_height=self.layout.card_height)
 
     # ------------------------------------------------------------------ time
@@ -230,8 +230,7 @@ class GrassField:
         if camera is not None or not self._viewed:
             self.view(camera, frame)
         self.sim.seek(int(frame))
-        self.cells = self._interacted(int(frame), self.sim.state) if self.interaction is not None \
-            else cell_data(self.layout, self.sim)
+        self.cells = self._cell_data(int(frame), self.sim.state, self.sim.cell_wind)
         return self.cells
 
     def cells_at(self, frame: int) -> CellData:
@@ -241,11 +240,7 @@ class GrassField:
         cells = self._recent.get(frame)
         if cells is None:
             self.sim.seek(frame)
-            state = self.sim.state.copy()
-            if self.interaction is not None:
-                state = self._interacted(frame, state).state
-            cells = CellData(wind=self.sim.cell_wind.copy(), bend_t=state.bend_t, twist_t=state.twist_t,
-                             state=state, card_height=self.layout.card_height)
+            cells = self._cell_data(frame, self.sim.state.copy(), self.sim.cell_wind.copy())
             self._recent[frame] = cells
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.popitem(last=False)
@@ -281,8 +276,7 @@ class GrassField:
 
     def _current(self) -> CellData:
         if self.cells is None:
-            self.cells = self._interacted(self.sim.frame, self.sim.state) if self.interaction is not None \
-                else cell_data(self.layout, self.sim)
+            self.cells = self._cell_data(self.sim.frame, self.sim.state, self.sim.cell_wind)
         return self.cells
 
     # ------------------------------------------------------------------ LOD

@@ -154,9 +154,10 @@ def _geometry(e: Effector, points: np.ndarray):
     return vec, np.linalg.norm(vec, axis=1), axis, along
 
 
-def falloff(e: Effector, points: np.ndarray) -> np.ndarray:
-    """(m,) the effect's share at ``points`` (Blender's effector_falloff)."""
-    vec, distance, axis, along = _geometry(e, points)
+def falloff(e: Effector, points: np.ndarray, geometry=None) -> np.ndarray:
+    """(m,) the effect's share at ``points`` (Blender's effector_falloff); ``geometry``: their
+    ``_geometry`` when the caller has it."""
+    vec, distance, axis, along = _geometry(e, points) if geometry is None else geometry
     if e.falloff_type == "sphere":
         return falloff_law(distance, e.use_min, e.min_distance, e.use_max, e.max_distance, e.power)
     out = falloff_law(np.abs(along), e.use_min, e.min_distance, e.use_max, e.max_distance, e.power)
@@ -197,8 +198,9 @@ def value_noise(p: np.ndarray, seed: int) -> np.ndarray:
 
 def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
     """(m, 3) the force field's push at ``points`` at time ``t``, in m/s of wind."""
-    vec, distance, axis, _ = _geometry(e, points)
-    share = falloff(e, points)
+    geometry = _geometry(e, points)
+    vec, distance, axis, _ = geometry
+    share = falloff(e, points, geometry)
     strength = np.full(len(points), e.strength)
     if e.noise > 0.0:
         cell = np.column_stack([points[:, :2] * 0.5, np.full(len(points), t * NOISE_RATE)])

@@ -47,7 +47,8 @@ def wind_fcurves(scene, item) -> dict[str, object]:
     return out
 
 
-def _fcurve_fingerprint(fc) -> bytes:
+def fcurve_fingerprint(fc) -> bytes:
+    """Every key, handle, interpolation and setting of an F-curve, as bytes."""
     n = len(fc.keyframe_points)
     data = np.empty(n * 6, dtype=np.float32)
     if n:
@@ -88,5 +89,5 @@ def fingerprint(fcurves: dict, frames: tuple[int, int]) -> str:
     h = hashlib.sha1(repr(frames).encode())
     for role in sorted(fcurves):
         h.update(role.encode())
-        h.update(_fcurve_fingerprint(fcurves[role]))
+        h.update(fcurve_fingerprint(fcurves[role]))
     return h.hexdigest()

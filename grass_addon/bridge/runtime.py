@@ -527,7 +527,7 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
             is not None or tracks.TRACK_KEY in item.collection:
         REGISTRY.motion.add(key_of(scene, item))
     if not (defer if defer is not None else not bpy.app.background):
-        if REGISTRY.motion:
+        if key_of(scene, item) in REGISTRY.motion:
             REGISTRY.motion.discard(key_of(scene, item))
             _guarded(update_track, scene, item)
         _guarded(update_field, scene, item)
@@ -715,13 +715,13 @@ def _note_motion(scene, depsgraph) -> None:
             _refresh_later([key])
 
 
-def update_track(scene, item, progress=None, cancelled=None) -> bool:
+def update_track(scene, item, progress=None) -> bool:
     """Sample the field's colliders and force fields again when what they were sampled from
     changed (``tracks.fingerprint``); returns True when it did. Steps the scene's frames: never
     from a frame or render handler."""
     params = properties.params_from_settings(item, scene)
     wanted = tracks.fingerprint(scene, item, params)
-    have = item.collection.get(tracks.TRACK_KEY) if item.collection is not None else None
+    have = tracks.stored_fingerprint(item)
     if not wanted:
         if have is not None:
             tracks.clear(item)
@@ -730,13 +730,10 @@ def update_track(scene, item, progress=None, cancelled=None) -> bool:
                 rt.dirty = True
             return True
         return False
-    if have is not None and str(have.get("fingerprint", "")) == wanted:
+    if have == wanted:
         return False
     terrain_of(scene, item, params)  # (the ground's height bounds the colliders' spheres)
-    track = tracks.sample(scene, item, params, progress=progress, cancelled=cancelled)
-    if track is None:
-        return False
-    tracks.store(item, track, wanted)
+    tracks.store(item, tracks.sample(scene, item, params, progress=progress), wanted)
     rt = get_runtime(scene, item)
     if rt is not None:
         rt.dirty = True

@@ -30,7 +30,7 @@ from .. import forces
 from ..errors import ParameterError
 from ..interaction import SampledTrack
 from . import scene as field_scene
-from .animation import action_fcurves
+from .animation import action_fcurves, fcurve_fingerprint
 from .registry import REGISTRY, key_of
 
 TRACK_KEY = "wg_track"
@@ -93,15 +93,8 @@ def _animation(obj, seen: set) -> list:
     out = [obj.name, obj.type]
     keyed = False
     for owner in (obj, getattr(obj, "data", None)):
-        anim = getattr(owner, "animation_data", None)
-        for fc in action_fcurves(anim):
-            n = len(fc.keyframe_points)
-            co = np.empty(6 * n, np.float32)
-            if n:
-                fc.keyframe_points.foreach_get("co", co[:2 * n])
-                fc.keyframe_points.foreach_get("handle_left", co[2 * n:4 * n])
-                fc.keyframe_points.foreach_get("handle_right", co[4 * n:])
-            out.append([fc.data_path, fc.array_index, hashlib.sha1(co.tobytes()).hexdigest(), fc.mute])
+        for fc in action_fcurves(getattr(owner, "animation_data", None)):
+            out.append([fc.data_path, fc.array_index, hashlib.sha1(fcurve_fingerprint(fc)).hexdigest(), fc.mute])
             keyed = True
     if not keyed:  # (a keyed object's pose changes with the frame; its keys say where it goes)
         out.append([round(v, 6) for row in obj.matrix_basis for v in row])
@@ -119,12 +112,25 @@ def _animation(obj, seen: set) -> list:
     return out
 
 
-def _field_settings(obj) -> dict:
+# forces.Effector's settings read from Blender's field settings: (its field, Blender's, type, default).
+FIELD_SETTINGS = (
+    ("strength", "strength", float, 0.0), ("power", "falloff_power", float, 0.0),
+    ("min_distance", "distance_min", float, 0.0), ("use_min", "use_min_distance", bool, False),
+    ("max_distance", "distance_max", float, 0.0), ("use_max", "use_max_distance", bool, False),
+    ("radial_power", "radial_falloff", float, 0.0), ("radial_min", "radial_min", float, 0.0),
+    ("use_radial_min", "use_radial_min", bool, False), ("radial_max", "radial_max", float, 0.0),
+    ("use_radial_max", "use_radial_max", bool, False), ("noise", "noise", float, 0.0),
+    ("size", "size", float, 1.0), ("seed", "seed", int, 1),
+)
+
+
+def _field_settings(obj) -> list:
+    """What a force field acts with, as the sampling reads it; a keyed setting is left to its
+    keys (its value changes with the frame; ``_animation`` reads the keys)."""
     f = obj.field
-    names = ("type", "shape", "strength", "flow", "falloff_type", "falloff_power", "use_min_distance",
-             "distance_min", "use_max_distance", "distance_max", "use_radial_min", "radial_min", "use_radial_max",
-             "radial_max", "radial_falloff", "noise", "size", "seed", "z_direction")
-    return {n: getattr(f, n) for n in names if hasattr(f, n)}
+    keyed = {fc.data_path for fc in action_fcurves(obj.animation_data)}
+    return [f.type, f.shape, f.falloff_type] + [getattr(f, name, default) for _, name, _, default in FIELD_SETTINGS
+                                                 if f"field.{name}" not in keyed]
 
 
 def fingerprint(scene, item, params) -> str:
@@ -230,23 +236,17 @@ def _object_points(obj_eval, to_field: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
     f = obj_eval.field
-    get = lambda name, default=0.0: getattr(f, name, default)  # noqa: E731
     return forces.Effector(
         kind=BLENDER_TYPES[f.type], matrix=to_field @ np.array(obj_eval.matrix_world, np.float64),
-        strength=float(f.strength), shape="plane" if f.shape == "PLANE" else "point",
-        power=float(get("falloff_power")), falloff_type={"TUBE": "tube", "CONE": "cone"}.get(f.falloff_type, "sphere"),
-        min_distance=float(get("distance_min")), use_min=bool(get("use_min_distance", False)),
-        max_distance=float(get("distance_max")), use_max=bool(get("use_max_distance", False)),
-        radial_power=float(get("radial_falloff")), radial_min=float(get("radial_min")),
-        use_radial_min=bool(get("use_radial_min", False)), radial_max=float(get("radial_max")),
-        use_radial_max=bool(get("use_radial_max", False)), noise=float(get("noise")), size=float(get("size", 1.0)),
-        seed=int(get("seed", 1)))
+        shape="plane" if f.shape == "PLANE" else "point",
+        falloff_type={"TUBE": "tube", "CONE": "cone"}.get(f.falloff_type, "sphere"),
+        **{key: kind(getattr(f, name, default)) for key, name, kind, default in FIELD_SETTINGS})
 
 
-def sample(scene, item, params, progress=None, cancelled=None) -> dict | None:
+def sample(scene, item, params, progress=None) -> dict:
     """Sample the field's colliders and force fields at every frame of ``frame_range``: the
-    track to store (``store``), or None when cancelled (``cancelled()`` true). ``progress(done,
-    total)`` after each frame. The scene is back at its frame afterwards."""
+    track to store (``store``). ``progress(done, total)`` after each frame. The scene is back at
+    its frame afterwards."""
     colliders, effectors = collider_objects(item), effector_objects(item)
     ground = field_scene.ground_object(item)
     to_field = np.array(ground.matrix_world.inverted_safe(), np.float64) if ground is not None else np.eye(4)
@@ -261,8 +261,6 @@ def sample(scene, item, params, progress=None, cancelled=None) -> dict | None:
     REGISTRY.sampling = True
     try:
         for i, f in enumerate(frames):
-            if cancelled is not None and cancelled():
-                return None
             scene.frame_set(f)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             for j, obj in enumerate(colliders):
@@ -337,6 +335,12 @@ def stored(item):
     return colliders, effectors, digest
 
 
+def stored_fingerprint(item) -> str | None:
+    """The fingerprint the stored track was sampled with (None without a track)."""
+    raw = item.collection.get(TRACK_KEY) if item.collection is not None else None
+    return None if raw is None else str(raw.get("fingerprint", ""))
+
+
 def effector_digest(item) -> str:
     """Changes only when the stored force fields do (their part of the track)."""
     coll = item.collection
@@ -351,10 +355,9 @@ def status(scene, item, params) -> str | None:
         wanted = fingerprint(scene, item, params)
     except ParameterError as exc:
         return str(exc)
-    have = item.collection.get(TRACK_KEY) if item.collection is not None else None
     if not wanted:
         return None
-    if have is None or str(have.get("fingerprint", "")) != wanted:
+    if stored_fingerprint(item) != wanted:
         return "Motion of the colliders and force fields not sampled yet: press Update Motion"
-    frames = len(have["times"])
+    frames = len(item.collection[TRACK_KEY]["times"])
     return f"Motion sampled over {frames} frames ({frames / params.render.fps:.1f} s)"

@@ -285,3 +285,27 @@ def test_the_motion_is_not_sampled_again_for_playing_its_keys(bridge):
     ball.keyframe_insert("location", frame=40)
     assert tracks.fingerprint(scene, item, params) != stored
     assert runtime.update_track(scene, item) is True
+
+
+def test_a_wind_field_switched_on_at_a_frame_blows_from_then(bridge):
+    """A Wind field whose strength is keyed from 0 to 8 at frame 12: calm grass before, bent
+    along the field's direction after; stepping the frames leaves the sampled motion fresh (its
+    fingerprint reads the strength's keys, not the strength at the current frame)."""
+    properties, runtime = bridge
+    from windgrass.grass_addon.bridge import tracks
+
+    scene, item = _field(bridge)
+    rotation = Euler((0.0, math.radians(90.0), 0.0), "XYZ")  # Z axis -> +X
+    wind, coll = _force_field("WIND", location=(-3.0, 0.0, 0.15), rotation=rotation, strength=0.0)
+    wind.field.keyframe_insert("strength", frame=11)
+    wind.field.strength = 8.0
+    wind.field.keyframe_insert("strength", frame=12)
+    item.effector_collection = coll
+    params = properties.params_from_settings(item, scene)
+    stored = tracks.stored_fingerprint(item)
+    _, before = _cell_bends(runtime, scene, item, 8)
+    assert tracks.fingerprint(scene, item, params) == stored  # (strength 0 here)
+    _, after = _cell_bends(runtime, scene, item, 36)
+    assert tracks.fingerprint(scene, item, params) == stored  # (strength 8 here)
+    assert np.abs(before).max() < 1e-6
+    assert np.median(after[:, 0]) > 0.05 and np.median(after[:, 0]) > 10 * np.median(np.abs(after[:, 1]))

@@ -13,9 +13,12 @@ tip colour over the lower 70 % of the blade, ``bridge/materials.py``):
   field's edge against the sky as ragged and see-through as its blades (a fringe rising from the
   canopy plane to the tallest tip, ``sward_top``), in the colour of the blades' parts that stand
   above the canopy plane (``fringe_colour``: tips, lit like the blades, not shaded by others).
-* ``sward_colour``: the colour of the blades as a grazing view sees them: the mean colour of the
-  upper part of each blade (the part not hidden by the sward), weighted by its width (the strip
-  of ``blade.width_at``) and by species share.
+* ``sward_look``: the colour of the sward seen from a view descending with slope s: a grazing
+  view meets the lit upper parts of the blades, a steeper one sees deeper, into the blades'
+  shade and their dark roots, and through the gaps to the floor. At each height z the ray is
+  stopped with the chance that tau(z) / s of blade lies above (``sward_depth``); what it meets
+  there is the blades' colour at that height lit by the share exp(-tau(z) / LIGHT_SLOPE) of the
+  light that reaches it. The canopy takes this colour for the slope of each ray that meets it.
 
 The cards' texture is ``atlas.py``. Numpy only (no Blender); the bridge writes the values into
 the materials.
@@ -31,10 +34,18 @@ from .grid import FieldGrid
 from .schema import Params
 
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (linear RGB)
+# The meadow's floor under the blades (the ground material: dry thatch and green litter in noise).
+THATCH_COLOUR = (0.050, 0.042, 0.016)
+LITTER_COLOUR = (0.022, 0.040, 0.010)
 GRADIENT_END = 0.7  # the blade material darkens the lower 70 % of the blade towards the root
 CANOPY_SHARE = 0.75  # a grazing view sees the sward down to three quarters of the tips' mean height
 PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``sward_profile`` gives the depth
-VISIBLE_FROM = 0.35  # of a blade's length: the part below is hidden by the sward from afar
+# Sun and sky reach height z inside the sward through tau(z) / LIGHT_SLOPE of blades, as light
+# from 45 degrees up would (fitted, with materials.SWARD_LIGHT, to all-geometry renders of long
+# strips seen from slopes 0.013-0.53, in sun and under an overcast sky: 3 % rms, at worst 7 %;
+# headless/lod_compare.py --views strip).
+LIGHT_SLOPE = 1.0
+LOOK_LAYERS = 48  # height layers over which ``sward_look`` sums what a ray meets
 
 
 def sample_blades(params: Params):
@@ -91,14 +102,45 @@ def _segment_spans(params: Params, block):
     return np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:]), seen
 
 
-def sward_colour(params: Params) -> tuple[float, float, float]:
-    """Mean linear RGB of the visible upper part of the field's blades (see module doc)."""
-    species = Species(params)
-    v = np.linspace(VISIBLE_FROM, 1.0, 64)
-    width = blade.width_at(params.blade.tip_width, v)
-    ramp = blade_colour_ramp(species.color.astype(np.float64), v)  # (species, 64, 3)
-    per_species = (ramp * width[None, :, None]).sum(axis=1) / width.sum()
-    return tuple(float(c) for c in species.p @ per_species)
+def sward_look(params: Params, slopes) -> np.ndarray:
+    """Linear RGB (len(slopes), 3) of the sward as a ray descending with each slope s (rise over
+    run, > 0) sees it, not yet scaled by how the scene lights a horizontal plane (see module
+    doc). Layer k between heights z_k < z_k+1 stops the ray with chance exp(-tau(z_k+1) / s) -
+    exp(-tau(z_k) / s); the floor shows where it gets through, exp(-tau(0) / s)."""
+    slopes = np.maximum(np.atleast_1d(np.asarray(slopes, np.float64)), 1e-6)[:, None]
+    edges = np.linspace(0.0, sward_top(params), LOOK_LAYERS + 1)
+    tau = sward_depth(params, edges)
+    colours = _layer_colours(params, edges)
+    meets = np.exp(-tau[1:][None] / slopes) - np.exp(-tau[:-1][None] / slopes)  # (slopes, layers)
+    lit = np.exp(-0.5 * (tau[1:] + tau[:-1]) / LIGHT_SLOPE)
+    floor = 0.5 * (np.asarray(THATCH_COLOUR) + np.asarray(LITTER_COLOUR)) * np.exp(-tau[0] / LIGHT_SLOPE)
+    return meets @ (colours * lit[:, None]) + np.exp(-tau[0] / slopes) * floor
+
+
+def _layer_colours(params: Params, edges: np.ndarray) -> np.ndarray:
+    """Mean linear RGB (layers, 3) of the blade area between consecutive ``edges`` (heights), as a
+    horizontal ray sees it (width times rise): each segment in the blade material's colour at its
+    middle, with each blade's shade (as the card atlas draws them)."""
+    block = sample_blades(params)
+    if block.blade_length.size == 0:
+        return np.zeros((len(edges) - 1, 3))
+    low, high, seen = _segment_spans(params, block)
+    inside = np.clip((np.minimum(high[None], edges[1:, None, None]) - np.maximum(low[None], edges[:-1, None, None]))
+                     / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)
+    weight = inside * seen[None]  # (layers, blades, segments)
+    colour = _segment_colours(params, block, 0.5)
+    total = np.einsum("lbs,bsc->lc", weight, colour)
+    return total / np.maximum(weight.sum(axis=(1, 2)), 1e-12)[:, None]
+
+
+def _segment_colours(params: Params, block, at) -> np.ndarray:
+    """Linear RGB (blades, segments, 3) of each segment at the share ``at`` of its length (a
+    number or (blades, segments)), in the blade material's ramp with each blade's shade."""
+    n = int(params.blade.segments)
+    tip = Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]
+    v = (np.arange(n) + np.asarray(at, np.float64)) / n
+    shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
+    return blade_colour_ramp(tip, v) * shade[:, None, None]
 
 
 def fringe_colour(params: Params) -> tuple[float, float, float]:
@@ -107,17 +149,14 @@ def fringe_colour(params: Params) -> tuple[float, float, float]:
     shade (as the card atlas draws them)."""
     block = sample_blades(params)
     if block.blade_length.size == 0:
-        return sward_colour(params)
-    n = int(params.blade.segments)
+        return tuple(float(c) for c in Species(params).p @ Species(params).color)
     low, high, seen = _segment_spans(params, block)
     above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
     weight = seen * above
     if weight.sum() <= 0.0:
-        return sward_colour(params)
-    tip = Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]
+        weight = seen  # nothing above the plane: the blades' mean
     # the upper part of each segment (above the plane) at its middle height along the blade
-    v = (np.arange(n) + 1.0 - 0.5 * above) / n
-    colour = blade_colour_ramp(tip, v) * (0.7 + 0.6 * block.blade_shade.astype(np.float64))[:, None, None]
+    colour = _segment_colours(params, block, 1.0 - 0.5 * above)
     return tuple(float(c) for c in (colour * weight[..., None]).sum(axis=(0, 1)) / weight.sum())
 
 

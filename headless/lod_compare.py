@@ -6,15 +6,23 @@ frame, in calm air, and the frame-to-frame change of a slow fly-through with and
     python headless/lod_compare.py [--config scenes/default.toml] [--resolution 320x180]
                                    [--samples 16] [--engine cycles|eevee]
                                    [--lights sun overcast] [--presets default meadow]
+                                   [--views square strip] [--heights 1.1 2.5 6]
                                    [--out renders/lod_compare] [--json]
     python3.11 dev.py lod ...      # the same, inside the project's .venv
 
-Prints one JSON object: for every light and species preset, ``row_diff_max`` (the largest
-difference of an image row's mean colour, linear RGB 0-1, LOD against all geometry) and
-``mean_abs_diff`` (of the whole image), and for the fly-through ``flicker_lod`` and
-``flicker_geometry`` (mean absolute change between consecutive frames) and their ratio. The
-images (PNG, display colours) and each case's row means (``<case>_rows.npz``, linear RGB) are
-written to --out for a look. Exit status 2 on bad input.
+Two views: ``square``, the scene's eye over a square field looking across it to its far edge;
+``strip``, a narrow camera (20 degrees) at each of --heights looking along a field 16 m wide
+and 102 m long, so every band (blades, cards, the far canopy) is seen from low grazing to steep
+slopes with an all-geometry reference (only the strip's middle columns are compared).
+
+Prints one JSON object: for every view, light and species preset (and height, strip),
+``row_diff_max`` (the largest difference of an image row's mean colour, linear RGB 0-1, LOD
+against all geometry), ``row_ratio_max`` (the largest relative difference of a grass row's mean
+green: a seam shows here) and ``mean_abs_diff`` (of the whole image), and for the fly-through
+``flicker_lod`` and ``flicker_geometry`` (mean absolute change between consecutive frames) and
+their ratio. The strip's rows at its far edge (102 m away, against the sky) are left out: the
+square view holds the far edge. The images (PNG, display colours) and each case's row means (``<case>_rows.npz``,
+linear RGB) are written to --out for a look. Exit status 2 on bad input.
 """
 
 from __future__ import annotations
@@ -38,6 +46,8 @@ from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.grid import FieldGrid  # noqa: E402
 
 OVERCAST = (0.55, 0.58, 0.62)  # uniform grey sky (linear RGB)
+STRIP_BLOCKS = (10, 64)  # the strip view's field in blocks (16 x 102 m with the default's blocks)
+STRIP_FOV = 20.0  # degrees: the strip's middle sixth stays on the field to its far edge
 
 
 def parse_args(argv):
@@ -50,6 +60,9 @@ def parse_args(argv):
     parser.add_argument("--presets", nargs="+", default=["default", "meadow", "painted"],
                         help=f"species presets: default (the scene's), one of {', '.join(presets.PRESET_NAMES)}, or "
                              "painted (the scene's, with a path and a density gradient painted)")
+    parser.add_argument("--views", nargs="+", default=["square", "strip"], choices=["square", "strip"])
+    parser.add_argument("--heights", nargs="+", type=float, default=[1.1, 2.5, 6.0],
+                        help="camera heights (m) of the strip view")
     parser.add_argument("--flythrough-frames", type=int, default=3, help="frames of the slow fly-through (0: none)")
     parser.add_argument("--blocks", type=int, default=24,
                         help="blocks per side of the compared field (all geometry must fit: default 24, 38.4 m)")
@@ -58,7 +71,7 @@ def parse_args(argv):
     return parser.parse_args(argv)
 
 
-def scene_params(args, preset: str, fixed: bool):
+def scene_params(args, preset: str, fixed: bool, strip_height: float | None = None):
     params = schema.load_toml(args.config)
     try:
         w, h = (int(v) for v in args.resolution.lower().split("x"))
@@ -77,6 +90,14 @@ def scene_params(args, preset: str, fixed: bool):
     else:
         changes.update({"camera.mode": "flythrough", "camera.speed": 0.5})
     params = params.replace(changes)
+    if strip_height is not None:
+        if not 0.05 <= strip_height <= 50.0:
+            raise ParameterError("heights", f"{strip_height} m is out of range (valid: 0.05-50)")
+        params = params.replace({"field.blocks_x": STRIP_BLOCKS[0], "field.blocks_y": STRIP_BLOCKS[1]})
+        size_y = FieldGrid.of(params).size[1]
+        params = params.replace({"camera.fov": STRIP_FOV, "camera.height": strip_height,
+                                 "camera.position": (0.0, -0.5 * size_y + 0.3, strip_height),
+                                 "camera.target": (0.0, 0.5 * size_y, 0.0)})
     if preset == "painted":
         # the LOD bands brought close, so the path crosses blades, cards and the far canopy in the field
         size = FieldGrid.of(params).size[1]
@@ -148,27 +169,59 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
     return images
 
 
+def grass_rows(geometry_rows):
+    """Rows of grass (green over red and blue, not the sky) in an image's row means (rows, 3),
+    leaving out the two rows next to the horizon (where sky and field share pixels)."""
+    import numpy as np
+
+    green = (geometry_rows[:, 1] > geometry_rows[:, 0]) & (geometry_rows[:, 1] > geometry_rows[:, 2])
+    green &= geometry_rows.mean(axis=1) < 0.3
+    sky = np.flatnonzero(~green)
+    top = int(sky[sky < len(green) // 2].max()) + 3 if np.any(sky < len(green) // 2) else 0
+    green[:top] = False
+    return green
+
+
+def compare_images(lod, geo, edge: bool = True) -> dict:
+    """The figures of one case (module doc) from linear RGB images (H, W, 3); ``edge``: the rows
+    where the field's far edge meets the sky count (the strip view leaves them to the square's)."""
+    import numpy as np
+
+    rows_lod, rows_geo = lod.mean(axis=1), geo.mean(axis=1)
+    grass = grass_rows(rows_geo)
+    diff = np.abs(rows_lod - rows_geo).max(axis=1)
+    if not edge:
+        diff = np.where(grass | (np.arange(len(grass)) > len(grass) // 2), diff, 0.0)
+    ratio = np.abs(rows_lod[grass, 1] / np.maximum(rows_geo[grass, 1], 1e-6) - 1.0)
+    return {"row_diff_max": round(float(diff.max()), 4),
+            "row_ratio_max": round(float(ratio.max()), 3) if ratio.size else None,
+            "mean_abs_diff": round(float(np.abs(lod - geo).mean()), 4),
+            "worst_row_from_top": int(diff.argmax())}
+
+
 def compare(args) -> dict:
     import numpy as np
 
     args.out.mkdir(parents=True, exist_ok=True)
     result = {"engine": args.engine, "resolution": args.resolution, "samples": args.samples, "cases": {}}
-    for preset in args.presets:
-        for light in args.lights:
-            tag = f"{preset}_{light}"
-            t0 = time.perf_counter()
-            params = scene_params(args, preset, fixed=True)
-            lod, = render(params, True, light, [1], args.out, tag)
-            geo, = render(params, False, light, [1], args.out, tag)
-            np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1),
-                     lod_image=lod, geometry_image=geo)
-            rows = np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max()
-            case = {"row_diff_max": round(float(rows), 4),
-                    "mean_abs_diff": round(float(np.abs(lod - geo).mean()), 4),
-                    "worst_row_from_top": int(np.abs(lod.mean(axis=1) - geo.mean(axis=1)).max(axis=1).argmax()),
-                    "seconds": round(time.perf_counter() - t0, 1)}
-            result["cases"][tag] = case
-            print(f"{tag}: {case}", file=sys.stderr, flush=True)
+    runs = [(view, height) for view in args.views
+            for height in ([None] if view == "square" else args.heights)]
+    for view, height in runs:
+        for preset in args.presets:
+            for light in args.lights:
+                tag = f"{preset}_{light}" if view == "square" else f"strip{height:g}m_{preset}_{light}"
+                t0 = time.perf_counter()
+                params = scene_params(args, preset, fixed=True, strip_height=height)
+                lod, = render(params, True, light, [1], args.out, tag)
+                geo, = render(params, False, light, [1], args.out, tag)
+                if view == "strip":  # the middle columns: on the field from the camera to its far edge
+                    w = lod.shape[1]
+                    lod, geo = lod[:, w // 2 - w // 12: w // 2 + w // 12], geo[:, w // 2 - w // 12: w // 2 + w // 12]
+                result["cases"][tag] = case = compare_images(lod, geo, edge=view == "square")
+                case["seconds"] = round(time.perf_counter() - t0, 1)
+                np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1),
+                         lod_image=lod, geometry_image=geo)
+                print(f"{tag}: {case}", file=sys.stderr, flush=True)
     if args.flythrough_frames > 1:
         params = scene_params(args, args.presets[0], fixed=False)
         frames = list(range(1, args.flythrough_frames + 1))
@@ -185,7 +238,10 @@ def compare(args) -> dict:
 def main(argv=None) -> int:
     args = parse_args(argv)
     try:
-        scene_params(args, args.presets[0], fixed=True)  # bad input before anything renders
+        for preset in args.presets:  # bad input before anything renders
+            scene_params(args, preset, fixed=True)
+        for height in args.heights if "strip" in args.views else ():
+            scene_params(args, args.presets[0], fixed=True, strip_height=height)
         result = compare(args)
     except ParameterError as exc:
         print(f"lod_compare.py: error: {exc}", file=sys.stderr)

@@ -45,7 +45,7 @@ NODE_KT = "wg_kt"  # Map Range: View Distance -> K_t of eq 10
 NODE_CARD_DEPTH = "wg_card_depth"  # Value: transparent layers a ray crosses before a card stops it
 NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: no haze)
 NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
-NODE_GROUND_GRASS = "wg_ground_grass"  # RGB: far-field grass colour of the canopy (sward.sward_colour)
+NODE_SWARD_LOOK = "wg_sward_look"  # RGB Curves: the canopy's colour over the ray's slope (sward.sward_look)
 NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (sward.fringe_colour)
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
@@ -59,19 +59,28 @@ NODE_PAINT_MAPPING = "wg_paint_mapping"  # Mapping: the ground's UVs (the field)
 BLADE_BASE_COLOUR = (*sward.BLADE_BASE_COLOUR, 1.0)
 # Ground under near grass: the floor of a meadow, dry thatch and green litter in the sward's shade
 # (not bare earth, not a grey floor); matte (no specular sheen).
-THATCH_COLOUR = (0.050, 0.042, 0.016, 1.0)
-LITTER_COLOUR = (0.022, 0.040, 0.010, 1.0)
-# Seen from afar a sward is darker than its blades' colour: the blades shade one another.
-# (Measured against the all-geometry render, sun and overcast: headless/lod_compare.py.)
-SWARD_SHADE = 0.7
+THATCH_COLOUR = (*sward.THATCH_COLOUR, 1.0)
+LITTER_COLOUR = (*sward.LITTER_COLOUR, 1.0)
+# The canopy is a horizontal plane that the sun and sky light whole, the blades it stands for are
+# lit on their sides: its colour is SWARD_LIGHT times what rays see of the sward (sward.sward_look;
+# fitted with sward.LIGHT_SLOPE to all-geometry renders, sun and overcast: headless/lod_compare.py).
+SWARD_LIGHT = 0.55
+# The canopy's colour curve runs over x = s / (s + LOOK_KNEE) of the ray's slope s (0: grazing,
+# 1: straight down), which spends most of its points on the low views where the look changes most.
+LOOK_KNEE = 0.1
+LOOK_POINTS = 33
+VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slope (eye height / distance)
+# A card is lit as one flat plane where the blades it shows face every way and curve: seen from
+# any slope it comes out 0.85-0.9 times as bright as those blades (all-geometry renders of long
+# strips, sun and overcast: headless/lod_compare.py --views strip), so its colour is raised.
+CARD_LIGHT = 1.15
 CARD_SPECULAR = 0.1  # the cards' specular level (blades: 0.35) and roughness (blades: 0.55)
 CARD_ROUGHNESS = 0.8
-CANOPY_GAIN = 2.0  # the canopy's opacity is min(1, CANOPY_GAIN * K_t)
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 5
+MATERIALS_VERSION = 6
 
 
 def _socket(sockets, *names: str):
@@ -305,12 +314,22 @@ def card_material(name: str, uid: str, image, gust_image=None):
     depth = t.add("ShaderNodeValue", -1300, -850, name=NODE_CARD_DEPTH)
     depth.outputs[0].default_value = 6.0
     deep = t.math("GREATER_THAN", (path, "Transparent Depth"), (depth, "Value"), -1100, -650)
-    cover = t.math("MAXIMUM", (tex, "Alpha"), (deep, "Value"), -950, -500)
-    alpha = t.math("MULTIPLY", (cover, "Value"), (opacity, "X"), -800, -300, clamp=True)
+    # (faded cards too: a ray through the fading band would otherwise cross more of them than the
+    # renderer lets it and come out black, a dark line where the far canopy takes over)
+    faded = t.math("MULTIPLY", (tex, "Alpha"), (opacity, "X"), -950, -500, clamp=True)
+    stops = t.math("MAXIMUM", (faded, "Value"), (deep, "Value"), -800, -450)
+    # Fading cards are seen, but cast no shadow and hide no sky: the far canopy under them stands
+    # for the sward with its own shade (SWARD_LIGHT); lit through them, it came out 10-25 % dark.
+    fading = t.math("LESS_THAN", (opacity, "X"), 0.999, -950, -800)
+    unseen = t.math("SUBTRACT", 1.0, (path, "Is Camera Ray"), -950, -950)
+    hidden = t.math("MULTIPLY", (fading, "Value"), (unseen, "Value"), -800, -750)
+    alpha = t.math("SUBTRACT", (stops, "Value"), (hidden, "Value"), -650, -300, clamp=True)
     # A card is one flat plane where its blades turn every way: their highlights scatter, the
     # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
-    colour, colour_out = (tex, "Color") if gust_image is None else \
-        (t.gusted(tex, "Color", gust_image, -800, 300), "Result_Color")
+    lit = t.mix_rgb(-950, 300, blend="MULTIPLY", b=(CARD_LIGHT, CARD_LIGHT, CARD_LIGHT, 1.0))
+    t.link(tex, "Color", lit, "A_Color")
+    colour, colour_out = (lit, "Result_Color") if gust_image is None else \
+        (t.gusted(lit, "Result_Color", gust_image, -800, 300), "Result_Color")
     shader = t.hazed(t.foliage(colour, colour_out, -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
                      "Shader", -100, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
@@ -347,10 +366,11 @@ def ground_material(name: str, uid: str):
 
 def canopy_material(name: str, uid: str, gust_image=None):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
-    (``sward.canopy_height``). Its colour is the blades' (``sward.sward_colour``, darkened
-    by SWARD_SHADE) with fine streaks; its opacity is K_t of eq 10 = clamp((d - d_s1) /
-    (d_s2 - d_s1)) from the Camera Data node's View Distance, so it appears where the cards fade
-    (K'_b = 1 - K_t, eq 11) and is clear near the camera. It casts no shadow."""
+    (``sward.canopy_height``). Its colour is what a ray with the slope of the camera's ray sees
+    of the sward (``sward.sward_look``, times SWARD_LIGHT) with fine streaks; its opacity rises
+    with K_t of eq 10 = clamp((d - d_s1) / (d_s2 - d_s1)) from the Camera Data node's View
+    Distance, so it appears where the cards fade (K'_b = 1 - K_t, eq 11) and is clear near the
+    camera. Only the camera sees it."""
     mat = _new_material(name, uid)
     _transparent(mat)
     t = _Tree(mat)
@@ -359,8 +379,15 @@ def canopy_material(name: str, uid: str, gust_image=None):
     _set(grass_noise, 40.0, "Scale")
     _set(grass_noise, 4.0, "Detail")
     t.link(coord, "Object", grass_noise, "Vector")
-    grass_colour = t.add("ShaderNodeRGB", -1150, -350, name=NODE_GROUND_GRASS)
-    grass_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
+    view, view_z, slope = _view_slope(t, -2300, -1100)
+    # the look over x = s / (s + LOOK_KNEE), one curve per channel of a grey (x, x, x)
+    knee = t.math("ADD", (slope, "Value"), LOOK_KNEE, -1700, -350)
+    along = t.math("DIVIDE", (slope, "Value"), (knee, "Value"), -1550, -350)
+    grey = t.add("ShaderNodeCombineXYZ", -1400, -350)
+    for axis in "XYZ":
+        t.link(along, "Value", grey, axis)
+    grass_colour = t.add("ShaderNodeRGBCurve", -1250, -350, name=NODE_SWARD_LOOK)
+    t.link(grey, "Vector", grass_colour, "Color")
     # the fringe (``wg_sward_z`` X = 1) shows the tips that stand above the plane
     fringe_colour = t.add("ShaderNodeRGB", -1150, -550, name=NODE_FRINGE_COLOUR)
     fringe_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
@@ -392,13 +419,17 @@ def canopy_material(name: str, uid: str, gust_image=None):
     t.link(camera, "View Distance", kt, "Value")
     _set(kt, 0.0, "To Min")
     _set(kt, 1.0, "To Max")
-    # The canopy is the floor of the fading cards (K'_b = 1 - K_t): it turns opaque over the first
-    # 1 / CANOPY_GAIN of the band, so the band blends the cards' colour into the canopy's instead
-    # of letting the dark ground show through both (a seam).
-    gain = t.math("MULTIPLY", (kt, "Result"), CANOPY_GAIN, -600, -550, clamp=True)
+    # The canopy is the floor of the fading cards (K'_b = 1 - K_t): its opacity 1 - (1 - K_t)^2
+    # rises twice as fast as K_t at first, so the dark ground does not show through both, and
+    # levels off smoothly to 1 at the band's end (a kink in it shows as a line).
+    left = t.math("SUBTRACT", 1.0, (kt, "Result"), -650, -450)
+    gain = t.math("MULTIPLY_ADD", (left, "Value"), (left, "Value"), -600, -550, clamp=True)
+    gain.inputs[2].default_value = 0.0
+    gain = t.math("SUBTRACT", 1.0, (gain, "Value"), -550, -550, clamp=True)
     # Where rays leave the field (its edge against the sky) the sward is as see-through as the
     # share K_t of its blades that the canopy stands for (the cards carry the rest).
-    edge = t.math("MINIMUM", (gain, "Value"), (_sward_edge_opacity(t, coord, kt, -1900, -1100), "Value"),
+    edge = t.math("MINIMUM", (gain, "Value"),
+                  (_sward_edge_opacity(t, coord, kt, view, view_z, slope, -1900, -1100), "Value"),
                   -450, -650, clamp=True)
     # Painted grass (paint.py): the canopy stands for the share of blades that grow at each place
     # (a path is bare ground to the horizon), from the field's paint map over the ground's UVs.
@@ -419,8 +450,10 @@ def canopy_material(name: str, uid: str, gust_image=None):
     t.link(density, density.outputs[0], grows, "To Max")
     share = t.math("MULTIPLY", (edge, "Value"), (grows, "Result"), -350, -900, clamp=True)
     light_path = t.add("ShaderNodeLightPath", -700, -900)
-    # no shadow: clear to shadow rays
-    opacity = t.math("SUBTRACT", (share, "Value"), (light_path, "Is Shadow Ray"), -300, -700, clamp=True)
+    # Seen by the camera only: clear to shadow rays and to light bouncing (a plane over the whole
+    # field would otherwise hide the sky from the ground under it, which shows dark through the
+    # canopy where it starts to fade in: a dark line at the near edge of the card band)
+    opacity = t.math("MULTIPLY", (share, "Value"), (light_path, "Is Camera Ray"), -300, -700, clamp=True)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
@@ -431,7 +464,25 @@ def canopy_material(name: str, uid: str, gust_image=None):
     return mat
 
 
-def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
+def _view_slope(t: _Tree, x: float, y: float):
+    """(Incoming in the field's (object) frame, its Separate XYZ, the ray's slope s = |Incoming.z| /
+    |Incoming.xy| (at least 1e-3)): nodes."""
+    incoming = t.add("ShaderNodeNewGeometry", x, y)
+    view = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
+                 convert_from="WORLD", convert_to="OBJECT")
+    t.link(incoming, "Incoming", view, "Vector")
+    view_z = t.add("ShaderNodeSeparateXYZ", x + 360, y - 250)
+    t.link(view, "Vector", view_z, "Vector")
+    flat = t.math("MULTIPLY", (view, "Vector"), (1.0, 1.0, 0.0), x + 360, y - 450, vector=True)
+    run_len = t.math("LENGTH", (flat, "Vector"), None, x + 540, y - 450, vector=True)
+    run_len = t.math("MAXIMUM", (run_len, "Value"), 1e-6, x + 720, y - 450)
+    rise = t.math("ABSOLUTE", (view_z, "Z"), None, x + 540, y - 650)
+    slope = t.math("DIVIDE", (rise, "Value"), (run_len, "Value"), x + 900, y - 550)
+    slope = t.math("MAXIMUM", (slope, "Value"), 1e-3, x + 1080, y - 550)
+    return view, view_z, slope
+
+
+def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y: float):
     """Math node: how likely the sward stops the ray through this point of the canopy plane or
     its fringe, 1 - exp(-share tau(z_e) / s) (``sward.sward_depth``), where z_e is the height
     above the ground at which the ray leaves the field, s its slope and ``share`` (a node's
@@ -439,13 +490,7 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     first or rises to this point (from a camera inside the sward). In the field's (object)
     frame the field spans +-NODE_FIELD_HALF around the origin: a ray at P going along
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
-    Incoming.z * t."""
-    incoming = t.add("ShaderNodeNewGeometry", x, y)
-    view = t.add("ShaderNodeVectorTransform", x + 180, y, vector_type="VECTOR",
-                 convert_from="WORLD", convert_to="OBJECT")  # Incoming in the field's frame
-    t.link(incoming, "Incoming", view, "Vector")
-    view_z = t.add("ShaderNodeSeparateXYZ", x + 360, y - 250)
-    t.link(view, "Vector", view_z, "Vector")
+    Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes."""
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
     run = t.math("ABSOLUTE", (d, "Vector"), None, x + 540, y + 150, vector=True)
@@ -462,13 +507,6 @@ def _sward_edge_opacity(t: _Tree, coord, share, x: float, y: float):
     height = t.add("ShaderNodeSeparateXYZ", x + 1620, y - 100)
     t.link(t.attribute(UV_SWARD_Z, x + 1440, y - 100), "Vector", height, "Vector")
     z_exit = t.math("SUBTRACT", (height, "Y"), (drop, "Value"), x + 1980, y + 50)
-    # slope s = |Incoming.z| / |Incoming.xy|
-    flat = t.math("MULTIPLY", (view, "Vector"), (1.0, 1.0, 0.0), x + 540, y - 250, vector=True)
-    run_len = t.math("LENGTH", (flat, "Vector"), None, x + 720, y - 250, vector=True)
-    run_len = t.math("MAXIMUM", (run_len, "Value"), 1e-6, x + 900, y - 250)
-    rise = t.math("ABSOLUTE", (view_z, "Z"), None, x + 720, y - 450)
-    slope = t.math("DIVIDE", (rise, "Value"), (run_len, "Value"), x + 1080, y - 350)
-    slope = t.math("MAXIMUM", (slope, "Value"), 1e-3, x + 1260, y - 350)
     # share * tau(z_e) / s, from the profile
     along = t.add("ShaderNodeMapRange", x + 2160, y + 50, name=NODE_SWARD_TOP, clamp=True)
     t.link(z_exit, "Value", along, "Value")
@@ -536,7 +574,7 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
     species = np.asarray([row["color"] for row in params.species()], dtype=np.float64)
     weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
     tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
-    far = SWARD_SHADE * np.asarray(sward.sward_colour(params), dtype=np.float64)
+    far = SWARD_LIGHT * sward.sward_look(params, [VIEWPORT_SLOPE])[0]
     for mat, rgb in ((blades, 0.85 * tips), (cards, far), (canopy, far), (ground, THATCH_COLOUR[:3])):
         if mat is None:
             continue
@@ -594,10 +632,15 @@ def update_materials(params, canopy=None) -> None:
             far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
             _set(kt, near, "From Min")
             _set(kt, far, "From Max")
-        grass = canopy.node_tree.nodes.get(NODE_GROUND_GRASS)
-        if grass is not None:
-            colour = sward.sward_colour(params)
-            grass.outputs[0].default_value = (*[SWARD_SHADE * c for c in colour], 1.0)
+        look = canopy.node_tree.nodes.get(NODE_SWARD_LOOK)
+        if look is not None:
+            along = np.linspace(0.0, 1.0, LOOK_POINTS)
+            slopes = LOOK_KNEE * along / np.maximum(1.0 - along, 1e-9)  # x = s / (s + LOOK_KNEE)
+            slopes[-1] = 1e6  # straight down
+            colours = SWARD_LIGHT * sward.sward_look(params, slopes)
+            for channel in range(3):
+                _set_curve(look.mapping.curves[channel], along, colours[:, channel])
+            look.mapping.update()
         tips = canopy.node_tree.nodes.get(NODE_FRINGE_COLOUR)
         if tips is not None:
             tips.outputs[0].default_value = (*sward.fringe_colour(params), 1.0)
@@ -622,12 +665,16 @@ def update_sward_profile(params, canopy) -> None:
             _set(half, 0.5 * extent, axis)
     profile = nodes.get(NODE_SWARD_PROFILE)
     if profile is not None:
-        curve = profile.mapping.curves[0]
-        while len(curve.points) > 2:
-            curve.points.remove(curve.points[-1])
-        while len(curve.points) < len(heights):
-            curve.points.new(1.0, 0.0)
-        for point, u, v in zip(curve.points, heights / top, depth / ground):
-            point.location = (float(u), float(v))
-            point.handle_type = "VECTOR"  # straight between the samples
+        _set_curve(profile.mapping.curves[0], heights / top, depth / ground)
         profile.mapping.update()
+
+
+def _set_curve(curve, xs, ys) -> None:
+    """Make a curve mapping's ``curve`` pass through the points (xs, ys), straight between them."""
+    while len(curve.points) > 2:
+        curve.points.remove(curve.points[-1])
+    while len(curve.points) < len(xs):
+        curve.points.new(1.0, 0.0)
+    for point, u, v in zip(curve.points, xs, ys):
+        point.location = (float(u), float(v))
+        point.handle_type = "VECTOR"

@@ -580,7 +580,8 @@ def test_lod_comparison_script_measures_rows_images_and_flicker(env, tiny_config
 
     proc = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--config", str(tiny_config),
                            "--resolution", "48x27", "--samples", "1", "--lights", "sun", "overcast",
-                           "--presets", "default", "--flythrough-frames", "2", "--out", str(tmp_path), "--json"],
+                           "--presets", "default", "--views", "square", "--flythrough-frames", "2",
+                           "--out", str(tmp_path), "--json"],
                           env=env, cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -593,6 +594,9 @@ def test_lod_comparison_script_measures_rows_images_and_flicker(env, tiny_config
     bad = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--presets", "prairie"],
                          env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "presets" in bad.stderr and "meadow" in bad.stderr
+    bad = subprocess.run([sys.executable, str(REPO / "headless" / "lod_compare.py"), "--views", "strip",
+                          "--heights", "1.1", "200"], env=env, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "heights" in bad.stderr and "0.05-50" in bad.stderr
 
 
 def test_a_long_range_keys_the_camera_on_every_frame(stage, tiny_params, scene):
@@ -612,8 +616,13 @@ def test_a_long_range_keys_the_camera_on_every_frame(stage, tiny_params, scene):
 
 
 MEMORY_PROBE = textwrap.dedent("""
-    import json, os, resource, sys
+    import json, os, sys
     sys.path.insert(0, sys.argv[-2])
+
+    def high_water():  # this process's peak resident memory (getrusage's would keep its parent's)
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) * 1024 for line in status if line.startswith("VmHWM"))
+
     import bpy, addon_loader
     addon_loader.load_addon()
     from windgrass.grass_addon import memory, schema
@@ -623,12 +632,12 @@ MEMORY_PROBE = textwrap.dedent("""
     scene = bpy.context.scene
     stage.setup_stage(scene, params)
     stage.pose_camera(scene, params, 1)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    before = high_water()
     item = properties.add_field(scene, params)
     runtime.build_field(scene, item)
     scene.frame_set(2)
     bpy.ops.render.render()
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = high_water()
     print("MEMORY", json.dumps({"peak": peak, "before": before, "estimate": memory.estimate(params).total}))
     sys.stdout.flush()
     os._exit(0)

@@ -106,20 +106,39 @@ def test_far_canopy_is_the_swards_height_and_colour(params):
     tips = sward.tip_heights(params)
     height = sward.canopy_height(params)
     assert 0.5 * tips.mean() < height < tips.mean() < max(r["length"] for r in params.species()) * 1.5
-    colour = np.array(sward.sward_colour(params))
+
+
+def test_the_sward_looks_darker_the_steeper_it_is_seen(params):
+    """A grazing view meets the lit tips, a steeper one the blades' shaded depths and the floor:
+    the look darkens steadily with the slope, from about the tips' colour to the floor's in the
+    blades' shade (the all-geometry renders in lod_compare.py --views strip show the same)."""
+    slopes = np.array([0.01, 0.03, 0.1, 0.3, 1.0, 1e4])  # a 1 m eye 100 m away .. straight down
+    look = sward.sward_look(params, slopes)
+    luminance = look @ np.array([0.2126, 0.7152, 0.0722])
+    assert np.all(np.diff(luminance) < 0)
     species = sward.Species(params)
     tip = species.p @ species.color
-    # the visible upper part of the blades: darker than the tips, lighter than the roots
-    assert np.all(colour <= tip + 1e-6) and np.all(colour >= np.asarray(sward.BLADE_BASE_COLOUR))
-    assert np.all(colour >= 0.6 * tip)
+    assert np.all(look[0] <= 1.3 * tip) and np.all(look[0] >= 0.5 * tip)  # the tips, with each blade's shade
+    floor = 0.5 * (np.asarray(sward.THATCH_COLOUR) + np.asarray(sward.LITTER_COLOUR))
+    assert np.all(look[-1] <= floor)  # straight down: the floor, in the blades' shade
+    assert luminance[2] < 0.75 * luminance[0]  # a tenth's slope already sees much deeper
+    # more blades per cell hide more of the floor and the depths: a denser sward looks lighter
+    dense = sward.sward_look(params.replace({"field.blades_per_cell": 2 * params.field.blades_per_cell}), [0.3])
+    assert dense[0] @ np.array([0.2126, 0.7152, 0.0722]) > luminance[3]
 
 
 def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
-    """Share of rays stopped by blades, traced through a periodic field of copies of the sample
-    block: each ray leaves the field at height ``exit_z`` and, traced back towards the camera,
-    rises by ``slope`` per metre until it clears the tallest tip. Blades are the kinematics'
-    strips at rest: segment j leans by rest_tilt[j] towards the blade's facing, its side vector
-    is horizontal and square to the facing, its width tapers linearly."""
+    """Share of rays stopped by blades (``_trace``)."""
+    return float(_trace(params, exit_z, slope, rays, rng)[0].mean())
+
+
+def _trace(params, exit_z: float, slope: float, rays: int, rng):
+    """Rays traced through a periodic field of copies of the sample block: each ray leaves the
+    field at height ``exit_z`` and, traced back towards the camera, rises by ``slope`` per metre
+    until it clears the tallest tip. Blades are the kinematics' strips at rest: segment j leans
+    by rest_tilt[j] towards the blade's facing, its side vector is horizontal and square to the
+    facing, its width tapers linearly. Per ray: (stopped, height of the hit nearest the camera,
+    its blade, its share v of the blade's length)."""
     block = sward.sample_blades(params)
     n = int(params.blade.segments)
     facing = block.blade_facing.astype(np.float64)
@@ -143,7 +162,7 @@ def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
     w0 = np.broadcast_to(width[:, :-1], (copies, len(facing), n)).reshape(-1)
     w1 = np.broadcast_to(width[:, 1:], (copies, len(facing), n)).reshape(-1)
     lo = block.blade_root[:, :2].min(axis=0).astype(np.float64)
-    batch, blocked = 50, 0
+    batch, found = 50, []
     for _ in range(rays // batch):
         psi = rng.uniform(0.0, 2.0 * np.pi, batch)
         exit_point = np.column_stack([lo + rng.uniform(0.0, tile, (batch, 2)), np.full(batch, exit_z)])
@@ -159,8 +178,13 @@ def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
         t = np.einsum("rqi,rqi->rq", uu, np.cross(s, rhs)) / det
         half = 0.5 * (w0 + (w1 - w0) * a)
         hit = (a >= 0) & (a <= 1) & (np.abs(c) <= half) & (t >= 0) & (t <= reach)
-        blocked += int(hit.any(axis=1).sum())
-    return blocked / (rays // batch * batch)
+        first = np.where(hit, t, -1.0).argmax(axis=1)  # nearest the camera: the farthest back
+        rows = np.arange(batch)
+        segment = first % (len(facing) * n)
+        found.append(np.column_stack([hit.any(axis=1), exit_z + t[rows, first] * slope, segment // n,
+                                      (segment % n + a[rows, first]) / n]))
+    found = np.concatenate(found)
+    return found[:, 0] > 0, found[:, 1], found[:, 2].astype(int), found[:, 3]
 
 
 @pytest.mark.slow
@@ -180,3 +204,28 @@ def test_sward_depth_is_what_rays_leaving_the_field_cross(params, slope):
         expected = 1.0 - np.exp(-float(np.interp(z, heights, depth)) / slope)
         assert expected == pytest.approx(target, abs=0.02)
         assert _ray_blocked(params, z, slope, 800, rng) == pytest.approx(expected, abs=0.07)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("slope", [0.1, 0.25])
+def test_sward_look_is_what_rays_from_above_meet(params, slope):
+    """The canopy's colour: rays with slope s traced down to the floor through the blade strips
+    themselves; each takes the blade material's colour where it first meets a blade (with the
+    blade's shade), lit by the light that reaches that height (exp(-tau(z) / LIGHT_SLOPE)), or
+    the floor's where it meets none. Their mean is ``sward_look``'s colour."""
+    params = params.replace({"field.cells_per_block": 4})
+    rng = np.random.default_rng(11)
+    stopped, z, blade, v = _trace(params, 0.0, slope, 800, rng)
+    block = sward.sample_blades(params)
+    heights, depth = sward.sward_profile(params, 129)
+    lit = np.exp(-np.interp(z, heights, depth) / sward.LIGHT_SLOPE)
+    tip = sward.Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]
+    shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
+    u = np.clip(v / sward.GRADIENT_END, 0.0, 1.0)
+    ramp = np.asarray(sward.BLADE_BASE_COLOUR) + (tip[blade] - sward.BLADE_BASE_COLOUR) * (u * u * (3 - 2 * u))[:, None]
+    floor = 0.5 * (np.asarray(sward.THATCH_COLOUR) + np.asarray(sward.LITTER_COLOUR))
+    floor = floor * np.exp(-depth[0] / sward.LIGHT_SLOPE)
+    seen = np.where(stopped[:, None], ramp * (shade[blade] * lit)[:, None], floor)
+    expected = sward.sward_look(params, [slope])[0]
+    assert 0.3 < stopped.mean() < 0.95  # both blades and floor are seen
+    np.testing.assert_allclose(seen.mean(axis=0), expected, rtol=0.1)

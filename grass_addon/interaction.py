@@ -19,6 +19,10 @@ shown before, so any frame is still seconds away and farm splits stay pixel-iden
   when ``interaction.recovery`` has passed. The wind keeps acting on trampled grass, weaker while
   it is flat (``WIND_WHEN_FLAT``).
 
+* **Trail map** (``trail_map``): how flat the trampled cells are, rasterised over the box around
+  them, for the far canopy (no cell is simulated there): the held curve of ``R`` and a smooth
+  release (``far_recovery``; a canopy pixel stands for many cells, no single oscillation).
+
 Contacts are computed per frame for the cells under each sphere only and kept for the window W,
 so the work is proportional to the cells the colliders reach (Fan et al. 2015): a field with no
 collider does nothing here, a collider outside the window of simulated blocks touches nothing.
@@ -46,6 +50,8 @@ LEAN_STEPS = 24  # lean angles tried between 0 and GROUND_TILT (push_lean)
 JOINT_SHARE = (0.55, 0.25, 0.12, 0.08)
 CAPSULE_SPHERES_PER_RADIUS = 2.0  # a capsule is spheres along its axis, this many per radius
 STILL_SPEED = 0.05  # m/s: slower colliders press the grass outwards, not along their travel
+TRAIL_PIXELS = 256  # the trail map's side: its box is square, at least TRAIL_MARGIN pixels around the trail
+TRAIL_MARGIN = 2
 
 
 # ------------------------------------------------------------------------------------------------
@@ -172,17 +178,41 @@ def recovery_curve(tau: np.ndarray, recovery: float, omega2: np.ndarray, damping
     return np.where((tau >= 0.0) & (tau < recovery), out, 0.0)
 
 
+def far_recovery(tau: np.ndarray, recovery: float) -> np.ndarray:
+    """How flat a trail seen from afar still is ``tau`` seconds after the press: ``recovery_curve``'s
+    held part, then HELD_FLAT easing smoothly to 0 at ``recovery`` (no oscillation: a far pixel
+    averages many cells, which swing out of step)."""
+    tau = np.asarray(tau, np.float64)
+    h = HOLD * recovery
+    held = 1.0 - (1.0 - HELD_FLAT) * np.square(np.clip(tau / max(h, 1e-9), 0.0, 1.0))
+    u = np.clip((tau - h) / max(recovery - h, 1e-9), 0.0, 1.0)
+    out = np.where(tau < h, held, HELD_FLAT * (1.0 - u * u * (3.0 - 2.0 * u)))
+    return np.where((tau >= 0.0) & (tau < recovery), out, 0.0)
+
+
+@dataclass(frozen=True)
+class TrailMap:
+    """How flat the grass is around the trails of one frame: ``flat`` (TRAIL_PIXELS, TRAIL_PIXELS)
+    float32 in [0, 1], row 0 at y0, over the square ``extent`` (x0, y0, x1, y1) in the field's
+    frame (m)."""
+
+    extent: tuple[float, float, float, float]
+    flat: np.ndarray
+
+
 # ------------------------------------------------------------------------------------------------
 # Contacts: the cells under the spheres at one instant
 
 
 @dataclass(frozen=True)
 class Contacts:
-    """Cells pressed at one frame: global cell ids (m,), press (m,) in (0, 1], direction (m, 2)."""
+    """Cells pressed at one frame: global cell ids (m,), press (m,) in (0, 1], direction (m, 2);
+    ``box``: (first column, last column, first row, last row) of the cells (ids are row-major)."""
 
     cells: np.ndarray
     press: np.ndarray
     direction: np.ndarray
+    box: tuple = (0, -1, 0, -1)
 
     @staticmethod
     def none() -> Contacts:
@@ -237,7 +267,12 @@ def contacts(grid, spheres: Spheres, ground, top: float) -> Contacts:
     order = np.lexsort((press[keep], ids[keep]))
     cells, a, direction = ids[keep][order], press[keep][order], out[keep][order]
     last = np.r_[cells[1:] != cells[:-1], True] if len(cells) else np.zeros(0, bool)
-    return Contacts(cells[last], a[last], direction[last])
+    cells = cells[last]
+    if not len(cells):
+        return Contacts.none()
+    columns = cells % grid.cells_x
+    box = (int(columns.min()), int(columns.max()), int(cells[0] // grid.cells_x), int(cells[-1] // grid.cells_x))
+    return Contacts(cells, a[last], direction[last], box)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -343,6 +378,58 @@ class Interaction:
         out = cells, best[cells].copy(), heading[cells].copy()
         best[cells] = 0.0
         return out
+
+    def trail_map(self, frame: int, eyes=(), hidden_within: float = 0.0) -> TrailMap | None:
+        """The trails of the recovery window before ``frame`` as a map for the far canopy, None
+        when no cell is trampled: per cell the strongest press times ``far_recovery``, each
+        pixel the flattest of its cells. Frames whose pressed cells all lie within
+        ``hidden_within`` of one of the ``eyes`` (positions, the field's frame), where the canopy
+        is not drawn (the LOD's card_near), are left out: the map costs only where it is seen."""
+        t = self.time(frame)
+        parts = [(f, self.contacts(f)) for f in range(frame - self.window, frame + 1)]
+        parts = [(f, c) for f, c in parts if len(c.cells)]
+        if len(eyes) and parts:
+            seen = ~self._hidden([c for _, c in parts], eyes, hidden_within)
+            parts = [part for part, keep in zip(parts, seen) if keep]
+        if not parts:
+            return None
+        envelope = far_recovery(np.array([t - self.time(f) for f, _ in parts]), self.recovery)
+        cells = np.concatenate([c.cells for _, c in parts])
+        flat = np.concatenate([c.press for _, c in parts])
+        flat *= np.repeat(envelope, [len(c.cells) for _, c in parts])
+        keep = flat > 1e-3
+        if not keep.any():
+            return None
+        cells, flat = cells[keep], flat[keep]
+        cs, origin = self.grid.cell_size, np.asarray(self.grid.origin, np.float64)
+        x = origin[0] + (cells % self.grid.cells_x + 0.5) * cs
+        y = origin[1] + (cells // self.grid.cells_x + 0.5) * cs
+        side = max(float(x.max() - x.min()), float(y.max() - y.min())) + cs
+        pixel = max(side / (TRAIL_PIXELS - 2 * TRAIL_MARGIN), cs)
+        x0 = 0.5 * (x.max() + x.min()) - 0.5 * TRAIL_PIXELS * pixel
+        y0 = 0.5 * (y.max() + y.min()) - 0.5 * TRAIL_PIXELS * pixel
+        image = np.zeros(TRAIL_PIXELS * TRAIL_PIXELS, np.float32)
+        px = np.clip(((x - x0) / pixel).astype(np.int64), 0, TRAIL_PIXELS - 1)
+        py = np.clip(((y - y0) / pixel).astype(np.int64), 0, TRAIL_PIXELS - 1)
+        np.maximum.at(image, py * TRAIL_PIXELS + px, flat.astype(np.float32))
+        size = TRAIL_PIXELS * pixel
+        return TrailMap((float(x0), float(y0), float(x0 + size), float(y0 + size)),
+                        image.reshape(TRAIL_PIXELS, TRAIL_PIXELS))
+
+    def _hidden(self, found, eyes, within: float) -> np.ndarray:
+        """(len(found),) bool: every cell of each Contacts lies within ``within`` of one eye (by
+        the corners of its box of cells)."""
+        cs, origin = self.grid.cell_size, np.asarray(self.grid.origin, np.float64)
+        box = np.array([c.box for c in found], np.float64)
+        x = origin[0] + (box[:, :2] + np.array([0.0, 1.0])) * cs  # (found, 2): each box's edges
+        y = origin[1] + (box[:, 2:] + np.array([0.0, 1.0])) * cs
+        corners = np.stack([np.stack([x[:, i], y[:, j]], axis=1) for i in (0, 1) for j in (0, 1)], axis=1)
+        hidden = np.zeros(len(found), bool)
+        for eye in eyes:
+            e = np.asarray(eye, np.float64)
+            reach = np.sqrt(np.sum((corners - e[:2]) ** 2, axis=2) + e[2] ** 2).max(axis=1)
+            hidden |= reach < within
+        return hidden
 
     def _in_window(self, frame: int, found: Contacts, window: WindowCells):
         """(local index, press, direction) of a frame's contacts on the window's cells (kept with

@@ -53,6 +53,8 @@ def _frame(field, cam, frame: int) -> float:
     lod = field.lod(cam)
     field.blade_vertices(field.blade_blocks(lod), lod)
     field.card_vertices(field.card_blocks(lod))
+    if field.interaction is not None:  # the far canopy's trails (none where the canopy is not drawn)
+        field.interaction.trail_map(frame, [cam.position], field.params.lod.card_near)
     return time.perf_counter() - t0
 
 

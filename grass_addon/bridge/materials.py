@@ -37,6 +37,14 @@ ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten fro
 NODE_GUST_IMAGE = "wg_gust_image"
 NODE_GUST_MAPPING = "wg_gust_mapping"
 NODE_GUST_AMOUNT = "wg_gust_amount"
+# The far canopy's trampled trails (interaction.trail_map): the map, where the ray meets the canopy
+# and where it meets the trail's floor further on (two mappings of the field's frame onto the map),
+# whether a map is shown and how deep the sward is (the canopy's height).
+NODE_TRAIL_IMAGE = "wg_trail_image"
+NODE_TRAIL_NEAR = "wg_trail_near"
+NODE_TRAIL_FAR = "wg_trail_far"
+NODE_TRAIL_AMOUNT = "wg_trail_amount"
+NODE_TRAIL_DEPTH = "wg_trail_depth"
 GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
 GUST_REFERENCE_SPEED = 5.0  # m/s: the swing is full from this mean wind on, as (speed / it)^2 below (the bend)
 
@@ -70,6 +78,12 @@ SWARD_LIGHT = 0.55
 LOOK_KNEE = 0.1
 LOOK_POINTS = 33
 VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slope (eye height / distance)
+# A trampled trail seen from afar (materials._trailed): where a ray meets its flattened floor the
+# sward is TRAIL_FLOOR as bright, the standing grass just before it TRAIL_WALL (all-geometry
+# renders of a ball's trail 41 m from a 6 m eye: 0.65-0.73 and 1.18-1.29).
+TRAIL_FLOOR = 0.65
+TRAIL_WALL = 1.25
+TRAIL_SINK = 0.5  # share of the canopy's height a ray goes down into a trail before it meets its floor
 # A card is lit as one flat plane where the blades it shows face every way and curve: seen from
 # any slope it comes out 0.85-0.9 times as bright as those blades (all-geometry renders of long
 # strips, sun and overcast: headless/lod_compare.py --views strip), so its colour is raised.
@@ -364,7 +378,7 @@ def ground_material(name: str, uid: str):
     return mat
 
 
-def canopy_material(name: str, uid: str, gust_image=None):
+def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
     (``sward.canopy_height``). Its colour is what a ray with the slope of the camera's ray sees
     of the sward (``sward.sward_look``, times SWARD_LIGHT) with fine streaks; its opacity rises
@@ -393,9 +407,10 @@ def canopy_material(name: str, uid: str, gust_image=None):
     fringe_colour.outputs[0].default_value = (0.1, 0.25, 0.05, 1.0)
     on_fringe = t.add("ShaderNodeSeparateXYZ", -1150, -750)
     t.link(t.attribute(UV_SWARD_Z, -1350, -750), "Vector", on_fringe, "Vector")
+    look, look_out = _trailed(t, coord, view, view_z, grass_colour, trail_image, -2300, 400)
     part = t.mix_rgb(-1000, -350)
     t.link(on_fringe, "X", part, "Factor_Float")
-    t.link(grass_colour, "Color", part, "A_Color")
+    t.link(look, look_out, part, "A_Color")
     t.link(fringe_colour, "Color", part, "B_Color")
     grass = t.mix_rgb(-900, -150, blend="MULTIPLY")
     t.link(part, "Result_Color", grass, "A_Color")
@@ -462,6 +477,69 @@ def canopy_material(name: str, uid: str, gust_image=None):
     out = t.add("ShaderNodeOutputMaterial", 300, 0)
     t.link(cut, "Shader", out, "Surface")
     return mat
+
+
+def _trailed(t: _Tree, coord, view, view_z, look, trail_image, x: float, y: float):
+    """(node, output): the canopy's ``look`` with the trampled trails (interaction.trail_map).
+    A ray that meets the canopy plane at P goes on down by h = TRAIL_SINK times the canopy's
+    height (where a trail's flattened floor shows) to P2 = P - Incoming h / Incoming.z. With f1,
+    f2 the trail's flatness at P and P2, it meets the flattened floor where both lie on the trail
+    (TRAIL_FLOOR darker by f1 f2), and standing grass lit from the open trail behind it where the
+    trail lies ahead only (TRAIL_WALL brighter by max(f2 - f1, 0)). Seen low (h / s wider than
+    the trail) neither shows: a trail is hidden behind the grass in front of it, as in
+    all-geometry renders. The map is the field's frame (object coordinates) mapped onto the
+    image; NODE_TRAIL_AMOUNT is 0 when none is shown."""
+    amount = t.add("ShaderNodeValue", x, y - 400, name=NODE_TRAIL_AMOUNT)
+    amount.outputs[0].default_value = 0.0
+    depth = t.add("ShaderNodeValue", x, y - 550, name=NODE_TRAIL_DEPTH)
+    depth.outputs[0].default_value = 0.2
+
+    def flatness(vector_node, vector_out, name, yy):
+        mapping = t.add("ShaderNodeMapping", x + 200, yy, name=name)
+        t.link(vector_node, vector_out, mapping, "Vector")
+        tex = t.add("ShaderNodeTexImage", x + 400, yy, image=trail_image, interpolation="Linear", extension="CLIP")
+        t.link(mapping, "Vector", tex, "Vector")
+        return t.math("MULTIPLY", (tex, "Color"), (amount, "Value"), x + 650, yy)
+
+    near = flatness(coord, "Object", NODE_TRAIL_NEAR, y)
+    rise = t.math("MAXIMUM", (view_z, "Z"), 1e-4, x + 800, y - 400)
+    along = t.math("DIVIDE", (depth, "Value"), (rise, "Value"), x + 950, y - 300)
+    step = t.add("ShaderNodeVectorMath", x + 1100, y - 300, operation="SCALE")
+    t.link(view, "Vector", step, 0)
+    t.link(along, "Value", step, "Scale")
+    further = t.math("SUBTRACT", (coord, "Object"), (step, "Vector"), x + 1250, y - 300, vector=True)
+    far = flatness(further, "Vector", NODE_TRAIL_FAR, y - 700)
+    both = t.math("MULTIPLY", (near, "Value"), (far, "Value"), x + 1400, y)
+    floor = t.math("MULTIPLY_ADD", (both, "Value"), TRAIL_FLOOR - 1.0, x + 1550, y)
+    floor.inputs[2].default_value = 1.0
+    ahead = t.math("SUBTRACT", (far, "Value"), (near, "Value"), x + 1400, y - 500, clamp=True)
+    lit = t.math("MULTIPLY_ADD", (ahead, "Value"), TRAIL_WALL - 1.0, x + 1550, y - 500)
+    lit.inputs[2].default_value = 1.0
+    gain = t.math("MULTIPLY", (floor, "Value"), (lit, "Value"), x + 1700, y - 250)
+    out = t.mix_rgb(x + 1850, y, blend="MULTIPLY")
+    t.link(look, "Color", out, "A_Color")
+    t.link(gain, "Value", out, "B_Color")
+    return out, "Result_Color"
+
+
+def set_trail(canopy, trail_map) -> None:
+    """Show ``trail_map`` (interaction.TrailMap; its pixels already in the material's image) on
+    the far canopy, or no trail (None)."""
+    nodes = canopy.node_tree.nodes if canopy is not None and canopy.node_tree is not None else None
+    if nodes is None or nodes.get(NODE_TRAIL_AMOUNT) is None:
+        return
+    amount = nodes[NODE_TRAIL_AMOUNT].outputs[0]
+    shown = 0.0 if trail_map is None else 1.0
+    if amount.default_value != shown:
+        amount.default_value = shown
+    if trail_map is None:
+        return
+    x0, y0, x1, y1 = trail_map.extent
+    scale = (1.0 / (x1 - x0), 1.0 / (y1 - y0), 1.0)
+    location = (-x0 / (x1 - x0), -y0 / (y1 - y0), 0.0)
+    for name in (NODE_TRAIL_NEAR, NODE_TRAIL_FAR):
+        _set(nodes[name], scale, "Scale")
+        _set(nodes[name], location, "Location")
 
 
 def _view_slope(t: _Tree, x: float, y: float):
@@ -632,6 +710,9 @@ def update_materials(params, canopy=None) -> None:
             far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
             _set(kt, near, "From Min")
             _set(kt, far, "From Max")
+        depth = canopy.node_tree.nodes.get(NODE_TRAIL_DEPTH)
+        if depth is not None:
+            depth.outputs[0].default_value = TRAIL_SINK * sward.canopy_height(params)
         look = canopy.node_tree.nodes.get(NODE_SWARD_LOOK)
         if look is not None:
             along = np.linspace(0.0, 1.0, LOOK_POINTS)

@@ -45,7 +45,7 @@ from .. import forces, interaction, memory, schema, slots
 from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
-from . import animation, bake, maps, materials, pools, properties, tracks
+from . import animation, bake, maps, materials, pools, properties, textures, tracks
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
@@ -84,6 +84,7 @@ class FieldRuntime:
     subframe: float = 0.0  # and its sub-frame (motion-blur steps)
     lod: object = None  # its LOD weights
     camera_signature: tuple | None = None
+    trail: object = False  # the trail map the far canopy shows (None: none; False: not yet set)
     error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
 
 
@@ -422,8 +423,28 @@ def _write(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
         t = (frame + subframe - rt.params.render.frame_start) / rt.params.render.fps
         materials.set_gust_offset(rt.field.wind.displacement(t), rt.field.wind.mean(t)[0], rt.params,
                                   reg.get(field_scene.ROLE_CARD_MATERIAL), reg.get(field_scene.ROLE_CANOPY_MATERIAL))
+    _write_trails(item, rt, frame, views)
     rt.frame, rt.subframe, rt.lod = frame, subframe, lod
     rt.camera_signature = field_camera.signature(views)
+
+
+def _write_trails(item, rt: FieldRuntime, frame: int, views) -> None:
+    """The far canopy's trampled trails of ``frame`` (interaction.trail_map): its image and
+    mapping, or none shown (none either where the canopy is not drawn: within lod.card_near of
+    the views; with the LOD off, nowhere)."""
+    trail = None
+    if rt.field.interaction is not None and rt.params.lod.enabled:
+        eyes = [view.position for view in views] if views else ()
+        trail = rt.field.interaction.trail_map(frame, eyes, float(rt.params.lod.card_near))
+    if trail is None and rt.trail is None:
+        return
+    reg = field_scene.registered(item)
+    image = reg.get(field_scene.ROLE_TRAIL_IMAGE)
+    if trail is not None and isinstance(image, bpy.types.Image):
+        if not rt.trail or rt.trail.extent != trail.extent or not np.array_equal(rt.trail.flat, trail.flat):
+            textures.write_trail_image(image, trail.flat)
+    materials.set_trail(reg.get(field_scene.ROLE_CANOPY_MATERIAL), trail)
+    rt.trail = trail
 
 
 def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:

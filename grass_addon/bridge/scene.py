@@ -55,6 +55,7 @@ ROLE_GROUND_MATERIAL = "ground_material"
 ROLE_CANOPY_MATERIAL = "canopy_material"
 ROLE_CARD_IMAGE = "card_image"
 ROLE_GUST_IMAGE = "gust_image"
+ROLE_TRAIL_IMAGE = "trail_image"
 
 
 
@@ -470,12 +471,17 @@ def field_materials(item):
         gusts = textures.ensure_gust_image(f"{base_name} gust waves")
         _tag(gusts, uid, ROLE_GUST_IMAGE)
         _register(item, ROLE_GUST_IMAGE, gusts)
+    trails = registered(item).get(ROLE_TRAIL_IMAGE)
+    if not isinstance(trails, bpy.types.Image):
+        trails = textures.ensure_trail_image(f"{base_name} trails")
+        _tag(trails, uid, ROLE_TRAIL_IMAGE)
+        _register(item, ROLE_TRAIL_IMAGE, trails)
     blade = _material(item, ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
     card = _material(item, ROLE_CARD_MATERIAL,
                      lambda: materials.card_material(f"{base_name} cards", uid, image, gusts))
     ground = _material(item, ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
     canopy = _material(item, ROLE_CANOPY_MATERIAL,
-                       lambda: materials.canopy_material(f"{base_name} canopy", uid, gusts))
+                       lambda: materials.canopy_material(f"{base_name} canopy", uid, gusts, trails))
     return blade, card, ground, canopy
 
 

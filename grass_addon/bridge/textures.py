@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 
-from .. import atlas, gusts
+from .. import atlas, gusts, interaction
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -97,3 +97,29 @@ def paint_gust_image(image, params) -> None:
     image.pixels.foreach_set(rgba.ravel())
     image.pack()
     image[GUST_KEY] = seed
+
+
+def ensure_trail_image(name: str):
+    """The float image the far canopy reads its trampled trails from (``interaction.trail_map``),
+    written by ``write_trail_image`` on frames with trails."""
+    import bpy
+
+    n = interaction.TRAIL_PIXELS
+    image = bpy.data.images.get(name)
+    if image is not None and tuple(image.size) == (n, n) and image.packed_file is not None:
+        return image
+    if image is not None:
+        bpy.data.images.remove(image)
+    image = bpy.data.images.new(name, width=n, height=n, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pack()
+    return image
+
+
+def write_trail_image(image, flat: np.ndarray) -> None:
+    """Write a trail map's flatness (rows from y0 up, as Blender's pixel rows) into ``image`` and
+    pack it (a packed image is saved with the file and is not a modified image to Blender)."""
+    rgba = np.ones((*flat.shape, 4), np.float32)
+    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = flat
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()

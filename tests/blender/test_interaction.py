@@ -309,3 +309,31 @@ def test_a_wind_field_switched_on_at_a_frame_blows_from_then(bridge):
     assert tracks.fingerprint(scene, item, params) == stored  # (strength 8 here)
     assert np.abs(before).max() < 1e-6
     assert np.median(after[:, 0]) > 0.05 and np.median(after[:, 0]) > 10 * np.median(np.abs(after[:, 1]))
+
+
+def test_the_far_canopy_shows_a_trail_as_the_grass_does(tmp_path):
+    """A ball 2 m wide rolled across a long field 43 m from a 6 m eye, beyond the card range: in
+    the all-geometry render its trail reads as a dark band (the flattened floor) with a light one
+    just before it (grass lit from the open trail); the LOD render's far canopy shows the same
+    bands in the same rows (Cycles, the strip view of headless/lod_compare.py)."""
+    import lod_compare
+
+    args = lod_compare.parse_args(["--resolution", "320x180", "--samples", "8", "--out", str(tmp_path)])
+    params = lod_compare.scene_params(args, "default", fixed=True, strip_height=6.0)
+    assert params.lod.card_far < 30.0
+    rolled = params.replace({"interaction.recovery": 10.0, "interaction.colliders": [{"shape": "sphere", "radius": 1.0,
+                             "path": [{"time": 0.0, "position": [-9.0, -8.0, 0.8]},
+                                      {"time": 1.0, "position": [9.0, -8.0, 0.8]}]}]})
+    ratios = {}
+    for lod in (True, False):
+        plain, = lod_compare.render(params, lod, "sun", [48], tmp_path, "plain")
+        trail, = lod_compare.render(rolled, lod, "sun", [48], tmp_path, "trail")
+        w = plain.shape[1]
+        middle = slice(w // 2 - w // 12, w // 2 + w // 12)
+        ratios[lod] = trail[:, middle, 1].mean(axis=1) / plain[:, middle, 1].mean(axis=1)
+    for lod, ratio in ratios.items():
+        dark, light = int(np.argmin(ratio)), int(np.argmax(ratio))
+        assert ratio[dark] < 0.85 and ratio[light] > 1.1 and dark < light, (lod, np.round(ratio, 2))
+        assert np.all(np.abs(ratio[: dark - 4] - 1.0) < 0.05), (lod, np.round(ratio, 2))  # nothing beyond it
+    assert abs(int(np.argmin(ratios[True])) - int(np.argmin(ratios[False]))) <= 2
+    assert abs(int(np.argmax(ratios[True])) - int(np.argmax(ratios[False]))) <= 2

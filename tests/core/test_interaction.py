@@ -87,6 +87,29 @@ def test_frame_80_alone_equals_frame_80_of_a_sequence(ball):
     assert np.array_equal(alone.card_vertices(alone.all_blocks()), seq.card_vertices(seq.all_blocks()))
 
 
+def test_the_far_canopys_trail_map_follows_the_ball_and_fades_with_the_recovery(ball):
+    """The far canopy's trail (no cell is simulated there): at frame 25 (t = 1 s) the ball has
+    rolled from the field's edge (x = -1.6 m) to x = 0 at 2 m/s; the map is flat along its path
+    behind it and only there, flattest where it passed last; 3 s (the recovery) after it stopped
+    pressing, no trail is left. Frame 25 alone gives the same map."""
+    params, field, _ = ball
+    trail = field.interaction.trail_map(25)
+    x0, y0, x1, y1 = trail.extent
+    assert trail.flat.shape == (interaction.TRAIL_PIXELS, interaction.TRAIL_PIXELS)
+    assert x1 - x0 == pytest.approx(y1 - y0) and x0 < -1.5 and x1 > 0.3 and y0 < -0.3 and y1 > 0.3
+    pixel = (x1 - x0) / trail.flat.shape[1]
+    xs = x0 + (np.arange(trail.flat.shape[1]) + 0.5) * pixel
+    ys = y0 + (np.arange(trail.flat.shape[0]) + 0.5) * pixel
+    row = trail.flat[np.argmin(np.abs(ys))]  # along y = 0, the ball's line
+    assert np.all(row[(xs > -1.4) & (xs < -0.1)] > 0.5) and np.all(row[xs > 0.6] == 0.0)
+    assert row[np.argmin(np.abs(xs + 0.2))] > row[np.argmin(np.abs(xs + 1.4))]  # pressed later: flatter
+    assert np.all(trail.flat[np.abs(ys) > 0.5] == 0.0)  # the ball is 0.6 m wide
+    # the ball's last press is before t = 2 s (frame 49), at the field's edge; the recovery is 3 s
+    assert field.interaction.trail_map(49 + 3 * 24 + 1) is None
+    assert field.interaction.trail_map(49 + 3 * 24 - 12) is not None
+    assert GrassField(params).interaction.trail_map(25).flat.tobytes() == trail.flat.tobytes()
+
+
 def test_a_collider_far_from_the_window_adds_no_work():
     """A 1 km field seen from its centre; a ball rolling 400 m away touches no simulated cell:
     the frame is bit for bit the field without it."""

@@ -171,13 +171,15 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
 
 def grass_rows(geometry_rows):
     """Rows of grass (green over red and blue, not the sky) in an image's row means (rows, 3),
-    leaving out the two rows next to the horizon (where sky and field share pixels)."""
+    leaving out the rows next to the horizon (where sky, the world's floor beyond the field and
+    the field's edge share pixels: 3 rows, or 1/40 of the height)."""
     import numpy as np
 
     green = (geometry_rows[:, 1] > geometry_rows[:, 0]) & (geometry_rows[:, 1] > geometry_rows[:, 2])
     green &= geometry_rows.mean(axis=1) < 0.3
     sky = np.flatnonzero(~green)
-    top = int(sky[sky < len(green) // 2].max()) + 3 if np.any(sky < len(green) // 2) else 0
+    margin = max(3, int(np.ceil(len(green) / 40)))
+    top = int(sky[sky < len(green) // 2].max()) + margin if np.any(sky < len(green) // 2) else 0
     green[:top] = False
     return green
 

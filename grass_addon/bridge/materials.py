@@ -328,12 +328,13 @@ def card_material(name: str, uid: str, image, gust_image=None):
     depth = t.add("ShaderNodeValue", -1300, -850, name=NODE_CARD_DEPTH)
     depth.outputs[0].default_value = 6.0
     deep = t.math("GREATER_THAN", (path, "Transparent Depth"), (depth, "Value"), -1100, -650)
-    # (faded cards too: a ray through the fading band would otherwise cross more of them than the
-    # renderer lets it and come out black, a dark line where the far canopy takes over)
+    # (a fading card too: with the renderer's limit near, as Blender's default of 8, a ray through
+    # the fading band would otherwise run out of layers and come out black)
     faded = t.math("MULTIPLY", (tex, "Alpha"), (opacity, "X"), -950, -500, clamp=True)
     stops = t.math("MAXIMUM", (faded, "Value"), (deep, "Value"), -800, -450)
     # Fading cards are seen, but cast no shadow and hide no sky: the far canopy under them stands
-    # for the sward with its own shade (SWARD_LIGHT); lit through them, it came out 10-25 % dark.
+    # for the sward with its own shade (SWARD_LIGHT); in their shadows the band's start came out
+    # 6 % darker in sun.
     fading = t.math("LESS_THAN", (opacity, "X"), 0.999, -950, -800)
     unseen = t.math("SUBTRACT", 1.0, (path, "Is Camera Ray"), -950, -950)
     hidden = t.math("MULTIPLY", (fading, "Value"), (unseen, "Value"), -800, -750)

@@ -52,6 +52,10 @@ CAPSULE_SPHERES_PER_RADIUS = 2.0  # a capsule is spheres along its axis, this ma
 STILL_SPEED = 0.05  # m/s: slower colliders press the grass outwards, not along their travel
 TRAIL_PIXELS = 256  # the trail map's side: its box is square, at least TRAIL_MARGIN pixels around the trail
 TRAIL_MARGIN = 2
+# The trail map takes the frames of whole past chunks of TRAIL_CHUNK frames (aligned on frame
+# numbers, so a frame alone gets the same) together: per cell the strongest press at the last frame
+# it was pressed in the chunk (flatter by at most the recovery of half a second: a far pixel).
+TRAIL_CHUNK = 12
 
 
 # ------------------------------------------------------------------------------------------------
@@ -330,6 +334,7 @@ class Interaction:
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
         self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
         self._local: OrderedDict[int, tuple] = OrderedDict()  # frame -> its contacts on the window's cells
+        self._chunks: OrderedDict[int, tuple] = OrderedDict()  # chunk -> (when, cells, press, box) (trail_map)
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
     def time(self, frame: int) -> float:
@@ -386,17 +391,15 @@ class Interaction:
         ``hidden_within`` of one of the ``eyes`` (positions, the field's frame), where the canopy
         is not drawn (the LOD's card_near), are left out: the map costs only where it is seen."""
         t = self.time(frame)
-        parts = [(f, self.contacts(f)) for f in range(frame - self.window, frame + 1)]
-        parts = [(f, c) for f, c in parts if len(c.cells)]
+        parts = self._trail_parts(frame)
         if len(eyes) and parts:
-            seen = ~self._hidden([c for _, c in parts], eyes, hidden_within)
+            seen = ~self._hidden([box for *_, box in parts], eyes, hidden_within)
             parts = [part for part, keep in zip(parts, seen) if keep]
         if not parts:
             return None
-        envelope = far_recovery(np.array([t - self.time(f) for f, _ in parts]), self.recovery)
-        cells = np.concatenate([c.cells for _, c in parts])
-        flat = np.concatenate([c.press for _, c in parts])
-        flat *= np.repeat(envelope, [len(c.cells) for _, c in parts])
+        when = np.concatenate([np.broadcast_to(w, c.shape) for w, c, _, _ in parts])
+        cells = np.concatenate([c for _, c, _, _ in parts])
+        flat = np.concatenate([a for _, _, a, _ in parts]) * far_recovery(t - when, self.recovery)
         keep = flat > 1e-3
         if not keep.any():
             return None
@@ -416,15 +419,56 @@ class Interaction:
         return TrailMap((float(x0), float(y0), float(x0 + size), float(y0 + size)),
                         image.reshape(TRAIL_PIXELS, TRAIL_PIXELS))
 
-    def _hidden(self, found, eyes, within: float) -> np.ndarray:
-        """(len(found),) bool: every cell of each Contacts lies within ``within`` of one eye (by
-        the corners of its box of cells)."""
+    def _trail_parts(self, frame: int) -> list:
+        """The contacts of the recovery window before ``frame`` as (time or times, cells, press,
+        box): whole chunks of TRAIL_CHUNK frames merged (kept while the window lasts), the frames
+        of the chunks cut by the window's ends one by one."""
+        parts, f = [], frame - self.window
+        while f <= frame:
+            k = f // TRAIL_CHUNK
+            if f == k * TRAIL_CHUNK and f + TRAIL_CHUNK - 1 <= frame:
+                merged = self._chunks.get(k)
+                if merged is None:
+                    merged = self._chunks[k] = self._merge(range(f, f + TRAIL_CHUNK))
+                    while len(self._chunks) > self.window // TRAIL_CHUNK + 4:
+                        self._chunks.popitem(last=False)
+                if len(merged[1]):
+                    parts.append(merged)
+                f += TRAIL_CHUNK
+                continue
+            found = self.contacts(f)
+            if len(found.cells):
+                parts.append((self.time(f), found.cells, found.press, found.box))
+            f += 1
+        return parts
+
+    def _merge(self, frames) -> tuple:
+        """(times (m,), cells (m,), press (m,), box) of ``frames``' contacts: per cell the strongest
+        press and the last frame it was pressed in."""
+        found = [(f, self.contacts(f)) for f in frames]
+        found = [(f, c) for f, c in found if len(c.cells)]
+        if not found:
+            return 0.0, np.zeros(0, np.int64), np.zeros(0), (0, -1, 0, -1)
+        cells = np.concatenate([c.cells for _, c in found])
+        press = np.concatenate([c.press for _, c in found])
+        when = np.concatenate([np.full(len(c.cells), self.time(f)) for f, c in found])
+        order = np.lexsort((when, cells))
+        cells, press, when = cells[order], press[order], when[order]
+        start = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
+        end = np.r_[start[1:], len(cells)] - 1
+        boxes = np.array([c.box for _, c in found])
+        box = (int(boxes[:, 0].min()), int(boxes[:, 1].max()), int(boxes[:, 2].min()), int(boxes[:, 3].max()))
+        return when[end], cells[start], np.maximum.reduceat(press, start), box
+
+    def _hidden(self, boxes, eyes, within: float) -> np.ndarray:
+        """(len(boxes),) bool: every cell of each box of cells (first, last column, first, last
+        row) lies within ``within`` of one eye (by the box's corners)."""
         cs, origin = self.grid.cell_size, np.asarray(self.grid.origin, np.float64)
-        box = np.array([c.box for c in found], np.float64)
+        box = np.array(boxes, np.float64)
         x = origin[0] + (box[:, :2] + np.array([0.0, 1.0])) * cs  # (found, 2): each box's edges
         y = origin[1] + (box[:, 2:] + np.array([0.0, 1.0])) * cs
         corners = np.stack([np.stack([x[:, i], y[:, j]], axis=1) for i in (0, 1) for j in (0, 1)], axis=1)
-        hidden = np.zeros(len(found), bool)
+        hidden = np.zeros(len(boxes), bool)
         for eye in eyes:
             e = np.asarray(eye, np.float64)
             reach = np.sqrt(np.sum((corners - e[:2]) ** 2, axis=2) + e[2] ** 2).max(axis=1)

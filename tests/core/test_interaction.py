@@ -110,6 +110,25 @@ def test_the_far_canopys_trail_map_follows_the_ball_and_fades_with_the_recovery(
     assert GrassField(params).interaction.trail_map(25).flat.tobytes() == trail.flat.tobytes()
 
 
+def test_the_trail_maps_merged_chunks_stay_within_half_a_seconds_recovery(ball, monkeypatch):
+    """Whole past chunks of frames are merged (per cell the strongest press, at its last frame):
+    never less flat than frame by frame, and flatter by no more than the far recovery falls within
+    a chunk's span (12 frames, 0.5 s), and by much less on average."""
+    params = ball[0]
+    merged = GrassField(params).interaction.trail_map(40)
+    monkeypatch.setattr(interaction, "TRAIL_CHUNK", 1)
+    exact = GrassField(params).interaction.trail_map(40)
+    assert merged.extent == exact.extent
+    difference = merged.flat - exact.flat
+    tau = np.linspace(0.0, params.interaction.recovery, 601)
+    span = 11 / 24  # the first and last frame of a 12-frame chunk, at 24 fps
+    fall = float(np.max(interaction.far_recovery(tau, 3.0) - interaction.far_recovery(tau + span, 3.0)))
+    trail = exact.flat > 0
+    assert trail.sum() > 100
+    assert difference.min() >= -1e-6 and difference.max() <= fall + 1e-6
+    assert np.abs(difference[trail]).mean() < 0.1 * fall
+
+
 def test_a_collider_far_from_the_window_adds_no_work():
     """A 1 km field seen from its centre; a ball rolling 400 m away touches no simulated cell:
     the frame is bit for bit the field without it."""

@@ -387,9 +387,10 @@ class Interaction:
     def trail_map(self, frame: int, eyes=(), hidden_within: float = 0.0) -> TrailMap | None:
         """The trails of the recovery window before ``frame`` as a map for the far canopy, None
         when no cell is trampled: per cell the strongest press times ``far_recovery``, each
-        pixel the flattest of its cells. Frames whose pressed cells all lie within
-        ``hidden_within`` of one of the ``eyes`` (positions, the field's frame), where the canopy
-        is not drawn (the LOD's card_near), are left out: the map costs only where it is seen."""
+        pixel the flattest of its cells. Frames (and merged chunks, ``_trail_parts``) whose
+        pressed cells all lie within ``hidden_within`` of one of the ``eyes`` (positions, the
+        field's frame), where the canopy is not drawn (the LOD's card_near), are left out: the
+        map costs only where it can be seen."""
         t = self.time(frame)
         parts = self._trail_parts(frame)
         if len(eyes) and parts:
@@ -465,7 +466,7 @@ class Interaction:
         row) lies within ``within`` of one eye (by the box's corners)."""
         cs, origin = self.grid.cell_size, np.asarray(self.grid.origin, np.float64)
         box = np.array(boxes, np.float64)
-        x = origin[0] + (box[:, :2] + np.array([0.0, 1.0])) * cs  # (found, 2): each box's edges
+        x = origin[0] + (box[:, :2] + np.array([0.0, 1.0])) * cs  # (boxes, 2): each box's edges
         y = origin[1] + (box[:, 2:] + np.array([0.0, 1.0])) * cs
         corners = np.stack([np.stack([x[:, i], y[:, j]], axis=1) for i in (0, 1) for j in (0, 1)], axis=1)
         hidden = np.zeros(len(boxes), bool)

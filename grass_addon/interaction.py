@@ -164,7 +164,7 @@ def recovery_curve(tau: np.ndarray, recovery: float, omega2: np.ndarray, damping
     of the recovery; 0 from ``recovery`` on."""
     tau = np.asarray(tau, np.float64)
     h = HOLD * recovery
-    held = 1.0 - (1.0 - HELD_FLAT) * np.square(np.clip(tau / max(h, 1e-9), 0.0, 1.0))
+    held = _held(tau, h)
     x = np.maximum(tau - h, 0.0)
     a = 0.5 * np.asarray(damping, np.float64)
     w2 = np.asarray(omega2, np.float64)
@@ -182,13 +182,18 @@ def recovery_curve(tau: np.ndarray, recovery: float, omega2: np.ndarray, damping
     return np.where((tau >= 0.0) & (tau < recovery), out, 0.0)
 
 
+def _held(tau: np.ndarray, h: float) -> np.ndarray:
+    """The held part of R: 1 - (1 - HELD_FLAT) (tau / h)^2 up to h (then HELD_FLAT)."""
+    return 1.0 - (1.0 - HELD_FLAT) * np.square(np.clip(tau / max(h, 1e-9), 0.0, 1.0))
+
+
 def far_recovery(tau: np.ndarray, recovery: float) -> np.ndarray:
     """How flat a trail seen from afar still is ``tau`` seconds after the press: ``recovery_curve``'s
     held part, then HELD_FLAT easing smoothly to 0 at ``recovery`` (no oscillation: a far pixel
     averages many cells, which swing out of step)."""
     tau = np.asarray(tau, np.float64)
     h = HOLD * recovery
-    held = 1.0 - (1.0 - HELD_FLAT) * np.square(np.clip(tau / max(h, 1e-9), 0.0, 1.0))
+    held = _held(tau, h)
     u = np.clip((tau - h) / max(recovery - h, 1e-9), 0.0, 1.0)
     out = np.where(tau < h, held, HELD_FLAT * (1.0 - u * u * (3.0 - 2.0 * u)))
     return np.where((tau >= 0.0) & (tau < recovery), out, 0.0)

@@ -21,8 +21,8 @@ against all geometry), ``row_ratio_max`` (the largest relative difference of a g
 green: a seam shows here) and ``mean_abs_diff`` (of the whole image), and for the fly-through
 ``flicker_lod`` and ``flicker_geometry`` (mean absolute change between consecutive frames) and
 their ratio. The strip's rows at its far edge (102 m away, against the sky) are left out: the
-square view holds the far edge. The images (PNG, display colours) and each case's row means (``<case>_rows.npz``,
-linear RGB) are written to --out for a look. Exit status 2 on bad input.
+square view holds the far edge. The images (PNG, display colours) and each case's row means
+(``<case>_rows.npz``, linear RGB) are written to --out for a look. Exit status 2 on bad input.
 """
 
 from __future__ import annotations
@@ -169,6 +169,13 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
     return images
 
 
+def middle_columns(image) -> slice:
+    """The strip view's middle sixth of an image (H, W, ...): on the field from the camera to its
+    far edge (STRIP_FOV)."""
+    w = image.shape[1]
+    return slice(w // 2 - w // 12, w // 2 + w // 12)
+
+
 def grass_rows(geometry_rows):
     """Rows of grass (green over red and blue, not the sky) in an image's row means (rows, 3),
     leaving out the rows next to the horizon (where sky, the world's floor beyond the field and
@@ -216,9 +223,8 @@ def compare(args) -> dict:
                 params = scene_params(args, preset, fixed=True, strip_height=height)
                 lod, = render(params, True, light, [1], args.out, tag)
                 geo, = render(params, False, light, [1], args.out, tag)
-                if view == "strip":  # the middle columns: on the field from the camera to its far edge
-                    w = lod.shape[1]
-                    lod, geo = lod[:, w // 2 - w // 12: w // 2 + w // 12], geo[:, w // 2 - w // 12: w // 2 + w // 12]
+                if view == "strip":
+                    lod, geo = lod[:, middle_columns(lod)], geo[:, middle_columns(geo)]
                 result["cases"][tag] = case = compare_images(lod, geo, edge=view == "square")
                 case["seconds"] = round(time.perf_counter() - t0, 1)
                 np.savez(args.out / f"{tag}_rows.npz", lod=lod.mean(axis=1), geometry=geo.mean(axis=1),

@@ -72,9 +72,14 @@ GUST_KEY = "wg_gusts"  # custom property of the gust image: the seed it was pain
 
 def ensure_gust_image(name: str):
     """The packed float image of the gust waves' pattern (``gusts.pattern``), linear values."""
+    return _grey_image(name, gusts.TILE_PIXELS)
+
+
+def _grey_image(name: str, n: int):
+    """The packed n x n float image ``name`` (Non-Color: linear values), made again when missing,
+    of another size or unpacked."""
     import bpy
 
-    n = gusts.TILE_PIXELS
     image = bpy.data.images.get(name)
     if image is not None and tuple(image.size) == (n, n) and image.packed_file is not None:
         return image
@@ -84,6 +89,15 @@ def ensure_gust_image(name: str):
     image.colorspace_settings.name = "Non-Color"
     image.pack()
     return image
+
+
+def _write_grey(image, values: np.ndarray) -> None:
+    """Write ``values`` (rows from the bottom, as Blender's pixel rows) into ``image``'s R, G and B
+    (alpha 1) and pack it: a packed image is saved with the file, not a modified image to Blender."""
+    rgba = np.ones((*values.shape, 4), np.float32)
+    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = values
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
 
 
 def paint_gust_image(image, params) -> None:
@@ -91,35 +105,16 @@ def paint_gust_image(image, params) -> None:
     seed = int(params.field.seed)
     if image.get(GUST_KEY) == seed:
         return
-    tile = gusts.pattern(seed)  # row 0 is y = 0, as Blender's pixel rows
-    rgba = np.ones((*tile.shape, 4), np.float32)
-    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = tile
-    image.pixels.foreach_set(rgba.ravel())
-    image.pack()
+    _write_grey(image, gusts.pattern(seed))  # row 0 is y = 0, as Blender's pixel rows
     image[GUST_KEY] = seed
 
 
 def ensure_trail_image(name: str):
     """The float image the far canopy reads its trampled trails from (``interaction.trail_map``),
     written by ``write_trail_image`` on frames with trails."""
-    import bpy
-
-    n = interaction.TRAIL_PIXELS
-    image = bpy.data.images.get(name)
-    if image is not None and tuple(image.size) == (n, n) and image.packed_file is not None:
-        return image
-    if image is not None:
-        bpy.data.images.remove(image)
-    image = bpy.data.images.new(name, width=n, height=n, alpha=False, float_buffer=True)
-    image.colorspace_settings.name = "Non-Color"
-    image.pack()
-    return image
+    return _grey_image(name, interaction.TRAIL_PIXELS)
 
 
 def write_trail_image(image, flat: np.ndarray) -> None:
-    """Write a trail map's flatness (rows from y0 up, as Blender's pixel rows) into ``image`` and
-    pack it (a packed image is saved with the file and is not a modified image to Blender)."""
-    rgba = np.ones((*flat.shape, 4), np.float32)
-    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = flat
-    image.pixels.foreach_set(rgba.ravel())
-    image.pack()
+    """Write a trail map's flatness (rows from y0 up, as Blender's pixel rows) into ``image``."""
+    _write_grey(image, flat)

@@ -328,8 +328,7 @@ def test_the_far_canopy_shows_a_trail_as_the_grass_does(tmp_path):
     for lod in (True, False):
         plain, = lod_compare.render(params, lod, "sun", [48], tmp_path, "plain")
         trail, = lod_compare.render(rolled, lod, "sun", [48], tmp_path, "trail")
-        w = plain.shape[1]
-        middle = slice(w // 2 - w // 12, w // 2 + w // 12)
+        middle = lod_compare.middle_columns(plain)
         ratios[lod] = trail[:, middle, 1].mean(axis=1) / plain[:, middle, 1].mean(axis=1)
     for lod, ratio in ratios.items():
         dark, light = int(np.argmin(ratio)), int(np.argmax(ratio))

@@ -13,19 +13,22 @@ shown before, so any frame is still seconds away and farm splits stay pixel-iden
   surface (the tolerance), so no blade tip is inside a collider.
 * **Trample** (frames N - W .. N, W = interaction.recovery): at each frame a collider's contacts
   press the cells under it by ``a`` (1 where it reaches the ground, 0 where its lowest point is
-  above the grass) along its direction of travel. A cell shows ``max over contacts of a R(t - s)``,
-  ``R`` the recovery curve: flattened, rising slowly, then released into the paper's damped
-  oscillation (eqs 29-32, the cell's own K/M and C/M) so that it is back at its wind-only pose
-  when ``interaction.recovery`` has passed. The wind keeps acting on trampled grass, weaker while
-  it is flat (``WIND_WHEN_FLAT``).
+  above the grass) along its direction of travel. The window's frames are taken in chunks of
+  W / CHUNKS_PER_WINDOW frames, a cell's presses in a chunk as one: the strongest, at the last
+  frame it was pressed (the grass stays down while a collider is on it). A cell shows
+  ``max over chunks of a R(t - s)``, ``R`` the recovery curve: flattened, rising slowly, then
+  released into the paper's damped oscillation (eqs 29-32, the cell's own K/M and C/M) so that
+  it is back at its wind-only pose when ``interaction.recovery`` has passed. The wind keeps
+  acting on trampled grass, weaker while it is flat (``WIND_WHEN_FLAT``).
 
 * **Trail map** (``trail_map``): how flat the trampled cells are, rasterised over the box around
   them, for the far canopy (no cell is simulated there): the held curve of ``R`` and a smooth
   release (``far_recovery``; a canopy pixel stands for many cells, no single oscillation).
 
-Contacts are computed per frame for the cells under each sphere only and kept for the window W,
-so the work is proportional to the cells the colliders reach (Fan et al. 2015): a field with no
-collider does nothing here, a collider outside the window of simulated blocks touches nothing.
+Contacts are computed per frame for the cells under each sphere only and kept, merged per chunk,
+for the window W, so the work is proportional to the cells the colliders reach (Fan et al. 2015),
+a cell counted once per chunk however long a collider stays on it: a field with no collider
+does nothing here, a collider outside the window of simulated blocks touches nothing.
 """
 
 from __future__ import annotations
@@ -52,10 +55,11 @@ CAPSULE_SPHERES_PER_RADIUS = 2.0  # a capsule is spheres along its axis, this ma
 STILL_SPEED = 0.05  # m/s: slower colliders press the grass outwards, not along their travel
 TRAIL_PIXELS = 256  # the trail map's side: its box is square, at least TRAIL_MARGIN pixels around the trail
 TRAIL_MARGIN = 2
-# The trail map takes the frames of whole past chunks of TRAIL_CHUNK frames (aligned on frame
-# numbers, so a frame alone gets the same) together: per cell the strongest press at the last frame
-# it was pressed in the chunk (flatter by at most the recovery of half a second: a far pixel).
-TRAIL_CHUNK = 12
+# The recovery window's frames are taken in chunks (aligned on frame numbers, so a frame alone gets
+# the same), a cell's presses within a chunk as one: its strongest, from the last frame it was
+# pressed in (the grass stays down while a collider is on it). A chunk is 1/CHUNKS_PER_WINDOW of
+# the window (12 frames at 24 fps for the default 4 s), so a frame's work does not grow with it.
+CHUNKS_PER_WINDOW = 8
 
 
 # ------------------------------------------------------------------------------------------------
@@ -215,17 +219,43 @@ class TrailMap:
 
 @dataclass(frozen=True)
 class Contacts:
-    """Cells pressed at one frame: global cell ids (m,), press (m,) in (0, 1], direction (m, 2);
-    ``box``: (first column, last column, first row, last row) of the cells (ids are row-major)."""
+    """Cells pressed at one frame, or over a span of frames (``merge``): global cell ids (m,),
+    ascending; per cell its strongest press (m,) in (0, 1], and the time (m,) and direction
+    (m, 2) of the last frame it was pressed in; ``box``: (first column, last column, first row,
+    last row) of the cells (ids are row-major)."""
 
     cells: np.ndarray
     press: np.ndarray
     direction: np.ndarray
+    when: np.ndarray
     box: tuple = (0, -1, 0, -1)
 
     @staticmethod
     def none() -> Contacts:
-        return Contacts(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)))
+        return Contacts(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)), np.zeros(0))
+
+    def __len__(self) -> int:
+        return len(self.cells)
+
+    @staticmethod
+    def merge(parts) -> Contacts:
+        """The contacts of the frames of ``parts`` (contacts of frames or spans that do not
+        overlap) together: per cell the strongest press, the time and direction of its last
+        one. Merging is exact (a maximum and a choice), so any grouping gives the same."""
+        parts = [p for p in parts if len(p)]
+        if len(parts) < 2:
+            return parts[0] if parts else Contacts.none()
+        cells = np.concatenate([p.cells for p in parts])
+        when = np.concatenate([p.when for p in parts])
+        order = np.lexsort((when, cells))
+        cells, when = cells[order], when[order]
+        start = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
+        last = np.r_[start[1:], len(cells)] - 1
+        press = np.maximum.reduceat(np.concatenate([p.press for p in parts])[order], start)
+        direction = np.concatenate([p.direction for p in parts])[order[last]]
+        boxes = np.array([p.box for p in parts])
+        box = (int(boxes[:, 0].min()), int(boxes[:, 1].max()), int(boxes[:, 2].min()), int(boxes[:, 3].max()))
+        return Contacts(cells[start], press, direction, when[last], box)
 
 
 def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
@@ -250,11 +280,11 @@ def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
     return s, ids, np.stack([cx[s, j], cy[s, j]], axis=1)
 
 
-def contacts(grid, spheres: Spheres, ground, top: float) -> Contacts:
-    """The cells ``spheres`` press: a cell at horizontal distance d < r from a sphere's centre is
-    pressed by ``a = clip((top - z_low) / top, 0, 1)``, ``z_low`` the height of the sphere's
-    lowest point over the cell above the ground (``ground(xy) -> z``) and ``top`` the grass's
-    height; along the sphere's horizontal travel, or outwards when it stands still."""
+def contacts(grid, spheres: Spheres, ground, top: float, t: float = 0.0) -> Contacts:
+    """The cells ``spheres`` press at time ``t``: a cell at horizontal distance d < r from a
+    sphere's centre is pressed by ``a = clip((top - z_low) / top, 0, 1)``, ``z_low`` the height
+    of the sphere's lowest point over the cell above the ground (``ground(xy) -> z``) and ``top``
+    the grass's height; along the sphere's horizontal travel, or outwards when it stands still."""
     if not len(spheres):
         return Contacts.none()
     s, ids, xy = _cells_around(grid, spheres, spheres.radii)
@@ -281,7 +311,7 @@ def contacts(grid, spheres: Spheres, ground, top: float) -> Contacts:
         return Contacts.none()
     columns = cells % grid.cells_x
     box = (int(columns.min()), int(columns.max()), int(cells[0] // grid.cells_x), int(cells[-1] // grid.cells_x))
-    return Contacts(cells, a[last], direction[last], box)
+    return Contacts(cells, a[last], direction[last], np.full(len(cells), float(t)), box)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -335,11 +365,13 @@ class Interaction:
         self.fps = int(params.render.fps)
         self.frame_start = int(params.render.frame_start)
         self.window = int(math.ceil(self.recovery * self.fps))
+        self.chunk = max(1, self.window // CHUNKS_PER_WINDOW)
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
         self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
-        self._local: OrderedDict[int, tuple] = OrderedDict()  # frame -> its contacts on the window's cells
-        self._chunks: OrderedDict[int, tuple] = OrderedDict()  # chunk -> (when, cells, press, box) (trail_map)
+        self._chunks: OrderedDict[int, Contacts] = OrderedDict()  # whole chunks (recent)
+        self._growing: tuple | None = None  # (chunk, frame, contacts) of the last chunk, up to frame
+        self._local: OrderedDict[int, tuple] = OrderedDict()  # chunk -> its contacts on the window's cells
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
     def time(self, frame: int) -> float:
@@ -356,56 +388,52 @@ class Interaction:
         """The cells pressed at ``frame`` (kept for the recovery window)."""
         found = self._contacts.get(frame)
         if found is None:
-            found = contacts(self.grid, self.spheres(self.time(frame)), self.ground, self.top)
+            t = self.time(frame)
+            found = contacts(self.grid, self.spheres(t), self.ground, self.top, t)
             self._contacts[frame] = found
-            while len(self._contacts) > self.window + 8:
+            while len(self._contacts) > self.chunk + 8:
                 self._contacts.popitem(last=False)
         return found
 
     def trample(self, frame: int, window: WindowCells, omega2: np.ndarray, damping: np.ndarray):
         """(local cell index (m,), flatness (m,), direction (m, 2)) of the window's trampled cells
-        at ``frame``."""
-        t = self.time(frame)
-        parts = [(f, self.contacts(f)) for f in range(frame - self.window, frame + 1)]
-        parts = [(f, c) for f, c in parts if len(c.cells)]
+        at ``frame``: per cell the strongest press of each chunk (``recent``) times the recovery
+        curve from its last frame, the largest over the chunks."""
+        parts = self.recent(frame)
         if not parts:
             return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
-        mine = [self._in_window(f, c, window) for f, c in parts]  # (local, press, direction) in the window
-        local = np.concatenate([m[0] for m in mine])
-        press = np.concatenate([m[1] for m in mine])
-        direction = np.concatenate([m[2] for m in mine])
-        when = np.concatenate([np.full(len(m[0]), self.time(f)) for (f, _), m in zip(parts, mine)])
-        value = press * recovery_curve(t - when, self.recovery, omega2[local], damping[local])
+        mine = [self._in_window(k, part, window) for k, part in parts]  # (local, press, direction, when)
+        local, press, direction, when = (np.concatenate([m[i] for m in mine]) for i in range(4))
+        value = press * recovery_curve(self.time(frame) - when, self.recovery, omega2[local], damping[local])
         keep = value > 1e-4
         local, value, direction = local[keep], value[keep], direction[keep]
-        # per cell the strongest contact (the last one of equal strength), by a maximum over the
-        # window's cells (scratch kept per window, cleared after use): no sort of the contacts
+        # per cell the strongest (the last one of equal strength), by a maximum over the window's
+        # cells (scratch kept per window, cleared after use): no sort of the contacts
         best, heading = window.scratch()
         np.maximum.at(best, local, value)
         winner = value == best[local]
         heading[local[winner]] = direction[winner]
-        cells = np.flatnonzero(best)
+        cells = np.unique(local)  # the cells set above (not a scan of the window's cells)
         out = cells, best[cells].copy(), heading[cells].copy()
         best[cells] = 0.0
         return out
 
     def trail_map(self, frame: int, eyes=(), hidden_within: float = 0.0) -> TrailMap | None:
         """The trails of the recovery window before ``frame`` as a map for the far canopy, None
-        when no cell is trampled: per cell the strongest press times ``far_recovery``, each
-        pixel the flattest of its cells. Frames (and merged chunks, ``_trail_parts``) whose
-        pressed cells all lie within ``hidden_within`` of one of the ``eyes`` (positions, the
-        field's frame), where the canopy is not drawn (the LOD's card_near), are left out: the
-        map costs only where it can be seen."""
-        t = self.time(frame)
-        parts = self._trail_parts(frame)
+        when no cell is trampled: per cell the strongest press of each chunk (``recent``) times
+        ``far_recovery`` from its last frame, each pixel the flattest of its cells. Chunks whose
+        cells all lie within ``hidden_within`` of one of the ``eyes`` (positions, the field's
+        frame), where the canopy is not drawn (the LOD's card_near), are left out: the map costs
+        only where it can be seen."""
+        parts = [part for _, part in self.recent(frame)]
         if len(eyes) and parts:
-            seen = ~self._hidden([box for *_, box in parts], eyes, hidden_within)
+            seen = ~self._hidden([part.box for part in parts], eyes, hidden_within)
             parts = [part for part, keep in zip(parts, seen) if keep]
         if not parts:
             return None
-        when = np.concatenate([np.broadcast_to(w, c.shape) for w, c, _, _ in parts])
-        cells = np.concatenate([c for _, c, _, _ in parts])
-        flat = np.concatenate([a for _, _, a, _ in parts]) * far_recovery(t - when, self.recovery)
+        when = np.concatenate([part.when for part in parts])
+        cells = np.concatenate([part.cells for part in parts])
+        flat = np.concatenate([part.press for part in parts]) * far_recovery(self.time(frame) - when, self.recovery)
         keep = flat > 1e-3
         if not keep.any():
             return None
@@ -425,46 +453,36 @@ class Interaction:
         return TrailMap((float(x0), float(y0), float(x0 + size), float(y0 + size)),
                         image.reshape(TRAIL_PIXELS, TRAIL_PIXELS))
 
-    def _trail_parts(self, frame: int) -> list:
-        """The contacts of the recovery window before ``frame`` as (time or times, cells, press,
-        box): whole chunks of TRAIL_CHUNK frames merged (kept while the window lasts), the frames
-        of the chunks cut by the window's ends one by one."""
-        parts, f = [], frame - self.window
-        while f <= frame:
-            k = f // TRAIL_CHUNK
-            if f == k * TRAIL_CHUNK and f + TRAIL_CHUNK - 1 <= frame:
-                merged = self._chunks.get(k)
-                if merged is None:
-                    merged = self._chunks[k] = self._merge(range(f, f + TRAIL_CHUNK))
-                    while len(self._chunks) > self.window // TRAIL_CHUNK + 4:
+    def recent(self, frame: int) -> list[tuple[int, Contacts]]:
+        """(chunk, its contacts) of every chunk of ``self.chunk`` frames (aligned on frame
+        numbers) that overlaps the recovery window before ``frame``, the last one up to
+        ``frame``; none without contacts. Whole chunks are kept while the window lasts, the last
+        one grows a frame at a time (the same contacts as merged at once)."""
+        size, out = self.chunk, []
+        for k in range((frame - self.window) // size, frame // size + 1):
+            if (k + 1) * size - 1 <= frame:
+                part = self._chunks.get(k)
+                if part is None:
+                    part = self._chunks[k] = Contacts.merge(self.contacts(f) for f in range(k * size, (k + 1) * size))
+                    while len(self._chunks) > self.window // size + 4:
                         self._chunks.popitem(last=False)
-                if len(merged[1]):
-                    parts.append(merged)
-                f += TRAIL_CHUNK
-                continue
-            found = self.contacts(f)
-            if len(found.cells):
-                parts.append((self.time(f), found.cells, found.press, found.box))
-            f += 1
-        return parts
+            else:
+                part = self._growing_chunk(k, frame)
+            if len(part):
+                out.append((k, part))
+        return out
 
-    def _merge(self, frames) -> tuple:
-        """(times (m,), cells (m,), press (m,), box) of ``frames``' contacts: per cell the strongest
-        press and the last frame it was pressed in."""
-        found = [(f, self.contacts(f)) for f in frames]
-        found = [(f, c) for f, c in found if len(c.cells)]
-        if not found:
-            return 0.0, np.zeros(0, np.int64), np.zeros(0), (0, -1, 0, -1)
-        cells = np.concatenate([c.cells for _, c in found])
-        press = np.concatenate([c.press for _, c in found])
-        when = np.concatenate([np.full(len(c.cells), self.time(f)) for f, c in found])
-        order = np.lexsort((when, cells))
-        cells, press, when = cells[order], press[order], when[order]
-        start = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
-        end = np.r_[start[1:], len(cells)] - 1
-        boxes = np.array([c.box for _, c in found])
-        box = (int(boxes[:, 0].min()), int(boxes[:, 1].max()), int(boxes[:, 2].min()), int(boxes[:, 3].max()))
-        return when[end], cells[start], np.maximum.reduceat(press, start), box
+    def _growing_chunk(self, k: int, frame: int) -> Contacts:
+        """The contacts of chunk ``k``'s frames up to ``frame`` (the one before kept)."""
+        grown = self._growing
+        if grown is not None and grown[0] == k and grown[1] == frame:
+            return grown[2]
+        if grown is not None and grown[0] == k and grown[1] == frame - 1:
+            part = Contacts.merge([grown[2], self.contacts(frame)])
+        else:
+            part = Contacts.merge(self.contacts(f) for f in range(k * self.chunk, frame + 1))
+        self._growing = (k, frame, part)
+        return part
 
     def _hidden(self, boxes, eyes, within: float) -> np.ndarray:
         """(len(boxes),) bool: every cell of each box of cells (first, last column, first, last
@@ -481,17 +499,17 @@ class Interaction:
             hidden |= reach < within
         return hidden
 
-    def _in_window(self, frame: int, found: Contacts, window: WindowCells):
-        """(local index, press, direction) of a frame's contacts on the window's cells (kept with
-        the contacts while the window lasts)."""
-        memo = self._local.get(frame)
-        if memo is None or memo[0] is not window:
-            inside, local = window.find(found.cells)
-            memo = (window, local, found.press[inside], found.direction[inside])
-            self._local[frame] = memo
-            while len(self._local) > self.window + 8:
+    def _in_window(self, k: int, part: Contacts, window: WindowCells):
+        """(local index, press, direction, when) of chunk ``k``'s contacts on the window's cells
+        (kept with the chunk while the window lasts)."""
+        memo = self._local.get(k)
+        if memo is None or memo[0] is not window or memo[1] is not part:
+            inside, local = window.find(part.cells)
+            memo = (window, part, local, part.press[inside], part.direction[inside], part.when[inside])
+            self._local[k] = memo
+            while len(self._local) > self.window // self.chunk + 4:
                 self._local.popitem(last=False)
-        return memo[1], memo[2], memo[3]
+        return memo[2:]
 
     def push(self, frame: int, layout, window: WindowCells):
         """(local cell index (m,), lean (m,), direction (m, 2)) of the window's cells a collider
@@ -499,7 +517,8 @@ class Interaction:
         spheres = self.spheres(self.time(frame))
         if not len(spheres):
             return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2))
-        reach = spheres.radii * PUSH_MARGIN + float(np.max(layout.cell_length, initial=0.0)) * 1.5
+        # a cell whose centre stands clear of a sphere (grown by the margin) needs no lean
+        reach = (spheres.radii + self.tolerance) * PUSH_MARGIN
         s, ids, xy = _cells_around(self.grid, spheres, reach)
         found, local = window.find(ids)
         s = s[found]

@@ -110,23 +110,56 @@ def test_the_far_canopys_trail_map_follows_the_ball_and_fades_with_the_recovery(
     assert GrassField(params).interaction.trail_map(25).flat.tobytes() == trail.flat.tobytes()
 
 
-def test_the_trail_maps_merged_chunks_stay_within_half_a_seconds_recovery(ball, monkeypatch):
-    """Whole past chunks of frames are merged (per cell the strongest press, at its last frame):
-    never less flat than frame by frame, and flatter by no more than the far recovery falls within
-    a chunk's span (12 frames, 0.5 s), and by much less on average."""
+def test_the_trail_maps_merged_chunks_stay_within_a_chunks_recovery(ball, monkeypatch):
+    """A cell's presses within a chunk of frames count as one (the strongest, at its last frame):
+    the trail map is never less flat than frame by frame, flatter by no more than the far
+    recovery falls within a chunk's span (9 frames of the 72-frame window: 1/3 s), and by much
+    less on average."""
     params = ball[0]
-    merged = GrassField(params).interaction.trail_map(40)
-    monkeypatch.setattr(interaction, "TRAIL_CHUNK", 1)
+    field = GrassField(params)
+    assert field.interaction.chunk == 9
+    merged = field.interaction.trail_map(40)
+    monkeypatch.setattr(interaction, "CHUNKS_PER_WINDOW", 10**9)
     exact = GrassField(params).interaction.trail_map(40)
     assert merged.extent == exact.extent
     difference = merged.flat - exact.flat
     tau = np.linspace(0.0, params.interaction.recovery, 601)
-    span = 11 / 24  # the first and last frame of a 12-frame chunk, at 24 fps
+    span = 8 / 24  # the first and last frame of a chunk, at 24 fps
     fall = float(np.max(interaction.far_recovery(tau, 3.0) - interaction.far_recovery(tau + span, 3.0)))
     trail = exact.flat > 0
     assert trail.sum() > 100
     assert difference.min() >= -1e-6 and difference.max() <= fall + 1e-6
     assert np.abs(difference[trail]).mean() < 0.1 * fall
+
+
+def _trample(params, frame: int):
+    """Per global cell id how flat the trampled cells are at ``frame`` (a fresh field, the ball's
+    stems: K/M 40 s^-2, C/M 2 s^-1)."""
+    field = GrassField(params)
+    it = field.interaction
+    window = interaction.WindowCells(field.layout, it.grid)
+    count = len(window.ids)
+    local, flat, _ = it.trample(frame, window, np.full(count, 40.0), np.full(count, 2.0))
+    out = np.zeros(count)
+    out[local] = flat
+    return out
+
+
+def test_the_trample_counts_a_cells_presses_within_a_chunk_as_one(ball, monkeypatch):
+    """The near trample takes a chunk's presses of a cell as one, as the trail map does: at frame
+    25 (every press within the held part of the recovery) never less flat than frame by frame, and
+    flatter by no more than the held curve falls within a chunk's span."""
+    params = ball[0]
+    merged = _trample(params, 25)
+    monkeypatch.setattr(interaction, "CHUNKS_PER_WINDOW", 10**9)
+    exact = _trample(params, 25)
+    difference = merged - exact
+    held = interaction.HOLD * params.interaction.recovery
+    fall = float(interaction._held(np.array([held - 8 / 24]), held)[0] - interaction.HELD_FLAT)
+    assert (exact > 0.5).sum() > 100
+    assert np.array_equal(merged > 0, exact > 0)
+    assert difference.min() >= -1e-9 and difference.max() <= fall + 1e-9
+    assert np.abs(difference[exact > 0]).mean() < 0.1 * fall
 
 
 def test_a_collider_far_from_the_window_adds_no_work():

@@ -385,13 +385,14 @@ class Interaction:
         return self._spheres_at[1]
 
     def contacts(self, frame: int) -> Contacts:
-        """The cells pressed at ``frame`` (kept for the recovery window)."""
+        """The cells pressed at ``frame`` (the last few kept: a frame asks again for them when it
+        is made again, as motion blur does)."""
         found = self._contacts.get(frame)
         if found is None:
             t = self.time(frame)
             found = contacts(self.grid, self.spheres(t), self.ground, self.top, t)
             self._contacts[frame] = found
-            while len(self._contacts) > self.chunk + 8:
+            while len(self._contacts) > 8:
                 self._contacts.popitem(last=False)
         return found
 
@@ -456,29 +457,31 @@ class Interaction:
     def recent(self, frame: int) -> list[tuple[int, Contacts]]:
         """(chunk, its contacts) of every chunk of ``self.chunk`` frames (aligned on frame
         numbers) that overlaps the recovery window before ``frame``, the last one up to
-        ``frame``; none without contacts. Whole chunks are kept while the window lasts, the last
-        one grows a frame at a time (the same contacts as merged at once)."""
+        ``frame``; none without contacts. Whole chunks are kept while the window lasts."""
         size, out = self.chunk, []
         for k in range((frame - self.window) // size, frame // size + 1):
-            if (k + 1) * size - 1 <= frame:
+            end = (k + 1) * size - 1
+            if end <= frame:
                 part = self._chunks.get(k)
                 if part is None:
-                    part = self._chunks[k] = Contacts.merge(self.contacts(f) for f in range(k * size, (k + 1) * size))
+                    part = self._chunks[k] = self._grown(k, end)
                     while len(self._chunks) > self.window // size + 4:
                         self._chunks.popitem(last=False)
             else:
-                part = self._growing_chunk(k, frame)
+                part = self._grown(k, frame)
             if len(part):
                 out.append((k, part))
         return out
 
-    def _growing_chunk(self, k: int, frame: int) -> Contacts:
-        """The contacts of chunk ``k``'s frames up to ``frame`` (the one before kept)."""
-        grown = self._growing
-        if grown is not None and grown[0] == k and grown[1] == frame:
-            return grown[2]
-        if grown is not None and grown[0] == k and grown[1] == frame - 1:
-            part = Contacts.merge([grown[2], self.contacts(frame)])
+    def _grown(self, k: int, frame: int) -> Contacts:
+        """The contacts of chunk ``k``'s frames up to ``frame``: the last ones asked for grown by
+        a frame when they were chunk ``k``'s up to the frame before (played frames), else merged
+        anew (the same contacts either way)."""
+        last = self._growing
+        if last is not None and last[0] == k and last[1] == frame:
+            return last[2]
+        if last is not None and last[0] == k and last[1] == frame - 1:
+            part = Contacts.merge([last[2], self.contacts(frame)])
         else:
             part = Contacts.merge(self.contacts(f) for f in range(k * self.chunk, frame + 1))
         self._growing = (k, frame, part)

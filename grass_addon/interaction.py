@@ -370,7 +370,7 @@ class Interaction:
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
         self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
         self._chunks: OrderedDict[int, Contacts] = OrderedDict()  # whole chunks (recent)
-        self._growing: tuple | None = None  # (chunk, frame, contacts) of the last chunk, up to frame
+        self._growing: OrderedDict[tuple, Contacts] = OrderedDict()  # (chunk, frame) -> its frames up to frame
         self._local: OrderedDict[int, tuple] = OrderedDict()  # chunk -> its contacts on the window's cells
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
@@ -385,8 +385,7 @@ class Interaction:
         return self._spheres_at[1]
 
     def contacts(self, frame: int) -> Contacts:
-        """The cells pressed at ``frame`` (the last few kept: a frame asks again for them when it
-        is made again, as motion blur does)."""
+        """The cells pressed at ``frame`` (the last few kept)."""
         found = self._contacts.get(frame)
         if found is None:
             t = self.time(frame)
@@ -474,17 +473,20 @@ class Interaction:
         return out
 
     def _grown(self, k: int, frame: int) -> Contacts:
-        """The contacts of chunk ``k``'s frames up to ``frame``: the last ones asked for grown by
-        a frame when they were chunk ``k``'s up to the frame before (played frames), else merged
-        anew (the same contacts either way)."""
-        last = self._growing
-        if last is not None and last[0] == k and last[1] == frame:
-            return last[2]
-        if last is not None and last[0] == k and last[1] == frame - 1:
-            part = Contacts.merge([last[2], self.contacts(frame)])
+        """The contacts of chunk ``k``'s frames up to ``frame``: those up to the frame before
+        grown by a frame when they are kept (the last few asked for: played frames, motion
+        blur's N - 1, N, N + 1), else merged anew (the same contacts either way)."""
+        part = self._growing.get((k, frame))
+        if part is not None:
+            return part
+        before = self._growing.get((k, frame - 1))
+        if before is not None:
+            part = Contacts.merge([before, self.contacts(frame)])
         else:
             part = Contacts.merge(self.contacts(f) for f in range(k * self.chunk, frame + 1))
-        self._growing = (k, frame, part)
+        self._growing[(k, frame)] = part
+        while len(self._growing) > 4:
+            self._growing.popitem(last=False)
         return part
 
     def _hidden(self, boxes, eyes, within: float) -> np.ndarray:

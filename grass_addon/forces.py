@@ -210,12 +210,20 @@ def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
     elif e.kind == "force":
         direction = vec / np.maximum(distance, 1e-9)[:, None]
     elif e.kind == "vortex":
-        turn = np.cross(np.broadcast_to(axis, points.shape), vec)
+        turn = _cross(axis, vec)
         direction = turn / np.maximum(np.linalg.norm(turn, axis=1), 1e-9)[:, None]
     else:  # turbulence: noise fixed to the field
         local = (points - e.matrix[:3, 3]) / max(e.size, 1e-6)
         direction = np.column_stack([value_noise(local, e.seed + k) for k in range(3)])
     return direction * (strength * share)[:, None]
+
+
+def _cross(axis: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """(m, 3) ``axis`` (3,) x each row of ``vec`` (m, 3) (np.cross's products, without its
+    broadcasting)."""
+    ax, ay, az = (float(a) for a in axis)
+    x, y, z = vec[:, 0], vec[:, 1], vec[:, 2]
+    return np.column_stack([ay * z - az * y, az * x - ax * z, ax * y - ay * x])
 
 
 class ForcedWind:
@@ -240,9 +248,7 @@ class ForcedWind:
                 if reach is None:
                     out += force(e, points, t)[:, :2].astype(np.float32)
                     continue
-                centre = e.matrix[:3, 3]  # only the cells within its maximum distance
-                near = np.flatnonzero((np.abs(points[:, 0] - centre[0]) <= reach)
-                                      & (np.abs(points[:, 1] - centre[1]) <= reach))
+                near = _within(points, e.matrix[:3, 3], reach)  # only these cells can feel it
                 if len(near):
                     out[near] += force(e, points[near], t)[:, :2].astype(np.float32)
         return out
@@ -254,6 +260,14 @@ class ForcedWind:
             points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length])
             kept = self._kept = (layout, points.astype(np.float64))
         return kept[1]
+
+
+def _within(points: np.ndarray, centre: np.ndarray, reach: float) -> np.ndarray:
+    """Indices of the ``points`` within ``reach`` of ``centre`` horizontally (an effector adds
+    nothing beyond its maximum distance)."""
+    x, y = points[:, 0] - centre[0], points[:, 1] - centre[1]
+    box = np.flatnonzero((np.abs(x) <= reach) & (np.abs(y) <= reach))
+    return box[x[box] * x[box] + y[box] * y[box] <= reach * reach]
 
 
 def _reach(e: Effector) -> float | None:

@@ -243,6 +243,26 @@ def test_a_wind_field_blows_along_its_z_axis_with_its_falloff():
     assert np.median(bend[near, 0]) > 2 * np.median(bend[far, 0]) > 0
 
 
+def test_force_fields_are_computed_only_where_they_reach_with_the_same_wind():
+    """A field with a maximum distance is evaluated at the cells within it only: the wind is the
+    same as the wind plus each field's force at every cell (0 beyond its reach)."""
+    rows = [{"type": "vortex", "position": [0.2, -0.3, 0.3], "strength": 6.0, "max_distance": 0.9, "noise": 0.5},
+            {"type": "wind", "position": [-1.0, 0.5, 0.0], "rotation": [0.0, 80.0, 30.0], "strength": 4.0,
+             "max_distance": 0.7},
+            {"type": "force", "position": [1.0, 1.0, 0.5], "strength": -3.0, "max_distance": 1.2}]
+    params = schema.loads_toml(BALL).replace({"interaction.colliders": [], "interaction.effectors": rows})
+    field = GrassField(params)
+    forced, layout = field.sim.wind, field.sim.layout
+    points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length]).astype(np.float64)
+    for t in (0.3, 1.7):
+        everywhere = np.array(forced.wind.sample_layout(t, layout), dtype=np.float32)
+        for e in forced.effectors.at(t):
+            everywhere += forces.force(e, points, t)[:, :2].astype(np.float32)
+        got = forced.sample_layout(t, layout)
+        assert np.array_equal(got, everywhere)
+        assert np.abs(got - forced.wind.sample_layout(t, layout)).max() > 0.5  # the fields blow
+
+
 def test_blenders_falloff_law():
     """Blender's effector falloff: (1 + d - min)^-power, 1 inside the minimum, 0 past the maximum."""
     d = np.array([0.0, 0.5, 1.0, 3.0, 5.0])

@@ -149,7 +149,8 @@ def fringe_colour(params: Params) -> tuple[float, float, float]:
     shade (as the card atlas draws them)."""
     block = sample_blades(params)
     if block.blade_length.size == 0:
-        return tuple(float(c) for c in Species(params).p @ Species(params).color)
+        species = Species(params)
+        return tuple(float(c) for c in species.p @ species.color)
     low, high, seen = _segment_spans(params, block)
     above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
     weight = seen * above

@@ -4,9 +4,13 @@ Used by the add-on's runtime (one ``GrassField`` per field object) and by the he
 The field works on a window of blocks (``layout``): the blocks the camera can see within the card
 range (``view``), or, without a camera, the whole field when it is small enough
 (``WHOLE_FIELD_CELLS``) and else the blocks around its centre (``notice`` says so). Blocks come
-from a cache bounded by ``simulation.cache_mb``; nothing is made for the whole field. The
-per-frame path (``view``, ``seek``, ``lod``, ``blade_vertices``, ``card_vertices``) writes into
-caller-provided ``out`` arrays when given.
+from a cache bounded by ``simulation.cache_mb``; nothing is made for the whole field.
+
+One frame is one call, ``frame(frame, subframe, views, blur)``: the window of blocks the views
+need, the state (wind, solver, cell data with the colliders' push and trample), LOD (eqs 7-11),
+which blocks each role shows, their vertices (colliders cleared: ``clearance.py``; bare cells
+collapsed) and velocities, the gust offset and the trail map, as a ``frame.Frame`` the bridge
+only writes. ``blade_vertices`` and ``card_vertices`` give any blocks' vertices by the same fill.
 """
 
 from __future__ import annotations
@@ -15,10 +19,12 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import atlas, forces, interaction, kinematics, slots
+from . import atlas, clearance, forces, interaction, kinematics, slots
 from .blocks import BlockCache
 from .celldata import CellData
+from .clock import Clock
 from .errors import ParameterError
+from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
 from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights, views
@@ -42,7 +48,11 @@ class GrassField:
 
     def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None):
         self.params = params
+        self.clock = Clock.of(params)
         self.grid = FieldGrid.of(params)
+        self.shapes = dict(zip((BLADES, CARDS), slots.pool_shapes(self.grid, params)))
+        self._buffers: dict[str, list] = {}  # role -> [vertices, velocity, ahead] (frame's arrays)
+        self._cells_frame: int | None = None  # the frame ``cells`` holds
         self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
         self._check_budget()
         self.notice: str | None = None
@@ -220,10 +230,6 @@ class GrassField:
 
     # ------------------------------------------------------------------ time
 
-    @property
-    def frame(self) -> int:
-        return self.sim.frame
-
     def seek(self, frame: int, camera: Camera | None = None) -> CellData:
         """Deterministic state at `frame` (a function of params, seed and frame only) of the
         window's cells; ``camera``: move the window to what it needs first."""
@@ -231,6 +237,7 @@ class GrassField:
             self.view(camera, frame)
         self.sim.seek(int(frame))
         self.cells = self._cell_data(int(frame), self.sim.state, self.sim.cell_wind)
+        self._cells_frame = int(frame)
         return self.cells
 
     def cells_at(self, frame: int) -> CellData:
@@ -246,30 +253,27 @@ class GrassField:
                 self._recent.popitem(last=False)
         return cells
 
-    def motion(self, frame: int, subframe: float, fps: float, vertices, out: np.ndarray, velocity: np.ndarray,
+    def motion(self, frame: int, subframe: float, vertices, out: np.ndarray, velocity: np.ndarray,
                ahead: np.ndarray) -> None:
         """Vertices at ``frame + subframe`` and their velocity in m/s, for motion blur.
 
-        ``vertices(cells, out)`` writes the vertices of some blocks for cell data ``cells``; ``ahead``
-        (shaped as ``out``) is scratch space for the later pose. The path
+        ``vertices(frame, cells, out)`` writes the vertices of some blocks for cell data ``cells``
+        of ``frame``; ``ahead`` (shaped as ``out``) is scratch space for the later pose. The path
         through the frames' poses is piecewise linear: between frames the vertices move at the
         slope of their segment; at a whole frame the velocity is the central difference
         (P(N + 1) - P(N - 1)) fps / 2. Frames are computed in ascending order (cheap seeks)."""
-        frame = int(frame)
-        if subframe == 0.0:
-            wanted = (frame - 1, frame, frame + 1)
-        else:
-            wanted = (frame, frame + 1)
+        frame, fps = int(frame), self.clock.fps
+        wanted = (frame - 1, frame, frame + 1) if subframe == 0.0 else (frame, frame + 1)
         cells = [self.cells_at(f) for f in wanted]
         if subframe == 0.0:
-            vertices(cells[0], velocity)  # P(N - 1)
-            vertices(cells[2], ahead)  # P(N + 1)
-            vertices(cells[1], out)  # P(N)
+            vertices(wanted[0], cells[0], velocity)  # P(N - 1)
+            vertices(wanted[2], cells[2], ahead)  # P(N + 1)
+            vertices(wanted[1], cells[1], out)  # P(N)
             np.subtract(ahead, velocity, out=velocity)
             velocity *= np.float32(0.5 * fps)
         else:
-            vertices(cells[0], out)  # P(N)
-            vertices(cells[1], ahead)  # P(N + 1)
+            vertices(wanted[0], cells[0], out)  # P(N)
+            vertices(wanted[1], cells[1], ahead)  # P(N + 1)
             np.subtract(ahead, out, out=velocity)  # one frame's motion
             out += velocity * np.float32(subframe)
             velocity *= np.float32(fps)
@@ -277,7 +281,73 @@ class GrassField:
     def _current(self) -> CellData:
         if self.cells is None:
             self.cells = self._cell_data(self.sim.frame, self.sim.state, self.sim.cell_wind)
+            self._cells_frame = self.sim.frame
         return self.cells
+
+    # ------------------------------------------------------------------ one frame
+
+    def frame(self, frame: int, subframe: float = 0.0, views=None, blur: bool = False) -> Frame:
+        """Everything drawn of the field at ``frame + subframe`` seen from ``views`` (one
+        ``lod.Camera``, several, or None: every block as geometry from the field's centre): the
+        window of blocks, the state, LOD, each role's blocks and vertices, with their velocities
+        when ``blur`` (the scene's motion blur) or at a sub-frame. The arrays are the field's own,
+        rewritten by the next call."""
+        frame, subframe = int(frame), float(subframe)
+        self.view(views, frame)  # the same window: no work
+        if self.cells is None or self._cells_frame != frame:
+            self.seek(frame)  # (the same frame seen from other views reuses its state)
+        lod = self.lod(views)
+        distance = block_distance(self.layout, lod, views)
+        motion = blur or subframe != 0.0
+        blades, cards = (self._role_frame(role, frame, subframe, lod, distance, motion) for role in (BLADES, CARDS))
+        t = self.clock.seconds(frame, subframe)
+        gust = (self.wind.displacement(t), self.wind.mean(t)[0]) if self.params.wind.gust_waves > 0.0 else None
+        return Frame(frame, subframe, t, lod, blades, cards, gust, self._trail(frame, views))
+
+    def _role_frame(self, role: str, frame: int, subframe: float, lod, distance, motion: bool) -> RoleFrame:
+        """One role's blocks (the nearest that need it, up to the pool's positions, in block
+        order), their vertices and, with ``motion``, velocities."""
+        shape, layout = self.shapes[role], self.layout
+        chosen = slots.nearest_blocks(needs(role, layout, lod), distance, shape.positions)
+        shown = slots.assign_positions(shape.positions, layout.block_ids[chosen])
+        count = len(chosen)
+        local = np.full(shown.shape, slots.FREE, dtype=np.int64)
+        local[:count] = np.searchsorted(layout.block_ids, shown[:count])
+        vertices, velocity, ahead = self._role_buffers(role, motion)
+        rows = count * shape.verts_per_block
+        blocks = local[:count]
+
+        def fill(f, cells, out):
+            self._fill(role, f, cells, blocks, lod, out)
+
+        if count and not motion:
+            fill(frame, self.cells, vertices[:rows])
+        elif count:
+            self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
+        vertices[rows:] = 0.0
+        if motion:
+            velocity[rows:] = 0.0
+        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity if motion else None)
+
+    def _role_buffers(self, role: str, motion: bool) -> list:
+        """[vertices, velocity, ahead] of ``role``: float32 (positions x verts_per_block, 3), the
+        last two made when motion blur first asks."""
+        buffers = self._buffers.get(role)
+        if buffers is None:
+            shape = self.shapes[role]
+            buffers = self._buffers[role] = [np.zeros((shape.positions * shape.verts_per_block, 3), np.float32),
+                                             None, None]
+        if motion and buffers[1] is None:
+            buffers[1], buffers[2] = np.zeros_like(buffers[0]), np.empty_like(buffers[0])
+        return buffers
+
+    def _trail(self, frame: int, cameras):
+        """The trail map the far canopy shows (None: no colliders, LOD off, or nothing trampled
+        where the canopy is drawn, beyond lod.card_near of the views ``cameras``)."""
+        if self.interaction is None or not self.params.lod.enabled:
+            return None
+        eyes = [camera_eye(cam) for cam in views(cameras)]
+        return self.interaction.trail_map(frame, eyes, float(self.params.lod.card_near))
 
     # ------------------------------------------------------------------ LOD
 
@@ -291,57 +361,65 @@ class GrassField:
         return np.arange(self.layout.n_blocks, dtype=np.int64)
 
     def blade_blocks(self, lod: LodWeights | None) -> np.ndarray:
-        """Visible blocks that can hold blade geometry (some cell with N > 0); all when lod is None."""
-        if lod is None:
-            return self.all_blocks()
-        has_blades = (lod.blade_count[self.layout.block_cells] > 0).any(axis=1)
-        return np.flatnonzero(lod.block_visible & has_blades)
+        """Visible blocks that show blades (some cell with N > 0, something grows); all when lod is None."""
+        return np.flatnonzero(needs(BLADES, self.layout, lod))
 
     def card_blocks(self, lod: LodWeights | None) -> np.ndarray:
-        """Visible blocks with some card opacity > 0; none when lod is None (all blades, no cards)."""
-        if lod is None:
-            return self.all_blocks()[:0]
-        has_cards = (lod.k_billboard[self.layout.block_cells] > 0).any(axis=1)
-        return np.flatnonzero(lod.block_visible & has_cards)
+        """Visible blocks with some card opacity > 0 where something grows; none when lod is None."""
+        return np.flatnonzero(needs(CARDS, self.layout, lod))
 
     # ------------------------------------------------------------------ geometry
 
-    def blade_vertices(self, blocks, lod: LodWeights | None = None, out: np.ndarray | None = None) -> np.ndarray:
-        """Blade strip vertices of `blocks` at the current frame; lod: hide blades beyond N (eq 9)."""
-        counts = None if lod is None else lod.blade_count
-        out = kinematics.blade_vertices(self.layout, self._current(), blocks, counts, out)
-        if self.interaction is not None:
-            self._clear_colliders(np.asarray(blocks, np.int64).reshape(-1), out)
+    def _fill(self, role: str, frame: int, cells: CellData, blocks, lod, out):
+        """The vertices of ``blocks`` (local ids) of ``role`` for ``cells`` of ``frame``, as drawn:
+        blades hidden beyond N (eq 9) and bent out of the colliders; cards of bare cells collapsed."""
+        blocks = np.asarray(blocks, np.int64).reshape(-1)
+        if role == BLADES:
+            out = kinematics.blade_vertices(self.layout, cells, blocks, None if lod is None else lod.blade_count, out)
+            if self.interaction is not None:
+                self._clear_colliders(frame, blocks, out)
+            return out
+        out = kinematics.card_vertices(self.layout, cells, blocks, out)
+        density = self.layout.cell_density
+        if density is not None and len(blocks):
+            # a cell where nothing grows has no card at all: collapsed, so rays do not cross it
+            # (many see-through cards along a path would use up a renderer's transparent layers)
+            bare = density[self.layout.block_cells[blocks]] <= 0.0
+            quads = out.reshape(len(blocks), self.layout.cells_per_block_total, 4, 3)
+            quads[bare] = quads[bare][:, :1]
         return out
 
-    def _clear_colliders(self, blocks: np.ndarray, vertices: np.ndarray) -> None:
-        """Joints of the blades of ``blocks`` still inside a collider at this frame are moved to
-        its surface (the leaning of ``interaction`` clears most; this keeps every tip out). Each
-        sphere looks only at the blocks within its reach."""
-        spheres = self.interaction.spheres(self.interaction.time(self.sim.frame))
+    def _clear_colliders(self, frame: int, blocks: np.ndarray, vertices: np.ndarray) -> None:
+        """Blades of ``blocks`` still reaching into a collider at ``frame`` are bent out of every
+        sphere at once (``clearance.clear_blades``: roots fixed, lengths kept, above the ground).
+        Only the blocks within a sphere's reach are looked at."""
+        spheres = self.interaction.spheres(self.clock.seconds(frame))
         if not len(spheres) or not len(blocks):
             return
-        reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5
-        bounds = self.grid.block_bounds(self.layout.block_ids[blocks])
+        reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5 + self.interaction.tolerance
+        b = self.grid.block_bounds(self.layout.block_ids[blocks])[:, None, :]
+        c, r = spheres.centres[None], spheres.radii[None] + reach
+        near = ((b[..., 0] <= c[..., 0] + r) & (b[..., 2] >= c[..., 0] - r)
+                & (b[..., 1] <= c[..., 1] + r) & (b[..., 3] >= c[..., 1] - r)).any(axis=1)
+        rows = np.flatnonzero(near)
+        if not len(rows):
+            return
         n, bpb = self.layout.segments, self.layout.blades_per_block
         view = vertices.reshape(len(blocks), bpb, n + 1, 2, 3)
-        for k in range(len(spheres)):
-            c, r = spheres.centres[k], spheres.radii[k] + reach
-            rows = np.flatnonzero((bounds[:, 0] <= c[0] + r) & (bounds[:, 2] >= c[0] - r)
-                                  & (bounds[:, 1] <= c[1] + r) & (bounds[:, 3] >= c[1] - r))
-            if not len(rows):
-                continue
-            one = interaction.Spheres(spheres.centres[k:k + 1], spheres.radii[k:k + 1], spheres.velocity[k:k + 1])
-            pairs = view[rows].reshape(len(rows) * bpb, n + 1, 2, 3)
-            joints = pairs.mean(axis=2, dtype=np.float64)
-            before = joints.copy()
-            if interaction.project_joints(joints, joints[:, 0, 2].copy(), one, self.interaction.tolerance):
-                pairs += (joints - before).astype(np.float32)[:, :, None, :]
-                view[rows] = pairs.reshape(len(rows), bpb, n + 1, 2, 3)
+        strips = view[rows].reshape(len(rows) * bpb, n + 1, 2, 3)
+        if clearance.clear_blades(strips, spheres.centres, spheres.radii, self.interaction.tolerance,
+                                  self.interaction.ground):
+            view[rows] = strips.reshape(len(rows), bpb, n + 1, 2, 3)
+
+    def blade_vertices(self, blocks, lod: LodWeights | None = None, out: np.ndarray | None = None) -> np.ndarray:
+        """Blade strip vertices of ``blocks`` at the current frame as drawn (``_fill``)."""
+        cells = self._current()
+        return self._fill(BLADES, self._cells_frame, cells, blocks, lod, out)
 
     def card_vertices(self, blocks, out: np.ndarray | None = None) -> np.ndarray:
-        """Card vertices of `blocks` at the current frame (paper III.B, eq 34)."""
-        return kinematics.card_vertices(self.layout, self._current(), blocks, out)
+        """Card vertices of ``blocks`` at the current frame (paper III.B, eq 34), bare cells collapsed."""
+        cells = self._current()
+        return self._fill(CARDS, self._cells_frame, cells, blocks, None, out)
 
     def blade_faces(self) -> np.ndarray:
         return kinematics.blade_faces(self.layout)

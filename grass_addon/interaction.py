@@ -9,8 +9,8 @@ shown before, so any frame is still seconds away and farm splits stay pixel-iden
 
 * **Push** (frame N only): blades near a collider lean away from it, as far as a straight blade
   of the cell's length must lean to clear the sphere (``push_lean``); the wind's bend towards the
-  collider is blocked. ``project_joints`` then moves any joint still inside a sphere to its
-  surface (the tolerance), so no blade tip is inside a collider.
+  collider is blocked. ``clearance.clear_blades`` then bends any blade still reaching into a
+  sphere out of it (roots fixed, lengths kept), so nothing drawn is inside a collider.
 * **Trample** (frames N - W .. N, W = interaction.recovery): at each frame a collider's contacts
   press the cells under it by ``a`` (1 where it reaches the ground, 0 where its lowest point is
   above the grass) along its direction of travel. The window's frames are taken in chunks of
@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .blade import GROUND_TILT
+from .clock import Clock
 
 FLAT_TILT = 1.45  # rad (83 deg): how far a fully trampled blade leans
 HOLD = 0.6  # share of interaction.recovery a trampled blade spends rising slowly before its release
@@ -362,8 +363,8 @@ class Interaction:
         self.grid = grid
         self.ground = ground
         self.top = max(float(top), 1e-3)
-        self.fps = int(params.render.fps)
-        self.frame_start = int(params.render.frame_start)
+        self.clock = Clock.of(params)
+        self.fps = self.clock.fps
         self.window = int(math.ceil(self.recovery * self.fps))
         self.chunk = max(1, self.window // CHUNKS_PER_WINDOW)
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
@@ -375,7 +376,7 @@ class Interaction:
         self.work = 0  # cells overlaid so far (a measure of work: proportional to the cells reached)
 
     def time(self, frame: int) -> float:
-        return (frame - self.frame_start) / self.fps
+        return self.clock.seconds(frame)
 
     def spheres(self, t: float) -> Spheres:
         """Every collider's spheres at time ``t`` (the last instant asked is kept: a frame asks
@@ -599,20 +600,3 @@ class WindowCells:
         pos = np.minimum(np.searchsorted(self.sorted, ids), len(self.sorted) - 1)
         found = self.sorted[pos] == ids
         return found, self.order[pos[found]]
-
-
-def project_joints(joints: np.ndarray, roots_z: np.ndarray, spheres: Spheres, tolerance: float) -> int:
-    """Move every joint (b, n + 1, 3) inside a sphere (by more than ``tolerance``) out to its
-    surface, radially, no lower than its root's ground ``roots_z`` (b,); returns how many moved."""
-    moved = 0
-    for c, r in zip(spheres.centres, spheres.radii):
-        rel = joints - c
-        d = np.sqrt(np.einsum("bjk,bjk->bj", rel, rel))
-        inside = d < r - tolerance
-        if not inside.any():
-            continue
-        scale = np.where(inside, r / np.maximum(d, 1e-9), 1.0)
-        joints[...] = np.where(inside[..., None], c + rel * scale[..., None], joints)
-        joints[..., 2] = np.maximum(joints[..., 2], roots_z[:, None])
-        moved += int(inside.sum())
-    return moved

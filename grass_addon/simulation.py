@@ -1,6 +1,6 @@
 """Deterministic time with bounded history: the state at any frame from a bounded number of steps.
 
-* ``t(frame) = (frame - render.frame_start) / render.fps``.
+* ``t(frame) = (frame - render.frame_start) / render.fps`` (``clock.Clock``).
 * Time is cut into epochs of ``E = simulation.epoch * fps`` frames from ``frame_start``. Each
   epoch ``k`` has its own trajectory: the solver started from rest at frame
   ``s_k = frame_start + k E - W`` (``W = simulation.preroll * fps``, the warm-up) and stepped one
@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .clock import Clock
 from .layout import subset_layout
 from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
@@ -69,9 +70,9 @@ class Simulation:
     def __init__(self, layout, params, wind, solver: BladeSolver | None = None):
         self.params = params
         self.wind = wind
-        self.fps = int(params.render.fps)
-        self.frame_start = int(params.render.frame_start)
-        self.frame_dt = 1.0 / self.fps
+        self.clock = Clock.of(params)
+        self.fps, self.frame_start = self.clock.fps, self.clock.frame_start
+        self.frame_dt = self.clock.dt
         self.epoch, self.warmup, self.fade = epoch_frames(params)
         self.layout = layout
         self.solver = solver if solver is not None else BladeSolver(layout, params)
@@ -91,7 +92,7 @@ class Simulation:
 
     def time(self, frame: int) -> float:
         """t(frame) in seconds: 0 at render.frame_start."""
-        return (frame - self.frame_start) / self.fps
+        return self.clock.seconds(frame)
 
     def epoch_of(self, frame: int) -> tuple[int, int]:
         """(k, r): the epoch of ``frame`` and the frame's place in it."""

@@ -153,11 +153,15 @@ class PoolState:
         chosen = nearest_blocks(needs, block_distance, self.shape.positions)
         if block_ids is not None:
             chosen = np.asarray(block_ids, dtype=np.int64)[chosen]
-        shown = assign_positions(self.shape.positions, chosen)
+        return self.record(assign_positions(self.shape.positions, chosen))
+
+    def record(self, shown: np.ndarray) -> Assignment:
+        """Take ``shown`` (the block at each position, FREE after the shown ones; the engine's
+        ``frame.RoleFrame.shown``) as this frame's, and say which objects must be written."""
         k = self.shape.k
         cur, prev = shown.reshape(-1, k), self.shown.reshape(-1, k)
         # an object whose positions are all FREE now and were FREE before stays collapsed
         write = ~((cur == FREE).all(axis=1) & (prev == FREE).all(axis=1))
         changed = (cur != prev).any(axis=1)
-        self.shown = shown
-        return Assignment(shown, len(chosen), write, changed)
+        self.shown = shown.copy()
+        return Assignment(shown, int(np.count_nonzero(shown != FREE)), write, changed)

@@ -15,6 +15,9 @@ the phases of a frame update separately:
   hands to foreach_set).
 
 phases_ms holds the median of each phase over the timed frames (after warm-up frames);
+drawn_frame_ms the median of the next frames through ``GrassField.frame`` from the fixed camera,
+the path the add-on takes (the window of blocks the camera needs, LOD, the blocks each pool
+shows and their vertices);
 frame_update_ms is their sum. floor_copy_ms is one np.copyto of the whole solver state (every
 SolverState array), timed in the same run: the least any frame update that touches the state once
 could cost; ratio_to_floor = frame_update_ms / floor_copy_ms. --peers adds the peer comparison of
@@ -146,6 +149,15 @@ def run_bench(blades: int, segments: int, frames: int) -> dict:
             for k, key in enumerate(names):
                 times[key].append((stamps[k + 1][0] - stamps[k][0]) * 1e3)
                 cpu[key].append((stamps[k + 1][1] - stamps[k][1]) * 1e3)
+    # The same field's next frames through the path Blender takes (GrassField.frame: the window
+    # the camera needs, seek, LOD, the blocks each role shows and their vertices, as drawn).
+    drawn = []
+    for i in range(WARMUP_FRAMES + frames):
+        frame += 1
+        t0 = clock()
+        field.frame(frame, 0.0, camera)
+        if i >= WARMUP_FRAMES:
+            drawn.append((clock() - t0) * 1e3)
     med = {k: statistics.median(v) for k, v in times.items()}
     phases = {k: round(med[k], 3) for k in ("wind", "solver", "lod", "kinematics")}
     update = sum(med[k] for k in phases)
@@ -164,6 +176,7 @@ def run_bench(blades: int, segments: int, frames: int) -> dict:
         "floor_copy_bytes": state_bytes,
         "ratio_to_floor": round(update / med["floor_copy"], 2) if med["floor_copy"] > 0 else None,
         "vertices_mb": round(out.nbytes / 2**20, 1),
+        "drawn_frame_ms": round(statistics.median(drawn), 3),
         "build_ms": round(build_ms, 1),
         "target": {"frame_update_ms": 60, "ratio_to_floor": 25},
         "lod_visible_blocks": int(weights.block_visible.sum()),

@@ -49,12 +49,7 @@ def balls(offset: float = 0.0) -> list[dict]:
 
 def _frame(field, cam, frame: int) -> float:
     t0 = time.perf_counter()
-    field.seek(frame, cam)
-    lod = field.lod(cam)
-    field.blade_vertices(field.blade_blocks(lod), lod)
-    field.card_vertices(field.card_blocks(lod))
-    if field.interaction is not None:  # the far canopy's trails (none where the canopy is not drawn)
-        field.interaction.trail_map(frame, [cam.position], field.params.lod.card_near)
+    field.frame(frame, 0.0, cam)  # the frame Blender draws (vertices, trails), without writing it
     return time.perf_counter() - t0
 
 

@@ -63,19 +63,9 @@ def _camera(params, t: float = 0.0, speed: float = 0.0):
     return Camera.look_at(position + shift, target + shift, math.radians(c.fov), aspect)
 
 
-def _frame(field, frame: int, camera, blades_out: np.ndarray, cards_out: np.ndarray) -> None:
-    """One frame as the add-on does it, without Blender: window, seek, LOD, vertices."""
-    from windgrass.grass_addon import kinematics
-
-    field.seek(frame, camera)
-    lod = field.lod(camera)
-    blades, cards = field.blade_blocks(lod), field.card_blocks(lod)
-    rows = kinematics.blade_vertex_count(field.layout, len(blades))
-    if rows:
-        field.blade_vertices(blades, lod, blades_out[:rows] if rows <= len(blades_out) else None)
-    rows = kinematics.card_vertex_count(field.layout, len(cards))
-    if rows:
-        field.card_vertices(cards, cards_out[:rows] if rows <= len(cards_out) else None)
+def _frame(field, frame: int, camera) -> None:
+    """One frame as the add-on computes it (``GrassField.frame``), without writing it to Blender."""
+    field.frame(frame, 0.0, camera)
 
 
 def engine_run(size_m: float) -> dict:
@@ -88,15 +78,13 @@ def engine_run(size_m: float) -> dict:
     field = GrassField(params)
     field.view(camera, 1)
     build_s = clock() - t0
-    blades_out = np.empty((4_000_000, 3), np.float32)
-    cards_out = np.empty((2_000_000, 3), np.float32)
     t0 = clock()
     field.seek(1, camera)
     seek_1 = clock() - t0
     times = []
     for frame in range(2, 2 + FRAMES):
         t0 = clock()
-        _frame(field, frame, camera, blades_out, cards_out)
+        _frame(field, frame, camera)
         times.append(clock() - t0)
     window_blocks = int(field.layout.n_blocks)
     fly = []
@@ -104,7 +92,7 @@ def engine_run(size_m: float) -> dict:
         frame = 2 + FRAMES + i
         cam = _camera(params, (frame - 1) / params.render.fps, FLY_SPEED)
         t0 = clock()
-        _frame(field, frame, cam, blades_out, cards_out)
+        _frame(field, frame, cam)
         fly.append(clock() - t0)
     far = GrassField(params)
     far.view(camera, 10_000)

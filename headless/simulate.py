@@ -68,8 +68,7 @@ def _sample_blocks(layout) -> tuple[np.ndarray, bool]:
     return np.unique(np.linspace(0, layout.n_blocks - 1, count).round().astype(np.int64)), False
 
 
-def _tips(layout, cells, blocks, out) -> np.ndarray:
-    v = kinematics.blade_vertices(layout, cells, blocks, out=out)
+def _tips(layout, v) -> np.ndarray:
     return v.reshape(-1, layout.segments + 1, 2, 3)[:, -1].mean(axis=1)
 
 
@@ -91,7 +90,8 @@ def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
     # Rest tips: the same kinematics with zero bend and twist.
     rest = SimpleNamespace(bend=np.zeros((layout.n_cells, n, 2), np.float32),
                            twist=np.zeros((layout.n_cells, n), np.float32))
-    rest_tip = _tips(layout, rest, blocks, tip_buf).copy() if layout.blades_per_block else np.zeros((0, 3))
+    rest_tip = (_tips(layout, kinematics.blade_vertices(layout, rest, blocks, out=tip_buf)).copy()
+                if layout.blades_per_block else np.zeros((0, 3)))
 
     tr = {
         "frame": np.arange(f0, f0 + frames, dtype=np.int32),
@@ -128,7 +128,7 @@ def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
         tr["cell_twist"][i] = np.asarray(cells.twist).reshape(ny, nx, n)
         tr["card_offset"][i] = np.asarray(cells.card_offset).reshape(ny, nx, 3)
         if layout.blades_per_block:
-            tips = _tips(layout, cells, blocks, tip_buf)
+            tips = _tips(layout, field.blade_vertices(blocks, out=tip_buf))  # as drawn: colliders cleared
             disp = np.linalg.norm(tips - rest_tip, axis=1)
             tip_disp_mean[i], tip_disp_max[i] = disp.mean(), disp.max()
             if store_tips:

@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from ..clock import Clock
+
 # Past frame_end the sampled range grows in steps of this many frames, so the keys (and the
 # fingerprint) rarely change while a user plays on.
 EXTEND_FRAMES = 240
@@ -62,9 +64,8 @@ def fcurve_fingerprint(fc) -> bytes:
 def sample_range(scene, params) -> tuple[int, int]:
     """Frames from the simulation start (t = -preroll) to frame_end, extended in steps when the
     current frame lies beyond it, so the range (and the cache key) rarely changes."""
-    r = params.render
-    first = r.frame_start - int(math.ceil(params.simulation.preroll * r.fps))
-    last = r.frame_end
+    first = math.floor(Clock.of(params).frame_at(-params.simulation.preroll))
+    last = params.render.frame_end
     if scene.frame_current > last:
         last += int(math.ceil((scene.frame_current - last) / EXTEND_FRAMES)) * EXTEND_FRAMES
     return first, last
@@ -76,12 +77,12 @@ def sample_wind_keys(fcurves: dict, params, frames: tuple[int, int]) -> tuple:
     Time follows the engine's clock t = (frame - frame_start) / fps; direction F-curves hold
     radians (Blender's angle unit) and become degrees (the schema's unit).
     """
-    r = params.render
+    clock = Clock.of(params)
     frame_list = range(frames[0], frames[1] + 1)
     speed_fc, dir_fc = fcurves.get("speed"), fcurves.get("direction")
     speeds = [max(0.0, speed_fc.evaluate(f)) if speed_fc else params.wind.speed for f in frame_list]
     dirs = [math.degrees(dir_fc.evaluate(f)) if dir_fc else params.wind.direction for f in frame_list]
-    return tuple(((f - r.frame_start) / r.fps, float(s), float(d)) for f, s, d in zip(frame_list, speeds, dirs))
+    return tuple((clock.seconds(f), float(s), float(d)) for f, s, d in zip(frame_list, speeds, dirs))
 
 
 def fingerprint(fcurves: dict, frames: tuple[int, int]) -> str:

@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from .. import forces, interaction, memory, schema, slots
+from .. import forces, interaction, memory, schema
 from .. import paint as paint_core
 from ..errors import WindgrassError
 from ..field import GrassField
@@ -49,6 +49,7 @@ from . import animation, bake, maps, materials, pools, properties, textures, tra
 from . import camera as field_camera
 from . import scene as field_scene
 from .registry import REGISTRY, Key, key_of, warn_once
+from .scene import ROLE_BLADES, ROLE_CARDS
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
 # for this long, so dragging a slider on a large field does not re-simulate at every step.
@@ -204,11 +205,10 @@ def resolve(scene, item) -> FieldRuntime:
     field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint, colliders=colliders,
                        effectors=effectors)
     field.sim.progress = _seek_progress(item.name)
-    blade_shape, card_shape = slots.pool_shapes(field.grid, params)
     rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
                       wind_keys=wind_keys, terrain_key=t_key, heightfield=heightfield, terrain_centre=centre,
-                      field=field, blades=pools.blade_pool(field, blade_shape),
-                      cards=pools.card_pool(field, card_shape), topology=topology,
+                      field=field, blades=pools.SlotPool(ROLE_BLADES, field.shapes[ROLE_BLADES]),
+                      cards=pools.SlotPool(ROLE_CARDS, field.shapes[ROLE_CARDS]), topology=topology,
                       paint=painted, track=track)
     REGISTRY.fields[key] = rt
     return rt
@@ -391,51 +391,32 @@ def reset_field(scene, item) -> None:
 
 
 def _write(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
-    """wind -> solver -> cell data (seek), LOD from the views (camera.field_views: the scene
-    camera in renders, the 3D views in the viewport), slot pools, writes.
+    """The frame as the engine computes it (``GrassField.frame``: wind, solver, cell data, LOD
+    from the views, each role's blocks and vertices, gust offset, trail map), written: the views
+    are ``camera.field_views`` (the scene camera in renders, the 3D views in the viewport).
 
     With the scene's motion blur on, or at a sub-frame (Blender evaluates frame + subframe for
     each motion-blur step), the vertices are those of that instant and carry their velocity."""
-    frame, subframe = scene.frame_current, float(scene.frame_subframe)
     if views is None:
         views = field_camera.field_views(scene, item, depsgraph)
-    rt.field.view(views, frame)  # the window of blocks these views need (same window: no work)
+    shown = rt.field.frame(scene.frame_current, float(scene.frame_subframe), views,
+                           blur=bool(scene.render.use_motion_blur))
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
-    if rt.frame != frame or rt.field.cells is None:
-        rt.field.seek(frame)  # a view-only update reuses this frame's cell data
-    lod = rt.field.lod(views)
-    if not views:
-        # No camera: every block is geometry (lod_weights(None)); the pools take the blocks
-        # nearest the field centre.
-        bounds = rt.field.layout.block_bounds
-        centre = 0.5 * (bounds[:, :2] + bounds[:, 2:])
-        block_distance = np.hypot(centre[:, 0], centre[:, 1]).astype(np.float32)
-    else:
-        block_distance = np.asarray(lod.block_distance, dtype=np.float32)
-    motion = None
-    if scene.render.use_motion_blur or subframe != 0.0:
-        motion = (frame, subframe, float(rt.params.render.fps))
-    rt.blades.write(item, rt.field, lod, block_distance, motion)
-    rt.cards.write(item, rt.field, lod, block_distance, motion)
-    if rt.params.wind.gust_waves > 0.0:  # the far grass's gust waves travel with the mean wind
+    rt.blades.write(item, shown.blades)
+    rt.cards.write(item, shown.cards)
+    if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
         reg = field_scene.registered(item)
-        t = (frame + subframe - rt.params.render.frame_start) / rt.params.render.fps
-        materials.set_gust_offset(rt.field.wind.displacement(t), rt.field.wind.mean(t)[0], rt.params,
-                                  reg.get(field_scene.ROLE_CARD_MATERIAL), reg.get(field_scene.ROLE_CANOPY_MATERIAL))
-    _write_trails(item, rt, frame, views)
-    rt.frame, rt.subframe, rt.lod = frame, subframe, lod
+        materials.set_gust_offset(shown.gust[0], shown.gust[1], rt.params, reg.get(field_scene.ROLE_CARD_MATERIAL),
+                                  reg.get(field_scene.ROLE_CANOPY_MATERIAL))
+    _write_trails(item, rt, shown.trail)
+    rt.frame, rt.subframe, rt.lod = shown.frame, shown.subframe, shown.lod
     rt.camera_signature = field_camera.signature(views)
 
 
-def _write_trails(item, rt: FieldRuntime, frame: int, views) -> None:
-    """The far canopy's trampled trails of ``frame`` (interaction.trail_map): its image and
-    mapping, or none shown (none either where the canopy is not drawn: within lod.card_near of
-    the views; with the LOD off, nowhere)."""
-    trail = None
-    if rt.field.interaction is not None and rt.params.lod.enabled:
-        eyes = [view.position for view in views] if views else ()
-        trail = rt.field.interaction.trail_map(frame, eyes, float(rt.params.lod.card_near))
+def _write_trails(item, rt: FieldRuntime, trail) -> None:
+    """The far canopy's trampled trails (``interaction.trail_map``, or None): its image and
+    mapping, written when they changed."""
     if trail is None and rt.trail is None:
         return
     reg = field_scene.registered(item)

@@ -20,6 +20,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Vector
 
+from ..clock import Clock
 from ..errors import ParameterError
 from ..grid import FieldGrid
 from . import animation
@@ -73,7 +74,7 @@ def flythrough_pose(params, frame: int | float) -> tuple[tuple[float, float, flo
     sway = min(FLY_SWAY, 0.15 * w, 0.1 * straight)
     turn = math.pi * w
     lap = 2.0 * straight + 2.0 * turn
-    t = (frame - params.render.frame_start) / params.render.fps
+    t = Clock.of(params).seconds(frame)
     s_total = params.camera.speed * t
     laps = math.floor(s_total / lap)
     s = s_total - laps * lap
@@ -408,9 +409,7 @@ def setup_stage(scene, params) -> bpy.types.Object:
 def setup_colliders(scene, params) -> list:
     """A visible ball or capsule for each ``[[colliders]]`` row, keyed along its path (straight
     between keys, as the grass feels it). The grass reads the rows themselves, not these objects."""
-    from .animation import action_fcurves
-
-    fps, start = int(params.render.fps), int(params.render.frame_start)
+    clock = Clock.of(params)
     material = bpy.data.materials.get("Windgrass Collider") or bpy.data.materials.new("Windgrass Collider")
     material.diffuse_color = (0.55, 0.12, 0.08, 1.0)
     material.use_nodes = True
@@ -428,8 +427,8 @@ def setup_colliders(scene, params) -> list:
         scene.collection.objects.link(obj)
         for key in row["path"]:
             obj.location = key["position"]
-            obj.keyframe_insert("location", frame=start + key["time"] * fps)
-        for fc in action_fcurves(obj.animation_data):
+            obj.keyframe_insert("location", frame=clock.frame_at(key["time"]))
+        for fc in animation.action_fcurves(obj.animation_data):
             for point in fc.keyframe_points:
                 point.interpolation = "LINEAR"
         made.append(obj)

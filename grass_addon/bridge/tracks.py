@@ -27,6 +27,7 @@ import bpy
 import numpy as np
 
 from .. import forces
+from ..clock import Clock
 from ..errors import ParameterError
 from ..interaction import SampledTrack
 from . import scene as field_scene
@@ -254,7 +255,8 @@ def sample(scene, item, params, progress=None) -> dict:
     ground_top = float(kept[1].heights.max()) if kept is not None and kept[1] is not None else 0.0
     top_z = ground_top + _top(params)
     frames = frame_range(scene, params)
-    fps = float(params.render.fps)
+    clock = Clock.of_scene(scene)
+    fps = float(clock.fps)
     frame, subframe = scene.frame_current, scene.frame_subframe
     per_object: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[] for _ in colliders]
     fields: list[list[dict]] = []
@@ -274,7 +276,7 @@ def sample(scene, item, params, progress=None) -> dict:
     finally:
         scene.frame_set(frame, subframe=subframe)
         REGISTRY.sampling = False
-    times = [(f - int(scene.frame_start)) / fps for f in frames]
+    times = [clock.seconds(f) for f in frames]
     offsets, centres, radii, velocity = [0], [], [], []
     for k in range(len(frames)):
         for j in range(len(colliders)):

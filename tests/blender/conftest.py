@@ -6,6 +6,7 @@
 import importlib
 
 import bpy
+import numpy as np
 import pytest
 from addon_loader import load_addon
 
@@ -32,3 +33,26 @@ def with_bridge(addon):
     for name in ("field", "bridge.scene", "bridge.runtime"):
         importlib.import_module(f"{addon.__name__}.grass_addon.{name}")
     return addon
+
+
+@pytest.fixture
+def drawn():
+    """``drawn(item, role="blades")`` -> (vertices, 3) float64: what Blender draws of a field's
+    role, read from the evaluated meshes of its slot objects in world space, in slot order (the
+    engine's position order: each block's blades, each blade's joints, each joint's [left, right]);
+    positions that show nothing are collapsed to one point."""
+
+    def read(item, role="blades"):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        objects = sorted((o for o in item.collection.objects if o.get("wg_role") == role and o.type == "MESH"),
+                         key=lambda o: int(o.get("wg_slot", -1)))
+        parts = []
+        for obj in objects:
+            evaluated = obj.evaluated_get(depsgraph)
+            co = np.empty(len(evaluated.data.vertices) * 3, np.float32)
+            evaluated.data.vertices.foreach_get("co", co)
+            m = np.array(evaluated.matrix_world, dtype=np.float64)
+            parts.append(co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3])
+        return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+    return read

@@ -46,34 +46,35 @@ def _ball(radius=0.3, keys=((1, (-1.2, 0.0, 0.3)), (25, (1.2, 0.0, 0.3)))):
     return ball, coll
 
 
-def _tips(runtime, scene, item, frame):
+def _strips(drawn, scene, item, frame):
+    """(blades, joints, 2, 3): the blade strips Blender draws at ``frame`` (evaluated meshes)."""
     scene.frame_set(frame)
-    rt = runtime.get_runtime(scene, item)
-    assert rt is not None, runtime.field_error(scene, item)
-    field = rt.field
-    v = field.blade_vertices(field.all_blocks())
-    n = field.layout.segments
-    return v.reshape(-1, n + 1, 2, 3)[:, -1].mean(axis=1)
+    n = item.blade.segments
+    return drawn(item).reshape(-1, n + 1, 2, 3)
 
 
-def test_a_keyed_ball_parts_the_grass_and_its_motion_is_saved(bridge, tmp_path):
+def _tips(drawn, scene, item, frame):
+    return _strips(drawn, scene, item, frame)[:, -1].mean(axis=1)
+
+
+def test_a_keyed_ball_parts_the_grass_and_its_motion_is_saved(bridge, drawn, tmp_path):
     """The ball (r = 0.3 m) rolls from x = -1.2 to 1.2 m over frames 1-25. Frame 13: no blade tip
-    is inside it by more than the tolerance (and 5 mm: the mesh's facets); without the collider
-    over 50 tips would be inside. The motion is sampled once,
+    Blender draws is inside it by more than the tolerance (and 5 mm: the mesh's facets); without
+    the collider over 50 tips would be inside. The motion is sampled once,
     stored with the field (saved and read back, frame 20 the same, no new sampling)."""
     _, runtime = bridge
     scene, item = _field(bridge)
     ball, coll = _ball()
-    before = _tips(runtime, scene, item, 13)
+    before = _tips(drawn, scene, item, 13)
     centre = np.array([0.0, 0.0, 0.3])
     inside_before = np.sum(np.linalg.norm(before - centre, axis=1) < 0.3)
     assert inside_before > 50
     item.collider_collection = coll  # (background Blender samples the motion at once)
     assert "wg_track" in item.collection
-    tips = _tips(runtime, scene, item, 13)
+    tips = _tips(drawn, scene, item, 13)
     depth = 0.3 - np.linalg.norm(tips - centre, axis=1)
     assert depth.max() < 0.005 + item.interaction.tolerance, depth.max()
-    frame20 = _tips(runtime, scene, item, 20).copy()
+    frame20 = _tips(drawn, scene, item, 20).copy()
     path = str(tmp_path / "ball.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
@@ -83,38 +84,114 @@ def test_a_keyed_ball_parts_the_grass_and_its_motion_is_saved(bridge, tmp_path):
     original = runtime.tracks.sample
     runtime.tracks.sample = lambda *a, **k: sampled.append(1) or original(*a, **k)
     try:
-        again = _tips(runtime, scene, item, 20)
+        again = _tips(drawn, scene, item, 20)
     finally:
         runtime.tracks.sample = original
     assert not sampled and np.array_equal(again, frame20)
 
 
-def test_the_trail_is_trampled_and_frame_n_alone_equals_the_sequence(bridge):
+def test_the_trail_is_trampled_and_frame_n_alone_equals_the_sequence(bridge, drawn):
     """Frame 30 (the ball stopped at x = 1.2 m at frame 25): blades along its path near x = 0 lie
     flatter than the grass far from it, leaning along +x; a fresh runtime seeking frame 30 alone
-    shows the same vertices as one stepped through 1-30."""
+    draws the same vertices as one stepped through 1-30."""
     properties, runtime = bridge
     scene, item = _field(bridge)
     _, coll = _ball()
     item.collider_collection = coll
-    for frame in range(1, 31):
+    for frame in range(1, 30):
         scene.frame_set(frame)
-    rt = runtime.get_runtime(scene, item)
-    seq = rt.field.blade_vertices(rt.field.all_blocks()).copy()
-    runtime.reset_field(scene, item)
-    scene.frame_set(30)
-    rt = runtime.get_runtime(scene, item)
-    alone = rt.field.blade_vertices(rt.field.all_blocks())
+    seq = _strips(drawn, scene, item, 30).copy()
+    runtime.reset_field(scene, item)  # a fresh runtime seeks frame 30 alone
+    alone = _strips(drawn, scene, item, 30)
     assert np.array_equal(seq, alone)
-    layout = rt.field.layout
-    n = layout.segments
-    tips = alone.reshape(-1, n + 1, 2, 3)[:, -1].mean(axis=1)
-    roots = layout.blade_root
+    tips = alone[:, -1].mean(axis=1)
+    roots = alone[:, 0].mean(axis=1)
     height = tips[:, 2] - roots[:, 2]
     trail = (np.abs(roots[:, 0]) < 0.3) & (np.abs(roots[:, 1]) < 0.1)
     away = np.abs(roots[:, 1]) > 1.0
     assert np.median(height[trail]) < 0.5 * np.median(height[away])
     assert np.median(tips[trail, 0] - roots[trail, 0]) > 0.1
+
+
+def _balls(spheres, segments=32):
+    """Static UV spheres (centre, radius) in a new collection "Colliders"."""
+    coll = bpy.data.collections.new("Colliders")
+    bpy.context.scene.collection.children.link(coll)
+    for centre, radius in spheres:
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=centre, segments=segments,
+                                             ring_count=segments // 2)
+        ball = bpy.context.active_object
+        for c in list(ball.users_collection):
+            c.objects.unlink(ball)
+        coll.objects.link(ball)
+    return coll
+
+
+def _assert_clear_of(strips, rest, spheres, tolerance):
+    """What a person expects of grass and balls, on the drawn strips (blades, joints, 2, 3), against
+    ``rest``, the same field's strips without the balls: no vertex of a drawn blade inside any ball
+    beyond the tolerance; roots where they grew; every segment within 2 % of its length; nothing
+    below the ground (z = 0). A blade rooted inside a ball is drawn as nothing (a point)."""
+    joints, rest_joints = strips.mean(axis=2), rest.mean(axis=2)
+    np.testing.assert_allclose(joints[:, 0], rest_joints[:, 0], atol=1e-5)  # roots where they grew
+    shown = np.ptp(rest.reshape(len(rest), -1, 3), axis=1).max(axis=1) > 0  # (FREE positions are points)
+    drawn_now = np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0
+    seg = np.linalg.norm(np.diff(joints, axis=1), axis=-1)
+    rest_seg = np.linalg.norm(np.diff(rest_joints, axis=1), axis=-1)
+    both = shown & drawn_now
+    assert both.sum() > 0.5 * shown.sum()
+    assert np.all(np.abs(seg[both] / rest_seg[both] - 1.0) < 0.02)
+    assert joints[both, :, 2].min() > -1e-3
+    v = strips[both].reshape(-1, 3)
+    rooted_at = np.zeros(len(strips), bool)
+    for centre, radius in spheres:
+        depth = radius - np.linalg.norm(v - np.asarray(centre), axis=1)
+        assert depth.max() < tolerance, (centre, radius, depth.max())
+        rooted_at |= np.linalg.norm(rest[:, 0] - np.asarray(centre), axis=-1).min(axis=1) < radius
+    assert not np.any(shown & ~drawn_now & ~rooted_at)  # only blades rooted in a ball are not drawn
+
+
+def test_what_blender_draws_of_a_rolling_ball_stays_out_of_it(bridge, drawn):
+    """A keyed ball (r = 0.3 m) rolls through calm grass: at frames 7, 13 and 19 the meshes Blender
+    draws hold no vertex inside it beyond the tolerance (plus 5 mm for the sphere mesh's facets),
+    the roots stand where they grew, every segment keeps its length, nothing is below the ground."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    ball, coll = _ball()
+    rest = _strips(drawn, scene, item, 1).copy()  # calm air: every frame's rest pose
+    item.collider_collection = coll
+    for frame in (7, 13, 19):
+        strips = _strips(drawn, scene, item, frame)
+        centre = tuple(ball.matrix_world.translation)
+        _assert_clear_of(strips, rest, [(centre, 0.3)], 0.005 + item.interaction.tolerance)
+
+
+def test_a_ball_half_sunk_in_the_ground_sits_on_the_grass(bridge, drawn):
+    """A ball of 0.4 m whose centre is 0.1 m below the ground: the blades around it bend over it,
+    those rooted under it are drawn as nothing; no root is lifted onto it."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    rest = _strips(drawn, scene, item, 5).copy()
+    item.collider_collection = _balls([((0.0, 0.0, -0.1), 0.4)])
+    strips = _strips(drawn, scene, item, 5)
+    _assert_clear_of(strips, rest, [((0.0, 0.0, -0.1), 0.4)], 0.005 + item.interaction.tolerance)
+    assert (np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) == 0).sum() > 100
+
+
+def test_fifty_overlapping_balls_crowd_the_grass_without_a_tip_in_any(bridge, drawn):
+    """50 balls (r = 0.08-0.3 m) crowded over the middle of the field, overlapping, some sunk in
+    the ground: cleared all at once, no blade is pushed from one ball into another."""
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    scene.frame_end = 6
+    rng = np.random.default_rng(12)
+    spheres = [((float(x), float(y), float(z)), float(r)) for x, y, z, r in
+               zip(rng.uniform(-0.8, 0.8, 50), rng.uniform(-0.8, 0.8, 50), rng.uniform(-0.05, 0.35, 50),
+                   rng.uniform(0.08, 0.3, 50))]
+    rest = _strips(drawn, scene, item, 3).copy()
+    item.collider_collection = _balls(spheres, segments=24)
+    strips = _strips(drawn, scene, item, 3)
+    _assert_clear_of(strips, rest, spheres, 0.008 + item.interaction.tolerance)
 
 
 def _cell_bends(runtime, scene, item, frame):

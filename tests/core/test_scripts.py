@@ -173,3 +173,37 @@ def test_wind_type_flag_brings_its_preset_speed():
     assert f"calm, {schema.WIND_TYPE_PRESETS['calm']['speed']:g} m/s" in calm.stdout
     given = run("simulate.py", *TINY, "--frames", 1, "--wind-type", "calm", "--wind-speed", "2")
     assert "calm, 2 m/s" in given.stdout
+
+
+def test_a_traced_rolling_ball_has_no_blade_tip_inside_it(tmp_path):
+    """simulate.py on a scene file with a ball of 0.4 m rolling through calm grass: the traced tips
+    (the blades as drawn) are never inside the ball by more than the tolerance, though without
+    the ball many would be."""
+    cfg = tmp_path / "ball.toml"
+    cfg.write_text("""
+[field]
+blocks_x = 2
+blocks_y = 2
+cells_per_block = 8
+cell_size = 0.1
+blades_per_cell = 4
+[wind]
+speed = 0.0
+turbulence = 0.0
+[render]
+fps = 24
+[[colliders]]
+radius = 0.4
+path = [{time = 0.0, position = [-1.2, 0.0, 0.4]}, {time = 1.0, position = [1.2, 0.0, 0.4]}]
+""")
+    path = tmp_path / "trace.npz"
+    proc = run("simulate.py", "--config", cfg, "--frames", 24, "--trace", path)
+    assert proc.returncode == 0, proc.stderr
+    with np.load(path) as data:
+        tips, times, rest = data["blade_tip"].astype(np.float64), data["time"], data["blade_rest_tip"]
+    x = -1.2 + 2.4 * np.clip(times, 0.0, 1.0)  # the ball's centre along its path
+    centres = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.4)])
+    depth = 0.4 - np.linalg.norm(tips - centres[:, None, :], axis=2)
+    assert depth.max() < 0.01, depth.max()  # interaction.tolerance
+    rest_depth = 0.4 - np.linalg.norm(rest[None].astype(np.float64) - centres[:, None, :], axis=2)
+    assert (rest_depth > 0.01).sum() > 200

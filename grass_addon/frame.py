@@ -1,0 +1,131 @@
+"""One frame of a field as Blender draws it, computed once by the engine (``GrassField.frame``).
+
+A ``Frame`` holds, for each of the field's two roles (blade strips, cards), which block every slot
+position shows (``slots.py``), the float32 vertices of those positions (colliders cleared, bare
+cells collapsed), their velocities when motion blur asks, and the per-vertex attributes of any
+slot object (blade colours, card opacity); plus what the materials need: the gust waves' offset
+and the colliders' trail map for the far canopy. The bridge only writes it (``bridge/pools.py``);
+the headless scripts and the tests read the same arrays.
+
+Which blocks a role shows: the visible blocks that need its level of detail (blades: some cell
+with N > 0, eq 9; cards: some card opacity K_b > 0, eqs 7 and 11) and where something grows
+(paint), the nearest first, up to the pool's positions, then in block order (canonical: a frame
+never depends on the frames shown before).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import slots
+
+BLADES, CARDS = "blades", "cards"
+# per-vertex attributes (the bridge writes each into the UV map of that role's name)
+TINT_RG, TINT_BS, FADE = "tint_rg", "tint_bs", "fade"
+
+
+def grows(layout) -> np.ndarray | bool:
+    """(n_blocks,) bool: some blade of the block grows (paint.py); True without paint."""
+    if layout.cell_density is None:
+        return True
+    return (layout.cell_density[layout.block_cells] > 0).any(axis=1)
+
+
+def needs(role: str, layout, lod) -> np.ndarray:
+    """(n_blocks,) bool: the window's blocks that ``role`` shows at these LOD weights."""
+    if lod is None:  # every blade as geometry, no card
+        return np.full(layout.n_blocks, role == BLADES)
+    level = lod.blade_count if role == BLADES else lod.k_billboard
+    return (level[layout.block_cells] > 0).any(axis=1) & lod.block_visible & grows(layout)
+
+
+def block_distance(layout, lod, views) -> np.ndarray:
+    """(n_blocks,) float32: how near each block is, for choosing the nearest: from the views'
+    eyes (``lod.block_distance``), or without views from the field's centre."""
+    if views:
+        return np.asarray(lod.block_distance, dtype=np.float32)
+    bounds = layout.block_bounds
+    centre = 0.5 * (bounds[:, :2] + bounds[:, 2:])
+    return np.hypot(centre[:, 0], centre[:, 1]).astype(np.float32)
+
+
+def blade_tints(layout, local: np.ndarray) -> dict:
+    """Per corner of every blade quad of the positions ``local`` (FREE: zero): the species colour
+    (r, g), (b, shade)."""
+    corners = layout.segments * 4  # per blade: n quads
+    bpb = layout.blades_per_block
+    shown = local >= 0
+    rg = np.zeros((len(local), bpb, 2), dtype=np.float32)
+    bs = np.zeros((len(local), bpb, 2), dtype=np.float32)
+    blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
+    colour = layout.species_color[layout.blade_species[blades]]
+    rg[shown] = colour[..., :2]
+    bs[shown, :, 0] = colour[..., 2]
+    bs[shown, :, 1] = layout.blade_shade[blades]
+    return {TINT_RG: np.repeat(rg.reshape(-1, 2), corners, axis=0),
+            TINT_BS: np.repeat(bs.reshape(-1, 2), corners, axis=0)}
+
+
+def card_fade(layout, local: np.ndarray, lod) -> dict:
+    """Per corner of every card of the positions ``local``: (K_b, K_b), times the cell's painted
+    density (a card shows only its cell's blades that grow); FREE positions: zero."""
+    opacity = np.zeros((len(local), layout.cells_per_block_total), dtype=np.float32)
+    shown = local >= 0
+    if lod is not None:
+        opacity[shown] = lod.k_billboard[layout.block_cells[local[shown]]]
+    if layout.cell_density is not None:
+        opacity[shown] *= layout.cell_density[layout.block_cells[local[shown]]]
+    return {FADE: np.ascontiguousarray(np.repeat(opacity.reshape(-1, 1), 8, axis=1).reshape(-1, 2))}
+
+
+@dataclass(eq=False)
+class RoleFrame:
+    """What one role's slot objects show at a frame.
+
+    ``shown`` (positions,): the field-wide block id at each position (``slots.FREE`` after the
+    first ``count``); ``local``: the same as the window's local ids; ``vertices`` (positions x
+    verts_per_block, 3) float32, FREE positions zero; ``velocity``: the same shape in m/s with
+    motion blur, else None."""
+
+    role: str
+    shape: slots.PoolShape
+    layout: object
+    lod: object
+    shown: np.ndarray
+    local: np.ndarray
+    count: int
+    vertices: np.ndarray
+    velocity: np.ndarray | None
+
+    def object_rows(self, index: int) -> slice:
+        """The rows of ``vertices`` that slot object ``index`` holds."""
+        rows = self.shape.verts_per_object
+        return slice(index * rows, (index + 1) * rows)
+
+    def attributes(self, index: int, changed: bool) -> dict:
+        """{name: per-corner float32 (corners, 2)} of slot object ``index``: blade colours when a
+        position of it shows another block than before (``changed``), card opacity always."""
+        k = self.shape.k
+        local = self.local[index * k:(index + 1) * k]
+        if self.role == BLADES:
+            return blade_tints(self.layout, local) if changed else {}
+        return card_fade(self.layout, local, self.lod)
+
+
+@dataclass(eq=False)
+class Frame:
+    """Everything Blender draws of a field at ``frame + subframe`` (``seconds`` on its clock)."""
+
+    frame: int
+    subframe: float
+    seconds: float
+    lod: object  # lod.LodWeights of the views (all geometry without views)
+    blades: RoleFrame
+    cards: RoleFrame
+    gust: tuple | None  # (displacement (2,) m, mean speed m/s) with gust waves, else None
+    trail: object  # interaction.TrailMap the far canopy shows, or None
+
+    def roles(self) -> tuple[RoleFrame, RoleFrame]:
+        return self.blades, self.cards

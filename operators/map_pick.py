@@ -3,8 +3,7 @@ terrain, an image of the file), from a searchable list of what there is."""
 
 import bpy
 
-from ..grass_addon.bridge import properties
-from ..grass_addon.bridge import scene as field_scene
+from ..grass_addon.bridge import maps, properties
 from ._common import has_active_field, reported
 
 NONE = "NONE"
@@ -15,7 +14,7 @@ def _sources(self, context):
     items = [(NONE, "None", "No map: grass everywhere, as grown")]
     scene = context.scene
     item = properties.active_field(scene) if scene is not None else None
-    terrain = field_scene.terrain_object(scene, item) if item is not None else None
+    terrain = maps.terrain_object(scene, item) if item is not None else None
     if terrain is not None:
         items += [(f"vertex_group:{g.name}", f"Vertex Group: {g.name}", f"Weights of '{terrain.name}' (Weight Paint)")
                   for g in terrain.vertex_groups]

@@ -30,12 +30,11 @@ import numpy as np
 
 from ..errors import WindgrassError
 from ..folders import ensure_writable
-from . import animation
-from . import scene as field_scene
+from . import animation, owned
 
 RECORD = "wg_bake"
 MODIFIER = "Windgrass bake"
-ROLES = (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS)
+ROLES = (owned.ROLE_BLADES, owned.ROLE_CARDS)
 
 
 class BakeError(WindgrassError):
@@ -113,8 +112,8 @@ def check(scene, item, first: int, last: int) -> Path:
     missing = missing_build_feature()
     if missing:
         raise BakeError(missing)
-    if item.collection is None or not field_scene.slot_objects(item, field_scene.ROLE_BLADES) and \
-            not field_scene.slot_objects(item, field_scene.ROLE_CARDS):
+    if item.collection is None or not owned.slot_objects(item, owned.ROLE_BLADES) and \
+            not owned.slot_objects(item, owned.ROLE_CARDS):
         raise BakeError(f"bake: field '{item.name}' has no objects; add or rebuild it first")
     if scene.camera is None:
         raise BakeError("bake: the scene has no camera (the bake holds what the camera sees; set Scene > Camera)")
@@ -161,7 +160,7 @@ def free_bytes(folder: Path) -> int | None:
 
 
 def _slots(item) -> list:
-    return [obj for role in ROLES for obj in field_scene.slot_objects(item, role).values()]
+    return [obj for role in ROLES for obj in owned.slot_objects(item, role).values()]
 
 
 def _abc_name(name: str) -> str:
@@ -377,3 +376,8 @@ def status(scene, item, digest: str | None) -> str | None:
 def cache_size(folder: Path) -> int:
     """Bytes of the Alembic files of a bake."""
     return sum(f.stat().st_size for f in Path(folder).glob("*.abc"))
+
+
+def plays_cache(item) -> bool:
+    """Whether the field plays its bake (baked, and its files are on disk; else it plays live)."""
+    return is_baked(item) and files_present(item)

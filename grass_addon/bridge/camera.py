@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..lod import ORTHOGRAPHIC, PANORAMIC, PERSPECTIVE, Camera
-from . import scene as field_scene
+from . import owned
 from .registry import REGISTRY
 
 # Blender draws a 3D view with a 36 mm sensor at twice the zoom of a camera (CAMERA_PARAM_ZOOM_INIT_PERSP):
@@ -133,7 +133,7 @@ def field_views(scene, item, depsgraph=None) -> list[Camera]:
     ground object's inverse world matrix); empty when there is none (no camera, no 3D view)."""
     import bpy
 
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     if ground is not None and depsgraph is not None:
         ground = ground.evaluated_get(depsgraph)
     to_field = ground.matrix_world.inverted_safe() if ground is not None else None

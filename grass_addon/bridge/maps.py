@@ -17,6 +17,9 @@ digest (renders stay a function of the scene), the rasters into ``GrassField(pai
 
 from __future__ import annotations
 
+import json
+import os
+
 import bpy
 import numpy as np
 
@@ -25,7 +28,8 @@ from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..errors import ParameterError
 from ..grid import FieldGrid
-from . import scene as field_scene
+from .owned import ground_object
+from .registry import warn_once
 
 MAX_MAP_SAMPLES = 1024  # samples along a side of a map draped from the terrain (one per cell, or coarser)
 
@@ -39,7 +43,7 @@ def sources(params) -> list[tuple[str, str]]:
 
 def _to_field(item):
     """4x4 numpy matrix from world to the field's frame (the ground's inverse), or None."""
-    ground = field_scene.ground_object(item)
+    ground = ground_object(item)
     if ground is None:
         return None
     return np.array(ground.matrix_world.inverted_safe(), dtype=np.float64)
@@ -154,7 +158,7 @@ def _sample_image(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
 def _blender_map(scene, item, params, setting: str, value: str, to_field) -> paint_core.Raster:
     """The raster of a ``vertex_group:``, ``attribute:`` or ``image:`` map setting."""
     kind, _, name = value.partition(":")
-    terrain = field_scene.terrain_object(scene, item)
+    terrain = terrain_object(scene, item)
     if kind == "image" and terrain is None:  # flat ground: the image over the extent
         extent = paint_core.map_extent(params, params.paint.extent, "paint.extent")
         return paint_core.Raster(_image_pixels(name, setting), extent, setting)
@@ -240,7 +244,7 @@ def depends_on(scene, item, params) -> set:
     """Names of the datablocks the field's paint reads (its terrain, images, keep-out objects):
     an update to one of them is a stroke or an edit to apply."""
     names = set()
-    terrain = field_scene.terrain_object(scene, item)
+    terrain = terrain_object(scene, item)
     for _, value in sources(params):
         kind, _, name = value.partition(":")
         if kind in ("vertex_group", "attribute") and terrain is not None:
@@ -255,3 +259,87 @@ def depends_on(scene, item, params) -> set:
         names |= {("OBJECT", o.name) for o in coll.all_objects}
         names.add(("COLLECTION", coll.name))
     return names
+
+
+def terrain_object(scene, item):
+    """``item.terrain`` when it is a mesh object of ``scene``, else None."""
+    obj = getattr(item, "terrain", None)
+    if obj is None or obj.type != "MESH" or scene.objects.get(obj.name) is not obj:
+        return None
+    return obj
+
+
+def terrain_key(scene, item, params) -> str:
+    """Cheap key of what the terrain samples depend on besides the mesh data (the object and the
+    grid): the runtime keeps its samples while it holds; Rebuild re-samples anyway."""
+    obj = terrain_object(scene, item)
+    _, spacing, nx, ny = terrain_core.grid_for(params)
+    if obj is None:
+        t = params.terrain
+        if not t.heightmap:
+            return ""
+        try:
+            stat = os.stat(bpy.path.abspath(t.heightmap))
+            mark = [stat.st_mtime_ns, stat.st_size]
+        except OSError:
+            mark = None  # read (and reported) by sample_terrain
+        return json.dumps(["heightmap", t.heightmap, mark, t.height, list(t.extent), round(spacing, 9), nx, ny])
+    return json.dumps([obj.name, round(spacing, 9), nx, ny])
+
+
+def _world_triangles(obj) -> np.ndarray:
+    """(T, 3, 3) float64 world-space triangles of the mesh as evaluated (modifiers, shape keys)."""
+    def extract(mesh, matrix) -> np.ndarray:
+        mesh.calc_loop_triangles()
+        co = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.vertices.foreach_get("co", co)
+        tri = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tri)
+        m = np.array(matrix, dtype=np.float64)
+        world = co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+        return world[tri].reshape(-1, 3, 3)
+
+    if len(obj.modifiers) or obj.data.shape_keys is not None:
+        try:
+            evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = evaluated.to_mesh()
+            try:
+                return extract(mesh, evaluated.matrix_world)
+            finally:
+                evaluated.to_mesh_clear()
+        except Exception as exc:  # no depsgraph here (e.g. mid-render): the mesh without modifiers
+            warn_once(f"terrain '{obj.name}': modifiers not applied ({type(exc).__name__}: {exc})")
+    return extract(obj.data, obj.matrix_world)
+
+
+def sample_terrain(scene, item, params):
+    """(heightfield, centre_xy) of ``item.terrain``, or (None, None) for flat ground.
+
+    The field is centred on the terrain's XY bounding-box centre (world space); the heightfield
+    holds the world Z of the mesh's top surface at the grid's samples (``terrain.grid_for``), a
+    downward ray cast per sample done as one vectorised pass (``terrain.drape``); samples off the
+    mesh take the nearest hit's height. Deterministic: a function of the mesh and the params.
+    """
+    obj = terrain_object(scene, item)
+    coll = item.collection
+    if obj is None and params.terrain.heightmap and getattr(item, "terrain", None) is None:
+        return terrain_core.from_params(params, read_file), None  # a scene file's heightmap
+    if obj is None:
+        lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
+        if lost:
+            name = coll.get("wg_terrain") if coll is not None and coll.get("wg_terrain") else item.terrain.name
+            warn_once(f"terrain '{name}' of field '{item.name}' is gone or not a mesh in this scene; "
+                               "the grass grows on flat ground")
+        return None, None
+    tris = _world_triangles(obj)
+    if len(tris) == 0:
+        warn_once(f"terrain '{obj.name}' of field '{item.name}' has no faces; the grass grows on flat ground")
+        return None, None
+    lo, hi = tris.reshape(-1, 3).min(axis=0), tris.reshape(-1, 3).max(axis=0)
+    centre = 0.5 * (lo[:2] + hi[:2])
+    tris = tris - np.array([centre[0], centre[1], 0.0])  # into the field's frame (z stays world z)
+    origin, spacing, nx, ny = terrain_core.grid_for(params)
+    heights, hit = terrain_core.drape(tris, origin, spacing, nx, ny)
+    if not hit.all():
+        heights = terrain_core.fill_missing(heights, hit, fallback=float(lo[2]))
+    return terrain_core.Heightfield(origin, spacing, heights), (float(centre[0]), float(centre[1]))

@@ -13,8 +13,7 @@ import numpy as np
 
 from .. import frame as frames
 from .. import slots
-from . import materials
-from . import scene as field_scene
+from . import materials, owned
 from .registry import warn_once
 
 # the UV map each engine attribute is written to
@@ -58,7 +57,7 @@ class SlotPool:
         whose positions changed, or all of them when the frame carries velocities."""
         assignment = self.state.record(part.shown)
         self.blocks = part.shown[:part.count].copy()
-        objects = field_scene.slot_objects(item, self.role)
+        objects = owned.slot_objects(item, self.role)
         if part.velocity is not None:  # every object carries this frame's velocities (FREE: zero)
             assignment.write[:] = True
         for index in np.flatnonzero(assignment.write).tolist():
@@ -78,7 +77,7 @@ class SlotPool:
 
     def collapse(self, item) -> None:
         """Every object to a point (nothing drawn); the next write rewrites everything."""
-        collapse_objects(field_scene.slot_objects(item, self.role).values())
+        collapse_objects(owned.slot_objects(item, self.role).values())
         self.state.forget()
         self.blocks = np.zeros(0, np.int64)
 

@@ -1,9 +1,10 @@
-"""The one piece of module-level state of the add-on: every field's runtime, by key.
+"""The one piece of module-level state of the add-on: a record per field, by key, and a few flags.
 
 A key is ``(scene.session_uid, field uid)``: Blender keeps a scene's session uid through renames
-and undo and gives a copied scene a new one. Nothing in the .blend refers to a runtime: the
+and undo and gives a copied scene a new one. Nothing in the .blend refers to a record: the
 registry is emptied on file load and each field is resolved again from its stored settings (the
-state at frame N is a function of the parameters, the seed and N).
+state at frame N is a function of the parameters, the seed and N). A field's record goes as one
+(``forget``, ``forget_missing``), so nothing of a deleted field is left behind.
 """
 
 from __future__ import annotations
@@ -18,47 +19,60 @@ def key_of(scene, item) -> Key:
     return scene.session_uid, str(item.uid)
 
 
+@dataclass(eq=False)
+class FieldState:
+    """What the add-on keeps of one field between frames and edits."""
+
+    runtime: Any = None  # resolve.FieldRuntime, or None until resolved (again)
+    error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
+    pending: float | None = None  # time.monotonic() of an edit waiting to settle (UI), else None
+    terrain: tuple | None = None  # (terrain key, heightfield, centre) as sampled
+    paint: tuple | None = None  # (what it was read from, paint.Paint | None)
+    paint_deps: frozenset = frozenset()  # (ID type, name) of the datablocks its paint reads
+    strokes: int = 0  # edits of those datablocks so far (painting)
+    stroke_s: float = 0.0  # seconds its last stroke took to show
+    stroked: bool = False  # a stroke waits to be shown
+    motion: bool = False  # its colliders or force fields were edited: look at their stored motion
+
+
 @dataclass
 class Registry:
-    fields: dict[Key, Any] = field(default_factory=dict)  # Key -> runtime.FieldRuntime
-    errors: dict[Key, str] = field(default_factory=dict)  # why a field cannot be simulated now
-    pending: dict[Key, float] = field(default_factory=dict)  # edits waiting to settle (UI), by time
-    terrains: dict[Key, tuple] = field(default_factory=dict)  # (terrain key, heightfield, centre) sampled
-    paints: dict[Key, tuple] = field(default_factory=dict)  # (what it was read from, paint.Paint | None)
-    paint_deps: dict[Key, set] = field(default_factory=dict)  # (ID type, name) of what a field's paint reads
-    strokes: dict[Key, int] = field(default_factory=dict)  # edits of those datablocks since (painting)
-    stroke_s: dict[Key, float] = field(default_factory=dict)  # seconds the field's last stroke took to show
-    stroked: set = field(default_factory=set)  # fields with a stroke waiting to be shown
+    states: dict[Key, FieldState] = field(default_factory=dict)
     warned: set[str] = field(default_factory=set)  # console messages already printed
     saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
     bake_root: str | None = None  # <blend>_windgrass of the open file
     last_repaint: tuple = ()  # (seconds, blocks made again) of the last stroke applied
     tracks: dict[str, tuple] = field(default_factory=dict)  # stored motion decoded: fingerprint -> (colliders, fields)
-    motion: set = field(default_factory=set)  # fields whose colliders or force fields were edited
     sampling: bool = False  # tracks.sample is stepping the scene's frames: the handlers stay out
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
 
+    def state(self, key: Key) -> FieldState:
+        """The record of the field ``key`` (made when there is none)."""
+        found = self.states.get(key)
+        if found is None:
+            found = self.states[key] = FieldState()
+        return found
+
+    def runtime(self, key: Key):
+        """The field's runtime, or None."""
+        found = self.states.get(key)
+        return None if found is None else found.runtime
+
+    @property
+    def fields(self) -> dict:
+        """{key: runtime} of the fields resolved now."""
+        return {key: s.runtime for key, s in self.states.items() if s.runtime is not None}
+
     def clear(self) -> None:
-        self.fields.clear()
-        self.errors.clear()
-        self.pending.clear()
-        self.terrains.clear()
-        self.paints.clear()
-        self.paint_deps.clear()
-        self.strokes.clear()
-        self.stroke_s.clear()
-        self.stroked.clear()
+        self.states.clear()
         self.tracks.clear()
-        self.motion.clear()
         self.warned.clear()
 
     def forget_missing(self, alive: set[Key]) -> None:
-        """Drop the runtimes of scenes or fields that no longer exist."""
-        for table in (self.fields, self.errors, self.pending, self.terrains, self.paints, self.paint_deps,
-                      self.strokes, self.stroke_s):
-            for key in [k for k in table if k not in alive]:
-                del table[key]
+        """Drop the records of scenes or fields that no longer exist."""
+        for key in [k for k in self.states if k not in alive]:
+            del self.states[key]
 
 
 REGISTRY = Registry()

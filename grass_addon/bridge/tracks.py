@@ -30,7 +30,7 @@ from .. import forces
 from ..clock import Clock
 from ..errors import ParameterError
 from ..interaction import SampledTrack
-from . import scene as field_scene
+from . import maps, owned
 from .animation import action_fcurves, fcurve_fingerprint
 from .registry import REGISTRY, key_of
 
@@ -49,7 +49,7 @@ def collider_objects(item) -> list:
     coll = getattr(item, "collider_collection", None)
     if coll is None:
         return []
-    own = {o.name for o in field_scene.field_objects(item)}
+    own = {o.name for o in owned.field_objects(item)}
     objects = [o for o in coll.all_objects if o.name not in own]
     found = [o for o in objects if o.type in GEOMETRY_TYPES]
     if not found:
@@ -143,10 +143,10 @@ def fingerprint(scene, item, params) -> str:
     frames = frame_range(scene, params)
     seen: set = set()
     data = [frames.start, frames.stop, int(params.render.fps), _top(params), params.field.cell_size,
-            field_scene.terrain_key(scene, item, params),
+            maps.terrain_key(scene, item, params),
             [_animation(o, seen) for o in colliders],
             [[_animation(o, seen), _field_settings(o)] for o in effectors]]
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     if ground is not None:
         data.append([round(v, 6) for row in ground.matrix_world for v in row])
     return hashlib.sha1(json.dumps(data, default=str).encode()).hexdigest()
@@ -249,9 +249,10 @@ def sample(scene, item, params, progress=None) -> dict:
     track to store (``store``). ``progress(done, total)`` after each frame. The scene is back at
     its frame afterwards."""
     colliders, effectors = collider_objects(item), effector_objects(item)
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     to_field = np.array(ground.matrix_world.inverted_safe(), np.float64) if ground is not None else np.eye(4)
-    kept = REGISTRY.terrains.get(key_of(scene, item))  # (terrain key, heightfield, centre)
+    state = REGISTRY.states.get(key_of(scene, item))
+    kept = None if state is None else state.terrain  # (terrain key, heightfield, centre)
     ground_top = float(kept[1].heights.max()) if kept is not None and kept[1] is not None else 0.0
     top_z = ground_top + _top(params)
     frames = frame_range(scene, params)

@@ -19,10 +19,9 @@ W, H = 128, 72
 @pytest.fixture
 def bridge(with_bridge):
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import properties, runtime, stage
-    from windgrass.grass_addon.bridge import scene as field_scene
+    from windgrass.grass_addon.bridge import owned, properties, runtime, stage
 
-    return schema, properties, runtime, stage, field_scene
+    return schema, properties, runtime, stage, owned
 
 
 def _attribute(obj, name) -> np.ndarray:
@@ -33,7 +32,7 @@ def _attribute(obj, name) -> np.ndarray:
 
 
 def test_velocity_is_the_motion_between_neighbouring_frames(bridge):
-    schema, properties, runtime, _, field_scene = bridge
+    schema, properties, runtime, _, owned = bridge
     scene = bpy.context.scene
     scene.camera = None  # every block is geometry and keeps its slot
     scene.render.use_motion_blur = True
@@ -41,7 +40,7 @@ def test_velocity_is_the_motion_between_neighbouring_frames(bridge):
                                         "wind.type": "moderate_breeze", "wind.speed": 12.0})
     item = properties.add_field(scene, params)
     runtime.build_field(scene, item)
-    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    blades = owned.slot_objects(item, owned.ROLE_BLADES)[0]
     positions = {}
     for frame in (29, 31, 30):
         scene.frame_set(frame)

@@ -10,10 +10,9 @@ import pytest
 
 @pytest.fixture
 def bridge(with_bridge):
-    from windgrass.grass_addon.bridge import runtime
-    from windgrass.grass_addon.bridge import scene as field_scene
+    from windgrass.grass_addon.bridge import owned, runtime
 
-    return field_scene, runtime
+    return owned, runtime
 
 
 def _add_field():
@@ -33,7 +32,7 @@ def _grass_objects(scene) -> set[str]:
 
 
 def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     original, item = _add_field()
     original_objects = _grass_objects(original)
     bpy.ops.scene.new(type="FULL_COPY")
@@ -54,7 +53,7 @@ def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
     # The original still animates: its blades move between frames.
     bpy.context.window.scene = original if bpy.context.window else None
     original.frame_set(2)
-    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    blades = owned.slot_objects(item, owned.ROLE_BLADES)[0]
     before = _positions(blades).copy()
     original.frame_set(9)
     assert not np.array_equal(before, _positions(blades))
@@ -64,9 +63,9 @@ def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
 def test_shift_d_copies_are_the_users_own(bridge):
     """A duplicate of a slot object inside the field does not take the slot over; one moved to
     the user's own collection survives Remove."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
-    slot = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    slot = owned.slot_objects(item, owned.ROLE_BLADES)[0]
     inside = slot.copy()
     inside.data = slot.data.copy()
     item.collection.objects.link(inside)
@@ -76,7 +75,7 @@ def test_shift_d_copies_are_the_users_own(bridge):
     kept.data = slot.data.copy()
     mine.objects.link(kept)
     scene.frame_set(3)
-    assert field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0] is slot
+    assert owned.slot_objects(item, owned.ROLE_BLADES)[0] is slot
     before = _positions(slot).copy()
     scene.frame_set(11)
     assert not np.array_equal(before, _positions(slot)), "the original slot froze"
@@ -86,7 +85,7 @@ def test_shift_d_copies_are_the_users_own(bridge):
 
 
 def test_renaming_a_scene_keeps_one_runtime(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     scene.frame_set(2)
     rt = runtime.get_runtime(scene, item)
@@ -98,7 +97,7 @@ def test_renaming_a_scene_keeps_one_runtime(bridge):
 
 
 def test_a_deleted_scene_leaves_no_runtime(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     scene.frame_set(2)
     other = bpy.data.scenes.new("Other")
@@ -109,10 +108,10 @@ def test_a_deleted_scene_leaves_no_runtime(bridge):
 
 
 def test_a_setting_that_cannot_be_simulated_hides_the_grass_and_says_why(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     scene.frame_set(4)
-    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    blades = owned.slot_objects(item, owned.ROLE_BLADES)[0]
     assert np.abs(_positions(blades)).max() > 0.0
     item.lod.blade_far = 1.0  # below blade_near (6 m): the LOD distances are out of order
     scene.frame_set(5)
@@ -128,13 +127,13 @@ def test_a_setting_that_cannot_be_simulated_hides_the_grass_and_says_why(bridge)
 def test_a_field_without_a_record_is_found_by_its_tags(bridge):
     """Files made before fields recorded what they own: the field's data is found by its tag,
     inside its own collection, and Remove leaves nothing behind."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
-    del item[field_scene.REGISTRY]
+    del item[owned.REGISTRY]
     scene.frame_set(4)
-    assert field_scene.ground_object(item) is not None
-    assert field_scene.slot_objects(item, field_scene.ROLE_BLADES)
-    names = {d.name for d in field_scene.registered(item).values()}
+    assert owned.ground_object(item) is not None
+    assert owned.slot_objects(item, owned.ROLE_BLADES)
+    names = {d.name for d in owned.registered(item).values()}
     assert {"Grass blades", "Grass cards", "Grass ground"} <= names
     bpy.ops.windgrass.field_remove()
     assert not [d for d in (*bpy.data.objects, *bpy.data.meshes, *bpy.data.materials, *bpy.data.images)
@@ -144,7 +143,7 @@ def test_a_field_without_a_record_is_found_by_its_tags(bridge):
 def test_a_file_saved_with_another_topology_is_rebuilt_on_load(bridge, tmp_path):
     """Files of earlier versions record another slot topology: opening one rebuilds the objects
     (not a frame handler), and the grass shows."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     item.collection["wg_topology"] = "written by an earlier version"
     path = tmp_path / "old.blend"
@@ -155,7 +154,7 @@ def test_a_file_saved_with_another_topology_is_rebuilt_on_load(bridge, tmp_path)
     scene.frame_set(3)
     assert runtime.field_error(scene, item) is None
     assert item.collection["wg_topology"] != "written by an earlier version"
-    blades = field_scene.slot_objects(item, field_scene.ROLE_BLADES)[0]
+    blades = owned.slot_objects(item, owned.ROLE_BLADES)[0]
     assert np.abs(_positions(blades)).max() > 0.0
 
 
@@ -167,7 +166,7 @@ def _windgrass_data():
 def test_remove_after_deleting_the_collection_by_hand_leaves_nothing(bridge):
     """Issue: removing a field after deleting its collection or objects by hand left orphan
     meshes and materials."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     coll = item.collection
     for obj in list(coll.objects):
@@ -180,7 +179,7 @@ def test_remove_after_deleting_the_collection_by_hand_leaves_nothing(bridge):
 
 def test_rebuild_after_deleting_slots_by_hand_keeps_the_names(bridge):
     """Issue: a Rebuild after deleting slot objects by hand named the new ones 'Grass blades 000.001'."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     names = sorted(o.name for o in item.collection.objects)
     for obj in [o for o in item.collection.objects if o.get("wg_role") == "blades"]:

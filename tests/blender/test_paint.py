@@ -111,21 +111,21 @@ def test_a_slow_field_follows_strokes_when_weight_paint_is_left(bridge):
     scene, item = _field(bridge, terrain, density="vertex_group:meadow")
     before = len(_grown_roots(runtime, scene, item))
     key = runtime.key_of(scene, item)
-    runtime.REGISTRY.stroke_s[key] = 1.0  # its last stroke took a second
+    runtime.REGISTRY.state(key).stroke_s = 1.0  # its last stroke took a second
     bpy.ops.object.mode_set(mode="WEIGHT_PAINT")
     group.add([v.index for v in terrain.data.vertices if v.co.x > 1.0 and v.co.y > 1.0], 1.0, "REPLACE")
     terrain.data.update()
     bpy.context.view_layer.update()  # the stroke's end
-    assert key in runtime.REGISTRY.stroked
-    runtime._refresh_later([key])  # (the UI's timer; background Blender applies at the next frame)
+    assert runtime.REGISTRY.state(key).stroked
+    runtime.refresh_later([key])  # (the UI's timer; background Blender applies at the next frame)
     time.sleep(runtime.EDIT_SETTLE_S)
-    assert runtime._flush_pending() == runtime.PAINT_MODE_POLL_S  # still painting: looked at again
+    assert runtime.flush_pending() == runtime.PAINT_MODE_POLL_S  # still painting: looked at again
     rt = runtime.get_runtime(scene, item)
     assert int(rt.field.layout.blade_alive.sum()) == before
     bpy.ops.object.mode_set(mode="OBJECT")
-    assert runtime._flush_pending() is None
+    assert runtime.flush_pending() is None
     assert int(runtime.get_runtime(scene, item).field.layout.blade_alive.sum()) > before + 250
-    assert key not in runtime.REGISTRY.pending and 0.0 < runtime.stroke_seconds(scene, item) < 1.0
+    assert runtime.REGISTRY.state(key).pending is None and 0.0 < runtime.stroke_seconds(scene, item) < 1.0
 
 
 def test_an_attribute_and_an_image_paint_the_terrain(bridge):

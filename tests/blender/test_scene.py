@@ -21,10 +21,9 @@ RES_X, RES_Y = 96, 54
 @pytest.fixture
 def bridge(with_bridge):
     """(scene module, runtime module); ``with_bridge`` skips while the engine is incomplete."""
-    from windgrass.grass_addon.bridge import runtime
-    from windgrass.grass_addon.bridge import scene as field_scene
+    from windgrass.grass_addon.bridge import owned, runtime
 
-    return field_scene, runtime
+    return owned, runtime
 
 
 def _add_field(**field_options):
@@ -95,11 +94,11 @@ def _stage(scene):
 
 
 def test_field_add_builds_collection_ground_and_slot_pools(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
     coll = item.collection
     assert coll is not None and coll.name in scene.collection.children
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     # 2 blocks of 8 cells of 0.1 m: a 1.6 m square centred on the origin.
     assert ground.dimensions.x == pytest.approx(1.6, abs=1e-5)
     assert ground.dimensions.y == pytest.approx(1.6, abs=1e-5)
@@ -134,10 +133,10 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     from windgrass.grass_addon import sward
     from windgrass.grass_addon.bridge import materials, properties
 
-    field_scene, _ = bridge
+    owned, _ = bridge
     scene, item = _add_field()
     canopy = [m for m in bpy.data.materials if m.get("wg_role") == "canopy_material"][0]
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
     z = _positions(ground)[:, 2]
     params = properties.params_from_settings(item, scene)
@@ -170,11 +169,11 @@ def test_canopy_material_follows_the_lod_distances(bridge):
 
 
 def test_resizing_the_field_rebuilds_slots_where_the_user_placed_it(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field()
-    field_scene.ground_object(item).location = (5.0, 0.0, 0.0)
+    owned.ground_object(item).location = (5.0, 0.0, 0.0)
     item.field.blocks_x = 3  # the property update rebuilds: 3 x 2 blocks now
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     assert tuple(ground.location) == pytest.approx((5.0, 0.0, 0.0))
     assert ground.dimensions.x == pytest.approx(2.4, abs=1e-5)
     # 6 blocks of 128 blades (1536 vertices): up to 16 fit one object, all 6 share one.
@@ -200,9 +199,9 @@ def test_ui_edits_are_coalesced_until_they_settle(bridge):
         item.wind["turbulence"] = turbulence  # raw ID-property write: no update callback of its own
         runtime.mark_dirty(scene, item, defer=True)
     assert runtime.get_runtime(scene, item).digest == before  # nothing rebuilt while dragging
-    assert runtime._flush_pending() is not None  # still settling: the timer runs again
+    assert runtime.flush_pending() is not None  # still settling: the timer runs again
     time.sleep(runtime.EDIT_SETTLE_S + 0.05)
-    assert runtime._flush_pending() is None
+    assert runtime.flush_pending() is None
     assert runtime.get_runtime(scene, item).digest != before
     assert runtime.get_runtime(scene, item).field.sim.params.wind.turbulence == pytest.approx(1.5)
 
@@ -246,7 +245,7 @@ def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
     """An object holding k positions shows the chosen blocks' blades at its shown positions,
     exactly as the engine computes them (GrassField.blade_vertices), with their species colours,
     and collapsed rows (one point, no colour) at FREE positions."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     # 6 blocks of 16 x 16 cells (6144 vertices each): k = 4, 2 objects; no camera: all shown.
     scene, item = _add_field(blocks_x=3, cells_per_block=16)
     scene.frame_set(7)
@@ -300,7 +299,7 @@ def test_wind_fcurves_become_wind_keys(bridge):
 def test_camera_moves_change_lod(bridge):
     """Blades near the camera, cards further out (eqs 7-11): moving the camera from one corner of
     the field to the opposite one moves the blades to the other blocks."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field(cell_size=0.5)  # 8 m square, blocks of 4 m
     item.lod.blade_near, item.lod.blade_far = 1.0, 2.5
     item.lod.card_near, item.lod.card_far = 6.0, 9.0
@@ -352,7 +351,7 @@ def test_animated_camera_lod_and_frames_independent_of_history(bridge):
     """An animated camera drives the LOD at the frame being shown (its matrix is only known after
     evaluation), and every slot holds the same data at frame 4 whether frames 1-3 were visited
     before or not (render farms render frames apart)."""
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     scene, item = _add_field(cell_size=0.5)  # 8 m square, blocks of 4 m
     item.lod.blade_near, item.lod.blade_far = 1.0, 2.5
     item.lod.card_near, item.lod.card_far = 6.0, 9.0
@@ -563,10 +562,10 @@ def test_a_field_saved_with_older_materials_gets_new_ones(bridge, tmp_path):
     profile) are replaced when the reopened field is rebuilt; current ones are kept."""
     from windgrass.grass_addon.bridge import materials
 
-    field_scene, _ = bridge
+    owned, _ = bridge
     scene, item = _add_field()
-    canopy = field_scene.registered(item)[field_scene.ROLE_CANOPY_MATERIAL]
-    blade = field_scene.registered(item)[field_scene.ROLE_BLADE_MATERIAL].name
+    canopy = owned.registered(item)[owned.ROLE_CANOPY_MATERIAL]
+    blade = owned.registered(item)[owned.ROLE_BLADE_MATERIAL].name
     canopy.node_tree.nodes.remove(canopy.node_tree.nodes[materials.NODE_SWARD_PROFILE])
     del canopy["wg_version"]
     path = tmp_path / "old.blend"
@@ -575,10 +574,10 @@ def test_a_field_saved_with_older_materials_gets_new_ones(bridge, tmp_path):
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
-    new = field_scene.registered(item)[field_scene.ROLE_CANOPY_MATERIAL]
+    new = owned.registered(item)[owned.ROLE_CANOPY_MATERIAL]
     assert materials.is_current(new) and materials.NODE_SWARD_PROFILE in new.node_tree.nodes
-    assert field_scene.ground_object(item).data.materials[1] == new
-    assert field_scene.registered(item)[field_scene.ROLE_BLADE_MATERIAL].name == blade  # kept
+    assert owned.ground_object(item).data.materials[1] == new
+    assert owned.registered(item)[owned.ROLE_BLADE_MATERIAL].name == blade  # kept
     scene.frame_set(2)
 
 

@@ -16,10 +16,9 @@ OFFSET = (3.0, 1.0, 0.0)  # where the terrain object stands
 
 @pytest.fixture
 def bridge(with_bridge):
-    from windgrass.grass_addon.bridge import runtime
-    from windgrass.grass_addon.bridge import scene as field_scene
+    from windgrass.grass_addon.bridge import owned, runtime
 
-    return field_scene, runtime
+    return owned, runtime
 
 
 def _slope_mesh(func=lambda co: SLOPE * co[:, 0] + LIFT, location=OFFSET):
@@ -72,12 +71,13 @@ def _blade_joints_world(scene, item, runtime) -> np.ndarray:
 
 
 def test_blades_are_rooted_on_the_selected_mesh(bridge):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
+    from windgrass.grass_addon.bridge import meshes
     terrain = _slope_mesh()
     scene, item = _add_field()
     assert item.terrain == terrain
     # The field is centred on the terrain (its XY bounding-box centre).
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     assert tuple(ground.matrix_world.translation)[:2] == pytest.approx(OFFSET[:2], abs=1e-6)
     scene.frame_set(1)
     before = _blade_joints_world(scene, item, runtime)
@@ -101,7 +101,7 @@ def test_blades_are_rooted_on_the_selected_mesh(bridge):
     layer = len({i for p in ground.data.polygons if p.material_index == 0 for i in p.vertices})
     floor, canopy = gv[:layer], gv[layer:2 * layer]
     assert len(floor) > 4
-    np.testing.assert_allclose(floor[:, 2], SLOPE * (floor[:, 0] - OFFSET[0]) + LIFT + field_scene.GROUND_LIFT,
+    np.testing.assert_allclose(floor[:, 2], SLOPE * (floor[:, 0] - OFFSET[0]) + LIFT + meshes.GROUND_LIFT,
                                atol=1e-4)
     lift = canopy[:, 2] - floor[:, 2]
     assert lift.min() > 0.05 and np.ptp(lift) < 1e-4
@@ -126,7 +126,8 @@ def test_field_size_fits_the_terrain_unless_given(bridge):
 def test_modifiers_of_the_terrain_count(bridge):
     """The evaluated mesh is sampled: a Displace modifier (no texture: strength * (1 - midlevel)
     along the normal) lifts a flat plane to z = 0.25, and so the roots."""
-    field_scene, runtime = bridge
+
+    owned, runtime = bridge
     terrain = _slope_mesh(func=lambda co: np.zeros(len(co)), location=(0.0, 0.0, 0.0))
     mod = terrain.modifiers.new("Lift", "DISPLACE")
     mod.strength = 0.5
@@ -137,7 +138,7 @@ def test_modifiers_of_the_terrain_count(bridge):
 
 
 def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_path):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     terrain = _slope_mesh()
     scene, item = _add_field()
     scene.frame_set(3)
@@ -166,7 +167,7 @@ def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_pa
 
 
 def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_waits_for_rebuild(bridge, capsys):
-    field_scene, runtime = bridge
+    owned, runtime = bridge
     terrain = _slope_mesh()
     mesh_name, verts = terrain.data.name, len(terrain.data.vertices)
     scene, item = _add_field()
@@ -193,7 +194,7 @@ def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_waits_for_re
     assert "terrain 'Grid'" in out and "flat ground" in out
     rt = runtime.get_runtime(scene, item)
     assert rt.heightfield is None
-    ground = field_scene.ground_object(item)
+    ground = owned.ground_object(item)
     assert tuple(ground.matrix_world.translation)[:2] == pytest.approx(OFFSET[:2], abs=1e-6)  # stays put
     root = _blade_joints_world(scene, item, runtime)[:, 0].mean(axis=1)
     np.testing.assert_allclose(root[:, 2], 0.0, atol=1e-6)

@@ -75,7 +75,7 @@ def _resolve_path(path: str):
 
 def field_state(scene, item) -> dict:
     """What a person sees of a field, and whether it matches its settings."""
-    runtime, properties, field_scene = bridge("runtime"), bridge("properties"), bridge("scene")
+    runtime, properties, owned = bridge("runtime"), bridge("properties"), bridge("owned")
     out = {"name": item.name, "error": runtime.field_error(scene, item), "baked": item.get("wg_bake") is not None}
     if item.collection is None:
         out["objects"] = False
@@ -88,20 +88,20 @@ def field_state(scene, item) -> dict:
         return out
     heightfield = runtime.terrain_of(scene, item, params)[0]
     wanted = runtime.topology_of(params, heightfield, item)
-    out["topology_matches"] = item.collection.get(field_scene.TOPOLOGY) == wanted
+    out["topology_matches"] = item.collection.get(owned.TOPOLOGY) == wanted
     rt = runtime.get_runtime(scene, item)
     out["runtime_matches"] = rt is not None and not rt.dirty and rt.params.digest() == params.digest()
     out["frame_written"] = None if rt is None else rt.frame
     shown = 0
-    for role in (field_scene.ROLE_BLADES, field_scene.ROLE_CARDS):
-        for obj in field_scene.slot_objects(item, role).values():
+    for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
+        for obj in owned.slot_objects(item, role).values():
             n = len(obj.data.vertices)
             if n:
                 co = np.empty(n * 3, np.float32)
                 obj.data.attributes["position"].data.foreach_get("vector", co)
                 shown += int(np.count_nonzero(np.abs(co.reshape(-1, 3)).max(axis=1) > 0))
     out["vertices_shown"] = shown
-    out["blade_objects"] = len(field_scene.slot_objects(item, field_scene.ROLE_BLADES))
+    out["blade_objects"] = len(owned.slot_objects(item, owned.ROLE_BLADES))
     return out
 
 

@@ -1,0 +1,157 @@
+"""Edits of a field's settings, paint and colliders, applied as Blender users expect.
+
+A property edit or an operator brings the field's datablocks to its settings at once
+(``lifecycle.apply_settings``: the undo step Blender pushes after it holds objects that match);
+the engine's update follows at once in scripts and background renders, and in the UI once the
+edits settle (a timer), so dragging a slider stays fluid. Paint strokes and moved colliders are
+counted by the handlers and applied the same way; a field whose strokes take long waits while
+its terrain is in a paint mode.
+"""
+
+from __future__ import annotations
+
+import time
+
+import bpy
+
+from . import bake, maps, properties, tracks
+from .frame_pass import guarded, update_field
+from .lifecycle import apply_settings
+from .registry import REGISTRY, key_of
+from .resolve import get_runtime, terrain_of
+
+# Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
+# for this long, so dragging a slider on a large field does not re-simulate at every step.
+EDIT_SETTLE_S = 0.15
+STROKE_GOAL_S = 0.5  # a field whose strokes take longer to show follows when paint mode is left
+PAINT_MODE_POLL_S = 0.25
+
+
+def mark_dirty(scene, item, defer: bool | None = None) -> None:
+    """Settings of ``item`` changed (a property edit, an operator): its datablocks follow at once
+    (``apply_settings``: the undo step Blender pushes after the edit holds objects that match),
+    then the engine is resolved again and the frame written (the digest decides what is rebuilt).
+    Scripts and background renders (``bpy.app.background``) get the engine's update at once; in
+    the UI (``defer``) it waits until the edits settle (a timer), so dragging a slider stays fluid.
+    """
+    if item.collection is None or bake.is_baked(item):
+        return
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = True
+    guarded(apply_settings, scene, item)
+    state = REGISTRY.state(key_of(scene, item))
+    if getattr(item, "collider_collection", None) is not None or getattr(item, "effector_collection", None) \
+            is not None or tracks.TRACK_KEY in item.collection:
+        state.motion = True
+    if not (defer if defer is not None else not bpy.app.background):
+        if state.motion:
+            state.motion = False
+            guarded(update_track, scene, item)
+        guarded(update_field, scene, item)
+        return
+    refresh_later([key_of(scene, item)])
+
+
+def refresh_later(keys) -> None:
+    """Write these fields' current frame once the edits settle (a timer: numpy and vertex writes
+    only, no datablock is added or removed there)."""
+    now = time.monotonic()
+    for key in keys:
+        REGISTRY.state(key).pending = now
+    if not bpy.app.timers.is_registered(flush_pending):
+        bpy.app.timers.register(flush_pending, first_interval=EDIT_SETTLE_S)
+
+
+def flush_pending() -> float | None:
+    """Timer: write the fields whose edits settled; run again shortly while the user is still
+    dragging. A field whose strokes take longer than STROKE_GOAL_S to show (a large field) waits
+    while its terrain is in a paint mode: it follows when the artist leaves it."""
+    pending = {key: s for key, s in REGISTRY.states.items() if s.pending is not None}
+    latest = max((s.pending for s in pending.values()), default=0.0)
+    wait = latest + EDIT_SETTLE_S - time.monotonic()
+    if wait > 0:
+        return wait
+    scenes = {s.session_uid: s for s in bpy.data.scenes}
+    waiting = False
+    for key, state in pending.items():
+        scene = scenes.get(key[0])
+        item = next((f for f in scene.windgrass.fields if f.uid == key[1]), None) if scene else None
+        if item is None or item.collection is None:
+            state.pending = None
+            continue
+        if state.stroke_s > STROKE_GOAL_S and painting(scene, item):
+            waiting = True
+            continue
+        if state.motion:
+            if _playing():
+                waiting = True  # sampled when the playback stops (it steps the scene's frames)
+                continue
+            state.motion = False
+            guarded(_update_motion, scene, item)
+        state.pending = None
+        stroke, started = state.stroked, time.perf_counter()
+        state.stroked = False
+        guarded(update_field, scene, item)
+        if stroke:
+            state.stroke_s = time.perf_counter() - started
+    return PAINT_MODE_POLL_S if waiting else None
+
+
+def _playing() -> bool:
+    wm = bpy.context.window_manager
+    return any(w.screen is not None and w.screen.is_animation_playing for w in wm.windows)
+
+
+def _update_motion(scene, item) -> None:
+    """``update_track`` with the progress cursor (the window)."""
+    wm = bpy.context.window_manager
+
+    def progress(done, total):
+        if done == 1:
+            wm.progress_begin(0, total)
+        wm.progress_update(done)
+
+    try:
+        update_track(scene, item, progress=progress)
+    finally:
+        wm.progress_end()
+
+
+def stroke_seconds(scene, item) -> float:
+    """How long the field's last stroke took to show (0 before any)."""
+    state = REGISTRY.states.get(key_of(scene, item))
+    return 0.0 if state is None else state.stroke_s
+
+PAINT_MODES = {"WEIGHT_PAINT", "VERTEX_PAINT", "TEXTURE_PAINT", "SCULPT"}
+
+
+def painting(scene, item) -> bool:
+    """The field's terrain is being painted (weight, vertex, texture paint or sculpt mode)."""
+    terrain = maps.terrain_object(scene, item)
+    return terrain is not None and terrain.mode in PAINT_MODES
+
+
+def update_track(scene, item, progress=None) -> bool:
+    """Sample the field's colliders and force fields again when what they were sampled from
+    changed (``tracks.fingerprint``); returns True when it did. Steps the scene's frames: never
+    from a frame or render handler."""
+    params = properties.params_from_settings(item, scene)
+    wanted = tracks.fingerprint(scene, item, params)
+    have = tracks.stored_fingerprint(item)
+    if not wanted:
+        if have is not None:
+            tracks.clear(item)
+            rt = get_runtime(scene, item)
+            if rt is not None:
+                rt.dirty = True
+            return True
+        return False
+    if have == wanted:
+        return False
+    terrain_of(scene, item, params)  # (the ground's height bounds the colliders' spheres)
+    tracks.store(item, tracks.sample(scene, item, params, progress=progress), wanted)
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = True
+    return True

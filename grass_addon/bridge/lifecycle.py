@@ -1,0 +1,158 @@
+"""A field's datablocks brought to its settings: build, rebuild, bake, remove.
+
+Blender's undo stores the whole file after each operator and each property edit and, on Ctrl+Z,
+reuses the datablocks it believes unchanged since the last step: a datablock added or deleted
+between steps (by a timer, a handler) leaves it pointers to freed memory, and Blender crashes. So
+datablocks change only here, inside the operator or the property edit that asked for it
+(``edits.mark_dirty`` applies them at once), and on file load; never from a timer, a frame
+handler or an undo handler. Every undo step then holds objects that match its settings.
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from .. import memory
+from .. import paint as paint_core
+from ..errors import WindgrassError
+from . import bake, owned, properties
+from . import scene as field_scene
+from .frame_pass import update_field
+from .registry import REGISTRY, key_of
+from .resolve import get_runtime, resolve, terrain_of, topology_of
+
+
+def apply_settings(scene, item, force: bool = False) -> None:
+    """Bring the field's datablocks to its settings now: the objects are rebuilt when their
+    topology changed (always with ``force``: Rebuild, which also re-samples the terrain and frees
+    a bake), the materials' values refreshed. A baked field is left as baked (an edit makes its
+    bake stale, see bake.status); a field without objects (never built, deleted by hand) gets
+    none. Raises WindgrassError on bad settings (nothing is changed then)."""
+    if bake.is_baked(item):
+        if not force:
+            return
+        bake.free_bake(scene, item)
+    if item.collection is None and not force:
+        return
+    params = properties.params_from_settings(item, scene)
+    memory.check(params)  # before anything is built: a card range that would run out of memory
+    if force and getattr(item, "terrain", None) is not None:
+        try:  # the terrain's matrix and modifiers as they are now
+            bpy.context.view_layer.update()
+        except Exception:
+            pass
+    heightfield, centre, _ = terrain_of(scene, item, params, force=force)
+    field_scene.separate_copy(item)
+    coll = item.collection
+    if force or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
+        field_scene.build_slots(scene, item, params, heightfield, centre)
+        forget_slots(scene, item, dirty=True)
+    else:
+        if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
+            forget_slots(scene, item)
+        field_scene.update_field_materials(item, params, scene)
+    # The frame handler edits meshes while a render runs: keep the interface locked then.
+    if not scene.render.use_lock_interface:
+        scene.render.use_lock_interface = True
+
+
+def forget_slots(scene, item, dirty: bool = False) -> None:
+    """The field's slot meshes hold something else now: its pools write every slot next time."""
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.dirty = rt.dirty or dirty
+        rt.blades.state.forget()
+        rt.cards.state.forget()
+
+
+def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
+    """Add, Rebuild (``force``), scripts: the field's datablocks for its settings and its current
+    frame written at once (``apply_settings``, ``update_field``)."""
+    if bake.is_baked(item) and not force:
+        return item.collection
+    apply_settings(scene, item, force=True if item.collection is None else force)
+    if force:
+        reset_field(scene, item)
+    update_field(scene, item)
+    write_read_me()
+    return item.collection
+
+
+def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Baker:
+    """A bake of frames ``first``-``last`` of the field in ``groups`` steps, ready to step
+    (``bake.Baker``); BakeError or ParameterError on what prevents it."""
+    properties.params_from_settings(item, scene)  # a setting out of range stops here, named
+    if bake.is_baked(item):
+        free_bake(scene, item)
+    rt = resolve(scene, item)
+    if item.collection is None or item.collection.get(owned.TOPOLOGY) != rt.topology:
+        build_field(scene, item)
+    return bake.Baker(scene, item, first, last, params_digest(scene, item), groups)
+
+
+def bake_field(scene, item, first: int, last: int):
+    """Bake frames ``first``-``last`` of the field into Alembic caches beside the .blend and play
+    the field from them (``bake.py``); returns the cache folder."""
+    folder = start_bake(scene, item, first, last).finish()
+    write_read_me()
+    return folder
+
+
+def free_bake(scene, item) -> None:
+    """Back to the live simulation."""
+    if bake.free_bake(scene, item):
+        build_field(scene, item)
+    write_read_me()
+
+
+def bake_status(scene, item) -> str | None:
+    """What the field's bake holds and whether it is stale (None: live)."""
+    return bake.status(scene, item, params_digest(scene, item)) if bake.is_baked(item) else None
+
+
+def params_digest(scene, item) -> str | None:
+    """Digest of the field's settings and paint now (None when a setting is out of range)."""
+    try:
+        digest = properties.params_from_settings(item, scene).digest()
+    except WindgrassError:
+        return None
+    state = REGISTRY.states.get(key_of(scene, item))
+    kept = None if state is None else state.paint
+    painted = paint_core.fingerprint(kept[1]) if kept is not None else ""
+    return f"{digest}|{painted}" if painted else digest
+
+READ_ME = "Windgrass - read me"
+
+
+def write_read_me() -> None:
+    """A text block that says, in a Blender without Windgrass, what the grass needs."""
+    live, baked = [], []
+    for s in bpy.data.scenes:
+        for item in getattr(s, "windgrass", None).fields if hasattr(s, "windgrass") else ():
+            (baked if bake.is_baked(item) else live).append(f"{s.name} / {item.name}")
+    text = bpy.data.texts.get(READ_ME) or bpy.data.texts.new(READ_ME)
+    lines = ["This file has grass fields of the Windgrass extension for Blender.", ""]
+    if live:
+        lines += ["Live fields: their grass is made and simulated by the Windgrass add-on every frame (the",
+                  "file keeps their settings, not their blades). Without the add-on they show only their",
+                  "ground. Install Windgrass, or bake them (Grass tab > Bake) to play and render them in any",
+                  "Blender:"] + [f"  {n}" for n in live] + [""]
+    if baked:
+        lines += ["Baked fields: they play an Alembic cache beside this file (folder <file>_windgrass)",
+                  "in any Blender; keep that folder with the file:"] + [f"  {n}" for n in baked]
+    text.from_string("\n".join(lines) + "\n")
+
+
+def remove_field(scene, item) -> None:
+    """Delete everything the field made (``scene.remove_datablocks``, its bake) and forget its
+    runtime."""
+    reset_field(scene, item)
+    bake.free_bake(scene, item)
+    field_scene.remove_datablocks(item)
+
+
+def reset_field(scene, item) -> None:
+    """Forget the runtime of ``item``: the next update resolves it from its settings again."""
+    state = REGISTRY.states.get(key_of(scene, item))
+    if state is not None:
+        state.runtime = state.error = None

@@ -1,0 +1,129 @@
+"""What belongs to a grass field in Blender: its roles, tags and the record of its datablocks.
+
+What belongs to a field is recorded on its settings item: the custom property ``wg_objects`` holds
+ID pointers to its ground, slot objects, materials and images (Blender keeps them valid through
+renames, save and reopen, and points a Full Copy of the scene at the copies; on the collection
+itself such pointers crash Blender 4.2's Full Copy). Rebuild and Remove touch only those, so a
+user's Shift+D copy of a grass object (tags and all) is never taken for a slot, never taken over and
+never deleted, and a copied scene's field never touches the original's. Every datablock also carries
+``wg_uid`` and ``wg_role`` custom properties (files of 0.1 are found through them, inside the
+field's collection only).
+"""
+
+from __future__ import annotations
+
+import bpy
+
+ROLE_COLLECTION = "collection"
+ROLE_GROUND = "ground"
+ROLE_BLADES = "blades"
+ROLE_CARDS = "cards"
+ROLE_BLADE_MATERIAL = "blade_material"
+ROLE_CARD_MATERIAL = "card_material"
+ROLE_GROUND_MATERIAL = "ground_material"
+ROLE_CANOPY_MATERIAL = "canopy_material"
+ROLE_CARD_IMAGE = "card_image"
+ROLE_GUST_IMAGE = "gust_image"
+ROLE_TRAIL_IMAGE = "trail_image"
+ROLE_PAINT_MAP = "paint_map"
+
+
+# Roles stored in ``wg_role`` of the datablocks of a field.
+
+
+def owner_tag(scene, item) -> str:
+    """The ``wg_uid`` value on the field's datablocks.
+
+    Field uids are unique per scene only, so the tag is ``"<scene name>/<uid>"`` at creation and
+    is read back from the field's collection afterwards (a renamed scene keeps its fields).
+    """
+    coll = item.collection
+    if coll is not None and coll.get("wg_uid"):
+        return coll["wg_uid"]
+    return f"{scene.name}/{item.uid}"
+
+
+def unused_tag(base: str) -> str:
+    taken = {d.get("wg_uid") for coll in (bpy.data.collections, bpy.data.objects, bpy.data.materials)
+             for d in coll}
+    tag, n = base, 0
+    while tag in taken:
+        n += 1
+        tag = f"{base}#{n}"
+    return tag
+
+
+def tag(idblock, uid: str, role: str, index: int | None = None) -> None:
+    idblock["wg_uid"] = uid
+    idblock["wg_role"] = role
+    if index is not None:
+        idblock["wg_slot"] = index
+
+
+def _owned(collection, uid: str, role: str | None = None) -> list:
+    """Datablocks of ``collection`` (a bpy.data collection) made by the field ``uid``."""
+    return [d for d in collection if d.get("wg_uid") == uid and (role is None or d.get("wg_role") == role)]
+
+TOPOLOGY = "wg_topology"  # the collection's custom property: slots.topology_key it was built for
+
+REGISTRY = "wg_objects"  # the field item's custom property: {key: ID pointer} of what it made
+
+
+def registered(item) -> dict:
+    """{key: datablock} recorded on the field's settings item (keys ``ground``, ``blades 003``,
+    ``cards 000``, ``blade_material``, ...); datablocks deleted since are left out."""
+    group = item.get(REGISTRY)
+    if group is None or not hasattr(group, "items"):
+        return _tagged(item)
+    return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
+
+
+def _tagged(item) -> dict:
+    """What a 0.1 file's field made, found by its tag: objects inside its collection only."""
+    coll = item.collection
+    uid = coll.get("wg_uid") if coll is not None else None
+    if not uid:
+        return {}
+    found = {}
+    for obj in coll.objects:
+        if obj.get("wg_uid") == uid and obj.get("wg_role"):
+            role = obj["wg_role"]
+            found.setdefault(role if role == ROLE_GROUND else slot_key(role, int(obj.get("wg_slot", -1))), obj)
+    for data in _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid):
+        found.setdefault(data.get("wg_role"), data)
+    return found
+
+
+def record(item, key: str, idblock) -> None:
+    if item.get(REGISTRY) is None or not hasattr(item[REGISTRY], "items"):
+        item[REGISTRY] = _tagged(item)
+    item[REGISTRY][key] = idblock
+
+
+def slot_key(role: str, index: int) -> str:
+    return f"{role} {index:03d}"
+
+
+def field_objects(item) -> list:
+    """The field's own objects (never a user's tagged copies elsewhere)."""
+    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
+
+
+def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
+    """{slot index: object} of the field's slots that still exist in its collection (the user may
+    delete some; copies of them are not slots)."""
+    coll = item.collection
+    out = {}
+    if coll is None:
+        return out
+    for obj in field_objects(item):
+        if obj.get("wg_role") == role and obj.type == "MESH" and coll.objects.get(obj.name) is obj:
+            out[int(obj.get("wg_slot", -1))] = obj
+    return out
+
+
+def ground_object(item):
+    for obj in field_objects(item):
+        if obj.get("wg_role") == ROLE_GROUND:
+            return obj
+    return None

@@ -1,0 +1,208 @@
+"""A field resolved from its settings into what a frame needs (``FieldRuntime``), numpy only.
+
+``resolve`` reads the field's parameters with the scene's clock, its animated wind (F-curves
+sampled into keys, ``animation.py``), its terrain (sampled once and kept while the terrain object
+and the grid hold), its paint, its stored collider and force-field motion (``tracks.py``), and
+makes the engine (``GrassField``) and its two slot pools; the registered runtime is kept while
+its digest holds. Never touches a datablock (``lifecycle.apply_settings`` does); raises
+WindgrassError on bad settings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass
+
+import bpy
+
+from .. import forces, interaction, schema
+from .. import paint as paint_core
+from ..field import GrassField
+from . import animation, maps, owned, paint_look, pools, properties, tracks
+from . import scene as field_scene
+from .registry import REGISTRY, Key, key_of, warn_once
+
+
+@dataclass(eq=False)
+class FieldRuntime:
+    """One field resolved from its settings: everything a frame needs, nothing read again."""
+
+    key: Key
+    params: schema.Params  # validated, with the scene's clock
+    digest: str  # of the parameters, the animated wind and the terrain samples
+    clock: tuple[int, int, int]  # the scene's fps, frame_start, frame_end it was resolved with
+    wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
+    wind_keys: tuple | None
+    terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)
+    field: GrassField
+    blades: pools.SlotPool
+    cards: pools.SlotPool
+    topology: str  # slots.topology_key: what the slot objects must be built for
+    paint: str = ""  # paint.fingerprint of the paint the engine grows
+    paint_shown: str | None = None  # and of the one the ground and paint map show (update_paint_look)
+    track: str = ""  # tracks.fingerprint of the stored collider motion the engine uses
+    dirty: bool = False  # the settings were edited since: resolve again
+    frame: int | None = None  # the frame last written
+    subframe: float = 0.0  # and its sub-frame (motion-blur steps)
+    lod: object = None  # its LOD weights
+    camera_signature: tuple | None = None
+    trail: object = False  # the trail map the far canopy shows (None: none; False: not yet set)
+
+    @property
+    def heightfield(self):
+        """The terrain the engine grows on (``terrain.Heightfield``), None on flat ground."""
+        return self.field.cache.terrain
+
+
+def get_runtime(scene, item) -> FieldRuntime | None:
+    return REGISTRY.runtime(key_of(scene, item))
+
+
+def field_error(scene, item) -> str | None:
+    """Why the field cannot be simulated now (a setting out of range, ...), or None."""
+    state = REGISTRY.states.get(key_of(scene, item))
+    return None if state is None else state.error
+
+
+def _clock(scene) -> tuple[int, int, int]:
+    return int(scene.render.fps), int(scene.frame_start), int(scene.frame_end)
+
+
+def _wind_curves(scene, item, params) -> tuple[dict, str]:
+    """The field's animated wind F-curves ({} when none) and their fingerprint."""
+    fcurves = animation.wind_fcurves(scene, item) if scene.animation_data is not None else {}
+    if not fcurves:
+        return {}, ""
+    return fcurves, animation.fingerprint(fcurves, animation.sample_range(scene, params))
+
+
+def _wind(scene, item, params, previous: FieldRuntime | None):
+    """(params without the animated values, wind keys, fingerprint) of the field's wind now."""
+    fcurves, fingerprint = _wind_curves(scene, item, params)
+    if not fcurves:
+        return params, None, ""
+    # The animated values change every frame; the keys carry them, so the parameters must not.
+    stable = params.replace({f"wind.{role}": schema.BY_NAME[f"wind.{role}"].default for role in fcurves})
+    if previous is not None and previous.wind_fingerprint == fingerprint:
+        return stable, previous.wind_keys, fingerprint
+    frames = animation.sample_range(scene, params)
+    return stable, animation.sample_wind_keys(fcurves, params, frames), fingerprint
+
+
+def terrain_of(scene, item, params, force: bool = False) -> tuple:
+    """(heightfield, centre, key) of the field's terrain: sampled once and kept while the terrain
+    object and the grid hold (the field's record); ``force`` (Rebuild) samples it again."""
+    state = REGISTRY.state(key_of(scene, item))
+    t_key = maps.terrain_key(scene, item, params)
+    kept = state.terrain
+    if not force and kept is not None and kept[0] == t_key:
+        return kept[1], kept[2], t_key
+    heightfield, centre = maps.sample_terrain(scene, item, params)
+    state.terrain = (t_key, heightfield, centre)
+    return heightfield, centre, t_key
+
+
+def paint_of(scene, item, params):
+    """The field's paint (``maps.paint_of``), read again only when its settings, its terrain or
+    keep-out collection, or one of the datablocks it reads changed since (the record's ``strokes``,
+    counted by ``handlers.on_depsgraph_update_post``)."""
+    state = REGISTRY.state(key_of(scene, item))
+    coll = getattr(item, "keep_out_collection", None)
+    outline = [] if coll is None else sorted((o.name, [round(v, 6) for row in o.matrix_world for v in row])
+                                             for o in coll.all_objects)
+    signature = (tuple(maps.sources(params)), tuple(params.paint.extent), params.to_dict()["keep_out"],
+                 maps.terrain_key(scene, item, params), getattr(coll, "name", ""), outline,
+                 state.strokes, _ground_matrix(item))
+    kept = state.paint
+    if kept is not None and kept[0] == signature:
+        return kept[1]
+    paint = maps.paint_of(scene, item, params)
+    state.paint = (signature, paint)
+    state.paint_deps = frozenset(maps.depends_on(scene, item, params))
+    return paint
+
+
+def _ground_matrix(item) -> tuple:
+    ground = owned.ground_object(item)
+    return () if ground is None else tuple(round(v, 6) for row in ground.matrix_world for v in row)
+
+
+def topology_of(params, heightfield, item) -> str:
+    """What the field's objects must be built for (``scene.topology``)."""
+    return field_scene.topology(params, heightfield, paint_look.painted_settings(params, item))
+
+
+def resolve(scene, item) -> FieldRuntime:
+    """The field's runtime for its settings now: the registered one when nothing it depends on
+    changed, else a new one (the engine is rebuilt). Numpy only: never touches a datablock
+    (``apply_settings`` does); raises WindgrassError on bad settings."""
+    key = key_of(scene, item)
+    previous = REGISTRY.runtime(key)
+    if previous is None:
+        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes if hasattr(s, "windgrass")
+                                 for f in s.windgrass.fields})
+    params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
+    heightfield, _, t_key = terrain_of(scene, item, params)
+    topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
+    tracks.collider_objects(item), tracks.effector_objects(item)  # a bad collection is named here
+    colliders, effectors, track = tracks.stored(item)
+    colliders = colliders + interaction.colliders_from_params(params)  # (a scene file's, in headless renders)
+    effectors = forces.join(effectors, forces.effectors_from_params(params))
+    digest = hashlib.sha1((params.digest() + fingerprint + topology + tracks.effector_digest(item)
+                           + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
+    paint = paint_of(scene, item, params)
+    painted = paint_core.fingerprint(paint)
+    if previous is not None and previous.digest == digest:
+        if previous.track != track:  # the colliders moved: the wind's simulation stays
+            previous.field.set_interaction(colliders, previous.field.effectors)
+            previous.track, previous.frame = track, None
+        if previous.paint != painted:  # a stroke: make again only the blocks it touched
+            started = time.perf_counter()
+            made = previous.field.repaint(paint, frame=scene.frame_current)
+            previous.paint, previous.frame = painted, None
+            REGISTRY.last_repaint = (time.perf_counter() - started, made)
+        previous.dirty = False
+        previous.clock = _clock(scene)
+        return previous
+    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint, colliders=colliders,
+                       effectors=effectors)
+    field.sim.progress = _seek_progress(item.name)
+    rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
+                      wind_keys=wind_keys, terrain_key=t_key, field=field, topology=topology, paint=painted,
+                      track=track, blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
+                      cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+    REGISTRY.state(key).runtime = rt
+    return rt
+
+
+def _seek_progress(name: str):
+    """A long seek reports itself: a line a second in scripts and background renders, the
+    progress cursor in the UI."""
+    def report(done: int, total: int) -> None:
+        if bpy.app.background:
+            print(f"Windgrass: simulating '{name}': {done}/{total} frames", flush=True)
+            return
+        wm = bpy.context.window_manager
+        if done >= total:
+            wm.progress_end()
+        else:
+            wm.progress_begin(0, total)
+            wm.progress_update(done)
+
+    return report
+
+
+def current(scene, item) -> FieldRuntime:
+    """The runtime a frame handler uses: the registered one unless its settings may have changed
+    (an edit, undo), the scene's clock or the animated wind changed under it (then resolved
+    again, numpy only), or there is none yet."""
+    rt = REGISTRY.runtime(key_of(scene, item))
+    if rt is None or rt.dirty:
+        return resolve(scene, item)
+    if rt.clock != _clock(scene) or _wind_curves(scene, item, rt.params)[1] != rt.wind_fingerprint:
+        return resolve(scene, item)
+    if rt.terrain_key and maps.terrain_key(scene, item, rt.params) != rt.terrain_key:
+        warn_once(f"the terrain of field '{item.name}' is gone or changed; the grass keeps the ground it "
+                  "was built on until Rebuild (on flat ground without a terrain)")
+    return rt

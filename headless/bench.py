@@ -27,8 +27,6 @@ ratios taken in one run.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import platform
@@ -39,13 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
 
-import addon_loader  # noqa: E402
+import common  # noqa: E402
 
-addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, no Blender)
+common.load()  # the engine as windgrass.grass_addon (numpy only, no Blender)
 from windgrass.grass_addon import kinematics, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.lod import Camera, lod_weights  # noqa: E402
@@ -208,11 +204,10 @@ def run_peers_json() -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = common.parser(__doc__)
     parser.add_argument("--blades", type=int, default=524_288, help="about this many blades (default 524288)")
     parser.add_argument("--segments", type=int, default=5, help="segments per blade (default 5)")
     parser.add_argument("--frames", type=int, default=10, help="timed frames after warm-up (default 10)")
-    parser.add_argument("--json", action="store_true", help="compact one-line JSON (default: indented)")
     parser.add_argument("--peers", action="store_true", help="also time the Blender peers (bench_peers.py)")
     parser.add_argument("--scale", action="store_true",
                         help="cost against field size: 25.6 m to 10 km (bench_scale.py); other flags ignored")
@@ -244,8 +239,7 @@ def main(argv=None) -> int:
     if args.scale:
         import bench_scale
 
-        result = bench_scale.run_scale()
-        print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=1))
+        common.emit(bench_scale.run_scale(), args)
         return 0
     try:
         if args.frames < 1:
@@ -260,7 +254,7 @@ def main(argv=None) -> int:
     if load and load[0] > 0.5 * (os.cpu_count() or 1):
         result["note"] = (f"busy machine (load average {load[0]:g} on {os.cpu_count()} CPUs): wall-clock "
                           "phases include waiting for the CPU; phases_cpu_ms shows the work itself")
-    print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=1))
+    common.emit(result, args)
     return 0
 
 

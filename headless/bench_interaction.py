@@ -16,20 +16,17 @@ card vertices of every block that needs them) of a 1 km field seen from near its
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
 
-import addon_loader  # noqa: E402
+import common  # noqa: E402
 
-addon_loader.load_package()
+common.load()  # the engine as windgrass.grass_addon (numpy only, no Blender)
 from windgrass.grass_addon import schema  # noqa: E402
 from windgrass.grass_addon.field import GrassField  # noqa: E402
 from windgrass.grass_addon.lod import Camera  # noqa: E402
@@ -80,8 +77,8 @@ def run(frames: int = 36) -> dict:
 
 
 def main(argv) -> int:
-    result = run()
-    print(json.dumps(result, separators=(",", ":")) if "--json" in argv else json.dumps(result, indent=2), flush=True)
+    args = common.parser(__doc__).parse_args(argv)
+    common.emit(run(), args)
     return 0
 
 

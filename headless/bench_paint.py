@@ -18,7 +18,6 @@ Prints one JSON object:
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import statistics
@@ -27,13 +26,11 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
 
-import addon_loader  # noqa: E402
+import common  # noqa: E402
 
-addon_loader.load_package()
+common.load()  # the engine as windgrass.grass_addon (numpy only, no Blender)
 import numpy as np  # noqa: E402
 from windgrass.grass_addon import schema  # noqa: E402
 from windgrass.grass_addon.field import GrassField  # noqa: E402
@@ -69,7 +66,7 @@ def stroke(size_m: float, quads: int) -> dict:
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_loader.load_addon()
+    common.load(addon=True)
     from windgrass.grass_addon.bridge import runtime
 
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=quads, y_subdivisions=quads, size=size_m)
@@ -120,10 +117,11 @@ def stroke(size_m: float, quads: int) -> dict:
 
 
 def main(argv) -> int:
+    args = common.parser(__doc__).parse_args(argv)
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
     result = {"half_painted": half_painted()}
     result["stroke"] = [stroke(100.0, 200), stroke(1000.0, 500)]
-    print(json.dumps(result, separators=(",", ":")) if "--json" in argv else json.dumps(result, indent=2), flush=True)
+    common.emit(result, args)
     return 0
 
 

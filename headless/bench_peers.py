@@ -29,8 +29,6 @@ the evaluated geometry really moves between two later frames.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import statistics
@@ -43,8 +41,8 @@ from typing import Any
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 
 
 def _prepare_blender_env() -> None:
@@ -68,9 +66,7 @@ def field_plan(blades: int) -> dict[str, Any]:
     real count is a multiple of that (10 000 -> 10 240, 100 000 -> 100 352). The blade size,
     segments, cell size and wind come from the schema defaults (the single source of truth).
     """
-    from addon_loader import load_package
-
-    load_package()
+    common.load()
     from windgrass.grass_addon import schema
 
     p = schema.defaults()
@@ -439,10 +435,8 @@ def bench_hair_dynamics(plan: dict[str, Any], frames: int) -> dict[str, Any]:
 def bench_ours(plan: dict[str, Any], frames: int) -> dict[str, Any]:
     """Our field through the add-on: ``field_add`` with the plan's blocks, LOD off, rebuilt."""
     import bpy
-    from addon_loader import load_addon
-
     scene = _fresh_scene()
-    load_addon()
+    common.load(addon=True)
     result = bpy.ops.windgrass.field_add(blocks_x=plan["blocks_x"], blocks_y=plan["blocks_y"])
     if "FINISHED" not in result:
         raise RuntimeError(f"windgrass.field_add returned {result}")
@@ -574,7 +568,7 @@ NOTES = (
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = common.parser(__doc__)
     parser.add_argument("--blades", type=int, nargs="+", default=[10_000, 100_000])
     parser.add_argument("--frames", type=int, default=3, help="timed frames per peer (default 3)")
     parser.add_argument("--no-ours", action="store_true", help="skip our field (peers only)")
@@ -591,7 +585,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()
         os.dup2(saved, 1)
         os.close(saved)
-    print(json.dumps(out, indent=2))
+    common.emit(out, args)
     return 0
 
 

@@ -18,17 +18,14 @@ frames after the first (the first builds everything).
 
 from __future__ import annotations
 
-import json
 import statistics
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
-
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 import render_field  # noqa: E402
 
 
@@ -85,14 +82,11 @@ def run(sizes, frames: int) -> dict:
 
 
 def main(argv) -> int:
-    sizes = [(400, 225), (1280, 720)]
-    frames = 2
-    if "--sizes" in argv:
-        sizes = [_size(s) for s in argv[argv.index("--sizes") + 1].split(",")]
-    if "--frames" in argv:
-        frames = int(argv[argv.index("--frames") + 1])
-    result = run(sizes, frames)
-    print(json.dumps(result, separators=(",", ":")) if "--json" in argv else json.dumps(result, indent=2), flush=True)
+    parser = common.parser(__doc__)
+    parser.add_argument("--sizes", default="400x225,1280x720", help="image sizes WxH, comma-separated")
+    parser.add_argument("--frames", type=int, default=2, help="frames rendered per size (default 2)")
+    args = parser.parse_args(argv)
+    common.emit(run([_size(s) for s in args.sizes.split(",")], args.frames), args)
     return 0
 
 

@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 
 SIZES_M = (25.6, 100.8, 1000.0, 10000.0)
 BLOCK_M = 1.6  # default blocks: 16 cells of 0.1 m
@@ -121,12 +121,11 @@ def blender_run(size_m: float) -> dict:
     """Median ``scene.frame_set`` of the field in Blender, the scene camera at the fixed view."""
     import bench_peers
     import bpy
-    from addon_loader import load_addon
     from mathutils import Vector
 
     params = _params(size_m)
     scene = bench_peers._fresh_scene()
-    load_addon()
+    common.load(addon=True)
     result = bpy.ops.windgrass.field_add(blocks_x=params.field.blocks_x, blocks_y=params.field.blocks_y)
     if "FINISHED" not in result:
         raise RuntimeError(f"windgrass.field_add returned {result}")
@@ -189,13 +188,14 @@ def run_scale(blender: bool = True) -> dict:
 
 
 if __name__ == "__main__":  # one measurement of run_scale: bench_scale.py engine|blender SIZE_M
-    import addon_loader
-
-    kind, size = sys.argv[1], float(sys.argv[2])
-    if kind == "blender":
+    parser = common.parser(__doc__, json_flag=False)
+    parser.add_argument("kind", choices=("engine", "blender"))
+    parser.add_argument("size", type=float, help="the field's side in metres")
+    args = parser.parse_args()
+    if args.kind == "blender":
         import bench_peers
 
         bench_peers._prepare_blender_env()
-    addon_loader.load_package()
-    measure = {"engine": engine_run, "blender": blender_run}[kind]
-    print("RESULT " + json.dumps(measure(size)), flush=True)
+    common.load()
+    measure = {"engine": engine_run, "blender": blender_run}[args.kind]
+    common.emit(measure(args.size), compact=True, prefix="RESULT ")

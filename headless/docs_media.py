@@ -12,10 +12,12 @@ animated WebP of a few hundred kB). When ``renders/lod_compare/`` holds the imag
 
 from __future__ import annotations
 
-import argparse
 import subprocess
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 
 HEADLESS = Path(__file__).resolve().parent
 ANIMATION_WIDTH = 640
@@ -23,7 +25,7 @@ REPO = HEADLESS.parent
 
 
 def parse_args(argv):
-    parser = argparse.ArgumentParser(prog="docs_media.py", description=__doc__.split("\n\n")[0])
+    parser = common.parser(__doc__, prog="docs_media.py", json_flag=False)
     parser.add_argument("--frames", default="1-30", help="frame range of the animation (default 1-30)")
     parser.add_argument("--resolution", default="960x540", help="WIDTHxHEIGHT (default 960x540)")
     parser.add_argument("--out", type=Path, default=REPO / "docs", help="folder of the README's pictures")

@@ -27,20 +27,16 @@ square view holds the far edge. The images (PNG, display colours) and each case'
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 HEADLESS = Path(__file__).resolve().parent
 REPO = HEADLESS.parent
-if str(HEADLESS) not in sys.path:
-    sys.path.insert(0, str(HEADLESS))
+sys.path.insert(0, str(HEADLESS))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 
-import addon_loader  # noqa: E402
-
-addon_loader.load_package()
+common.load()  # the engine as windgrass.grass_addon
 from windgrass.grass_addon import presets, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.grid import FieldGrid  # noqa: E402
@@ -51,7 +47,7 @@ STRIP_FOV = 20.0  # degrees: the strip's middle sixth stays on the field to its 
 
 
 def parse_args(argv):
-    parser = argparse.ArgumentParser(prog="lod_compare.py", description=__doc__.split("\n\n")[0])
+    parser = common.parser(__doc__, prog="lod_compare.py")
     parser.add_argument("--config", type=Path, default=REPO / "scenes" / "default.toml")
     parser.add_argument("--resolution", default="320x180", help="WIDTHxHEIGHT in pixels")
     parser.add_argument("--samples", type=int, default=16)
@@ -67,7 +63,6 @@ def parse_args(argv):
     parser.add_argument("--blocks", type=int, default=24,
                         help="blocks per side of the compared field (all geometry must fit: default 24, 38.4 m)")
     parser.add_argument("--out", type=Path, default=REPO / "renders" / "lod_compare")
-    parser.add_argument("--json", action="store_true", help="one line of JSON (default: indented)")
     return parser.parse_args(argv)
 
 
@@ -134,7 +129,7 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
     import numpy as np
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_loader.load_addon()
+    common.load(addon=True)
     from windgrass.grass_addon.bridge import properties, runtime, stage
 
     params = params.replace({"lod.enabled": lod})
@@ -254,7 +249,7 @@ def main(argv=None) -> int:
     except ParameterError as exc:
         print(f"lod_compare.py: error: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=2), flush=True)
+    common.emit(result, args)
     return 0
 
 

@@ -32,8 +32,7 @@ HEADLESS = Path(__file__).resolve().parent
 REPO = HEADLESS.parent
 DEFAULT_CONFIG = REPO / "scenes" / "default.toml"
 DEFAULT_OUT = REPO / "renders"
-if str(HEADLESS) not in sys.path:
-    sys.path.insert(0, str(HEADLESS))
+sys.path.insert(0, str(HEADLESS))  # (Blender's -P does not put the script's folder on the path)
 
 OLDEST_BLENDER = (4, 2, 0)
 
@@ -52,11 +51,11 @@ if "bpy" in sys.modules:  # run by a Blender executable: refuse an old one befor
         print(f"render_field.py: error: {_too_old}", file=sys.stderr, flush=True)
         os._exit(1)  # `blender -b -P` would ignore sys.exit and go on
 
-import addon_loader  # noqa: E402
+import common  # noqa: E402
 
 # The add-on package without registering it (no bpy yet): one copy of the schema, so the
 # ParameterError raised inside the add-on is the one caught here.
-_PACKAGE = addon_loader.load_addon(register=False)
+_PACKAGE = common.load(addon=True, register=False)
 
 
 def addon_module(name: str):
@@ -96,10 +95,9 @@ def script_argv(argv: list[str]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="render_field.py",
-        description="Render a grass field swaying in the wind (Windgrass) to numbered PNGs. "
-                    "Precedence: schema defaults < --config < flags.",
+    parser = common.parser(
+        "Render a grass field swaying in the wind (Windgrass) to numbered PNGs. "
+        "Precedence: schema defaults < --config < flags.", prog="render_field.py", json_flag=False,
         epilog="Run inside Blender: blender -b -P headless/render_field.py -- [options]. "
                "Numbers are written as 5, -2.5, +7, 3. or 1e-3 (ASCII digits; no underscores). "
                "Exit codes: 0 done, 2 bad input, 1 failure inside Blender, 130 stopped by Ctrl-C "
@@ -279,7 +277,7 @@ def fresh_scene():
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_loader.load_addon()
+    common.load(addon=True)
     return bpy.context.scene
 
 

@@ -10,7 +10,6 @@ README.md. Bad input exits with status 2 and a message naming the parameter.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -22,12 +21,10 @@ from types import SimpleNamespace
 import numpy as np
 
 HEADLESS = Path(__file__).resolve().parent
-if str(HEADLESS) not in sys.path:
-    sys.path.insert(0, str(HEADLESS))
+sys.path.insert(0, str(HEADLESS))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
 
-import addon_loader  # noqa: E402
-
-addon_loader.load_package()  # the engine as windgrass.grass_addon (numpy only, no Blender)
+common.load()  # the engine as windgrass.grass_addon (numpy only, no Blender)
 from windgrass.grass_addon import kinematics, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.field import WHOLE_FIELD_CELLS, GrassField  # noqa: E402
@@ -39,8 +36,8 @@ SUMMARY_BLADES = 100_000  # tip statistics of larger fields use evenly spread bl
 
 
 def parse_args(argv):
-    parser = argparse.ArgumentParser(
-        description="Simulate a Windgrass field (no Blender) and write a trace.",
+    parser = common.parser(
+        "Simulate a Windgrass field (no Blender) and write a trace.", json_flag=False,
         epilog="Every parameter flag overrides the --config file, which overrides the defaults. Numbers are "
                "written as 5, -2.5, +7, 3. or 1e-3 (ASCII digits; no underscores).")
     parser.add_argument("--config", metavar="FILE.toml", help="scene file (TOML); default: built-in defaults")

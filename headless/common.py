@@ -1,0 +1,46 @@
+"""What the headless scripts share: the engine loaded as ``windgrass``, their command lines, their JSON.
+
+Every script starts the same way (Blender's ``-P`` does not put the script's folder on the path)::
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import common  # noqa: E402
+
+    common.load()  # the engine as windgrass.grass_addon (numpy only); common.load(addon=True) registers it
+
+then builds its flags with ``common.parser(__doc__)`` (argparse; ``--json`` is always there) and
+prints its result with ``common.emit(result, args)``: one JSON object, on one line with ``--json``,
+indented without.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import addon_loader
+
+
+def load(addon: bool = False, register: bool = True):
+    """The repository as the package ``windgrass``; ``addon``: as the add-on (``register``: also
+    registered in Blender)."""
+    return addon_loader.load_addon(register=register) if addon else addon_loader.load_package()
+
+
+def parser(doc: str, prog: str | None = None, json_flag: bool = True, epilog: str | None = None
+           ) -> argparse.ArgumentParser:
+    """An argument parser described by the first paragraph of ``doc``, with ``--json`` unless
+    the script prints no JSON (``json_flag``)."""
+    out = argparse.ArgumentParser(prog=prog, description=(doc or "").strip().split("\n\n")[0], epilog=epilog)
+    if json_flag:
+        out.add_argument("--json", action="store_true", help="one line of JSON (default: indented)")
+    return out
+
+
+def emit(result, args=None, compact: bool | None = None, prefix: str = "") -> None:
+    """Print ``result`` as one JSON object on stdout: on one line with ``--json`` (``args.json``) or
+    ``compact``, else indented; ``prefix`` marks it among other output (``RESULT ``)."""
+    one_line = compact if compact is not None else bool(getattr(args, "json", False))
+    text = json.dumps(result, separators=(",", ":")) if one_line else json.dumps(result, indent=2)
+    print(prefix + text, flush=True)
+    sys.stdout.flush()

@@ -164,29 +164,13 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # The cell's representative blade (paper V.B: blades of a cell share the cell's bend and twist):
     # the mean of its blades, or a sampled virtual blade when cells hold no blades.
     cell_rng = np.random.default_rng([int(f.seed), RNG_CELLS, block])
-    if num > 0:
-        def per_cell(values: np.ndarray) -> np.ndarray:
-            return values.reshape((P, num) + values.shape[1:]).mean(axis=1).astype(np.float32)
-
-        cell_length, cell_width = per_cell(length), per_cell(width)
-        cell_stiffness, cell_rest_tilt = per_cell(stiffness), per_cell(rest_tilt)
-    else:
-        _, c_len, c_wid, c_stiff, c_inc = _sample_blades(cell_rng, P, params, species)
-        cell_length, cell_width = c_len.astype(np.float32), c_wid.astype(np.float32)
-        cell_stiffness = c_stiff.astype(np.float32)
-        cell_rest_tilt = _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32)
+    cell_length, cell_width, cell_stiffness, cell_rest_tilt = _cell_blades(
+        params, species, cell_rng, P, num, length, width, stiffness, rest_tilt)
     cell_facing = (cell_rng.random(P) * 2.0 * np.pi).astype(np.float32)
     # paper III.B: card height = reference height + stochastic modifier; random orientation. The
     # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
     # (the blades' own lengths are the stochastic part), times lod.card_height.
-    if num > 0:
-        tips = blade.tip_height(length, rest_tilt).reshape(P, num)
-        if alive is not None:  # the card stands for the blades that grow
-            grown = alive.reshape(P, num)
-            tips = np.where(grown.any(axis=1)[:, None], np.where(grown, tips, 0.0), tips)
-        tallest = tips.max(axis=1)
-    else:
-        tallest = blade.tip_height(cell_length, cell_rest_tilt)
+    tallest = _tallest(P, num, length, rest_tilt, alive, cell_length, cell_rest_tilt)
     cell_density = None
     if alive is not None:
         cell_density = alive.reshape(P, num).mean(axis=1).astype(np.float32) if num > 0 \
@@ -213,6 +197,32 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
         card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
         z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density)
+
+
+def _cell_blades(params, species, cell_rng, P: int, num: int, length, width, stiffness, rest_tilt) -> tuple:
+    """(length, width, root stiffness, rest tilt) of each cell's representative blade (paper V.B:
+    blades of a cell share the cell's bend and twist): the mean of its blades, or a virtual blade
+    drawn from ``cell_rng`` when cells hold no blades."""
+    if num > 0:
+        def per_cell(values: np.ndarray) -> np.ndarray:
+            return values.reshape((P, num) + values.shape[1:]).mean(axis=1).astype(np.float32)
+
+        return per_cell(length), per_cell(width), per_cell(stiffness), per_cell(rest_tilt)
+    _, c_len, c_wid, c_stiff, c_inc = _sample_blades(cell_rng, P, params, species)
+    return (c_len.astype(np.float32), c_wid.astype(np.float32), c_stiff.astype(np.float32),
+            _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32))
+
+
+def _tallest(P: int, num: int, length, rest_tilt, alive, cell_length, cell_rest_tilt) -> np.ndarray:
+    """(P,) each cell's tallest blade at rest, of the blades that grow where some do (a card
+    stands for them), the representative blade's height when cells hold no blades."""
+    if num == 0:
+        return blade.tip_height(cell_length, cell_rest_tilt)
+    tips = blade.tip_height(length, rest_tilt).reshape(P, num)
+    if alive is not None:  # the card stands for the blades that grow
+        grown = alive.reshape(P, num)
+        tips = np.where(grown.any(axis=1)[:, None], np.where(grown, tips, 0.0), tips)
+    return tips.max(axis=1)
 
 
 class BlockCache:

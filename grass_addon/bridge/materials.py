@@ -390,11 +390,38 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     _transparent(mat)
     t = _Tree(mat)
     coord = t.add("ShaderNodeTexCoord", -1400, 0)
+    view, view_z, slope = _view_slope(t, -2300, -1100)
+    grass = _canopy_colour(t, coord, view, view_z, slope, trail_image)
+    bsdf = t.add("ShaderNodeBsdfPrincipled", -450, 0)
+    _set(bsdf, 1.0, "Roughness")
+    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+    if gust_image is None:
+        t.link(grass, "Result_Color", bsdf, "Base Color")
+    else:
+        t.link(t.gusted(grass, "Result_Color", gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
+    camera = t.add("ShaderNodeCameraData", -900, -650)
+    kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
+    t.link(camera, "View Distance", kt, "Value")
+    _set(kt, 0.0, "To Min")
+    _set(kt, 1.0, "To Max")
+    opacity = _canopy_opacity(t, coord, kt, view, view_z, slope)
+    clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
+    cut = t.add("ShaderNodeMixShader", 50, 0)
+    t.link(opacity, "Value", cut, "Fac")
+    t.link(clear, "BSDF", cut, cut.inputs[1])
+    t.link(t.hazed(bsdf, "BSDF", -100, 150), "Shader", cut, cut.inputs[2])
+    out = t.add("ShaderNodeOutputMaterial", 300, 0)
+    t.link(cut, "Shader", out, "Surface")
+    return mat
+
+
+def _canopy_colour(t, coord, view, view_z, slope, trail_image):
+    """The canopy's colour: the sward's look at the ray's slope (``sward.sward_look`` over
+    s / (s + LOOK_KNEE)), the fringe's tips where ``wg_sward_z`` X = 1, the trails, fine streaks."""
     grass_noise = t.add("ShaderNodeTexNoise", -1150, -50)
     _set(grass_noise, 40.0, "Scale")
     _set(grass_noise, 4.0, "Detail")
     t.link(coord, "Object", grass_noise, "Vector")
-    view, view_z, slope = _view_slope(t, -2300, -1100)
     # the look over x = s / (s + LOOK_KNEE), one curve per channel of a grey (x, x, x)
     knee = t.math("ADD", (slope, "Value"), LOOK_KNEE, -1700, -350)
     along = t.math("DIVIDE", (slope, "Value"), (knee, "Value"), -1550, -350)
@@ -423,18 +450,12 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     for axis in "XYZ":
         t.link(ramp, "Result", bright, axis)
     t.link(bright, "Vector", grass, "B_Color")
-    bsdf = t.add("ShaderNodeBsdfPrincipled", -450, 0)
-    _set(bsdf, 1.0, "Roughness")
-    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
-    if gust_image is None:
-        t.link(grass, "Result_Color", bsdf, "Base Color")
-    else:
-        t.link(t.gusted(grass, "Result_Color", gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
-    camera = t.add("ShaderNodeCameraData", -900, -650)
-    kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
-    t.link(camera, "View Distance", kt, "Value")
-    _set(kt, 0.0, "To Min")
-    _set(kt, 1.0, "To Max")
+    return grass
+
+
+def _canopy_opacity(t, coord, kt, view, view_z, slope):
+    """How much of the ray the canopy stops: 1 - (1 - K_t)^2, see-through at the field's edge as
+    its blades would be, times the share of blades that grow (paint), for camera rays only."""
     # The canopy is the floor of the fading cards (K'_b = 1 - K_t): its opacity 1 - (1 - K_t)^2
     # rises twice as fast as K_t at first, so the dark ground does not show through both, and
     # levels off smoothly to 1 at the band's end (a kink in it shows as a line).
@@ -447,6 +468,18 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     edge = t.math("MINIMUM", (gain, "Value"),
                   (_sward_edge_opacity(t, coord, kt, view, view_z, slope, -1900, -1100), "Value"),
                   -450, -650, clamp=True)
+    grows = _painted_share(t)
+    share = t.math("MULTIPLY", (edge, "Value"), (grows, "Result"), -350, -900, clamp=True)
+    light_path = t.add("ShaderNodeLightPath", -700, -900)
+    # Seen by the camera only: clear to shadow rays and to light bouncing (a plane over the whole
+    # field would otherwise hide the sky from the ground under it, which shows dark through the
+    # canopy where it starts to fade in: a dark line at the near edge of the card band)
+    opacity = t.math("MULTIPLY", (share, "Value"), (light_path, "Is Camera Ray"), -300, -700, clamp=True)
+    return opacity
+
+
+def _painted_share(t):
+    """The share of blades that grow at each place of a painted field (1 without paint)."""
     # Painted grass (paint.py): the canopy stands for the share of blades that grow at each place
     # (a path is bare ground to the horizon), from the field's paint map over the ground's UVs.
     paint_map = t.add("ShaderNodeTexImage", -900, -1250, name=NODE_PAINT_MAP)
@@ -464,20 +497,7 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     t.link(painted, "Value", grows, "Value")
     _set(grows, 1.0, "To Min")
     t.link(density, density.outputs[0], grows, "To Max")
-    share = t.math("MULTIPLY", (edge, "Value"), (grows, "Result"), -350, -900, clamp=True)
-    light_path = t.add("ShaderNodeLightPath", -700, -900)
-    # Seen by the camera only: clear to shadow rays and to light bouncing (a plane over the whole
-    # field would otherwise hide the sky from the ground under it, which shows dark through the
-    # canopy where it starts to fade in: a dark line at the near edge of the card band)
-    opacity = t.math("MULTIPLY", (share, "Value"), (light_path, "Is Camera Ray"), -300, -700, clamp=True)
-    clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
-    cut = t.add("ShaderNodeMixShader", 50, 0)
-    t.link(opacity, "Value", cut, "Fac")
-    t.link(clear, "BSDF", cut, cut.inputs[1])
-    t.link(t.hazed(bsdf, "BSDF", -100, 150), "Shader", cut, cut.inputs[2])
-    out = t.add("ShaderNodeOutputMaterial", 300, 0)
-    t.link(cut, "Shader", out, "Surface")
-    return mat
+    return grows
 
 
 def _trailed(t: _Tree, coord, view, view_z, look, trail_image, x: float, y: float):

@@ -1,0 +1,110 @@
+"""The code stays a map a newcomer can read: no import cycle among the project's modules (imports
+inside functions included), no function of the add-on over 80 lines, and the engine never imports
+Blender."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+ADD_ON = ("grass_addon", "operators", "panels")
+LONGEST = 80
+
+
+def _modules() -> dict[str, Path]:
+    """{dotted name relative to the repository root: path} of the extension's modules."""
+    out = {}
+    for folder in ADD_ON:
+        for path in (REPO / folder).rglob("*.py"):
+            parts = list(path.relative_to(REPO).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts.pop()
+            out[".".join(parts)] = path
+    out[""] = REPO / "__init__.py"
+    return out
+
+
+def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The project's modules that ``name`` imports anywhere in its file (relative imports)."""
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    if name == "":
+        package = []
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.ImportFrom) or not node.level:
+            continue
+        base = package[: len(package) - (node.level - 1)] if node.level > 1 else package
+        target = ".".join(base + ([node.module] if node.module else []))
+        if target in modules:
+            found.add(target)
+        for alias in node.names:
+            sub = f"{target}.{alias.name}" if target else alias.name
+            if sub in modules:
+                found.add(sub)
+    found.discard(name)
+    return found
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected groups of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycle_among_the_modules():
+    modules = _modules()
+    graph = {name: _imports(name, path, modules) for name, path in modules.items()}
+    assert len(graph) > 40 and sum(map(len, graph.values())) > 80  # the walk sees the imports
+    assert _cycles(graph) == []
+
+
+def test_a_cycle_is_seen():
+    """The cycle finder finds a cycle made on purpose (so an empty answer means something)."""
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == [["a", "b", "c"]]
+
+
+def test_no_function_of_the_add_on_is_over_80_lines():
+    long = []
+    for path in _modules().values():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > LONGEST:
+                    long.append(f"{path.relative_to(REPO)}:{node.lineno} {node.name} ({lines} lines)")
+    assert not long, long
+
+
+def test_the_engine_never_imports_blender():
+    engine = [p for p in (REPO / "grass_addon").glob("*.py")]
+    assert len(engine) > 20
+    for path in engine:
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
+            assert not any(n.split(".")[0] in ("bpy", "mathutils", "bmesh") for n in names), path

@@ -242,8 +242,8 @@ def test_frame_change_sways_tips_and_keeps_roots(bridge):
 
 
 def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
-    """An object holding k positions shows the chosen blocks' blades at its shown positions,
-    exactly as the engine computes them (GrassField.blade_vertices), with their species colours,
+    """An object holding k positions shows the chosen blocks' blades at its shown positions (every
+    root inside that block's square of ground, every blade standing), with their species colours,
     and collapsed rows (one point, no colour) at FREE positions."""
     owned, runtime = bridge
     # 6 blocks of 16 x 16 cells (6144 vertices each): k = 4, 2 objects; no camera: all shown.
@@ -256,8 +256,8 @@ def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
     assert rt.blades.state.shown.tolist() == [0, 1, 2, 3, 4, 5, -1, -1]  # then FREE
     second = _owned(item, "blades")[1]  # positions 4..7: blocks 4, 5, then two FREE
     rows = _positions(second).reshape(k, -1, 3)
-    expected = rt.field.blade_vertices(np.array([4, 5], dtype=np.int32), lod=rt.lod).reshape(2, -1, 3)
-    np.testing.assert_array_equal(rows[:2], expected)
+    for i, block in enumerate((4, 5)):
+        _assert_holds_block(item, rows[i], block)
     assert np.abs(rows[2:]).max() == 0.0  # FREE: every vertex at the origin (zero area)
     # (position, blade, corner, (r, g) | (b, shade)): the species colour and shade of each blade
     rg, bs = (_uv(second, name).reshape(k, layout.blades_per_block, -1, 2) for name in ("wg_tint_rg", "wg_tint_bs"))
@@ -271,8 +271,24 @@ def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
     assert np.abs(rg[2:]).max() == 0.0 and np.abs(bs[2:]).max() == 0.0
     # The first object holds blocks 0..3 in order.
     first = _positions(_owned(item, "blades")[0]).reshape(k, -1, 3)
-    np.testing.assert_array_equal(first, rt.field.blade_vertices(np.arange(4, dtype=np.int32), lod=rt.lod)
-                                  .reshape(k, -1, 3))
+    for block in range(4):
+        _assert_holds_block(item, first[block], block)
+
+
+def _assert_holds_block(item, rows, block):
+    """``rows`` (a position's vertices) are the blades of ``block``: roots inside its square of the
+    field (blocks of cells_per_block x cell_size, row-major from the field's -x, -y corner, the
+    field centred on the origin) and standing up from them, each blade drawn (some area)."""
+    f = item.field
+    edge = f.cells_per_block * f.cell_size
+    x0 = -0.5 * f.blocks_x * edge + (block % f.blocks_x) * edge
+    y0 = -0.5 * f.blocks_y * edge + (block // f.blocks_x) * edge
+    strips = rows.reshape(-1, item.blade.segments + 1, 2, 3)
+    roots, tips = strips[:, 0].mean(axis=1), strips[:, -1].mean(axis=1)
+    assert len(strips) == f.cells_per_block ** 2 * f.blades_per_cell
+    assert np.all((roots[:, 0] >= x0 - 1e-5) & (roots[:, 0] <= x0 + edge + 1e-5))
+    assert np.all((roots[:, 1] >= y0 - 1e-5) & (roots[:, 1] <= y0 + edge + 1e-5))
+    assert np.all(tips[:, 2] - roots[:, 2] > 0.05)
 
 
 def test_wind_fcurves_become_wind_keys(bridge):

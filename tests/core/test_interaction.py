@@ -179,6 +179,7 @@ def test_frames_asked_in_any_order_give_the_same_trample_and_trail(ball):
         assert it.trail_map(frame).flat.tobytes() == fresh.trail_map(frame).flat.tobytes(), frame
 
 
+@pytest.mark.slow  # (many seconds: dev.py test --quick leaves it out)
 def test_a_collider_far_from_the_window_adds_no_work():
     """A 1 km field seen from its centre; a ball rolling 400 m away touches no simulated cell:
     the frame is bit for bit the field without it."""

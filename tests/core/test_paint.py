@@ -140,6 +140,7 @@ def test_species_maps_plant_each_species_where_painted():
     np.testing.assert_array_equal(layout.blade_species[y > 0.3], plain.blade_species[y > 0.3])  # the same picks
 
 
+@pytest.mark.slow  # (many seconds: dev.py test --quick leaves it out)
 def test_blocks_painted_out_are_not_simulated_and_frames_stay_addressable():
     """A 1 km field (not simulated whole) with its west half painted out: the window holds only
     blocks where grass grows; frame 40 reached directly equals frame 40 after 1-39 (paint is part
@@ -250,6 +251,7 @@ def _states_by_block(field):
     return out
 
 
+@pytest.mark.slow  # (many seconds: dev.py test --quick leaves it out)
 def test_a_stroke_makes_again_only_the_blocks_it_touches_and_gives_what_a_fresh_field_gives():
     """Painting a patch near the camera of a 1 km field (a mown square, length 0.5, and a bare
     strip): only the blocks under the stroke are made again, and the frame equals, bit for bit,

@@ -9,9 +9,10 @@ so the image lies over the field as it looks on screen with +Y up.
 
 from __future__ import annotations
 
+import os
+import stat
 import struct
 import zlib
-from pathlib import Path
 
 import numpy as np
 
@@ -20,20 +21,15 @@ from .errors import ParameterError
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}  # colour type -> samples per pixel
 MAX_PIXELS = 1 << 26  # 8192 x 8192
+# A PNG's file is at most its raw pixels (8 bytes a pixel: 16-bit RGBA, plus a filter byte a row)
+# and a little: anything longer is not a map (a device, a log, a zip bomb's padding).
+MAX_FILE_BYTES = MAX_PIXELS * 8 + (64 << 20)
 
 
 def read_map(path, name: str) -> np.ndarray:
     """(height, width) float32 grey levels 0..1 of the PNG at ``path``, row 0 at the bottom;
     ParameterError naming the setting ``name`` when it is missing, unreadable or not a PNG."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise ParameterError(name, f"{path} does not exist (valid: a PNG image file)") from None
-    except IsADirectoryError:
-        raise ParameterError(name, f"{path} is a folder, not a PNG image file") from None
-    except OSError as exc:
-        raise ParameterError(name, f"cannot read {path}: {exc.strerror or exc}") from None
+    data = read_file(path, name)
     try:
         rgba = decode_png(data)
     except ValueError as exc:
@@ -41,6 +37,56 @@ def read_map(path, name: str) -> np.ndarray:
                              "grey or colour, not interlaced)") from None
     colour = rgba[..., :3].mean(axis=-1) if rgba.shape[-1] >= 3 else rgba[..., 0]
     return np.ascontiguousarray(colour[::-1], dtype=np.float32)
+
+
+def read_file(path, name: str) -> bytes:
+    """The bytes of the map file at ``path``, read only when it is a regular file of at most
+    MAX_FILE_BYTES: a folder, a device (``/dev/zero``), a pipe (which would wait forever) or a path
+    with a NUL character is refused at once with a ParameterError naming the setting."""
+    text = str(path)
+    if "\x00" in text:
+        raise ParameterError(name, f"{text!r} holds a NUL character (valid: the path of a PNG image file)")
+    try:
+        info = os.stat(text)
+    except FileNotFoundError:
+        raise ParameterError(name, f"{text} does not exist (valid: a PNG image file)") from None
+    except OSError as exc:
+        raise ParameterError(name, f"cannot read {text}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ParameterError(name, f"{text} is a folder, not a PNG image file")
+    if not stat.S_ISREG(info.st_mode):
+        raise ParameterError(name, f"{text} is not a regular file (a device or a pipe); valid: a PNG image file")
+    if info.st_size > MAX_FILE_BYTES:
+        raise ParameterError(name, f"{text} has {info.st_size:,} bytes, more than any PNG map of at most "
+                             f"{MAX_PIXELS:,} pixels (valid: a PNG image file)")
+    try:
+        with open(text, "rb") as fh:
+            return fh.read(info.st_size + 1)  # (read(n) takes n bytes at once: no more than the file's)
+    except OSError as exc:
+        raise ParameterError(name, f"cannot read {text}: {exc.strerror or exc}") from None
+
+
+def decoded_bytes(width: int, height: int, channels: int = 4) -> int:
+    """Memory the decoding of a ``width`` x ``height`` PNG of ``channels`` takes at its peak: the
+    raw rows, the unfiltered copy and the float32 values, and the float32 grey map kept."""
+    raw = height * (width * channels * 2 + 1)
+    return 2 * raw + width * height * channels * 4 + width * height * 4
+
+
+def peek_size(path) -> tuple[int, int, int] | None:
+    """(width, height, channels) from a PNG file's header, reading its first bytes only (None
+    when the path is not a readable regular PNG file: reading it says why)."""
+    try:
+        if not stat.S_ISREG(os.stat(str(path)).st_mode):
+            return None
+        with open(str(path), "rb") as fh:
+            head = fh.read(33)
+    except (OSError, ValueError):
+        return None
+    if head[:8] != SIGNATURE or head[12:16] != b"IHDR" or len(head) < 29:
+        return None
+    width, height, _, colour = struct.unpack(">IIBB", head[16:26])
+    return width, height, CHANNELS.get(colour, 4)
 
 
 def decode_png(data: bytes) -> np.ndarray:
@@ -55,6 +101,8 @@ def decode_png(data: bytes) -> np.ndarray:
             raise ValueError("the file is cut short")
         pos += 12 + length
         if kind == b"IHDR":
+            if length != 13:
+                raise ValueError(f"an image header of {length} bytes (a PNG's has 13)")
             header = struct.unpack(">IIBBBBB", body)
         elif kind == b"PLTE":
             palette = np.frombuffer(body, np.uint8).reshape(-1, 3)
@@ -74,13 +122,8 @@ def decode_png(data: bytes) -> np.ndarray:
     channels = CHANNELS[colour]
     step = channels * depth // 8  # bytes per pixel
     stride = width * step
-    try:
-        raw = np.frombuffer(zlib.decompress(b"".join(idat)), np.uint8)
-    except zlib.error as exc:
-        raise ValueError(f"damaged image data ({exc})") from None
-    if raw.size < height * (stride + 1):
-        raise ValueError("the image data is cut short")
-    rows = _unfilter(raw[:height * (stride + 1)].reshape(height, stride + 1), step)
+    raw = _inflate(idat, height * (stride + 1))
+    rows = _unfilter(raw.reshape(height, stride + 1), step)
     if depth == 16:
         samples = rows.reshape(height, width * channels, 2)
         values = (samples[..., 0].astype(np.float32) * 256.0 + samples[..., 1]) / 65535.0
@@ -91,6 +134,25 @@ def decode_png(data: bytes) -> np.ndarray:
         index = rows.reshape(height, width)
         values = palette[np.minimum(index, len(palette) - 1)].astype(np.float32) / 255.0
     return values
+
+
+def _inflate(chunks: list[bytes], size: int) -> np.ndarray:
+    """The ``size`` bytes of image data the header promises, inflated no further (a zip bomb's
+    gigabytes are never made): ValueError when there is less, or more."""
+    inflater = zlib.decompressobj()
+    out = bytearray()
+    try:
+        for chunk in chunks:  # at most one byte past the size: enough to tell there is more
+            out += inflater.decompress(chunk, size - len(out) + 1)
+            if len(out) > size:
+                break
+    except zlib.error as exc:
+        raise ValueError(f"damaged image data ({exc})") from None
+    if len(out) > size:
+        raise ValueError("more image data than its header's size")
+    if len(out) < size:
+        raise ValueError("the image data is cut short")
+    return np.frombuffer(bytes(out), np.uint8)
 
 
 def _unfilter(filtered: np.ndarray, step: int) -> np.ndarray:

@@ -22,7 +22,7 @@ import math
 import os
 from dataclasses import dataclass
 
-from . import slots
+from . import images, paint, slots
 from .errors import ParameterError
 from .grid import FieldGrid
 from .lod import block_reach
@@ -42,14 +42,33 @@ class Estimate:
     meshes: int
     buffers: int
     simulation: int
+    maps: int = 0  # decoding the largest of its PNG maps (they are read one at a time)
 
     @property
     def total(self) -> int:
-        return BASE_BYTES + self.meshes + self.buffers + self.simulation
+        return BASE_BYTES + self.meshes + self.buffers + self.simulation + self.maps
 
 
-def estimate(params, grid: FieldGrid | None = None) -> Estimate:
-    """What a field of ``params`` takes in Blender at most (bytes), from its parameters alone."""
+def map_files(params) -> list[tuple[str, str]]:
+    """(setting, path) of every PNG file the field reads (maps and the heightmap)."""
+    named = paint.map_settings(params) + [("terrain.heightmap", params.terrain.heightmap)]
+    return [(name, path) for name, path in named if path and not path.startswith(paint.BLENDER_SOURCES)]
+
+
+def maps_bytes(params, resolve=str) -> tuple[int, str | None]:
+    """(bytes, setting) of the largest PNG map to decode (``resolve``: a path as the file system
+    knows it, e.g. Blender's ``//`` paths made absolute); (0, None) without maps."""
+    largest, name = 0, None
+    for setting, path in map_files(params):
+        size = images.peek_size(resolve(path))
+        if size is not None and images.decoded_bytes(*size) > largest:
+            largest, name = images.decoded_bytes(*size), setting
+    return largest, name
+
+
+def estimate(params, grid: FieldGrid | None = None, resolve=str) -> Estimate:
+    """What a field of ``params`` takes in Blender at most (bytes), from its parameters and the
+    headers of its PNG maps (``resolve``: see ``maps_bytes``)."""
     grid = grid or FieldGrid.of(params)
     blades, cards = slots.pool_shapes(grid, params)
     vertices = blades.positions * blades.verts_per_block + cards.positions * cards.verts_per_block
@@ -64,7 +83,8 @@ def estimate(params, grid: FieldGrid | None = None) -> Estimate:
     blocks = window * (grid.blades_per_block * (BLOCK_BYTES_PER_BLADE + 4 * grid.segments)
                        + grid.cells_per_block_total * 4 * (16 + grid.segments))
     simulation = blocks + state * (TRAJECTORIES + 1) + TRAJECTORIES * checkpoints
-    return Estimate(meshes=vertices * SLOT_BYTES_PER_VERTEX, buffers=buffers, simulation=simulation)
+    return Estimate(meshes=vertices * SLOT_BYTES_PER_VERTEX, buffers=buffers, simulation=simulation,
+                    maps=maps_bytes(params, resolve)[0])
 
 
 def machine_bytes() -> int | None:
@@ -94,16 +114,21 @@ def longest_card_far(params, allowed: int) -> float:
     return low
 
 
-def check(params) -> Estimate:
+def check(params, resolve=str) -> Estimate:
     """The field's estimate, or ParameterError (naming ``lod.card_far``) when it needs more than
     ``simulation.memory_mb`` allows or this machine has; the message suggests only values that
     fit the machine."""
-    need = estimate(params)
+    need = estimate(params, resolve=resolve)
     allowed = int(params.simulation.memory_mb) << 20
     machine = machine_bytes()
     limit = allowed if machine is None else min(allowed, int(0.8 * machine))
     if need.total <= limit:
         return need
+    if need.total - need.maps <= limit:  # the field fits: a map is too large for what is left
+        _, setting = maps_bytes(params, resolve)
+        raise ParameterError(setting, f"decoding this map takes about {_mb(need.maps)}, and with the field's "
+                             f"{_mb(need.total - need.maps)} that is more than {_mb(limit)}; valid: a map of "
+                             "fewer pixels (8-bit grey is enough for a map), or more simulation.memory_mb")
     card_far = max(float(params.lod.card_near), math.floor(longest_card_far(params, limit)))  # a value that fits
     where = (f"simulation.memory_mb allows {_mb(allowed)}" if limit == allowed
              else f"this machine has {_mb(machine)}")

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ParameterError
+from .schema import BLENDER_SOURCES
 
 LENGTH_RANGE = 2.0  # a length map's white: blades twice their length
 MIN_LENGTH_SCALE = 0.02  # below this a blade is mown to nothing: it does not grow
@@ -281,12 +282,20 @@ def keep_out_shapes(params) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
 
 
-def from_params(params, load, extra: Paint | None = None) -> Paint | None:
+def from_params(params, load, extra: Paint | None = None, blender: bool = False) -> Paint | None:
     """The paint of a scene file's settings (``[paint]``, the species rows' ``density_map``,
     ``[[keep_out.shapes]]``), file maps read by ``load(path, setting name) -> values (ny, nx)``
     (``images.read_map``). ``extra``: maps and footprints from Blender (the terrain's vertex
     groups, a keep-out collection) that the file's settings do not name; a map named in both is
-    taken from the settings. None when nothing is painted."""
+    taken from the settings. ``blender``: the caller reads Blender's sources (``extra``); without
+    Blender a ``vertex_group:``, ``attribute:`` or ``image:`` map is refused, naming the setting.
+    None when nothing is painted."""
+    if not blender:
+        for name, value in map_settings(params):
+            if value.startswith(BLENDER_SOURCES):
+                raise ParameterError(name, f"{value!r} is read from the terrain mesh or an image inside Blender, "
+                                     "which this run (no Blender) does not have; valid here: a PNG file "
+                                     "(save the painted map as a PNG), or render inside Blender")
     extent = None
 
     def raster(path: str, name: str):
@@ -313,8 +322,11 @@ def from_params(params, load, extra: Paint | None = None) -> Paint | None:
     return None if paint.empty else paint
 
 
-# Map sources that only Blender can read (bridge/maps.py): "vertex_group:NAME", "attribute:NAME", "image:NAME".
-BLENDER_SOURCES = ("vertex_group:", "attribute:", "image:")
+def map_settings(params) -> list[tuple[str, str]]:
+    """(setting, value) of every paint map setting that names something."""
+    out = [("paint.density", params.paint.density), ("paint.length", params.paint.length)]
+    out += [(f"blade.species[{i}].density_map", row.get("density_map", "")) for i, row in enumerate(params.species())]
+    return [(name, value) for name, value in out if value]
 
 
 def _is_file_map(value: str) -> bool:

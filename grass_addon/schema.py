@@ -714,12 +714,32 @@ def _resolve_paths(data: Any, folder: Path) -> None:
         if not isinstance(section, dict) or p.key not in section:
             continue
         if p.path and isinstance(section[p.key], str) and section[p.key]:
-            section[p.key] = str((folder / Path(section[p.key]).expanduser()).resolve())
+            section[p.key] = _file_path(folder, section[p.key], p.name)
         if p.kind == "table_list" and isinstance(section[p.key], list):
-            for row in section[p.key]:
+            for i, row in enumerate(section[p.key]):
                 for f in p.fields:
                     if f.path and isinstance(row, dict) and isinstance(row.get(f.key), str) and row[f.key]:
-                        row[f.key] = str((folder / Path(row[f.key]).expanduser()).resolve())
+                        row[f.key] = _file_path(folder, row[f.key], f"{p.name}[{i}].{f.key}")
+
+
+# Map values that name a source inside Blender, not a file (bridge/maps.py): "vertex_group:NAME",
+# "attribute:NAME", "image:NAME".
+BLENDER_SOURCES = ("vertex_group:", "attribute:", "image:")
+
+
+def _file_path(folder: Path, value: str, name: str) -> str:
+    """A scene file's path ``value`` made absolute from ``folder`` (``~`` expanded); a Blender
+    source (``vertex_group:NAME``, ...) is kept; a path no file system has is refused, named."""
+    if value.startswith(BLENDER_SOURCES):
+        return value
+    if "\x00" in value:
+        raise ParameterError(name, f"{value!r} holds a NUL character (valid: a file path)")
+    try:
+        return str((folder / Path(value).expanduser()).resolve())
+    except RuntimeError as exc:  # ~user of no such user
+        raise ParameterError(name, f"{value}: {exc} (valid: a file path, ~ for your own home folder)") from None
+    except (OSError, ValueError) as exc:
+        raise ParameterError(name, f"{value} is not a usable path: {exc} (valid: a file path)") from None
 
 
 def dumps_toml(params: Params) -> str:

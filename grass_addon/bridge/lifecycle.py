@@ -35,7 +35,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     if item.collection is None and not force:
         return
     params = properties.params_from_settings(item, scene)
-    memory.check(params)  # before anything is built: a card range that would run out of memory
+    memory.check(params, bpy.path.abspath)  # before anything is built: a card range or a map too large
     if force and getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()

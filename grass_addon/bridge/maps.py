@@ -34,13 +34,6 @@ from .registry import warn_once
 MAX_MAP_SAMPLES = 1024  # samples along a side of a map draped from the terrain (one per cell, or coarser)
 
 
-def sources(params) -> list[tuple[str, str]]:
-    """(setting name, value) of every map setting that names something."""
-    out = [("paint.density", params.paint.density), ("paint.length", params.paint.length)]
-    out += [(f"blade.species[{i}].density_map", row.get("density_map", "")) for i, row in enumerate(params.species())]
-    return [(name, value) for name, value in out if value]
-
-
 def _to_field(item):
     """4x4 numpy matrix from world to the field's frame (the ground's inverse), or None."""
     ground = ground_object(item)
@@ -223,7 +216,7 @@ def paint_of(scene, item, params) -> paint_core.Paint | None:
     source that is not there (with what is)."""
     to_field = _to_field(item)
     extra = {}
-    for setting, value in sources(params):
+    for setting, value in paint_core.map_settings(params):
         if value.startswith(paint_core.BLENDER_SOURCES):
             extra[setting] = _blender_map(scene, item, params, setting, value, to_field)
     rows = len(params.species())
@@ -232,7 +225,7 @@ def paint_of(scene, item, params) -> paint_core.Paint | None:
         density=extra.get("paint.density"), length=extra.get("paint.length"),
         species=tuple(extra.get(f"blade.species[{i}].density_map") for i in range(rows)),
         keep_out=paint_core.KeepOut(footprint) if len(footprint) else None)
-    return paint_core.from_params(params, read_file, extra=blender)
+    return paint_core.from_params(params, read_file, extra=blender, blender=True)
 
 
 def read_file(path: str, name: str):
@@ -245,7 +238,7 @@ def depends_on(scene, item, params) -> set:
     an update to one of them is a stroke or an edit to apply."""
     names = set()
     terrain = terrain_object(scene, item)
-    for _, value in sources(params):
+    for _, value in paint_core.map_settings(params):
         kind, _, name = value.partition(":")
         if kind in ("vertex_group", "attribute") and terrain is not None:
             names.add(("OBJECT", terrain.name))

@@ -9,7 +9,7 @@ import numpy as np
 from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
-from . import maps, materials
+from . import materials
 from .meshes import edge_ring
 from .owned import REGISTRY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
 
@@ -23,7 +23,7 @@ PAINT_MAP_PIXELS = 1024  # the paint map image's longer side (the canopy's share
 def painted_settings(params, item) -> bool:
     """Whether the field's settings paint it (maps, keep-out shapes or a keep-out collection):
     its ground is then a grid and its canopy reads a paint map (part of the slot topology)."""
-    return bool(maps.sources(params) or params.keep_out.shapes or getattr(item, "keep_out_collection", None))
+    return bool(paint_core.map_settings(params) or params.keep_out.shapes or getattr(item, "keep_out_collection", None))
 
 
 def paint_ground(params, heightfield):

@@ -111,7 +111,7 @@ def paint_of(scene, item, params):
     coll = getattr(item, "keep_out_collection", None)
     outline = [] if coll is None else sorted((o.name, [round(v, 6) for row in o.matrix_world for v in row])
                                              for o in coll.all_objects)
-    signature = (tuple(maps.sources(params)), tuple(params.paint.extent), params.to_dict()["keep_out"],
+    signature = (tuple(paint_core.map_settings(params)), tuple(params.paint.extent), params.to_dict()["keep_out"],
                  maps.terrain_key(scene, item, params), getattr(coll, "name", ""), outline,
                  state.strokes, _ground_matrix(item))
     kept = state.paint

@@ -4,7 +4,7 @@ parameter shows up without touching this file."""
 import bpy
 
 from ..grass_addon import schema
-from ..grass_addon.bridge import properties, runtime, tracks
+from ..grass_addon.bridge import maps, properties, runtime, tracks
 from ..grass_addon.errors import WindgrassError
 from ..grass_addon.simulation import seek_note
 from .main import CATEGORY, WINDGRASS_PT_main, wrapped
@@ -84,6 +84,8 @@ def draw_section(layout, context, item, section: str) -> None:
             layout.prop(group, p.key)
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
+        for note in maps.keep_out_notes(item):
+            wrapped(layout, context, note, icon="INFO")
     if section == "interaction":
         layout.prop(item, "collider_collection")
         layout.prop(item, "effector_collection")
@@ -92,8 +94,8 @@ def draw_section(layout, context, item, section: str) -> None:
             note = tracks.status(context.scene, item, properties.params_from_settings(item, context.scene))
         except WindgrassError:
             note = None
-        if note:
-            wrapped(layout, context, note, icon="INFO")
+        for line in ([note] if note else []) + tracks.notes(item):
+            wrapped(layout, context, line, icon="INFO")
     if section == "paint":
         seconds = runtime.stroke_seconds(context.scene, item)
         if seconds > runtime.STROKE_GOAL_S:

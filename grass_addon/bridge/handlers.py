@@ -117,13 +117,17 @@ def _note_motion(scene, depsgraph) -> None:
     """An edit of a field's colliders or force fields (moved, keyed, a setting): look at its
     stored motion again once the edits settle (``update_track``)."""
     updated = {getattr(u.id, "original", u.id).name for u in depsgraph.updates if isinstance(u.id, bpy.types.Object)}
+    # (an object deleted from a collection, or moved out of it, updates the collection)
+    collections = {getattr(u.id, "original", u.id).name for u in depsgraph.updates
+                   if isinstance(u.id, bpy.types.Collection)}
     actions = any(isinstance(u.id, bpy.types.Action) for u in depsgraph.updates)
-    if not updated and not actions:
+    if not updated and not actions and not collections:
         return
     for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
         colls = [c for c in (getattr(item, "collider_collection", None), getattr(item, "effector_collection", None))
                  if c is not None]
-        if colls and (actions or any(o.name in updated for c in colls for o in c.all_objects)):
+        if colls and (actions or any(c.name in collections for c in colls)
+                      or any(o.name in updated for c in colls for o in c.all_objects)):
             key = key_of(scene, item)
             REGISTRY.state(key).motion = True
             refresh_later([key])

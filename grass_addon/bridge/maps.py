@@ -190,25 +190,51 @@ def _blender_map(scene, item, params, setting: str, value: str, to_field) -> pai
     return _grid_raster(values, params, setting, detail)
 
 
-def keep_out_triangles(item, to_field) -> np.ndarray:
-    """(T, 3, 2) ground outlines of the objects of the field's keep-out collection."""
+SURFACE_TYPES = ("MESH", "CURVE", "SURFACE", "META", "FONT")
+
+
+def keep_out_triangles(item, to_field, notes: list | None = None) -> np.ndarray:
+    """(T, 3, 2) ground outlines of the objects of the field's keep-out collection. An object with
+    no surface (an empty, a light) or no faces (a curve without a bevel) keeps nothing out; it is
+    left out, and ``notes`` (a list) gets a sentence saying so."""
     coll = getattr(item, "keep_out_collection", None)
     if coll is None:
         return np.zeros((0, 3, 2))
     parts = []
     for obj in coll.all_objects:
-        if obj.type not in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
-            raise ParameterError("keep_out_collection", f"'{obj.name}' in the keep-out collection '{coll.name}' is a "
-                                 f"{obj.type.lower()} with no surface (valid: meshes, curves with a bevel, text)")
+        if obj.type not in SURFACE_TYPES:
+            if notes is not None:
+                notes.append(f"'{obj.name}' in the keep-out collection is a {obj.type.lower()} with no surface: it "
+                             "keeps no grass out (meshes, curves with a bevel and text do)")
+            continue
         if to_field is None:
             continue
         triangles, _, _, evaluated, _ = _mesh_corners(obj, to_field)
         evaluated.to_mesh_clear()
         if not len(triangles):
-            raise ParameterError("keep_out_collection", f"'{obj.name}' in the keep-out collection '{coll.name}' has "
-                                 "no faces (a curve needs a bevel or an extrusion to have a footprint)")
+            if notes is not None:
+                notes.append(f"'{obj.name}' in the keep-out collection has no faces: it keeps no grass out (a curve "
+                             "needs a bevel or an extrusion to have a footprint)")
+            continue
         parts.append(triangles[..., :2])
     return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
+
+
+def keep_out_notes(item) -> list[str]:
+    """What the panel says of the objects of the keep-out collection that keep nothing out (from
+    their types and data alone: cheap enough for every redraw)."""
+    coll = getattr(item, "keep_out_collection", None)
+    notes: list[str] = []
+    for obj in coll.all_objects if coll is not None else ():
+        if obj.type not in SURFACE_TYPES:
+            notes.append(f"'{obj.name}' in the keep-out collection is a {obj.type.lower()} with no surface: it "
+                         "keeps no grass out (meshes, curves with a bevel and text do)")
+        elif (obj.type == "MESH" and not obj.modifiers and not len(obj.data.polygons)) or (
+                obj.type == "CURVE" and not obj.data.bevel_depth and not obj.data.extrude
+                and obj.data.bevel_object is None):
+            notes.append(f"'{obj.name}' in the keep-out collection has no faces: it keeps no grass out (a curve "
+                         "needs a bevel or an extrusion to have a footprint)")
+    return notes
 
 
 def paint_of(scene, item, params) -> paint_core.Paint | None:

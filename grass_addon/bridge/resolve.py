@@ -145,7 +145,6 @@ def resolve(scene, item) -> FieldRuntime:
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, _, t_key = terrain_of(scene, item, params)
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
-    tracks.collider_objects(item), tracks.effector_objects(item)  # a bad collection is named here
     colliders, effectors, track = tracks.stored(item)
     colliders = colliders + interaction.colliders_from_params(params)  # (a scene file's, in headless renders)
     effectors = forces.join(effectors, forces.effectors_from_params(params))

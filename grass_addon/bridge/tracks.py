@@ -45,38 +45,51 @@ CLUSTER = 0.8  # m: a collider's part near the ground is cut into pieces at most
 
 
 def collider_objects(item) -> list:
-    """The objects of the field's Colliders collection that have geometry (never its own)."""
+    """The objects of the field's Colliders collection that have geometry, never the field's own;
+    none when it holds none (an emptied collection means no colliders: ``notes`` says so)."""
     coll = getattr(item, "collider_collection", None)
     if coll is None:
         return []
     own = {o.name for o in owned.field_objects(item)}
-    objects = [o for o in coll.all_objects if o.name not in own]
-    found = [o for o in objects if o.type in GEOMETRY_TYPES]
-    if not found:
-        kinds = ", ".join(sorted({o.type.lower() for o in objects})) or "nothing"
-        raise ParameterError("collider_collection", f"the Colliders collection '{coll.name}' holds {kinds}; "
-                             "colliders are objects with geometry (a mesh, a curve, text, metaballs)")
-    return found
+    return [o for o in coll.all_objects if o.name not in own and o.type in GEOMETRY_TYPES]
+
+
+def _field_type(obj) -> str:
+    return obj.field.type if getattr(obj, "field", None) is not None else "NONE"
 
 
 def effector_objects(item) -> list:
-    """The force fields of the field's Force Fields collection."""
+    """The force fields of the field's Force Fields collection that the grass feels (Wind, Force,
+    Vortex, Turbulence); others and objects with no field are left out (``notes`` says so)."""
     coll = getattr(item, "effector_collection", None)
     if coll is None:
         return []
-    found = []
-    for obj in coll.all_objects:
-        kind = obj.field.type if obj.field is not None else "NONE"
-        if kind == "NONE":
-            continue
-        if kind not in BLENDER_TYPES:
-            raise ParameterError("effector_collection", f"'{obj.name}' is a {kind.title()} force field; the grass "
-                                 f"feels {', '.join(t.title() for t in BLENDER_TYPES)} fields")
-        found.append(obj)
-    if coll.all_objects and not found:
-        raise ParameterError("effector_collection", f"the Force Fields collection '{coll.name}' holds no force "
-                             f"field (valid: objects with a {', '.join(t.title() for t in BLENDER_TYPES)} field)")
-    return found
+    return [obj for obj in coll.all_objects if _field_type(obj) in BLENDER_TYPES]
+
+
+def notes(item) -> list[str]:
+    """Sentences for the panel about what the field's collections give it: an emptied Colliders
+    collection, the field's own collection picked, force fields the grass does not feel."""
+    out = []
+    coll = getattr(item, "collider_collection", None)
+    if coll is not None and not collider_objects(item):
+        if item.collection is not None and coll.name == item.collection.name:
+            out.append(f"'{coll.name}' is this field's own collection: it has no colliders (pick the collection "
+                       "of the objects that move through the grass)")
+        else:
+            kinds = ", ".join(sorted({o.type.lower() for o in coll.all_objects})) or "nothing"
+            out.append(f"The Colliders collection '{coll.name}' holds {kinds}: no colliders (colliders are objects "
+                       "with geometry: a mesh, a curve, text, metaballs)")
+    coll = getattr(item, "effector_collection", None)
+    if coll is not None:
+        felt = ", ".join(t.title() for t in BLENDER_TYPES)
+        for obj in coll.all_objects:
+            kind = _field_type(obj)
+            if kind not in BLENDER_TYPES and kind != "NONE":
+                out.append(f"'{obj.name}' is a {kind.title()} force field, which the grass does not feel ({felt})")
+        if not effector_objects(item):
+            out.append(f"The Force Fields collection '{coll.name}' holds no force field the grass feels ({felt})")
+    return out
 
 
 def frame_range(scene, params) -> range:
@@ -317,8 +330,8 @@ def stored(item):
     stored track; ([], None, '') without one."""
     coll = item.collection
     raw = coll.get(TRACK_KEY) if coll is not None else None
-    if raw is None:
-        return [], None, ""
+    if raw is None or (not collider_objects(item) and not effector_objects(item)):
+        return [], None, ""  # (the motion of colliders since deleted or moved out moves no grass)
     digest = str(raw.get("fingerprint", ""))
     cached = REGISTRY.tracks.get(digest)
     if cached is not None:

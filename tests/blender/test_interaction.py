@@ -272,22 +272,58 @@ def test_a_wind_field_blows_the_grass_where_it_blows_blenders_particles(bridge):
     assert np.linalg.norm(bend[near_cell]) > np.linalg.norm(bend[far_cell])
 
 
-def test_bad_collider_and_force_field_collections_are_named(bridge):
+def _grass_shown(drawn, scene, item, frame):
+    """How many blades Blender draws at ``frame`` (strips with some area)."""
+    strips = _strips(drawn, scene, item, frame)
+    return int((np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0).sum())
+
+
+def test_emptied_collections_keep_the_grass_and_say_so(bridge, drawn, tmp_path):
+    """What an artist does to the collections a field reads must never hide its grass: deleting
+    the only collider, the field's own collection picked as colliders, a collection of empties,
+    the only force field set to None or to a type the grass does not feel, a keep-out object with
+    no faces. Each leaves the grass drawn (the same as without it), the panel's notes say what the
+    collection gives, and a save and reopen shows the grass too."""
+    from windgrass.grass_addon.bridge import maps, tracks
+
     _, runtime = bridge
     scene, item = _field(bridge)
-    bpy.ops.object.empty_add()
-    empty = bpy.context.active_object
-    coll = bpy.data.collections.new("Empties")
-    scene.collection.children.link(coll)
-    coll.objects.link(empty)
+    everything = _grass_shown(drawn, scene, item, 5)
+    ball, coll = _ball()
     item.collider_collection = coll
-    error = runtime.field_error(scene, item)
-    assert error and "collider_collection" in error and "geometry" in error, error
+    bpy.data.objects.remove(ball)
+    assert bpy.ops.windgrass.track_update() == {"FINISHED"}  # (the window does it when the edit settles)
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 5) == everything
+    assert any("holds nothing: no colliders" in n for n in tracks.notes(item))
+    bpy.ops.object.empty_add()
+    coll.objects.link(bpy.context.active_object)
+    item.collider_collection = coll  # a collection of an empty
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 6) == everything
+    item.collider_collection = item.collection  # the field's own collection
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 7) == everything
+    assert any("own collection" in n for n in tracks.notes(item))
     item.collider_collection = None
-    _force_field("HARMONIC")
-    item.effector_collection = bpy.data.collections["Fields"]
-    error = runtime.field_error(scene, item)
-    assert error and "effector_collection" in error and "Vortex" in error, error
+    vortex, fields = _force_field("VORTEX", strength=8.0)
+    item.effector_collection = fields
+    vortex.field.type = "NONE"
+    item.effector_collection = fields
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 8) == everything
+    vortex.field.type = "MAGNET"
+    item.effector_collection = fields
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 9) == everything
+    assert any("Magnet force field, which the grass does not feel" in n for n in tracks.notes(item))
+    rocks = bpy.data.collections.new("Rocks")
+    scene.collection.children.link(rocks)
+    bare = bpy.data.objects.new("Bare", bpy.data.meshes.new("Bare"))  # a mesh with no faces
+    rocks.objects.link(bare)
+    item.keep_out_collection = rocks
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 10) == everything
+    assert any("'Bare' in the keep-out collection has no faces" in n for n in maps.keep_out_notes(item))
+    path = str(tmp_path / "emptied.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert runtime.field_error(scene, item) is None and _grass_shown(drawn, scene, item, 10) == everything
 
 
 def test_an_armature_walker_tramples_along_its_feet(bridge):

@@ -318,6 +318,7 @@ def _effector_dict(e: forces.Effector) -> dict:
 def store(item, track: dict, digest: str) -> None:
     """Keep the track with the file, on the field's collection."""
     item.collection[TRACK_KEY] = {**track, "fingerprint": digest}
+    REGISTRY.tracks.pop(digest, None)  # (a damaged track of the same fingerprint was decoded before)
 
 
 def clear(item) -> None:
@@ -327,34 +328,110 @@ def clear(item) -> None:
 
 def stored(item):
     """(colliders [SampledTrack] or [], effectors SampledEffectors or None, fingerprint) of the
-    stored track; ([], None, '') without one."""
+    stored track; ([], None, '') without one, or when it is damaged (``damage`` says how: the
+    panel asks for Update Motion, which samples it again) or its colliders are gone."""
     coll = item.collection
     raw = coll.get(TRACK_KEY) if coll is not None else None
     if raw is None or (not collider_objects(item) and not effector_objects(item)):
         return [], None, ""  # (the motion of colliders since deleted or moved out moves no grass)
     digest = str(raw.get("fingerprint", ""))
     cached = REGISTRY.tracks.get(digest)
-    if cached is not None:
-        return cached[0], cached[1], digest
-    times = np.array(raw["times"], np.float64)
+    if cached is None:
+        try:
+            cached = _decode(raw)
+        except DamagedTrackError as exc:
+            cached = ([], None, str(exc))
+        REGISTRY.tracks[digest] = cached
+    if cached[2]:
+        return [], None, ""
+    return cached[0], cached[1], digest
+
+
+class DamagedTrackError(ValueError):
+    """A stored track that cannot be what ``sample`` wrote (a file edited or broken by hand)."""
+
+
+MAX_RADIUS = 1000.0  # m: a stored sphere wider than this is damage, not a collider
+
+
+def _numbers(raw, key: str, size: int | None = None, kind=np.float64) -> np.ndarray:
+    """The stored list ``key`` as finite numbers (``size`` of them when given), else DamagedTrackError."""
+    try:
+        values = np.asarray(list(raw[key]), dtype=np.float64)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DamagedTrackError(f"'{key}' is not a list of numbers ({type(exc).__name__})") from None
+    if values.ndim != 1 or (size is not None and len(values) != size) or not np.isfinite(values).all():
+        raise DamagedTrackError(f"'{key}' has {len(values)} values, not finite or not {size}")
+    return values.astype(kind)
+
+
+def _decode(raw) -> tuple:
+    """(colliders, effectors, '') of a stored track, every list checked against the others
+    (lengths, finite numbers, radii within MAX_RADIUS, known effector settings)."""
+    times = _numbers(raw, "times")
+    if len(times) and np.any(np.diff(times) < 0):
+        raise DamagedTrackError("'times' is not ascending")
     colliders = []
-    if int(raw.get("colliders", 0)):
-        colliders = [SampledTrack(times, np.array(raw["offsets"], np.int64), np.array(raw["centres"], np.float64),
-                                  np.array(raw["radii"], np.float64), np.array(raw["velocity"], np.float64))]
+    if int(raw.get("colliders", 0) or 0):
+        offsets = _numbers(raw, "offsets", len(times) + 1, np.int64)
+        if offsets[0] != 0 or np.any(np.diff(offsets) < 0):
+            raise DamagedTrackError("'offsets' is not a running count")
+        spheres = int(offsets[-1])
+        radii = _numbers(raw, "radii", spheres)
+        if np.any(radii <= 0.0) or np.any(radii > MAX_RADIUS):
+            raise DamagedTrackError(f"a radius outside 0-{MAX_RADIUS:g} m")
+        colliders = [SampledTrack(times, offsets, _numbers(raw, "centres", 3 * spheres), radii,
+                                  _numbers(raw, "velocity", 2 * spheres))]
     effectors = None
-    text = str(raw.get("effectors", "") or "")
+    text = raw.get("effectors", "") or ""
     if text:
-        samples = [[forces.Effector(**{**e, "matrix": np.array(e["matrix"], np.float64).reshape(4, 4)}) for e in s]
-                   for s in json.loads(text)]
+        try:
+            rows = json.loads(str(text))
+            samples = [[_stored_effector(e) for e in sample] for sample in rows]
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise DamagedTrackError(f"the force fields' samples: {exc}") from None
+        if len(samples) != len(times):
+            raise DamagedTrackError(f"{len(samples)} force-field samples for {len(times)} times")
         effectors = forces.SampledEffectors(times, samples)
-    REGISTRY.tracks[digest] = (colliders, effectors)
-    return colliders, effectors, digest
+    return colliders, effectors, ""
+
+
+def _stored_effector(e: dict) -> forces.Effector:
+    """One stored force field, every setting known and finite (else DamagedTrackError)."""
+    fields = forces.Effector.__dataclass_fields__
+    if not isinstance(e, dict) or set(e) - set(fields) or e.get("kind") not in ("wind", "force", "vortex",
+                                                                                 "turbulence"):
+        raise DamagedTrackError("a force field with unknown settings")
+    matrix = np.asarray(e.get("matrix"), np.float64).reshape(4, 4)
+    numbers = [v for k, v in e.items() if k not in ("kind", "matrix", "shape", "falloff_type")]
+    if not np.isfinite(matrix).all() or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in numbers):
+        raise DamagedTrackError("a force field's setting is not a finite number")
+    return forces.Effector(**{**e, "matrix": matrix})
+
+
+def damage(item) -> str | None:
+    """How the field's stored track is damaged, or None (no track, or a sound one)."""
+    raw = item.collection.get(TRACK_KEY) if item.collection is not None else None
+    if raw is None:
+        return None
+    try:
+        _decode(raw)
+    except DamagedTrackError as exc:
+        return str(exc)
+    return None
 
 
 def stored_fingerprint(item) -> str | None:
-    """The fingerprint the stored track was sampled with (None without a track)."""
+    """The fingerprint the stored track was sampled with (None without a track, or a damaged one:
+    it is sampled again)."""
     raw = item.collection.get(TRACK_KEY) if item.collection is not None else None
-    return None if raw is None else str(raw.get("fingerprint", ""))
+    if raw is None:
+        return None
+    digest = str(raw.get("fingerprint", ""))
+    cached = REGISTRY.tracks.get(digest)
+    if (cached[2] if cached is not None else damage(item)):
+        return None
+    return digest
 
 
 def effector_digest(item) -> str:
@@ -373,6 +450,10 @@ def status(scene, item, params) -> str | None:
         return str(exc)
     if not wanted:
         return None
+    broken = damage(item)
+    if broken:
+        coll = item.collider_collection or item.effector_collection
+        return f"The stored motion of '{coll.name}' is damaged ({broken}): press Update Motion"
     if stored_fingerprint(item) != wanted:
         return "Motion of the colliders and force fields not sampled yet: press Update Motion"
     frames = len(item.collection[TRACK_KEY]["times"])

@@ -449,3 +449,63 @@ def test_the_far_canopy_shows_a_trail_as_the_grass_does(tmp_path):
         assert np.all(np.abs(ratio[: dark - 4] - 1.0) < 0.05), (lod, np.round(ratio, 2))  # nothing beyond it
     assert abs(int(np.argmin(ratios[True])) - int(np.argmin(ratios[False]))) <= 2
     assert abs(int(np.argmax(ratios[True])) - int(np.argmax(ratios[False]))) <= 2
+
+
+def _damage(raw, case):
+    """Break the stored track ``raw`` (the ID property ``wg_track``) the way ``case`` says."""
+    import json
+
+    effectors = json.loads(raw["effectors"])
+    if case == "nan velocity":
+        raw["velocity"] = [float("nan")] * len(raw["velocity"])
+    elif case == "huge radius":
+        raw["radii"] = [1e30] * len(raw["radii"])
+    elif case == "short offsets":
+        raw["offsets"] = list(raw["offsets"])[:-3]
+    elif case == "text for centres":
+        raw["centres"] = "oops"
+    elif case == "no times":
+        del raw["times"]
+    elif case == "invalid json":
+        raw["effectors"] = "{not json"
+    elif case == "unknown key":
+        effectors[0][0]["bogus"] = 1
+        raw["effectors"] = json.dumps(effectors)
+    elif case == "infinite strength":
+        effectors[0][0]["strength"] = float("inf")
+        raw["effectors"] = json.dumps(effectors)
+    elif case == "too few samples":
+        raw["effectors"] = json.dumps(effectors[:2])
+
+
+@pytest.mark.parametrize("case", ["nan velocity", "huge radius", "short offsets", "text for centres", "no times",
+                                  "invalid json", "unknown key", "infinite strength", "too few samples"])
+def test_damaged_stored_motion_is_a_sentence_and_is_sampled_again(bridge, drawn, tmp_path, case):
+    """A file whose stored collider and force-field motion was damaged by hand: reopened, the grass
+    is drawn with finite vertices and no error, the panel's line says the motion is damaged, and
+    Update Motion samples it again (the ball parts the grass once more)."""
+    from windgrass.grass_addon.bridge import tracks
+
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    scene.frame_end = 24
+    ball, balls = _ball()
+    vortex, fields = _force_field("VORTEX", strength=2.0)
+    item.collider_collection, item.effector_collection = balls, fields
+    sound = _tips(drawn, scene, item, 13).copy()
+    _damage(item.collection[tracks.TRACK_KEY], case)
+    path = str(tmp_path / "damaged.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    tips = _tips(drawn, scene, item, 13)
+    assert runtime.field_error(scene, item) is None and np.isfinite(drawn(item)).all()
+    from windgrass.grass_addon.bridge import properties
+
+    note = tracks.status(scene, item, properties.params_from_settings(item, scene))
+    assert note and "is damaged" in note and "Update Motion" in note, note
+    assert bpy.ops.windgrass.track_update() == {"FINISHED"}
+    assert tracks.damage(item) is None
+    again = _tips(drawn, scene, item, 13)
+    np.testing.assert_allclose(again, sound, atol=1e-6)  # sampled again: the ball and the vortex are back
+    assert not np.allclose(tips, sound, atol=1e-4)  # (while damaged, they were left out)

@@ -15,7 +15,7 @@ import bpy
 from .. import memory
 from .. import paint as paint_core
 from ..errors import WindgrassError
-from . import bake, owned, properties
+from . import bake, maps, owned, properties
 from . import scene as field_scene
 from .frame_pass import update_field
 from .registry import REGISTRY, key_of
@@ -35,6 +35,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     if item.collection is None and not force:
         return
     params = properties.params_from_settings(item, scene)
+    maps.hold_images(item, params)  # (image maps kept with the file, and through renames)
     memory.check(params, bpy.path.abspath)  # before anything is built: a card range or a map too large
     if force and getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now

@@ -119,12 +119,42 @@ def _attribute_values(obj, mesh, name: str, setting: str) -> tuple[np.ndarray, s
     return values.astype(np.float64), attribute.domain
 
 
-def _image_pixels(name: str, setting: str) -> np.ndarray:
-    """(h, w) grey levels 0..1 of an image datablock (row 0 at the bottom, as Blender stores it)."""
+IMAGES_KEY = "wg_maps"  # the field item's custom property: {setting: the image it paints with}
+
+
+def hold_images(item, params) -> None:
+    """Record on the field's item the image each ``image:NAME`` map setting names: an ID pointer
+    counts as a user, so Blender keeps the image when the file is saved, and it follows a rename
+    (``map_image``). Called where datablocks may change (``lifecycle.apply_settings``)."""
+    held = dict(item.get(IMAGES_KEY) or {})
+    wanted = {}
+    for setting, value in paint_core.map_settings(params):
+        kind, _, name = value.partition(":")
+        if kind == "image":
+            image = bpy.data.images.get(name) or held.get(setting)
+            if isinstance(image, bpy.types.Image):
+                wanted[setting] = image
+    if {k: getattr(v, "name", None) for k, v in held.items()} != {k: v.name for k, v in wanted.items()}:
+        item[IMAGES_KEY] = wanted
+
+
+def map_image(item, setting: str, name: str):
+    """The image ``image:NAME`` of ``setting`` names: the image of that name, else the one the item
+    holds for the setting (renamed since); None when neither exists."""
     image = bpy.data.images.get(name)
     if image is None:
+        held = (item.get(IMAGES_KEY) or {}).get(setting) if item is not None else None
+        image = held if isinstance(held, bpy.types.Image) else None
+    return image
+
+
+def _image_pixels(name: str, setting: str, item=None) -> np.ndarray:
+    """(h, w) grey levels 0..1 of an image datablock (row 0 at the bottom, as Blender stores it)."""
+    image = map_image(item, setting, name)
+    if image is None:
         have = ", ".join(repr(i.name) for i in bpy.data.images if i.type in ("IMAGE", "UV_TEST")) or "none"
-        raise ParameterError(setting, f"there is no image {name!r} in this file (images: {have})")
+        raise ParameterError(setting, f"there is no image {name!r} in this file (images: {have}); pick the map "
+                             "with the button beside the setting, or clear it to grow the grass everywhere")
     w, h = image.size
     if w * h == 0:
         raise ParameterError(setting, f"the image {name!r} has no pixels (is its file missing?)")
@@ -154,7 +184,7 @@ def _blender_map(scene, item, params, setting: str, value: str, to_field) -> pai
     terrain = terrain_object(scene, item)
     if kind == "image" and terrain is None:  # flat ground: the image over the extent
         extent = paint_core.map_extent(params, params.paint.extent, "paint.extent")
-        return paint_core.Raster(_image_pixels(name, setting), extent, setting)
+        return paint_core.Raster(_image_pixels(name, setting, item), extent, setting)
     if terrain is None:
         raise ParameterError(setting, f"{value!r} is read from the terrain mesh, and field '{item.name}' has none "
                              "(set its Terrain; on flat ground use image:NAME or a PNG file)")
@@ -175,7 +205,7 @@ def _blender_map(scene, item, params, setting: str, value: str, to_field) -> pai
             uv = np.empty(len(mesh.loops) * 2, np.float32)
             uv_layer.data.foreach_get("uv", uv)
             corner_uv = uv.reshape(-1, 2)[loops]
-            pixels = _image_pixels(name, setting)
+            pixels = _image_pixels(name, setting, item)
             corner = None
     finally:
         evaluated.to_mesh_clear()
@@ -259,6 +289,10 @@ def read_file(path: str, name: str):
     return images.read_map(bpy.path.abspath(path), name)
 
 
+def _setting_of(params, value: str) -> str:
+    return next((setting for setting, v in paint_core.map_settings(params) if v == value), "")
+
+
 def depends_on(scene, item, params) -> set:
     """Names of the datablocks the field's paint reads (its terrain, images, keep-out objects):
     an update to one of them is a stroke or an edit to apply."""
@@ -270,7 +304,8 @@ def depends_on(scene, item, params) -> set:
             names.add(("OBJECT", terrain.name))
             names.add(("MESH", terrain.data.name))
         elif kind == "image":
-            names.add(("IMAGE", name))
+            image = map_image(item, _setting_of(params, value), name)
+            names.add(("IMAGE", image.name if image is not None else name))
             if terrain is not None:
                 names.add(("OBJECT", terrain.name))
     coll = getattr(item, "keep_out_collection", None)

@@ -241,3 +241,64 @@ def test_the_map_picker_lists_the_terrains_sources_and_sets_the_setting(bridge):
     assert item.blade.species[0].density_map == "image:paths"
     with pytest.raises(RuntimeError, match="not a map setting"):
         bpy.ops.windgrass.map_pick(setting="wind.speed", source="NONE")
+
+
+def _mask(name="mask"):
+    """A 32 x 32 image painted black (nothing grows) in its west half, packed into the file (as an
+    artist keeps a painted image: Image > Pack, or saved to disk)."""
+    image = bpy.data.images.new(name, 32, 32, alpha=False)
+    pixels = np.ones((32, 32, 4), np.float32)
+    pixels[:, :16, :3] = 0.0
+    image.pixels.foreach_set(pixels.ravel())
+    image.pack()
+    return image
+
+
+def test_an_image_map_survives_save_rename_undo_and_reopen(bridge, drawn, tmp_path):
+    """Density painted by an image of the file (image:mask, black west half) on flat ground: the
+    field stays painted (no blade west of x = 0, the east grown) through a save and reopen (the
+    image kept although nothing else uses it), a rename of the image, undo and redo, and a reopen
+    after the rename."""
+    properties, runtime = bridge
+    scene, item = _field(bridge)
+    _mask()
+    item.paint.density = "image:mask"
+
+    def painted(scene, item):
+        assert runtime.field_error(scene, item) is None, runtime.field_error(scene, item)
+        roots = _grown_roots(drawn, runtime, scene, item)
+        assert len(roots) > 1000 and roots[:, 0].max() > 1.0
+        assert not np.any(roots[:, 0] < -0.15), roots[:, 0].min()
+        return len(roots)
+
+    grown = painted(scene, item)
+    path = str(tmp_path / "mask.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert "mask" in bpy.data.images
+    assert painted(scene, item) == grown
+    bpy.ops.ed.undo_push(message="before the rename")
+    bpy.data.images["mask"].name = "paths"
+    bpy.ops.ed.undo_push(message="renamed")
+    scene.frame_set(3)
+    assert painted(scene, item) == grown
+    bpy.ops.ed.undo()
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert painted(scene, item) == grown
+    bpy.ops.ed.redo()
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert "paths" in bpy.data.images and painted(scene, item) == grown
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[0]
+    assert painted(scene, item) == grown
+
+
+def test_a_missing_image_map_says_what_to_do(bridge):
+    properties, runtime = bridge
+    scene, item = _field(bridge)
+    item.paint.density = "image:nowhere"
+    scene.frame_set(2)
+    error = runtime.field_error(scene, item)
+    assert error and "paint.density" in error and "pick the map" in error and "clear it" in error

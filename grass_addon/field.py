@@ -313,7 +313,8 @@ class GrassField:
         count = len(chosen)
         local = np.full(shown.shape, slots.FREE, dtype=np.int64)
         local[:count] = np.searchsorted(layout.block_ids, shown[:count])
-        vertices, velocity, ahead = self._role_buffers(role, motion)
+        buffers = self._role_buffers(role, motion)
+        vertices, velocity, ahead = buffers[:3]
         rows = count * shape.verts_per_block
         blocks = local[:count]
 
@@ -324,19 +325,21 @@ class GrassField:
             fill(frame, self.cells, vertices[:rows])
         elif count:
             self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
-        vertices[rows:] = 0.0
+        vertices[rows:buffers[3]] = 0.0  # FREE positions are zero (those beyond were zero already)
         if motion:
-            velocity[rows:] = 0.0
+            velocity[rows:buffers[4]] = 0.0
+        buffers[3], buffers[4] = rows, (rows if motion else buffers[4])
         return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity if motion else None)
 
     def _role_buffers(self, role: str, motion: bool) -> list:
-        """[vertices, velocity, ahead] of ``role``: float32 (positions x verts_per_block, 3), the
-        last two made when motion blur first asks."""
+        """[vertices, velocity, ahead, rows filled in vertices, rows filled in velocity] of ``role``:
+        float32 (positions x verts_per_block, 3), zero beyond the rows filled; the velocity and the
+        later pose made when motion blur first asks."""
         buffers = self._buffers.get(role)
         if buffers is None:
             shape = self.shapes[role]
             buffers = self._buffers[role] = [np.zeros((shape.positions * shape.verts_per_block, 3), np.float32),
-                                             None, None]
+                                             None, None, 0, 0]
         if motion and buffers[1] is None:
             buffers[1], buffers[2] = np.zeros_like(buffers[0]), np.empty_like(buffers[0])
         return buffers

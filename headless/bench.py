@@ -217,6 +217,9 @@ def main(argv=None) -> int:
     parser.add_argument("--interaction", action="store_true",
                         help="what 10 colliders and a vortex add to a 1 km field's frame (bench_interaction.py); "
                              "other flags ignored")
+    parser.add_argument("--motion", action="store_true",
+                        help="Update Motion of a 1M-vertex collider moved by keys and by a bone, against the "
+                             "scene's own frame steps (bench_motion.py); other flags ignored")
     parser.add_argument("--render", action="store_true",
                         help="where a rendered frame of the default scene spends its time, against the same "
                              "frame rendered again (bench_render.py); other flags ignored")
@@ -225,6 +228,11 @@ def main(argv=None) -> int:
         import subprocess
 
         return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_render.py"))]
+                               + (["--json"] if args.json else []))
+    if args.motion:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_motion.py"))]
                                + (["--json"] if args.json else []))
     if args.interaction:
         import subprocess

@@ -37,7 +37,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     __annotations__ = {
         **_field_options(),
         "use_selected_mesh": bpy.props.BoolProperty(
-            name="On Selected Mesh", default=False,
+            name="On Selected Mesh", default=False, options={"SKIP_SAVE"},  # (each menu entry says which)
             description="Root the blades on the surface of the selected mesh (its terrain): the field is "
                         "centred on the mesh and sized to it unless Blocks X/Y are set. Off: flat ground"),
     }

@@ -14,6 +14,7 @@ import time
 
 import bpy
 
+from ..errors import WindgrassError
 from . import bake, maps, properties, tracks
 from .frame_pass import guarded, update_field
 from .lifecycle import apply_settings
@@ -88,7 +89,8 @@ def flush_pending() -> float | None:
                 waiting = True  # sampled when the playback stops (it steps the scene's frames)
                 continue
             state.motion = False
-            guarded(_update_motion, scene, item)
+            if _quick_to_sample(scene, item):  # (a long sampling waits for Update Motion: no freeze)
+                guarded(_update_motion, scene, item)
         state.pending = None
         stroke, started = state.stroked, time.perf_counter()
         state.stroked = False
@@ -96,6 +98,14 @@ def flush_pending() -> float | None:
         if stroke:
             state.stroke_s = time.perf_counter() - started
     return PAINT_MODE_POLL_S if waiting else None
+
+
+def _quick_to_sample(scene, item) -> bool:
+    try:
+        params = properties.params_from_settings(item, scene)
+    except WindgrassError:
+        return True  # (the update reports the setting)
+    return tracks.sampling_seconds(scene, item, params) <= tracks.AUTO_SAMPLE_S
 
 
 def _playing() -> bool:

@@ -10,7 +10,7 @@ changes (``fingerprint``: the objects, their keys, constraints, parents, armatur
 settings) — by the panel's Update Motion (``windgrass.track_update``), and in the window by a
 timer once the edits settle.
 
-Colliders become spheres (``spheres_of``): the part of the object's evaluated mesh below the
+Colliders become spheres (``collider_shapes.spheres_of``): the part of the object's evaluated mesh below the
 grass's top, cut into pieces at most ``CLUSTER`` wide, each in its bounding sphere (a ball is
 itself, a foot one sphere, a car or a wall a row of them). Force fields become
 ``forces.Effector`` with Blender's own settings; their transform and strength are sampled per
@@ -26,7 +26,7 @@ import math
 import bpy
 import numpy as np
 
-from .. import forces
+from .. import collider_shapes, forces
 from ..clock import Clock
 from ..errors import ParameterError
 from ..interaction import SampledTrack
@@ -174,78 +174,79 @@ def _top(params) -> float:
 # Sampling
 
 
-def spheres_of(points: np.ndarray, cluster: float, top_z: float, islands: np.ndarray | None = None):
-    """(centres (m, 3), radii (m,)) covering the points (k, 3) below ``top_z``: the part of an
-    object the grass can touch, per island of the mesh (``islands`` (k,): two feet are two),
-    cut into pieces at most ``cluster`` metres across, each piece in its bounding sphere (a ball
-    is one sphere, exactly; a foot one, a car or a wall several)."""
-    below = points[:, 2] < top_z
-    low = points[below]
-    if not len(low):
-        return np.zeros((0, 3)), np.zeros(0)
-    island = islands[below] if islands is not None else np.zeros(len(low), np.int64)
-    _, island = np.unique(island, return_inverse=True)
-    island = island.reshape(-1)
-    lo = np.full((island.max() + 1, 2), np.inf)
-    hi = np.full((island.max() + 1, 2), -np.inf)
-    np.minimum.at(lo, island, low[:, :2])
-    np.maximum.at(hi, island, low[:, :2])
-    counts = np.maximum(1, np.ceil((hi - lo) / cluster - 1e-9)).astype(np.int64)
-    size = (hi - lo) / counts + 1e-12
-    ij = np.minimum(((low[:, :2] - lo[island]) / size[island]).astype(np.int64), counts[island] - 1)
-    piece = (island * 1_000_003 + ij[:, 0]) * 1_000_003 + ij[:, 1]
-    pieces, inverse = np.unique(piece, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    bmin = np.full((len(pieces), 3), np.inf)
-    bmax = np.full((len(pieces), 3), -np.inf)
-    np.minimum.at(bmin, inverse, low)
-    np.maximum.at(bmax, inverse, low)
-    centres = 0.5 * (bmin + bmax)
-    radii = np.zeros(len(pieces))
-    np.maximum.at(radii, inverse, np.linalg.norm(low - centres[inverse], axis=1))
-    return centres, radii
-
-
-def mesh_islands(n: int, edges: np.ndarray) -> np.ndarray:
-    """(n,) the connected part of the mesh each vertex belongs to (the smallest vertex index of
-    it), by spreading the smallest label along the edges (e, 2) until nothing changes."""
-    labels = np.arange(n)
-    if not len(edges):
-        return labels
-    a, b = edges[:, 0], edges[:, 1]
-    while True:
-        low = np.minimum(labels[a], labels[b])
-        before = labels.copy()
-        np.minimum.at(labels, a, low)
-        np.minimum.at(labels, b, low)
-        labels = labels[labels]  # (jump along: converges in a few rounds)
-        if np.array_equal(labels, before):
-            return labels
-
-
-def _object_points(obj_eval, to_field: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The evaluated object's vertices and triangle centres in the field's frame (k, 3), and the
-    island of each (k,)."""
+def _object_points(obj_eval, matrix: np.ndarray, islands_of: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The evaluated object's vertices and triangle centres (k, 3) through ``matrix`` (its own
+    frame to the one wanted), and the island of each (k,); ``islands_of`` keeps each mesh's
+    islands between frames (a deforming mesh keeps its topology)."""
     mesh = obj_eval.to_mesh()
     try:
         n = len(mesh.vertices)
         co = np.empty(n * 3, np.float32)
         mesh.vertices.foreach_get("co", co)
         co = co.reshape(-1, 3).astype(np.float64)
-        edges = np.empty(len(mesh.edges) * 2, np.int64)
-        mesh.edges.foreach_get("vertices", edges)
+        key = (obj_eval.name, n, len(mesh.edges), len(mesh.polygons))
+        islands = None if islands_of is None else islands_of.get(key)
+        if islands is None:
+            edges = np.empty(len(mesh.edges) * 2, np.int64)
+            mesh.edges.foreach_get("vertices", edges)
+            islands = collider_shapes.mesh_islands(n, edges.reshape(-1, 2))
+            if islands_of is not None:
+                islands_of[key] = islands
         mesh.calc_loop_triangles()
         tris = np.empty(len(mesh.loop_triangles) * 3, np.int64)
         mesh.loop_triangles.foreach_get("vertices", tris)
     finally:
         obj_eval.to_mesh_clear()
-    islands = mesh_islands(n, edges.reshape(-1, 2))
     if len(tris):
         tris = tris.reshape(-1, 3)
         co = np.concatenate([co, co[tris].mean(axis=1)])
         islands = np.concatenate([islands, islands[tris[:, 0]]])
-    m = to_field @ np.array(obj_eval.matrix_world, np.float64)
+    m = np.asarray(matrix, np.float64)
     return co @ m[:3, :3].T + m[:3, 3], islands
+
+
+RIGID_MIN_VERTICES = 20_000  # a rigid collider this large is cut into pieces once (RigidPieces)
+SECONDS_PER_FRAME = 0.003  # measured (dev.py bench --motion): a frame stepped and its rigid colliders moved
+SECONDS_PER_VERTEX = 1.5e-6  # and per vertex of a collider whose mesh is read every frame
+AUTO_SAMPLE_S = 2.0  # the window samples again by itself only when it takes about this long at most
+
+
+def sampling_seconds(scene, item, params) -> float:
+    """About how long sampling the field's motion takes: the frames, and the vertices of the
+    colliders whose meshes are read every frame (not the large rigid ones)."""
+    read = sum(len(o.data.vertices) if o.type == "MESH" else 10_000 for o in collider_objects(item)
+               if not (rigid(o) and len(o.data.vertices) >= RIGID_MIN_VERTICES))
+    return len(frame_range(scene, params)) * (SECONDS_PER_FRAME + SECONDS_PER_VERTEX * read)
+
+
+def rigid(obj) -> bool:
+    """Whether only ``obj``'s matrix moves it (keys, constraints, a parent or a bone): a mesh with
+    no modifiers, shape keys or animated mesh data, whose shape in its own frame never changes."""
+    if obj.type != "MESH" or len(obj.modifiers) or obj.data.shape_keys is not None:
+        return False
+    return not action_fcurves(getattr(obj.data, "animation_data", None))
+
+
+class _Sampler:
+    """One frame's spheres of each collider: rigid large ones from pieces cut once, the others
+    from their evaluated mesh (the islands of each mesh found once)."""
+
+    def __init__(self, colliders, to_field, top_z):
+        self.colliders, self.to_field, self.top_z = colliders, to_field, top_z
+        self.pieces: dict[int, collider_shapes.RigidPieces] = {}
+        self.islands: dict = {}
+
+    def spheres(self, j: int, obj_eval) -> tuple:
+        obj = self.colliders[j]
+        world = self.to_field @ np.array(obj_eval.matrix_world, np.float64)
+        if j in self.pieces or (rigid(obj) and len(obj.data.vertices) >= RIGID_MIN_VERTICES):
+            if j not in self.pieces:
+                local, islands = _object_points(obj_eval, np.eye(4), self.islands)
+                self.pieces[j] = collider_shapes.RigidPieces(local, islands, CLUSTER)
+            return self.pieces[j].at(world, self.top_z)
+        points, islands = _object_points(obj_eval, world, self.islands)
+        centres, radii = collider_shapes.spheres_of(points, CLUSTER, self.top_z, islands)
+        return centres, radii, points.mean(axis=0) if len(points) else np.zeros(3)
 
 
 def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
@@ -261,13 +262,26 @@ def sample(scene, item, params, progress=None) -> dict:
     """Sample the field's colliders and force fields at every frame of ``frame_range``: the
     track to store (``store``). ``progress(done, total)`` after each frame. The scene is back at
     its frame afterwards."""
+    steps = sampling(scene, item, params)
+    while True:
+        try:
+            done, total = next(steps)
+        except StopIteration as finished:
+            return finished.value
+        if progress is not None:
+            progress(done, total)
+
+
+def sampling(scene, item, params):
+    """``sample`` a frame at a time: a generator yielding (done, total) after each frame and
+    returning the track; closed early (Esc), it puts the scene back at its frame and keeps nothing."""
     colliders, effectors = collider_objects(item), effector_objects(item)
     ground = owned.ground_object(item)
     to_field = np.array(ground.matrix_world.inverted_safe(), np.float64) if ground is not None else np.eye(4)
     state = REGISTRY.states.get(key_of(scene, item))
     kept = None if state is None else state.terrain  # (terrain key, heightfield, centre)
     ground_top = float(kept[1].heights.max()) if kept is not None and kept[1] is not None else 0.0
-    top_z = ground_top + _top(params)
+    sampler = _Sampler(colliders, to_field, ground_top + _top(params))
     frames = frame_range(scene, params)
     clock = Clock.of_scene(scene)
     fps = float(clock.fps)
@@ -280,13 +294,9 @@ def sample(scene, item, params, progress=None) -> dict:
             scene.frame_set(f)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             for j, obj in enumerate(colliders):
-                points, islands = _object_points(obj.evaluated_get(depsgraph), to_field)
-                centres, radii = spheres_of(points, CLUSTER, top_z, islands)
-                mid = points.mean(axis=0) if len(points) else np.zeros(3)
-                per_object[j].append((centres, radii, mid))
+                per_object[j].append(sampler.spheres(j, obj.evaluated_get(depsgraph)))
             fields.append([_effector_dict(_effector(o.evaluated_get(depsgraph), to_field)) for o in effectors])
-            if progress is not None:
-                progress(i + 1, len(frames))
+            yield i + 1, len(frames)  # (the handlers stay out until the scene is back at its frame)
     finally:
         scene.frame_set(frame, subframe=subframe)
         REGISTRY.sampling = False
@@ -455,6 +465,8 @@ def status(scene, item, params) -> str | None:
         coll = item.collider_collection or item.effector_collection
         return f"The stored motion of '{coll.name}' is damaged ({broken}): press Update Motion"
     if stored_fingerprint(item) != wanted:
-        return "Motion of the colliders and force fields not sampled yet: press Update Motion"
+        seconds = sampling_seconds(scene, item, params)
+        long = f" (about {seconds:.0f} s; Esc stops it)" if seconds > AUTO_SAMPLE_S else ""
+        return f"Motion of the colliders and force fields not sampled yet: press Update Motion{long}"
     frames = len(item.collection[TRACK_KEY]["times"])
     return f"Motion sampled over {frames} frames ({frames / params.render.fps:.1f} s)"

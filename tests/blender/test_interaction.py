@@ -509,3 +509,28 @@ def test_damaged_stored_motion_is_a_sentence_and_is_sampled_again(bridge, drawn,
     again = _tips(drawn, scene, item, 13)
     np.testing.assert_allclose(again, sound, atol=1e-6)  # sampled again: the ball and the vortex are back
     assert not np.allclose(tips, sound, atol=1e-4)  # (while damaged, they were left out)
+
+
+def test_a_large_keyed_collider_is_sampled_once_and_the_grass_clears_it(bridge, drawn):
+    """A ball of 32,000 vertices (a rigid collider large enough to be cut into pieces once and
+    moved by its matrix each frame) rolls through calm grass: the drawn grass holds no vertex
+    inside it beyond the tolerance (plus the pieces' slack), roots where they grew, segments whole."""
+    from windgrass.grass_addon.bridge import tracks
+
+    _, runtime = bridge
+    scene, item = _field(bridge)
+    rest = _strips(drawn, scene, item, 1).copy()
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, segments=256, ring_count=128)
+    ball = bpy.context.active_object
+    assert len(ball.data.vertices) >= tracks.RIGID_MIN_VERTICES and tracks.rigid(ball)
+    for frame, where in ((1, (-1.2, 0.0, 0.3)), (25, (1.2, 0.0, 0.3))):
+        ball.location = where
+        ball.keyframe_insert("location", frame=frame)
+    coll = bpy.data.collections.new("Colliders")
+    scene.collection.children.link(coll)
+    coll.objects.link(ball)
+    item.collider_collection = coll
+    for frame in (7, 13, 19):
+        strips = _strips(drawn, scene, item, frame)
+        _assert_clear_of(strips, rest, [(tuple(ball.matrix_world.translation), 0.3)],
+                         0.005 + item.interaction.tolerance)

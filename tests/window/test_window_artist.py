@@ -126,6 +126,22 @@ def test_add_grows_on_flat_ground_unless_asked_for_a_mesh(real_blender):
     assert third == [None, None, "Cube"]  # asked for: on the mesh
 
 
+def test_the_plain_add_after_an_add_on_a_mesh_grows_on_flat_ground(real_blender):
+    """Issue: after one use of Add > Grass Field on Selected Mesh, Blender reused the operator's
+    "On Selected Mesh" for the plain Add > Grass Field entry: with nothing selected it failed
+    with "select the mesh first", with a mesh selected it rooted on it."""
+    terrains = "result = [f.terrain.name if f.terrain else None for f in bpy.context.scene.windgrass.fields]"
+    steps = [{"select": "Cube"},
+             {"op": "windgrass.field_add", "args": {"use_selected_mesh": True}, "invoke": True},
+             {"select": None}, {"op": "windgrass.field_add", "invoke": True},
+             {"select": "Cube"}, {"op": "windgrass.field_add", "invoke": True}, {"python": terrains}]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    ops = run.results("op")
+    assert ops[1] == ["FINISHED"] and ops[2] == ["FINISHED"], ops  # (no "select the mesh first")
+    assert run.results("python")[-1] == ["Cube", None, None]
+
+
 def test_bake_without_alembic_says_so_and_leaves_nothing(real_blender):
     """Issue: Debian's Blender has no Alembic: Bake showed a Python traceback and left an empty
     cache folder beside the .blend."""

@@ -206,7 +206,7 @@ def _object_points(obj_eval, matrix: np.ndarray, islands_of: dict | None = None)
 
 
 RIGID_MIN_VERTICES = 20_000  # a rigid collider this large is cut into pieces once (RigidPieces)
-SECONDS_PER_FRAME = 0.003  # measured (dev.py bench --motion): a frame stepped and its rigid colliders moved
+SECONDS_PER_FRAME = 0.005  # measured (dev.py bench --motion): a frame stepped and its rigid colliders moved
 SECONDS_PER_VERTEX = 1.5e-6  # and per vertex of a collider whose mesh is read every frame
 AUTO_SAMPLE_S = 2.0  # the window samples again by itself only when it takes about this long at most
 

@@ -211,6 +211,7 @@ class GrassField:
         else:
             self.interaction = None
         if effectors is not self.effectors:
+            forces.check_count(effectors)
             self.effectors = effectors
             wind = forces.ForcedWind(self.wind, effectors) if effectors is not None else self.wind
             self.sim = Simulation(self.layout, self.params, wind)

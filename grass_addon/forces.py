@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .errors import ParameterError
 from .interaction import nearest_sample
 
 NOISE_RATE = 4.0  # Hz: how fast an effector's noise changes
@@ -275,3 +276,22 @@ def _reach(e: Effector) -> float | None:
     if e.use_max and e.shape == "point" and e.falloff_type == "sphere":
         return e.max_distance
     return None
+
+
+MAX_EFFECTORS = 32  # force fields acting at once: each is computed at every cell it reaches, every frame
+
+
+def check_count(effectors) -> None:
+    """Refuse more than MAX_EFFECTORS force fields at an instant (200 took 4 s a frame), naming
+    the setting (Blender: the Force Fields collection)."""
+    parts = getattr(effectors, "sources", None) or ([effectors] if effectors is not None else [])
+    most, sampled = 0, False
+    for part in parts:
+        samples = getattr(part, "samples", None)
+        sampled = sampled or samples is not None
+        counts = [len(s) for s in samples] if samples is not None else [len(getattr(part, "effectors", ()) or ())]
+        most += max(counts, default=0)
+    if most > MAX_EFFECTORS:
+        raise ParameterError("effector_collection" if sampled else "interaction.effectors",
+                             f"{most} force fields act at once; valid: at most {MAX_EFFECTORS} (each is computed "
+                             "at every cell it reaches, every frame: join them, or give them a maximum distance)")

@@ -41,6 +41,7 @@ import numpy as np
 
 from .blade import GROUND_TILT
 from .clock import Clock
+from .errors import ParameterError
 
 FLAT_TILT = 1.45  # rad (83 deg): how far a fully trampled blade leans
 HOLD = 0.6  # share of interaction.recovery a trampled blade spends rising slowly before its release
@@ -61,6 +62,9 @@ TRAIL_MARGIN = 2
 # pressed in (the grass stays down while a collider is on it). A chunk is 1/CHUNKS_PER_WINDOW of
 # the window (12 frames at 24 fps for the default 4 s), so a frame's work does not grow with it.
 CHUNKS_PER_WINDOW = 8
+# Spheres times the recovery window's frames a field's colliders may weigh: a frame shown alone
+# (a farm node's first) then takes a few seconds at most (500 colliders with a 600 s recovery: 125 s).
+MAX_SPHERE_FRAMES = 150_000
 
 
 # ------------------------------------------------------------------------------------------------
@@ -89,6 +93,18 @@ class Spheres:
             return Spheres.none()
         return Spheres(np.concatenate([p.centres for p in parts]), np.concatenate([p.radii for p in parts]),
                        np.concatenate([p.velocity for p in parts]))
+
+
+def _spheres_per_instant(collider, reach: float = math.inf) -> float:
+    """How many spheres a collider has at an instant that can reach ``reach`` metres above the
+    ground at z = 0 (on average, for sampled tracks)."""
+    if isinstance(collider, PathCollider):
+        low = float(collider.positions[:, 2].min()) + collider.offsets[:, 2] - collider.radius
+        return float(max(1, np.count_nonzero(low < reach)))
+    offsets = getattr(collider, "offsets", None)
+    if offsets is not None and len(offsets) > 1:
+        return float(offsets[-1] - offsets[0]) / (len(offsets) - 1)
+    return 1.0
 
 
 class PathCollider:
@@ -261,10 +277,13 @@ class Contacts:
 
 def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
     """(sphere index, global cell id, cell centre (., 2)) of the field's cells whose centres lie
-    within ``reach`` (m,) of each sphere's centre, horizontally."""
+    within ``reach`` (m,) of each sphere's centre, horizontally. A sphere wider than a few hundred
+    cells looks only at the field's cells under it (the work follows what it touches)."""
     cs = grid.cell_size
     origin = np.asarray(grid.origin, np.float64)
     k = int(math.ceil(float(reach.max()) / cs)) + 1
+    if (2 * k + 1) ** 2 * len(spheres) > WIDE_CELLS:
+        return _cells_under_wide(grid, spheres, reach)
     offsets = np.arange(-k, k + 1)
     ox, oy = np.meshgrid(offsets, offsets)
     ox, oy = ox.ravel(), oy.ravel()
@@ -279,6 +298,32 @@ def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
     s, j = np.nonzero(keep)
     ids = iy[s, j] * grid.cells_x + ix[s, j]
     return s, ids, np.stack([cx[s, j], cy[s, j]], axis=1)
+
+
+WIDE_CELLS = 1 << 20  # candidate cells above which spheres are looked at one by one, clipped to the field
+
+
+def _cells_under_wide(grid, spheres: Spheres, reach: np.ndarray):
+    """``_cells_around`` a sphere at a time, each over the part of the field's grid its reach
+    covers (a collider of 100 m radius over a 6 m field looks at the field's cells, not 4 million)."""
+    cs, origin = grid.cell_size, np.asarray(grid.origin, np.float64)
+    found_s, found_ids, found_xy = [], [], []
+    for s in range(len(spheres)):
+        c, r = spheres.centres[s, :2], float(reach[s])
+        lo = np.maximum(np.floor((c - r - origin) / cs).astype(np.int64), 0)
+        hi = np.minimum(np.floor((c + r - origin) / cs).astype(np.int64), [grid.cells_x - 1, grid.cells_y - 1])
+        if (hi < lo).any():
+            continue
+        iy, ix = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+        ix, iy = ix.ravel(), iy.ravel()
+        xy = np.column_stack([origin[0] + (ix + 0.5) * cs, origin[1] + (iy + 0.5) * cs])
+        keep = ((xy - c) ** 2).sum(axis=1) <= r * r
+        found_s.append(np.full(int(keep.sum()), s, np.int64))
+        found_ids.append(iy[keep] * grid.cells_x + ix[keep])
+        found_xy.append(xy[keep])
+    if not found_s:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2))
+    return np.concatenate(found_s), np.concatenate(found_ids), np.concatenate(found_xy)
 
 
 def contacts(grid, spheres: Spheres, ground, top: float, t: float = 0.0) -> Contacts:
@@ -367,6 +412,7 @@ class Interaction:
         self.fps = self.clock.fps
         self.window = int(math.ceil(self.recovery * self.fps))
         self.chunk = max(1, self.window // CHUNKS_PER_WINDOW)
+        self._check_work()
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
         self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
@@ -378,11 +424,36 @@ class Interaction:
     def time(self, frame: int) -> float:
         return self.clock.seconds(frame)
 
+    def _check_work(self) -> None:
+        """Refuse, before anything is computed, colliders whose remembered contacts a frame alone
+        would take too long to weigh: spheres at an instant times the recovery's frames."""
+        spheres = sum(_spheres_per_instant(c, 1.5 * self.top + self.tolerance + 1.0) for c in self.colliders)
+        work = spheres * self.window
+        if work > MAX_SPHERE_FRAMES:
+            longest = max(0.1, math.floor(MAX_SPHERE_FRAMES / max(spheres, 1) / self.fps * 10) / 10)
+            raise ParameterError(
+                "interaction.recovery", f"{spheres:g} collider spheres remembered for {self.recovery:g} s weigh "
+                f"{work:,.0f} contacts for a frame shown alone; valid: interaction.recovery up to {longest:g} s "
+                "with these colliders (or fewer colliders)")
+
     def spheres(self, t: float) -> Spheres:
-        """Every collider's spheres at time ``t`` (the last instant asked is kept: a frame asks
-        for it three times)."""
+        """The colliders' spheres at time ``t`` that can reach the field (within their radius, the
+        push's margin and a blade's length of its rectangle; the last instant asked is kept: a
+        frame asks for it three times)."""
         if self._spheres_at is None or self._spheres_at[0] != t:
-            self._spheres_at = (t, Spheres.join(c.at(t) for c in self.colliders))
+            every = Spheres.join(c.at(t) for c in self.colliders)
+            margin = every.radii * PUSH_MARGIN + self.tolerance + 1.5 * self.top + self.grid.cell_size
+            x0, y0 = np.asarray(self.grid.origin, np.float64)
+            x1, y1 = x0 + self.grid.size[0], y0 + self.grid.size[1]
+            c = every.centres
+            near = ((c[:, 0] > x0 - margin) & (c[:, 0] < x1 + margin) & (c[:, 1] > y0 - margin)
+                    & (c[:, 1] < y1 + margin)) if len(every) else np.zeros(0, bool)
+            if near.any():  # and not above the grass (the top of a tall capsule)
+                floor = np.asarray(self.ground(c[near, :2]), np.float64)
+                near[near] = c[near, 2] - every.radii[near] < floor + margin[near]
+            if not near.all():
+                every = Spheres(c[near], every.radii[near], every.velocity[near])
+            self._spheres_at = (t, every)
         return self._spheres_at[1]
 
     def contacts(self, frame: int) -> Contacts:

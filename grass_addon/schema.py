@@ -314,7 +314,7 @@ PARAMS: tuple[Param, ...] = (
     _p("keep_out", "falloff", "float", 0.3, "Beyond the margin the grass thins back in over this distance", unit="m",
        minimum=0.0, maximum=1000.0, soft_max=10.0, label="Falloff"),
     _p("keep_out", "shapes", "table_list", (), "Boxes and discs where nothing grows (in Blender also the objects "
-       "of the field's keep-out collection)", fields=KEEP_OUT_FIELDS, label="Shapes"),
+       "of the field's keep-out collection)", fields=KEEP_OUT_FIELDS, label="Shapes", maximum=256),
     # --- [interaction] colliders and force fields (interaction.py, forces.py) ------------------------
     _p("interaction", "recovery", "float", 4.0, "How long trampled grass takes to stand up again (it rises "
        "slowly, then sways back as the paper's blades recover)", unit="s", minimum=0.1, maximum=600.0,
@@ -326,7 +326,7 @@ PARAMS: tuple[Param, ...] = (
        blender=False),
     _p("interaction", "effectors", "table_list", (), "Force fields that add to the wind (in Blender: the force "
        "fields of the field's Force Fields collection)", fields=EFFECTOR_FIELDS, label="Force Fields",
-       blender=False),
+       blender=False, maximum=32),
     # --- [camera] headless renders and LOD without a Blender camera ---------------------------------
     _p("camera", "mode", "enum", "flythrough", "Fly over the field (the paper's tests) or a fixed view",
        choices=("flythrough", "fixed"), label="Mode"),
@@ -536,6 +536,9 @@ def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
             value = [value]
         if not isinstance(value, (list, tuple)):
             raise ParameterError(name, f"{value!r} is not a list of tables ([[{name}]] in TOML)")
+        if p.maximum is not None and len(value) > p.maximum:
+            raise ParameterError(name, f"{len(value)} rows; valid: at most {int(p.maximum)} (each costs every frame "
+                                 "of every cell it reaches)")
         return tuple(_check_row(p, row, f"{name}[{i}]") for i, row in enumerate(value))
     return _check_number(p, value, name, int if p.kind == "int" else float)
 

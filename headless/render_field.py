@@ -126,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="bake the grass of the frames into OUT/scene_windgrass/ (Alembic) and save "
                           "OUT/scene.blend playing it: that file renders the grass in a Blender without "
                           "Windgrass; the frames are then rendered from the bake")
+    job.add_argument("--resume", action="store_true",
+                     help="skip the frames already complete in --out (a farm task run again renders only what "
+                          "is missing)")
     job.add_argument("--video", action="store_true",
                      help="also encode the frames as OUT/animation.mp4 (Blender's FFmpeg)")
     schema.add_cli_arguments(parser)
@@ -345,10 +348,20 @@ def check_fields(scene) -> None:
             raise FieldError(f"grass field '{item.name}' cannot be simulated: {error}")
 
 
-def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopAfterFrame | None = None) -> list[Path]:
-    """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame. Each frame is
-    written under a temporary name, checked to be a whole PNG, then renamed into place; with
-    ``stop`` requested the loop ends after the frame in progress."""
+def _whole(path: Path) -> bool:
+    try:
+        check_png(path)
+    except OSError:
+        return False
+    return True
+
+
+def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopAfterFrame | None = None,
+                  resume: bool = False) -> list[Path]:
+    """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame and Blender's
+    ``Saved: '<path>'`` line (what farm managers read). Each frame is written under a temporary name,
+    checked to be a whole PNG, then renamed into place; with ``stop`` requested the loop ends after
+    the frame in progress; with ``resume`` a frame already whole on disk is kept (and listed)."""
     import bpy
 
     stage = addon_module("grass_addon.bridge.stage")
@@ -360,6 +373,10 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopA
     for i, frame in enumerate(range(first, last + 1), start=1):
         if stop is not None and stop.requested:
             break
+        if resume and _whole(out / FRAME_NAME.format(frame)):
+            written.append(out / FRAME_NAME.format(frame))
+            print(f"frame {i}/{total} (#{frame}) already rendered: kept", flush=True)
+            continue
         t0 = time.perf_counter()
         # The camera first: the frame handler (grass LOD, eqs 7-11) reads it in frame_change_pre.
         stage.pose_camera(scene, params, frame)
@@ -382,6 +399,7 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopA
         finally:
             if partial.exists() or partial.is_symlink():
                 partial.unlink()
+        print(f"Saved: '{final}'", flush=True)
         written.append(final)
         spent = time.perf_counter() - t0
         eta = (time.perf_counter() - began) / i * (total - i)
@@ -467,7 +485,7 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         print(f"saved {blend}", flush=True)
     t1 = time.perf_counter()
-    written = render_frames(scene, params, frames, out, stop)
+    written = render_frames(scene, params, frames, out, stop, resume=getattr(args, "resume", False))
     seconds = time.perf_counter() - t1
     interrupted = stop is not None and stop.requested
     video = (encode_video(written, params.render.fps, out / "animation.mp4")

@@ -3,6 +3,7 @@
 import bpy
 
 from . import (
+    farm_job,
     field_add,
     field_bake,
     field_bake_free,
@@ -18,7 +19,7 @@ from . import (
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
-            species_preset, row_add, row_remove, map_pick, track_update)
+            species_preset, row_add, row_remove, map_pick, track_update, farm_job)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

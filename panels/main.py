@@ -93,6 +93,7 @@ class WINDGRASS_PT_main(bpy.types.Panel):
             row = layout.row(align=True)
             row.operator("windgrass.field_bake", text="Bake", icon="FILE_CACHE")
             row.operator("windgrass.field_bake_free", text="Free Bake", icon="TRASH")
+            layout.operator("windgrass.farm_job", icon="NETWORK_DRIVE")
             if status:
                 box = layout.box()
                 box.alert = "stale" in status

@@ -35,6 +35,7 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
     Scripts and background renders (``bpy.app.background``) get the engine's update at once; in
     the UI (``defer``) it waits until the edits settle (a timer), so dragging a slider stays fluid.
     """
+    REGISTRY.unchanged = False  # (a setting edited: the file is not as saved)
     if item.collection is None or bake.is_baked(item):
         return
     rt = get_runtime(scene, item)

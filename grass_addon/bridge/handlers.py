@@ -84,6 +84,8 @@ def on_depsgraph_update_post(scene, depsgraph=None):
     """The camera was moved in the viewport (no frame change): follow it with the LOD. Only
     fields already written at this frame are touched, and only when the camera moved, so the
     mesh edits made here (which trigger another update) end the chain at once."""
+    if REGISTRY.unchanged and depsgraph is not None and _edited(depsgraph):
+        REGISTRY.unchanged = False
     if not REGISTRY.fields or bpy.app.is_job_running("RENDER") or REGISTRY.sampling:
         return
     if depsgraph is not None and any(s.paint_deps for s in REGISTRY.states.values()):
@@ -91,6 +93,18 @@ def on_depsgraph_update_post(scene, depsgraph=None):
     if depsgraph is not None and not bpy.app.background:
         _note_motion(scene, depsgraph)
     update_scene(scene, depsgraph, camera_moved_only=True)
+
+
+def _edited(depsgraph) -> bool:
+    """An update of a datablock other than the grass's own and the scene holding it: the artist
+    edited the file (``REGISTRY.unchanged``)."""
+    for update in depsgraph.updates:
+        original = getattr(update.id, "original", None) or update.id
+        if isinstance(original, bpy.types.Scene):
+            continue
+        if getattr(original, "get", lambda key: None)("wg_uid") is None:
+            return True
+    return False
 
 
 def _note_strokes(depsgraph) -> None:
@@ -146,6 +160,7 @@ def on_load_post(*_args):
     for scene, item in _live_fields():
         guarded(apply_settings, scene, item)
         guarded(update_field, scene, item)
+    REGISTRY.unchanged = True
 
 
 @persistent
@@ -205,6 +220,7 @@ def on_save_post(*_args):
         guarded(_refill, scene, item)
     REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
     _collect_bakes(REGISTRY.saved_bakes)
+    REGISTRY.unchanged = True  # (the refill above is the grass, not an edit)
 
 
 def _refill(scene, item) -> None:

@@ -46,6 +46,9 @@ class Registry:
     sampling: bool = False  # tracks.sample is stepping the scene's frames: the handlers stay out
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
     batch_depth: int = 0  # > 0 while properties.batch writes many settings: one update at the end
+    # the open file is as saved or loaded, but for the grass the add-on wrote since (its own writes
+    # mark the file dirty: refilling the slots after a save, every frame's vertices)
+    unchanged: bool = False
 
     def state(self, key: Key) -> FieldState:
         """The record of the field ``key`` (made when there is none)."""

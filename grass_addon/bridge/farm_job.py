@@ -1,0 +1,65 @@
+"""A render-farm job bundle for the saved .blend (``farm.py`` writes the templates; bpy here).
+
+The bundle carries what a worker whose Blender has never seen Windgrass needs: the extension zip
+(made from the running add-on, so its version is this one's), ``farm_render.py`` and the job's
+template and parameter values (frames, chunk size and output folder from the scene), and
+Flamenco's job type. The .blend itself is named by its path (a job attachment on Deadline Cloud;
+shared storage on Flamenco).
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import bpy
+
+from .. import farm
+from ..errors import ParameterError
+from ..folders import ensure_writable
+from .registry import REGISTRY
+
+ADDON_ROOT = Path(__file__).resolve().parents[2]
+
+
+def output_folder(scene) -> Path:
+    """The folder of the scene's render output (Output Properties > Output)."""
+    path = bpy.path.abspath(scene.render.filepath or "//")
+    return Path(path) if path.endswith(("/", "\\")) else Path(path).parent
+
+
+def check_saved() -> Path:
+    """The saved .blend, or ParameterError when there is none or it has unsaved changes."""
+    if not bpy.data.filepath:
+        raise ParameterError("file", "the file is not saved: save it first (a farm renders the .blend on disk)")
+    try:
+        bpy.context.view_layer.update()  # (pending edits reach the handlers, which tell the grass's own apart)
+    except Exception:
+        pass
+    if bpy.data.is_dirty and not REGISTRY.unchanged:
+        raise ParameterError("file", "the file has unsaved changes: save it first (a farm renders the .blend on "
+                             "disk, not what is open here)")
+    return Path(bpy.data.filepath)
+
+
+def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None) -> Path:
+    """The job bundle of the saved .blend's scene frames in chunks of ``chunk`` into ``folder``."""
+    blend = check_saved()
+    farm.check_chunk(chunk)
+    out = output_folder(scene) if out is None else out
+    for path, name in ((out, "output"), (folder, "bundle")):
+        try:
+            ensure_writable(path, create=True)
+        except OSError as exc:
+            raise ParameterError(name, f"cannot write into {path}: {exc.strerror or exc}") from None
+    version = farm.extension_version(ADDON_ROOT)
+    extension = farm.zip_extension(ADDON_ROOT, folder / f"windgrass-{version}.zip")
+    script = shutil.copy2(Path(__file__).with_name("farm_render.py"), folder / "farm_render.py")
+    (folder / "flamenco").mkdir(exist_ok=True)
+    (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
+    span = f"{scene.frame_start}-{scene.frame_end}"
+    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version)
+    return farm.write_bundle(folder, template, {
+        "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(blend),
+        "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),
+        "WindgrassVersion": version})

@@ -1,0 +1,151 @@
+"""A farm task: render frames A-B of the open .blend (copied into job bundles by ``farm.py``).
+
+    blender -b FILE.blend -P farm_render.py -- --frames A-B --out DIR [--version V] [--extension ZIP]
+
+Runs in any Blender 4.2+. A live grass field needs the Windgrass extension: the job's environment
+installs it (OpenJD), or ``--extension`` installs the zip here (Flamenco); ``--version`` refuses an
+extension other than the one the job was made with. Each frame is written under a temporary name
+and renamed into place when whole, then Blender's ``Saved: '<path>'`` line is printed; a frame
+already complete on disk is skipped (a rerun of a failed job renders only what is missing). Exit
+status: 0 done, 1 failed (with the reason on stderr), 2 bad arguments.
+"""
+
+import argparse
+import os
+import struct
+import sys
+import zlib
+from pathlib import Path
+
+import bpy
+
+FRAME_NAME = "frame_{:04d}.png"
+
+
+def _args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]  # (blender -P, or python)
+    parser = argparse.ArgumentParser(prog="farm_render.py", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", required=True, help="A-B or N")
+    parser.add_argument("--out", required=True, help="folder of frame_NNNN.png")
+    parser.add_argument("--version", default="", help="the Windgrass version the job was made with")
+    parser.add_argument("--extension", default="", help="a Windgrass extension zip to install first")
+    return parser.parse_args(argv)
+
+
+def whole_png(path: Path) -> bool:
+    """The file is a PNG whose chunks are all there, ending with IEND (not cut off by a kill)."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return False
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        return False
+    pos = 8
+    while pos + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        end = pos + 12 + length
+        if end > len(data) or struct.unpack(">I", data[end - 4:end])[0] != zlib.crc32(data[pos + 4:end - 4]):
+            return False
+        if kind == b"IEND":
+            return True
+        pos = end
+    return False
+
+
+def windgrass():
+    """The enabled Windgrass add-on module, or None."""
+    for name, module in list(sys.modules.items()):
+        if (name == "windgrass" or name.endswith(".windgrass")) and getattr(module, "_registered", False):
+            return module
+    return None
+
+
+def _version(module) -> str:
+    manifest = Path(module.__file__).with_name("blender_manifest.toml")
+    for line in manifest.read_text().splitlines():
+        if line.strip().startswith("version"):
+            return line.split("=", 1)[1].strip().strip('"')
+    return ""
+
+
+def prepare(args) -> None:
+    """Install the extension when asked, check its version, and make sure every live field can be
+    simulated; RuntimeError with a sentence otherwise."""
+    live = any(getattr(s, "get", lambda k: None)("windgrass") for s in bpy.data.scenes)
+    module = windgrass()
+    if module is None and args.extension:
+        blend = bpy.data.filepath
+        bpy.ops.extensions.package_install_files(filepath=args.extension, repo="user_default", enable_on_install=True)
+        bpy.ops.wm.open_mainfile(filepath=blend)  # (its fields are made again with the add-on on)
+        module = windgrass()
+    if module is None:
+        if live:
+            raise RuntimeError("this .blend has live grass fields but Blender has no Windgrass extension enabled "
+                               "(install the job's extension zip, or bake the fields)")
+        return
+    if args.version and _version(module) != args.version:
+        raise RuntimeError(f"the Windgrass extension here is {_version(module)}, the job was made with "
+                           f"{args.version}: submit the job again from this version")
+    fields = sum(len(getattr(getattr(s, "windgrass", None), "fields", ())) for s in bpy.data.scenes)
+    print(f"Windgrass extension {_version(module)} ({module.__name__}): {fields} live grass field(s)", flush=True)
+
+
+def frames(text: str, scene) -> tuple[int, int]:
+    a, _, b = text.partition("-")
+    first, last = int(a), int(b or a)
+    if last < first:
+        raise ValueError(f"--frames {text}: ends before it starts")
+    return first, last
+
+
+def render(args) -> int:
+    scene = bpy.context.scene
+    first, last = frames(args.frames, scene)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    module = windgrass()
+    runtime = None if module is None else sys.modules[f"{module.__name__}.grass_addon.bridge.runtime"]
+    scene.render.use_file_extension = False
+    scene.render.image_settings.file_format = "PNG"
+    for frame in range(first, last + 1):
+        final = out / FRAME_NAME.format(frame)
+        if whole_png(final):
+            print(f"Skipped: '{final}' (already rendered)", flush=True)
+            continue
+        scene.frame_set(frame)
+        for item in getattr(getattr(scene, "windgrass", None), "fields", ()) if runtime else ():
+            error = runtime.field_error(scene, item)
+            if error:
+                raise RuntimeError(f"grass field '{item.name}' cannot be simulated: {error}")
+        partial = out / ("." + final.stem + ".partial.png")
+        scene.render.filepath = str(partial)
+        try:
+            bpy.ops.render.render(write_still=True)
+            if not whole_png(partial):
+                raise RuntimeError(f"Blender did not write frame {frame} whole to {out}")
+            os.replace(partial, final)
+        finally:
+            if partial.exists():
+                partial.unlink()
+        print(f"Saved: '{final}'", flush=True)
+    return 0
+
+
+def main() -> int:
+    try:
+        args = _args()
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 2
+    try:
+        prepare(args)
+        return render(args)
+    except (RuntimeError, ValueError, OSError) as exc:
+        print(f"farm_render.py: failed: {exc}", file=sys.stderr, flush=True)
+        return 1
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # (blender -b -P would go on after the script: leave with its status)

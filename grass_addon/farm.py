@@ -1,0 +1,175 @@
+"""Render-farm jobs (no bpy): Open Job Description bundles and a Flamenco job type.
+
+A Windgrass frame is a function of the frame number, so frames can be split between machines in
+any chunks and come out pixel for pixel as one process renders them. Two kinds of job:
+
+* **a scene file** (``scene_bundle``): each task runs ``render_field.py --config SCENE --frames A-B
+  --out DIR --resume`` with the Windgrass scripts carried in the bundle (``windgrass/``);
+* **a saved .blend with live grass** (``blend_bundle``): the worker's Blender has never seen
+  Windgrass, so a step environment installs the extension zip carried in the bundle into a
+  user folder inside the session's working directory (``BLENDER_USER_RESOURCES``; Blender's
+  ``--command extension install-file``), and each task renders its frames with
+  ``farm_render.py`` (carried too). A baked .blend needs no extension.
+
+Chunks use OpenJD's ``TASK_CHUNKING`` extension: a ``CHUNK[INT]`` task parameter over the frame
+range with contiguous chunks gives ``1-4``, ``5-8``: exactly ``--frames A-B``. The template and its
+parameter values are written as JSON, which is YAML too (``template.yaml``,
+``parameter_values.yaml``), so the same folder runs under ``openjd run`` and submits unchanged to
+AWS Deadline Cloud (``deadline bundle submit DIR``). Every task prints Blender's
+``Saved: '<path>'`` line for each frame, skips frames already complete on disk (a rerun redoes only
+what is missing) and exits non-zero with its message when it fails.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+from .errors import ParameterError
+
+SPECIFICATION = "jobtemplate-2023-09"
+FLAMENCO_JOB_TYPE = Path(__file__).with_name("windgrass_flamenco.js")  # (shipped with the add-on)
+
+
+def parse_frames(text: str, first: int, last: int) -> tuple[int, int]:
+    """(A, B) of 'A-B' or 'N' within the scene's ``first``..``last``; ParameterError otherwise."""
+    match = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", str(text))
+    if not match:
+        raise ParameterError("frames", f"{text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)")
+    a = int(match.group(1))
+    b = int(match.group(2)) if match.group(2) is not None else a
+    if b < a:
+        raise ParameterError("frames", f"{text!r} ends before it starts (valid: A-B with A <= B)")
+    if a < first or b > last:
+        raise ParameterError("frames", f"{text!r} is outside the scene's frames {first}-{last} (valid: a range "
+                             "within them)")
+    return a, b
+
+
+def check_chunk(chunk) -> int:
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise ParameterError("chunk", f"{chunk!r} frames a task (valid: a whole number, at least 1)")
+    return chunk
+
+
+def _param(name: str, kind: str, default, description: str, **more) -> dict:
+    out = {"name": name, "type": kind, "description": description}
+    if default is not None:
+        out["default"] = default
+    out.update(more)
+    return out
+
+
+def _common_params(frames: str, chunk: int, out_dir: str, name: str) -> list[dict]:
+    return [
+        _param("JobName", "STRING", name, "What the farm shows for the job"),
+        _param("BlenderExecutable", "STRING", "blender", "The Blender the workers run (4.2 or newer): a name on "
+               "their PATH or a full path"),
+        _param("Frames", "STRING", frames, "The frames to render, A-B"),
+        _param("ChunkSize", "INT", chunk, "Frames a task renders in one Blender", minValue=1),
+        _param("OutputDir", "PATH", out_dir, "Where the frames are written (frame_NNNN.png)",
+               objectType="DIRECTORY", dataFlow="OUT"),
+    ]
+
+
+def _chunked_step(name: str, args: list[str], environments: list | None = None) -> dict:
+    step = {
+        "name": name,
+        "parameterSpace": {"taskParameterDefinitions": [{
+            "name": "Frame", "type": "CHUNK[INT]", "range": "{{Param.Frames}}",
+            "chunks": {"defaultTaskCount": "{{Param.ChunkSize}}", "rangeConstraint": "CONTIGUOUS"}}]},
+        "script": {"actions": {"onRun": {"command": "{{Param.BlenderExecutable}}", "args": args}}},
+    }
+    if environments:
+        step["stepEnvironments"] = environments
+    return step
+
+
+def scene_template(frames: str, chunk: int, name: str) -> dict:
+    """The OpenJD template of a scene-file job (paths as the bundle's parameter values give them)."""
+    params = _common_params(frames, chunk, "output", name) + [
+        _param("WindgrassDir", "PATH", "windgrass", "The Windgrass scripts and add-on carried in the bundle",
+               objectType="DIRECTORY", dataFlow="IN"),
+        _param("SceneFile", "PATH", "scene/scene.toml", "The scene file (TOML) with its maps beside it",
+               objectType="FILE", dataFlow="IN"),
+    ]
+    args = ["-b", "-P", "{{Param.WindgrassDir}}/headless/render_field.py", "--", "--config", "{{Param.SceneFile}}",
+            "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}", "--resume"]
+    return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
+            "parameterDefinitions": params, "steps": [_chunked_step("Render", args)]}
+
+
+def blend_template(frames: str, chunk: int, name: str, version: str) -> dict:
+    """The OpenJD template of a saved .blend with live grass: the extension installed per session."""
+    params = _common_params(frames, chunk, "output", name) + [
+        _param("BlendFile", "PATH", "scene/scene.blend", "The saved .blend", objectType="FILE", dataFlow="IN"),
+        _param("ExtensionZip", "PATH", f"windgrass-{version}.zip", "The Windgrass extension the .blend was made "
+               "with", objectType="FILE", dataFlow="IN"),
+        _param("FarmScript", "PATH", "farm_render.py", "Renders a chunk of frames of the open .blend",
+               objectType="FILE", dataFlow="IN"),
+        _param("WindgrassVersion", "STRING", version, "The version the extension zip must have"),
+    ]
+    install = {
+        "name": "Windgrass extension",
+        "description": "Installs the Windgrass extension into a Blender user folder of this session only",
+        "variables": {"BLENDER_USER_RESOURCES": "{{Session.WorkingDirectory}}/blender-user"},
+        "script": {"actions": {"onEnter": {
+            "command": "{{Param.BlenderExecutable}}",
+            "args": ["--command", "extension", "install-file", "--repo", "user_default", "--enable",
+                     "{{Param.ExtensionZip}}"]}}},
+    }
+    args = ["-b", "{{Param.BlendFile}}", "-P", "{{Param.FarmScript}}", "--", "--frames", "{{Task.Param.Frame}}",
+            "--out", "{{Param.OutputDir}}", "--version", "{{Param.WindgrassVersion}}"]
+    return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
+            "parameterDefinitions": params, "steps": [_chunked_step("Render", args, [install])]}
+
+
+def write_bundle(folder: Path, template: dict, values: dict) -> Path:
+    """``template.yaml`` and ``parameter_values.yaml`` (Deadline Cloud's job bundle layout; JSON is
+    YAML) in ``folder``, and the same values as ``openjd run`` reads them (``job_params.yaml``);
+    ``values``: {parameter: value}, paths as absolute strings."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "template.yaml").write_text(json.dumps(template, indent=2) + "\n")
+    rows = [{"name": k, "value": v} for k, v in values.items()]
+    (folder / "parameter_values.yaml").write_text(json.dumps({"parameterValues": rows}, indent=2) + "\n")
+    (folder / "job_params.yaml").write_text(json.dumps({k: str(v) for k, v in values.items()}, indent=2) + "\n")
+    return folder
+
+
+def flamenco_job_type() -> str:
+    """The Flamenco job type (JavaScript: ``JOB_TYPE`` and ``compileJob(job)``) for both kinds of
+    job: put it in a ``scripts/`` folder beside the Flamenco Manager."""
+    return FLAMENCO_JOB_TYPE.read_text()
+
+
+EXTENSION_PARTS = ("__init__.py", "blender_manifest.toml", "grass_addon", "operators", "panels")
+
+
+def extension_files(root: Path):
+    """(path, name in the extension) of every file of the extension at ``root`` (what Blender's
+    build puts in the zip: no caches, no scripts or tests)."""
+    for part in EXTENSION_PARTS:
+        top = root / part
+        paths = [top] if top.is_file() else sorted(p for p in top.rglob("*") if p.is_file())
+        for path in paths:
+            if "__pycache__" in path.parts or path.suffix in (".pyc", ".zip"):
+                continue
+            yield path, path.relative_to(root).as_posix()
+
+
+def extension_version(root: Path) -> str:
+    for line in (root / "blender_manifest.toml").read_text().splitlines():
+        if line.strip().startswith("version"):
+            return line.split("=", 1)[1].strip().strip('"')
+    raise ParameterError("extension", f"{root / 'blender_manifest.toml'} has no version")
+
+
+def zip_extension(root: Path, target: Path) -> Path:
+    """The extension at ``root`` as an installable zip (``blender --command extension install-file``)."""
+    import zipfile
+
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path, name in extension_files(root):
+            zf.write(path, name)
+    return target

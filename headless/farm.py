@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""Write a render-farm job bundle for a Windgrass scene file (Open Job Description; Flamenco).
+
+    python headless/farm.py --config scenes/trample.toml --frames 1-96 --chunk 8 --out /farm/renders/trample BUNDLE
+
+BUNDLE gets ``template.yaml`` and ``parameter_values.yaml`` (run it with ``openjd run
+BUNDLE/template.yaml --job-param file://BUNDLE/job_params.yaml --step Render``, or submit it
+unchanged to AWS Deadline Cloud: ``deadline bundle submit BUNDLE``), the Windgrass scripts and
+add-on its tasks run (``windgrass/``), and Flamenco's job type (``flamenco/windgrass.js``). Each
+task renders a chunk of frames with ``render_field.py --resume``: frames already complete on disk
+are skipped, so a rerun renders only what is missing. The workers' Blender is a job parameter
+(``BlenderExecutable``, default ``blender`` on PATH). A saved .blend with live grass: Grass tab >
+Farm Job in Blender. Bad input: a sentence and exit status 2.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+HEADLESS = Path(__file__).resolve().parent
+sys.path.insert(0, str(HEADLESS))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
+
+common.load()
+from windgrass.grass_addon import farm, schema  # noqa: E402
+from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
+
+SCRIPTS = ("render_field.py", "addon_loader.py", "common.py")
+
+
+def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Path:
+    """The bundle for ``config``'s frames ``frames`` in chunks of ``chunk`` into ``out``."""
+    if not config.is_file():
+        raise ParameterError("config", f"{config} is not a scene file")
+    params = schema.load_toml(config)
+    farm.check_chunk(chunk)
+    a, b = farm.parse_frames(frames, params.render.frame_start, params.render.frame_end)
+    for folder, name in ((out, "out"), (bundle, "bundle")):
+        try:
+            ensure_writable(folder, create=True)
+        except OSError as exc:
+            raise ParameterError(name, f"cannot write into {folder}: {exc.strerror or exc}") from None
+    runtime = bundle / "windgrass"
+    if runtime.exists():
+        shutil.rmtree(runtime)
+    root = HEADLESS.parent
+    for path, name in farm.extension_files(root):
+        (runtime / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(path, runtime / name)
+    (runtime / "headless").mkdir(parents=True, exist_ok=True)
+    for name in SCRIPTS:
+        shutil.copy2(HEADLESS / name, runtime / "headless" / name)
+    (bundle / "flamenco").mkdir(exist_ok=True)
+    (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
+    span = f"{a}-{b}"
+    template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}")
+    return farm.write_bundle(bundle, template, {
+        "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()),
+        "WindgrassDir": str(runtime.resolve()), "SceneFile": str(config.resolve())})
+
+
+def main(argv=None) -> int:
+    parser = common.parser(__doc__, prog="farm.py", json_flag=False)
+    parser.add_argument("--config", type=Path, required=True, help="the scene file (TOML)")
+    parser.add_argument("--frames", help="A-B within the scene's frames (default: all of them)")
+    parser.add_argument("--chunk", type=int, default=4, help="frames a task renders (default 4)")
+    parser.add_argument("--out", type=Path, required=True, help="the folder the frames are written to")
+    parser.add_argument("bundle", type=Path, help="the job bundle's folder (made)")
+    args = parser.parse_args(argv)
+    try:
+        frames = args.frames
+        if frames is None:
+            params = schema.load_toml(args.config) if args.config.is_file() else None
+            frames = f"{params.render.frame_start}-{params.render.frame_end}" if params else "1"
+        bundle = write(args.config, frames, args.chunk, args.out, args.bundle)
+    except ParameterError as exc:
+        print(f"farm.py: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"job bundle: {bundle} (openjd run {bundle / 'template.yaml'} --job-param "
+          f"file://{bundle / 'job_params.yaml'} --step Render; or deadline bundle submit {bundle})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,49 @@
+"""windgrass.farm_job: write a render-farm job bundle for the saved file (Open Job Description,
+Flamenco); the bundle's README line says how to run or submit it."""
+
+from pathlib import Path
+
+import bpy
+
+from ..grass_addon.bridge import farm_job
+from ._common import reported
+
+
+class WINDGRASS_OT_farm_job(bpy.types.Operator):
+    """Write a render-farm job for the saved file: its frames in chunks, for any Blender on the farm"""
+
+    bl_idname = "windgrass.farm_job"
+    bl_label = "Farm Job..."
+    bl_description = ("Write a job bundle that renders the saved file's frames on a render farm (Open Job "
+                      "Description: openjd run, AWS Deadline Cloud; a Flamenco job type), carrying the Windgrass "
+                      "extension for workers that have none")
+    bl_options = {"REGISTER"}
+
+    directory: bpy.props.StringProperty(name="Bundle Folder", subtype="DIR_PATH",
+                                        description="Where the job bundle is written")
+    chunk_size: bpy.props.IntProperty(name="Frames per Task", default=4, min=1, soft_max=100,
+                                      description="How many frames one Blender renders on the farm")
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def invoke(self, context, event):
+        if not self.directory and bpy.data.filepath:
+            blend = Path(bpy.data.filepath)
+            self.directory = str(blend.with_name(blend.stem + "_farm_job")) + "/"
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    @reported
+    def execute(self, context):
+        if not self.directory:
+            self.report({"ERROR"}, "Choose the folder the job bundle is written to")
+            return {"CANCELLED"}
+        folder = farm_job.write_blend_bundle(context.scene, Path(bpy.path.abspath(self.directory)), self.chunk_size)
+        self.report({"INFO"}, f"Farm job written to {folder}: openjd run {folder / 'template.yaml'} --job-param "
+                              f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit {folder}")
+        return {"FINISHED"}
+
+
+CLASSES = (WINDGRASS_OT_farm_job,)

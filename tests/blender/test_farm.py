@@ -1,0 +1,248 @@
+"""Render farms (issue #29): the job bundles run on the real Open Job Description runtime (``openjd
+run``, what AWS Deadline Cloud's workers run), with the ``bpy`` module standing in for the
+workers' ``blender`` (a small executable that runs ``-b [FILE] -P SCRIPT -- ARGS`` and
+``--command extension install-file`` with the module). Frames rendered in chunks equal the frames
+one process renders, pixel for pixel; a job run again after a chunk was killed renders only what
+is missing; a saved .blend with live grass renders on a Blender that has never seen Windgrass."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+OPENJD = Path(sys.executable).with_name("openjd")
+
+TINY = """
+[field]
+blocks_x = 2
+blocks_y = 2
+cells_per_block = 8
+cell_size = 0.1
+blades_per_cell = 3
+seed = 5
+[wind]
+speed = 5.0
+[lod]
+blade_near = 1.5
+blade_far = 2.5
+card_near = 3.0
+card_far = 4.0
+[camera]
+mode = "fixed"
+position = [0.0, -1.6, 0.5]
+target = [0.0, 0.5, 0.0]
+[render]
+samples = 1
+resolution_x = 48
+resolution_y = 27
+frame_start = 1
+frame_end = 6
+[simulation]
+preroll = 0.5
+"""
+
+STAND_IN = '''#!{python}
+"""A stand-in for a worker's Blender: the bpy module runs what the job's command lines ask."""
+import os, runpy, sys
+args = sys.argv[1:]
+os.environ.setdefault("HOME", os.environ.get("BLENDER_USER_RESOURCES", "/tmp"))
+import bpy
+if args[:3] == ["--command", "extension", "install-file"]:
+    bpy.ops.extensions.package_install_files(filepath=args[-1], repo="user_default", enable_on_install=True)
+    bpy.ops.wm.save_userpref()
+    os._exit(0)
+blend = args[args.index("-b") + 1] if "-b" in args and not args[args.index("-b") + 1].startswith("-") else None
+script = args[args.index("-P") + 1] if "-P" in args else args[args.index("--python") + 1]
+if blend:
+    user = os.environ.get("BLENDER_USER_RESOURCES")
+    if user:  # (the module does not read the user's preferences: enable what is installed there)
+        import addon_utils
+        folder = os.path.join(user, "extensions", "user_default")
+        for name in [n for n in os.listdir(folder) if not n.startswith(".")] if os.path.isdir(folder) else ():
+            addon_utils.enable("bl_ext.user_default." + name, default_set=True)
+    bpy.ops.wm.open_mainfile(filepath=blend)
+sys.argv = [script] + (args[args.index("--") + 1:] if "--" in args else [])
+runpy.run_path(script, run_name="__main__")
+'''
+
+
+@pytest.fixture
+def stand_in(tmp_path) -> Path:
+    path = tmp_path / "blender"
+    path.write_text(STAND_IN.format(python=sys.executable))
+    path.chmod(0o755)
+    return path
+
+
+def _env(tmp_path, user: Path | None = None) -> dict:
+    env = dict(os.environ, HOME=str(tmp_path / "home"), PYTHONUNBUFFERED="1")
+    (tmp_path / "home").mkdir(exist_ok=True)
+    env.pop("BLENDER_USER_RESOURCES", None)
+    if user is not None:
+        env["BLENDER_USER_RESOURCES"] = str(user)
+    return env
+
+
+def _openjd(bundle: Path, stand_in: Path, env: dict, *more: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(OPENJD), "run", str(bundle / "template.yaml"), "--job-param",
+                           f"file://{bundle / 'job_params.yaml'}", "--job-param", f"BlenderExecutable={stand_in}",
+                           "--step", "Render", *more], capture_output=True, text=True, env=env, timeout=900)
+
+
+def _pixels(folder: Path) -> dict[str, np.ndarray]:
+    from windgrass.grass_addon import images
+
+    return {p.name: images.decode_png(p.read_bytes()) for p in sorted(folder.glob("frame_*.png"))}
+
+
+def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, stand_in):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY)
+    bundle, out = tmp_path / "bundle", tmp_path / "farm"
+    env = _env(tmp_path)
+    made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), "--frames",
+                           "1-6", "--chunk", "2", "--out", str(out), str(bundle)], capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert made.returncode == 0, made.stderr
+    check = subprocess.run([str(OPENJD), "check", str(bundle / "template.yaml")], capture_output=True, text=True)
+    assert check.returncode == 0 and "passes validation" in check.stdout, check.stdout + check.stderr
+    run = _openjd(bundle, stand_in, env)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    saved = [line for line in run.stdout.splitlines() if "Saved: '" in line and ".partial" not in line]
+    assert len(saved) == 6 and "Chunks run: 3" in run.stdout  # three chunks, a Blender each
+    one = tmp_path / "one"
+    single = subprocess.run([sys.executable, str(REPO / "headless" / "render_field.py"), "--config", str(scene),
+                             "--frames", "1-6", "--out", str(one)], capture_output=True, text=True, env=env,
+                            timeout=900)
+    assert single.returncode == 0, single.stderr
+    farm_frames, one_frames = _pixels(out), _pixels(one)
+    assert list(farm_frames) == [f"frame_{i:04d}.png" for i in range(1, 7)] == list(one_frames)
+    for name in farm_frames:
+        assert np.array_equal(farm_frames[name], one_frames[name]), name
+    # a chunk killed mid-way: frame 3 gone, frame 4 cut off; the job run again renders those two
+    (out / "frame_0003.png").unlink()
+    data = (out / "frame_0004.png").read_bytes()
+    (out / "frame_0004.png").write_bytes(data[: len(data) // 2])
+    kept = {n: (out / n).stat().st_mtime_ns for n in farm_frames if n not in ("frame_0003.png", "frame_0004.png")}
+    again = _openjd(bundle, stand_in, env)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert again.stdout.count("already rendered: kept") == 4
+    assert sorted(line.split("Saved: ")[1] for line in again.stdout.splitlines()
+                  if "Saved: '" in line and ".partial" not in line) == [f"'{out / 'frame_0003.png'}'",
+                                                                        f"'{out / 'frame_0004.png'}'"]
+    assert all((out / n).stat().st_mtime_ns == t for n, t in kept.items())
+    rerun = _pixels(out)
+    assert all(np.array_equal(rerun[n], one_frames[n]) for n in one_frames)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--chunk", "0"], "at least 1"),
+    (["--frames", "5-9"], "outside the scene's frames 1-6"),
+    (["--out", "/proc/windgrass-farm"], "cannot write into"),
+])
+def test_bad_farm_input_is_a_sentence(tmp_path, args, words):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY)
+    base = {"--chunk": "2", "--frames": "1-6", "--out": str(tmp_path / "out")}
+    base.update(dict(zip(args[::2], args[1::2])))
+    flags = [x for pair in base.items() for x in pair]
+    proc = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), *flags,
+                           str(tmp_path / "bundle")], capture_output=True, text=True, env=_env(tmp_path), timeout=120)
+    assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+def _live_blend(tmp_path, with_bridge) -> Path:
+    """A saved .blend with a live field, a keyed ball rolling through it and a camera."""
+    from windgrass.grass_addon.bridge import properties
+
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2, cells_per_block=8, blades_per_cell=3) == {"FINISHED"}
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 4
+    item = scene.windgrass.fields[-1]
+    with properties.batch(item):
+        item.simulation.preroll = 0.5
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.25, location=(-0.8, 0.0, 0.25))
+    ball = bpy.context.active_object
+    ball.keyframe_insert("location", frame=1)
+    ball.location.x = 0.8
+    ball.keyframe_insert("location", frame=4)
+    coll = bpy.data.collections.new("Colliders")
+    scene.collection.children.link(coll)
+    for c in list(ball.users_collection):
+        c.objects.unlink(ball)
+    coll.objects.link(ball)
+    item.collider_collection = coll
+    bpy.ops.object.camera_add(location=(0.0, -1.8, 0.6), rotation=(1.35, 0.0, 0.0))
+    scene.camera = bpy.context.active_object
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.render.resolution_x, scene.render.resolution_y = 48, 27
+    scene.render.filepath = str(tmp_path / "farm") + "/"
+    path = tmp_path / "live.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tmp_path, stand_in, with_bridge):
+    """Farm Job on a saved .blend: the worker's Blender (a fresh user folder: no Windgrass) installs
+    the bundle's extension in the session's own user folder and renders the four frames in two
+    chunks; they equal the frames one process renders, the keyed ball's trail included."""
+    blend = _live_blend(tmp_path, with_bridge)
+    bundle = tmp_path / "bundle"
+    assert bpy.ops.windgrass.farm_job(directory=str(bundle) + "/", chunk_size=2) == {"FINISHED"}
+    check = subprocess.run([str(OPENJD), "check", str(bundle / "template.yaml")], capture_output=True, text=True)
+    assert check.returncode == 0, check.stdout + check.stderr
+    run = _openjd(bundle, stand_in, _env(tmp_path))
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-3000:]
+    assert "Entering Environment: Windgrass extension" in run.stdout and "Preferences saved" in run.stdout
+    assert run.stdout.count("Windgrass extension 0.") == 2  # each chunk's Blender has it (none before)
+    farm_frames = _pixels(tmp_path / "farm")
+    assert len(farm_frames) == 4
+    one = tmp_path / "one"
+    script = bundle / "farm_render.py"
+    user = tmp_path / "user-one"
+    env = _env(tmp_path, user)
+    for command in (["--command", "extension", "install-file", "--repo", "user_default", "--enable",
+                     str(next(bundle.glob("windgrass-*.zip")))],
+                    ["-b", str(blend), "-P", str(script), "--", "--frames", "1-4", "--out", str(one)]):
+        proc = subprocess.run([str(stand_in), *command], capture_output=True, text=True, env=env, timeout=900)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    one_frames = _pixels(one)
+    assert list(one_frames) == list(farm_frames)
+    for name in one_frames:
+        assert np.array_equal(one_frames[name], farm_frames[name]), name
+
+
+def test_farm_job_refuses_an_unsaved_or_modified_file(tmp_path, with_bridge):
+    with pytest.raises(RuntimeError, match="not saved"):
+        bpy.ops.windgrass.farm_job(directory=str(tmp_path / "b") + "/")
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "x.blend"))
+    bpy.ops.mesh.primitive_cube_add()
+    with pytest.raises(RuntimeError, match="unsaved changes"):
+        bpy.ops.windgrass.farm_job(directory=str(tmp_path / "b") + "/")
+
+
+def test_the_wrong_extension_version_is_a_sentence(tmp_path, stand_in, with_bridge):
+    """A worker whose Windgrass is another version than the job's: the task fails with a sentence."""
+    blend = _live_blend(tmp_path, with_bridge)
+    script = REPO / "grass_addon" / "bridge" / "farm_render.py"
+    code = textwrap.dedent(f"""
+        import sys, runpy, bpy
+        sys.path.insert(0, {str(REPO / 'headless')!r})
+        import addon_loader
+        addon_loader.load_addon()
+        bpy.ops.wm.open_mainfile(filepath={str(blend)!r})
+        sys.argv = ["farm_render.py", "--frames", "1-1", "--out", {str(tmp_path / 'x')!r}, "--version", "9.9.9"]
+        runpy.run_path({str(script)!r}, run_name="__main__")
+    """)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(tmp_path),
+                          timeout=300)
+    assert proc.returncode == 1 and "the job was made with 9.9.9" in proc.stderr, proc.stderr[-2000:]

@@ -157,3 +157,64 @@ def test_bake_without_alembic_says_so_and_leaves_nothing(real_blender):
     error = run.results("op")[1]["error"]
     assert "without Alembic" in error and "Traceback" not in error and error.count(". ") == 0
     assert run.results("python")[0] == ["bake_here.blend"]  # no bake_here_windgrass folder
+
+
+PAINTED = """
+item = bpy.context.scene.windgrass.fields[0]
+n = item.blade.segments
+edge = 2.0 * item.field.blocks_x * item.field.cells_per_block * item.field.cell_size / 32  # two of the map's pixels
+west = east = 0
+for obj in bridge("owned").slot_objects(item, "blades").values():
+    co = np.empty(len(obj.data.vertices) * 3, np.float32)
+    obj.data.attributes["position"].data.foreach_get("vector", co)
+    strips = co.reshape(-1, n + 1, 2, 3)
+    drawn = np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0
+    roots = strips[drawn, 0].mean(axis=1)
+    west += int((roots[:, 0] < -edge).sum())
+    east += int((roots[:, 0] > edge).sum())
+for obj in bridge("owned").slot_objects(item, "cards").values():  # (seen from afar: cards)
+    co = np.empty(len(obj.data.vertices) * 3, np.float32)
+    obj.data.attributes["position"].data.foreach_get("vector", co)
+    quads = co.reshape(-1, 4, 3)
+    centres = quads[np.ptp(quads, axis=1).max(axis=1) > 0].mean(axis=1)
+    west += int((centres[:, 0] < -edge).sum())
+    east += int((centres[:, 0] > edge).sum())
+result = {"error": bridge("runtime").field_error(bpy.context.scene, item), "west": west, "east": east,
+          "images": sorted(i.name for i in bpy.data.images if i.source == "GENERATED" and not i.name.startswith("Grass")
+                           or i.packed_file is not None and not i.name.startswith("Grass"))}
+"""
+
+MASK = """
+image = bpy.data.images.new("mask", 32, 32, alpha=False)
+pixels = np.ones((32, 32, 4), np.float32)
+pixels[:, :16, :3] = 0.0
+image.pixels.foreach_set(pixels.ravel())
+image.pack()
+result = image.name
+"""
+
+RENAME = """
+bpy.data.images["mask"].name = "paths"
+bpy.ops.ed.undo_push(message="rename the image")
+result = True
+"""
+
+
+def test_an_image_map_survives_save_reopen_rename_undo_and_redo(real_blender):
+    """Issue: a field painted by image:mask lost its image at the save (nothing else used it) and
+    was hidden at every reopen; a rename hid it after undo, redo or a reopen. In the window: the
+    west half stays bare and the east grown (its blades and cards) through all of it."""
+    path = "{case}/mask.blend"
+    steps = [{"select": None}, {"op": "windgrass.field_add"}, {"python": MASK},
+             {"set": "windgrass.fields[0].paint.density", "value": "image:mask"}, {"frame": 1},
+             {"python": PAINTED}, {"save": path}, {"open": path}, {"wait": 1.0}, {"python": PAINTED},
+             {"python": RENAME}, {"frame": 1}, {"python": PAINTED}, {"key": "ctrl+z"}, {"wait": 1.0},
+             {"python": PAINTED}, {"key": "ctrl+shift+z"}, {"wait": 1.0}, {"python": PAINTED},
+             {"save": path}, {"open": path}, {"wait": 1.0}, {"python": PAINTED}]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    probes = [r for r in run.results("python") if isinstance(r, dict)]
+    assert len(probes) == 6
+    for probe in probes:
+        assert probe["error"] is None and probe["west"] == 0 and probe["east"] > 100, probe
+    assert probes[1]["images"] == ["mask"] and probes[-1]["images"] == ["paths"]

@@ -68,6 +68,10 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         grid = FieldGrid.of(params)
         blades, (size_x, size_y) = grid.n_blades, grid.size
         where = f" rooted on '{terrain.name}'" if terrain is not None else ""
+        error = runtime.field_error(scene, item)
+        if error:  # (its objects are made: the undo step holds them; the panel says why it is hidden)
+            self.report({"ERROR"}, f"Added grass field '{item.name}', but its grass is hidden: {error}")
+            return {"FINISHED"}
         self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
         return {"FINISHED"}
 

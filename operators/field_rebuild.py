@@ -27,7 +27,11 @@ class WINDGRASS_OT_field_rebuild(bpy.types.Operator):
         if collection is not None and item.collection is None:
             item.collection = collection
         refresh(scene)
-        self.report({"INFO"}, f"Rebuilt grass field '{item.name}'")
+        error = runtime.field_error(scene, item)
+        if error:  # (built: the undo step must hold it; the panel says why the grass is hidden)
+            self.report({"ERROR"}, f"Rebuilt grass field '{item.name}', but its grass is hidden: {error}")
+        else:
+            self.report({"INFO"}, f"Rebuilt grass field '{item.name}'")
         return {"FINISHED"}
 
 

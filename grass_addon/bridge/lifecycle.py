@@ -17,7 +17,7 @@ from .. import paint as paint_core
 from ..errors import WindgrassError
 from . import bake, maps, owned, properties
 from . import scene as field_scene
-from .frame_pass import update_field
+from .frame_pass import guarded, update_field
 from .registry import REGISTRY, key_of
 from .resolve import get_runtime, resolve, terrain_of, topology_of
 
@@ -68,13 +68,18 @@ def forget_slots(scene, item, dirty: bool = False) -> None:
 
 def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     """Add, Rebuild (``force``), scripts: the field's datablocks for its settings and its current
-    frame written at once (``apply_settings``, ``update_field``)."""
+    frame written at once (``apply_settings``, ``update_field``). A setting out of range raises
+    before anything is built; once the datablocks are built nothing raises: a frame that cannot
+    be simulated (a paint map that needs a terrain, ...) is recorded for the panel
+    (``field_error``) and its grass hidden, so the operator finishes and Blender's undo step holds
+    the datablocks it made (a cancelled operator that changed datablocks leaves undo pointing at
+    freed ones: Ctrl+Z crashed)."""
     if bake.is_baked(item) and not force:
         return item.collection
     apply_settings(scene, item, force=True if item.collection is None else force)
     if force:
         reset_field(scene, item)
-    update_field(scene, item)
+    guarded(update_field, scene, item)
     write_read_me()
     return item.collection
 

@@ -52,3 +52,30 @@ def test_undo_redo_fuzz_in_the_window(real_blender):
         run = real_blender.run(fuzz_steps(seed, 30, keys=True), timeout=600, name=f"fuzz{seed}")
         run.assert_clean()
         assert len(run.results("check")) == 30
+
+
+def test_ctrl_z_after_a_rebuild_that_failed_does_not_crash(real_blender):
+    """Issue: the fuzzer's recorded sequence: a flat field; Paint > Length = vertex_group:path (no
+    terrain: an error); Blocks X = 3; Ctrl+Z; Keep Out > Margin = 0.5; Length = vertex_group:path
+    again; Rebuild (the paint's error); Ctrl+Z -> SIGSEGV. Now Rebuild finishes with the field
+    built and its grass hidden, the panel's error says why, and Ctrl+Z and Ctrl+Shift+Z go on."""
+    steps = [{"select": None}, {"op": "windgrass.field_add", "args": {"blocks_x": 2, "blocks_y": 2}},
+             {"set": "windgrass.fields[0].paint.length", "value": "vertex_group:path"},
+             {"set": "windgrass.fields[0].field.blocks_x", "value": 3}, {"key": "ctrl+z"}, {"wait": 1.0},
+             {"set": "windgrass.fields[0].keep_out.margin", "value": 0.5},
+             {"set": "windgrass.fields[0].paint.length", "value": "vertex_group:path"},
+             {"op": "windgrass.field_rebuild", "invoke": True}, {"check": "fields"},
+             {"python": "result = bridge('runtime').field_error(bpy.context.scene, "
+                        "bpy.context.scene.windgrass.fields[0])"},
+             {"key": "ctrl+z"}, {"wait": 1.0}, {"key": "ctrl+z"}, {"wait": 1.0}, {"key": "ctrl+shift+z"},
+             {"wait": 1.0}, {"set": "windgrass.fields[0].paint.length", "value": ""}, {"frame": 1},
+             {"check": "fields"}]
+    run = real_blender.run(steps)
+    assert run.returncode == 0, f"Blender exited with {run.returncode}\n{run.crash}\n{run.output[-3000:]}"
+    assert run.report.get("finished"), run.output[-3000:]
+    rebuilt = run.results("op")[-1]  # (an operator's ERROR report reaches Python as an error)
+    assert "Rebuilt grass field 'Grass', but its grass is hidden" in rebuilt["error"], rebuilt
+    error = run.results("python")[0]
+    assert error and "paint.length" in error and "terrain" in error  # a hidden field says why
+    last = run.results("check")[-1]["fields"][0]
+    assert last["error"] is None and last["vertices_shown"] > 0  # the length cleared: grass again

@@ -210,6 +210,8 @@ def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
         direction = np.broadcast_to(axis, points.shape)
     elif e.kind == "force":
         direction = vec / np.maximum(distance, 1e-9)[:, None]
+    elif e.kind == "vortex" and e.shape == "plane":
+        return _plane_vortex(e, points, axis, strength * share)
     elif e.kind == "vortex":
         turn = _cross(axis, vec)
         direction = turn / np.maximum(np.linalg.norm(turn, axis=1), 1e-9)[:, None]
@@ -217,6 +219,18 @@ def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
         local = (points - e.matrix[:3, 3]) / max(e.size, 1e-6)
         direction = np.column_stack([value_noise(local, e.seed + k) for k in range(3)])
     return direction * (strength * share)[:, None]
+
+
+def _plane_vortex(e: Effector, points: np.ndarray, axis: np.ndarray, effect: np.ndarray) -> np.ndarray:
+    """A Vortex of Plane shape (Blender's default for it): Blender's "new vortex", a turn around
+    the axis plus a pull towards it in the ratio of the effect (strength times falloff): at
+    strength 1 the air moves 45 degrees inwards of the turn, as Blender's particles do."""
+    vec = points - e.matrix[:3, 3]
+    turn = _cross(axis, vec)
+    size = np.maximum(np.linalg.norm(turn, axis=1), 1e-9)[:, None]
+    turn /= size
+    inward = _cross(axis, turn)  # (axis x (axis x r): towards the axis)
+    return turn * effect[:, None] + inward * (effect * effect)[:, None]  # (the pull is inwards either way)
 
 
 def _cross(axis: np.ndarray, vec: np.ndarray) -> np.ndarray:

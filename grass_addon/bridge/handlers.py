@@ -27,6 +27,7 @@ from .edits import flush_pending, mark_dirty, refresh_later
 from .frame_pass import guarded, update_field, update_scene
 from .lifecycle import apply_settings, forget_slots
 from .registry import REGISTRY, key_of, warn_once
+from .resolve import get_runtime
 
 VIEW_POLL_S = 0.1  # how often the viewport's views are looked at (orbiting changes no data, so no handler runs)
 
@@ -207,6 +208,7 @@ def on_save_pre(*_args):
     for scene, item in _live_fields():
         try:
             field_scene.clear_slots(item)
+            field_scene.clear_ground(scene, item, properties.params_from_settings(item, scene))
             forget_slots(scene, item)
         except Exception as exc:  # pragma: no cover (a save must never fail because of the grass)
             warn_once(f"field '{item.name}': its slots are saved as they are ({type(exc).__name__}: {exc})")
@@ -224,8 +226,18 @@ def on_save_post(*_args):
 
 
 def _refill(scene, item) -> None:
-    field_scene.fill_slots(item, properties.params_from_settings(item, scene))
+    params = properties.params_from_settings(item, scene)
+    field_scene.fill_slots(item, params)
+    if field_scene.fill_ground(item, params):
+        _paint_look_stale(scene, item)
     update_field(scene, item)
+
+
+def _paint_look_stale(scene, item) -> None:
+    """The ground grid was made again: the paint's look on it is written at the next update."""
+    rt = get_runtime(scene, item)
+    if rt is not None:
+        rt.paint_shown = None
 
 
 @persistent

@@ -51,6 +51,10 @@ def apply_settings(scene, item, force: bool = False) -> None:
     else:
         if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
             forget_slots(scene, item)
+        if field_scene.fill_ground(item, params):  # and its painted ground grid emptied
+            rt = get_runtime(scene, item)
+            if rt is not None:
+                rt.paint_shown = None
         field_scene.update_field_materials(item, params, scene)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:

@@ -53,6 +53,14 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
     height above the ground at each corner and marks the fringe (1, on the plane 0). Flat
     ground: one quad per layer; over a terrain (``heightfield``, in the field's frame) a grid of one
     quad per heightfield cell following its heights."""
+    mesh = bpy.data.meshes.new(name)
+    fill_ground(mesh, size, heightfield, canopy, top)
+    return mesh
+
+
+def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float = 0.0, top: float = 0.0) -> None:
+    """Give an empty mesh the ground's two layers and fringe (``ground_mesh``); its materials are
+    kept (a painted field's ground grid is emptied before a save and made again after it)."""
     if heightfield is not None:
         nx, ny = heightfield.nx, heightfield.ny
         u, v = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
@@ -84,13 +92,12 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
     # the fringe's UVs: where it stands on the field's edge (the canopy reads its paint map there)
     skirt_uv = uv_of_vertex[np.stack([ring, ring[following], ring[following], ring], axis=1).ravel()]
     uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [skirt_uv])
-    mesh = quad_mesh(name, len(verts), layer_faces, uvs, None, {}, (materials.UV_SWARD_Z,))
+    fill_quads(mesh, len(verts), layer_faces, uvs, {}, (materials.UV_SWARD_Z,))
     height = np.zeros((len(layer_faces), 4, 2), np.float32)
     height[len(faces):, :, 1] = canopy
     height[2 * len(faces):, :, 0] = 1.0  # the fringe
     height[2 * len(faces):, 2:, 1] = top  # its top corners
     mesh.uv_layers[materials.UV_SWARD_Z].data.foreach_set("uv", height.ravel())
-    mesh.materials.clear()
     mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
     index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
     mesh.polygons.foreach_set("material_index", index)
@@ -98,7 +105,6 @@ def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: 
     # floor vertices, heights, grid (0, 0: one quad) for update_paint_look
     mesh["wg_layers"] = [n, canopy, top, nx, ny] if heightfield is not None else [n, canopy, top, 0, 0]
     mesh.update()
-    return mesh
 
 
 def edge_ring(nx: int, ny: int) -> np.ndarray:

@@ -20,10 +20,10 @@ from pathlib import Path
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, properties
+from . import bake, owned, properties
 from . import camera as field_camera
 from . import scene as field_scene
-from .edits import flush_pending, mark_dirty, refresh_later
+from .edits import flush_pending, mark_dirty, painting, refresh_later
 from .frame_pass import guarded, update_field, update_scene
 from .lifecycle import apply_settings, forget_slots
 from .registry import REGISTRY, key_of, warn_once
@@ -73,11 +73,30 @@ def watch_views() -> float | None:
     if not REGISTRY.fields or field_camera.rendering():
         return VIEW_POLL_S  # renders use the scene camera
     windows = bpy.context.window_manager.windows
+    for scene in {w.scene for w in windows}:
+        show_while_painting(scene)
     if any(w.screen is not None and w.screen.is_animation_playing for w in windows):
         return VIEW_POLL_S  # playback rewrites every frame anyway
     for scene in {w.scene for w in windows}:
         update_scene(scene, camera_moved_only=True)
     return VIEW_POLL_S
+
+
+def show_while_painting(scene) -> None:
+    """A field whose terrain is in Weight, Vertex or Texture Paint (or Sculpt) mode is hidden in
+    the viewport, so the artist sees what they paint, and shown again when they leave the mode
+    (renders never hide it: this is the viewport's eye only)."""
+    for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+        if item.collection is None:
+            continue
+        state = REGISTRY.state(key_of(scene, item))
+        hide = painting(scene, item)
+        if hide == state.hidden_for_paint:
+            continue
+        for obj in owned.field_objects(item):
+            if scene.view_layers and obj.name in bpy.context.view_layer.objects:
+                obj.hide_set(hide)
+        state.hidden_for_paint = hide
 
 
 @persistent

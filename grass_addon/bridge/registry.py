@@ -33,6 +33,7 @@ class FieldState:
     stroke_s: float = 0.0  # seconds its last stroke took to show
     stroked: bool = False  # a stroke waits to be shown
     motion: bool = False  # its colliders or force fields were edited: look at their stored motion
+    hidden_for_paint: bool | None = None  # hidden in the viewport while its terrain is painted (None: not yet set)
 
 
 @dataclass

@@ -218,3 +218,52 @@ def test_an_image_map_survives_save_reopen_rename_undo_and_redo(real_blender):
     for probe in probes:
         assert probe["error"] is None and probe["west"] == 0 and probe["east"] > 100, probe
     assert probes[1]["images"] == ["mask"] and probes[-1]["images"] == ["paths"]
+
+
+TERRAIN = """
+bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=20, size=6.0)
+terrain = bpy.context.active_object
+terrain.name = "Terrain"
+group = terrain.vertex_groups.new(name="meadow")
+group.add([v.index for v in terrain.data.vertices if v.co.x > 0.0], 1.0, "REPLACE")
+result = terrain.name
+"""
+
+HIDDEN = """
+item = bpy.context.scene.windgrass.fields[0]
+objects = bridge("owned").field_objects(item)
+result = {"hidden": sorted({o.hide_get() for o in objects}), "count": len(objects),
+          "render_hidden": any(o.hide_render for o in objects)}
+"""
+
+
+def _blue_red(path):
+    """(share of blue pixels, share of red pixels) of a screenshot: Weight Paint draws weight 0
+    blue and weight 1 red; grass is green."""
+    image = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64)
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    return float(np.mean((b > 1.5 * r) & (b > 1.5 * g) & (b > 80))), float(np.mean((r > 1.5 * g) & (r > 1.5 * b)
+                                                                                  & (r > 80)))
+
+
+def test_weight_painting_the_terrain_shows_the_weights(real_blender):
+    """Issue: in Weight Paint mode on the field's terrain the grass (and its ground lying on the
+    terrain) hid the weights. Now the field is hidden in the viewport while its terrain is in a
+    paint mode (renders are not touched) and back when the artist leaves it: the screenshot in
+    Weight Paint mode shows the weights (blue and red), the one in Object mode the grass again."""
+    steps = [{"select": None}, {"python": TERRAIN}, {"select": "Terrain"},
+             {"op": "windgrass.field_add", "args": {"use_selected_mesh": True}}, {"select": "Terrain"},
+             {"view": {"look": [[0.0, -0.5, 9.0], [0.0, 0.0, 0.0]]}},
+             {"wait": 1.0}, {"shot": "object_mode"}, {"python": HIDDEN},
+             {"op": "object.mode_set", "args": {"mode": "WEIGHT_PAINT"}}, {"wait": 1.5},
+             {"shot": "weight_paint"}, {"python": HIDDEN},
+             {"op": "object.mode_set", "args": {"mode": "OBJECT"}}, {"wait": 1.5}, {"python": HIDDEN}]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    before, painting, after = [r for r in run.results("python") if isinstance(r, dict)]
+    assert before["hidden"] == [False] and painting["hidden"] == [True] and after["hidden"] == [False]
+    assert not painting["render_hidden"]  # (renders still show the grass)
+    blue, red = _blue_red(run.shots / "weight_paint.png")
+    assert blue > 0.02 and red > 0.02, (blue, red)  # the weights: 0 on the west half, 1 on the east
+    blue0, red0 = _blue_red(run.shots / "object_mode.png")
+    assert blue0 < blue / 4 and red0 < red / 4, (blue0, red0)  # in Object mode the grass covers them

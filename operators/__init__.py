@@ -7,6 +7,7 @@ from . import (
     field_add,
     field_bake,
     field_bake_free,
+    field_duplicate,
     field_rebuild,
     field_remove,
     map_pick,
@@ -19,7 +20,7 @@ from . import (
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
-            species_preset, row_add, row_remove, map_pick, track_update, farm_job)
+            species_preset, row_add, row_remove, map_pick, track_update, farm_job, field_duplicate)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

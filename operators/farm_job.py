@@ -17,7 +17,7 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
     bl_description = ("Write a job bundle that renders the saved file's frames on a render farm (Open Job "
                       "Description: openjd run, AWS Deadline Cloud; a Flamenco job type), carrying the Windgrass "
                       "extension for workers that have none")
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # (writes files only; the rule for every operator here)
 
     directory: bpy.props.StringProperty(name="Bundle Folder", subtype="DIR_PATH",
                                         description="Where the job bundle is written")

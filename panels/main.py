@@ -4,7 +4,7 @@ import textwrap
 
 import bpy
 
-from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.bridge import owned, properties, runtime
 from ..grass_addon.grid import FieldGrid
 
 CATEGORY = "Grass"
@@ -78,9 +78,13 @@ class WINDGRASS_PT_main(bpy.types.Panel):
         col = row.column(align=True)
         col.operator("windgrass.field_add", text="", icon="ADD")
         col.operator("windgrass.field_remove", text="", icon="REMOVE")
+        col.separator()
+        col.operator("windgrass.field_duplicate", text="", icon="DUPLICATE")
         row = layout.row(align=True)
         row.operator("windgrass.field_rebuild", text="Rebuild", icon="FILE_REFRESH")
         row.operator("windgrass.simulation_reset", text="Reset", icon="LOOP_BACK")
+        for note in owned.orphan_notes(context.scene):
+            wrapped(layout, context, note, icon="INFO")
         item = properties.active_field(context.scene)
         if item is not None:
             error = runtime.field_error(context.scene, item)

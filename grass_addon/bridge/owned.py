@@ -127,3 +127,26 @@ def ground_object(item):
         if obj.get("wg_role") == ROLE_GROUND:
             return obj
     return None
+
+
+def orphans(scene) -> list:
+    """Objects of ``scene`` tagged as a grass field's that no field records: Shift+D copies of a
+    field's ground or slots, or a field's collection appended from another file without its scene
+    (they are meshes that never move; they are not fields)."""
+    recorded = set()
+    for s in bpy.data.scenes:
+        for item in getattr(getattr(s, "windgrass", None), "fields", ()):
+            recorded |= {o.as_pointer() for o in registered(item).values() if isinstance(o, bpy.types.Object)}
+    return [obj for obj in scene.objects if obj.get("wg_role") in (ROLE_GROUND, ROLE_BLADES, ROLE_CARDS)
+            and obj.as_pointer() not in recorded]
+
+
+def orphan_notes(scene, most: int = 3) -> list[str]:
+    """Sentences for the panel about ``orphans`` (a few, and how many more)."""
+    found = orphans(scene)
+    notes = [f"'{obj.name}' is a copy of a grass field's {obj.get('wg_role')}, not a field: it does not sway "
+             "(Duplicate Field copies a field; File > Append > Scene brings another file's fields)"
+             for obj in found[:most]]
+    if len(found) > most:
+        notes.append(f"... and {len(found) - most} more such copies")
+    return notes

@@ -187,3 +187,49 @@ def test_rebuild_after_deleting_slots_by_hand_keeps_the_names(bridge):
     assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
     assert sorted(o.name for o in item.collection.objects) == names
     assert not [m for m in bpy.data.meshes if m.users == 0]
+
+
+def test_duplicate_field_gives_a_working_field_and_copies_of_objects_are_named(bridge, drawn, tmp_path):
+    """Issue: Shift+D on "Grass ground" and File > Append of a field's collection gave a bare green
+    slab: no field, no message. Duplicate Field gives a second working field (its own uid, the same
+    settings, beside the first); a Shift+D copy and an appended collection are named in the panel's
+    notes as copies that are not fields."""
+    import bpy
+    import numpy as np
+
+    owned, runtime = bridge
+    from windgrass.grass_addon.bridge import properties
+
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2, cells_per_block=8) == {"FINISHED"}
+    scene = bpy.context.scene
+    first = scene.windgrass.fields[0]
+    first.wind.speed = 7.0
+    assert bpy.ops.windgrass.field_duplicate() == {"FINISHED"}
+    assert len(scene.windgrass.fields) == 2
+    second = scene.windgrass.fields[1]
+    assert second.uid != first.uid and second.name != first.name
+    assert properties.params_from_settings(second).digest() == properties.params_from_settings(first).digest()
+    scene.frame_set(4)
+    for item in (first, second):
+        assert runtime.field_error(scene, item) is None
+        strips = drawn(item).reshape(-1, 6, 2, 3)
+        assert (np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0).sum() > 500
+    offset = (owned.ground_object(second).matrix_world.translation.x
+              - owned.ground_object(first).matrix_world.translation.x)
+    assert offset > 1.6  # beside it (a 1.6 m field), not on top
+    assert owned.orphan_notes(scene) == []
+    bpy.ops.object.select_all(action="DESELECT")
+    ground = owned.ground_object(first)
+    ground.select_set(True)
+    bpy.context.view_layer.objects.active = ground
+    bpy.ops.object.duplicate()
+    copy = bpy.context.active_object
+    notes = owned.orphan_notes(scene)
+    assert len(notes) == 1 and f"'{copy.name}' is a copy of a grass field's ground, not a field" in notes[0]
+    assert "Duplicate Field" in notes[0]
+    path = tmp_path / "source.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.append(directory=str(path) + "/Collection/", filename="Grass")  # the first field's collection
+    appended = owned.orphan_notes(bpy.context.scene)
+    assert appended and "not a field" in appended[0], appended

@@ -68,7 +68,8 @@ def _frames(chunk: str) -> list[int]:
     return list(range(int(a), int(b or a) + 1))
 
 
-pytestmark = pytest.mark.skipif(NODE is None, reason="Node is not installed (Debian: apt-get install nodejs)")
+pytestmark = [pytest.mark.skipif(NODE is None, reason="Node is not installed (Debian: apt-get install nodejs)"),
+              pytest.mark.slow]  # (each test starts Node: dev.py test --quick leaves them out)
 
 
 @pytest.mark.parametrize("frames", ["1-30", "7-7", "10-17"])

@@ -134,6 +134,7 @@ def test_a_blender_source_stays_a_source_in_a_scene_file_and_is_refused_without_
     assert info.value.key == "paint.density" and "PNG" in str(info.value) and "Blender" in str(info.value)
 
 
+@pytest.mark.slow  # (each starts Python again: dev.py test --quick leaves them out)
 @pytest.mark.parametrize("flag", ["--paint-density", "--paint-length"])
 @pytest.mark.parametrize("source", ["vertex_group:paths", "image:mask", "attribute:mown"])
 def test_simulate_refuses_a_blender_only_source(flag, source):

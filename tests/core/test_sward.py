@@ -56,6 +56,7 @@ def _blade_quads(block, blades, n, tip_width):
     return np.array(quads)
 
 
+@pytest.mark.slow  # (seconds each: dev.py test --quick leaves them out)
 def test_cards_cover_what_their_blades_cover(params):
     """A card stands for its cell's blades: over horizontal views from every direction, the
     light a card stops (its area times |cos| of the view to its normal times its mean opacity) is

@@ -279,6 +279,7 @@ def on_undo_redo_post(*_args):
     else:
         refresh_later([key_of(scene, item) for scene, item in fields])
 
+
 _HANDLERS = (
     (bpy.app.handlers.frame_change_pre, on_frame_change_pre),
     (bpy.app.handlers.frame_change_post, on_frame_change_post),

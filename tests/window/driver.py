@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import traceback
@@ -113,6 +114,12 @@ def fields_ok(states: list[dict]) -> list[str]:
             continue
         if s.get("settings_error"):
             continue  # a bad setting is reported in the panel; not what undo is about
+        if s.get("error") and re.match(r"^[a-z_]+(\.[a-z_0-9\[\]]+)+: ", s["error"]):
+            # settings that cannot be simulated (a paint source that needs a terrain): the grass
+            # is hidden and the panel says why; it must not show another state's grass
+            if s.get("vertices_shown"):
+                problems.append(f"{s['name']}: grass shown although it cannot be simulated ({s['error']})")
+            continue
         for key, text in (("topology_matches", "objects do not match the settings"),
                           ("runtime_matches", "the engine does not match the settings")):
             if not s.get(key):

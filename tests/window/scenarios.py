@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def fuzz_steps(seed: int, count: int, keys: bool) -> list[dict]:
+def fuzz_steps(seed: int, count: int, keys: bool, paint: bool = False) -> list[dict]:
     """A random sequence of what an artist does to a field (add, presets, edits, rebuild, remove,
     undo, redo), each followed by a frame change and a check. ``keys``: undo and redo as typed
     keys (the window) instead of operators."""
@@ -13,6 +13,9 @@ def fuzz_steps(seed: int, count: int, keys: bool) -> list[dict]:
     edits = [("field.blades_per_cell", [1, 2, 3, 4]), ("field.seed", [0, 1, 2, 3]),
              ("blade.segments", [3, 4, 5, 6]), ("wind.speed", [1.0, 3.0, 6.0]), ("lod.card_far", [20.0, 30.0, 40.0]),
              ("field.blocks_x", [2, 3, 4]), ("field.cells_per_block", [8, 16])]
+    if paint:  # what led to the crash on Ctrl+Z after a failed Rebuild (a source needing a terrain)
+        edits += [("paint.length", ["", "vertex_group:path"]), ("keep_out.margin", [0.0, 0.5]),
+                  ("paint.density", ["", "vertex_group:path"])]
     steps: list[dict] = [{"select": None}, {"op": "windgrass.field_add", "args": {"blocks_x": 3, "blocks_y": 3}}]
     for _ in range(count):
         roll = rng.random()

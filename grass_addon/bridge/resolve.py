@@ -153,8 +153,10 @@ def resolve(scene, item) -> FieldRuntime:
     paint = paint_of(scene, item, params)
     painted = paint_core.fingerprint(paint)
     if previous is not None and previous.digest == digest:
-        if previous.track != track:  # the colliders moved: the wind's simulation stays
-            previous.field.set_interaction(colliders, previous.field.effectors)
+        if previous.track != track:  # the colliders moved: the wind's simulation stays (the digest
+            # holds the force fields), unless they were left out (a damaged track sampled again)
+            kept = previous.field.effectors
+            previous.field.set_interaction(colliders, kept if (kept is None) == (effectors is None) else effectors)
             previous.track, previous.frame = track, None
         if previous.paint != painted:  # a stroke: make again only the blocks it touched
             started = time.perf_counter()

@@ -267,3 +267,44 @@ def test_weight_painting_the_terrain_shows_the_weights(real_blender):
     assert blue > 0.02 and red > 0.02, (blue, red)  # the weights: 0 on the west half, 1 on the east
     blue0, red0 = _blue_red(run.shots / "object_mode.png")
     assert blue0 < blue / 4 and red0 < red / 4, (blue0, red0)  # in Object mode the grass covers them
+
+
+KEYED_BALL = """
+tracks = bridge("tracks")
+tracks.AUTO_SAMPLE_S = -1.0  # (else the window samples by itself once the edit settles)
+bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(-1.0, 0.0, 0.3))
+ball = bpy.context.active_object
+ball.keyframe_insert("location", frame=1)
+ball.location.x = 1.0
+ball.keyframe_insert("location", frame=24)
+coll = bpy.data.collections.new("Colliders")
+bpy.context.scene.collection.children.link(coll)
+for c in list(ball.users_collection):
+    c.objects.unlink(ball)
+coll.objects.link(ball)
+bpy.context.scene.windgrass.fields[0].collider_collection = coll
+result = True
+"""
+
+MOTION_STORED = """
+tracks, properties = bridge("tracks"), bridge("properties")
+scene = bpy.context.scene
+item = scene.windgrass.fields[0]
+wanted = tracks.fingerprint(scene, item, properties.params_from_settings(item, scene))
+result = [tracks.stored_fingerprint(item) == wanted, scene.frame_current]
+"""
+
+
+def test_update_motion_samples_a_frame_at_a_time_in_the_window(real_blender):
+    """Update Motion from the panel runs as a modal operator (a frame per tick, progress in the
+    status bar, Esc to stop): it returns at once, the motion is stored a few seconds later and the
+    scene is back at its frame."""
+    steps = [{"select": None}, {"op": "windgrass.field_add", "args": {"blocks_x": 2, "blocks_y": 2}},
+             {"python": KEYED_BALL}, {"wait": 1.0}, {"python": MOTION_STORED},
+             {"op": "windgrass.track_update", "invoke": True}, {"wait": 8.0}, {"python": MOTION_STORED},
+             {"check": "fields"}]
+    run = real_blender.run(steps, timeout=300)
+    run.assert_clean()
+    assert run.results("op")[-1] == ["RUNNING_MODAL"]
+    before, after = run.results("python")[1:]
+    assert before == [False, 1] and after == [True, 1]

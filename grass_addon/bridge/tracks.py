@@ -344,6 +344,15 @@ def stored(item):
     raw = coll.get(TRACK_KEY) if coll is not None else None
     if raw is None or (not collider_objects(item) and not effector_objects(item)):
         return [], None, ""  # (the motion of colliders since deleted or moved out moves no grass)
+    colliders, effectors, broken = _decoded(raw)
+    if broken:
+        return [], None, ""
+    return colliders, effectors, str(raw.get("fingerprint", ""))
+
+
+def _decoded(raw) -> tuple:
+    """(colliders, effectors, how it is damaged or '') of a stored track, decoded once per
+    fingerprint (``REGISTRY.tracks``; ``store`` drops the entry of the fingerprint it writes)."""
     digest = str(raw.get("fingerprint", ""))
     cached = REGISTRY.tracks.get(digest)
     if cached is None:
@@ -352,9 +361,7 @@ def stored(item):
         except DamagedTrackError as exc:
             cached = ([], None, str(exc))
         REGISTRY.tracks[digest] = cached
-    if cached[2]:
-        return [], None, ""
-    return cached[0], cached[1], digest
+    return cached
 
 
 class DamagedTrackError(ValueError):
@@ -422,26 +429,16 @@ def _stored_effector(e: dict) -> forces.Effector:
 def damage(item) -> str | None:
     """How the field's stored track is damaged, or None (no track, or a sound one)."""
     raw = item.collection.get(TRACK_KEY) if item.collection is not None else None
-    if raw is None:
-        return None
-    try:
-        _decode(raw)
-    except DamagedTrackError as exc:
-        return str(exc)
-    return None
+    return (_decoded(raw)[2] or None) if raw is not None else None
 
 
 def stored_fingerprint(item) -> str | None:
     """The fingerprint the stored track was sampled with (None without a track, or a damaged one:
     it is sampled again)."""
     raw = item.collection.get(TRACK_KEY) if item.collection is not None else None
-    if raw is None:
+    if raw is None or _decoded(raw)[2]:
         return None
-    digest = str(raw.get("fingerprint", ""))
-    cached = REGISTRY.tracks.get(digest)
-    if (cached[2] if cached is not None else damage(item)):
-        return None
-    return digest
+    return str(raw.get("fingerprint", ""))
 
 
 def effector_digest(item) -> str:

@@ -25,9 +25,8 @@ from . import camera as field_camera
 from . import scene as field_scene
 from .edits import flush_pending, mark_dirty, painting, refresh_later
 from .frame_pass import guarded, update_field, update_scene
-from .lifecycle import apply_settings, forget_slots
+from .lifecycle import apply_settings, forget_slots, refill_ground
 from .registry import REGISTRY, key_of, warn_once
-from .resolve import get_runtime
 
 VIEW_POLL_S = 0.1  # how often the viewport's views are looked at (orbiting changes no data, so no handler runs)
 
@@ -247,16 +246,8 @@ def on_save_post(*_args):
 def _refill(scene, item) -> None:
     params = properties.params_from_settings(item, scene)
     field_scene.fill_slots(item, params)
-    if field_scene.fill_ground(item, params):
-        _paint_look_stale(scene, item)
+    refill_ground(scene, item, params)
     update_field(scene, item)
-
-
-def _paint_look_stale(scene, item) -> None:
-    """The ground grid was made again: the paint's look on it is written at the next update."""
-    rt = get_runtime(scene, item)
-    if rt is not None:
-        rt.paint_shown = None
 
 
 @persistent

@@ -51,14 +51,20 @@ def apply_settings(scene, item, force: bool = False) -> None:
     else:
         if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
             forget_slots(scene, item)
-        if field_scene.fill_ground(item, params):  # and its painted ground grid emptied
-            rt = get_runtime(scene, item)
-            if rt is not None:
-                rt.paint_shown = None
+        refill_ground(scene, item, params)  # and its painted ground grid emptied
         field_scene.update_field_materials(item, params, scene)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
+
+
+def refill_ground(scene, item, params) -> None:
+    """Make the painted ground grid a save emptied again (``scene.fill_ground``); the paint's look
+    on it is then written at the next update."""
+    if field_scene.fill_ground(item, params):
+        rt = get_runtime(scene, item)
+        if rt is not None:
+            rt.paint_shown = None
 
 
 def forget_slots(scene, item, dirty: bool = False) -> None:

@@ -16,7 +16,7 @@ import json
 import math
 import re
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -74,6 +74,8 @@ class Param:
     applies_when: tuple[str, str] = ()  # (enum key of the section, choice): only matters then
     path: bool = False  # a "str" that names a file: relative paths in a scene file are from its folder
     blender: bool = True  # False: scene files only (in Blender the field's collections give it)
+    advanced: bool = False  # in Blender: in the section's collapsed Advanced panel
+    components: tuple[str, ...] = ()  # for kind == "vec": the label of each number (X, Y, Z by default)
 
     @property
     def name(self) -> str:
@@ -118,18 +120,18 @@ SPECIES_FIELDS: tuple[Param, ...] = (
     _p("", "name", "str", "meadow grass", "Species name shown in the list", label="Name"),
     _p("", "weight", "float", 1.0, "Relative share of blades of this species", minimum=0.0, maximum=1000.0,
        label="Share"),
-    _p("", "length", "float", 0.32, "Typical blade length of this species (l_base, paper III.A)", unit="m",
-       minimum=0.01, maximum=3.0, soft_max=1.5, label="Length"),
-    _p("", "length_variation", "float", 0.07, "How much blade lengths spread around the typical length: l = l_base + "
-       "lambda * N(0,1) (lambda)", unit="m", minimum=0.0, maximum=1.0, soft_max=0.5, label="Length Variation"),
+    _p("", "length", "float", 0.32, "Typical height of this species' blades: their length from root to tip, "
+       "standing (l_base, paper III.A)", unit="m", minimum=0.01, maximum=3.0, soft_max=1.5, label="Height"),
+    _p("", "length_variation", "float", 0.07, "How much the blades' heights spread around the typical height: "
+       "l = l_base + lambda * N(0,1) (lambda)", unit="m", minimum=0.0, maximum=1.0, soft_max=0.5, label="Variation"),
     _p("", "width", "float", 0.008, "Width of a blade at its root", unit="m", minimum=0.0005, maximum=0.1,
        soft_max=0.03, label="Width"),
-    _p("", "stiffness", "float", 1.0, "Stiffness of this species relative to the field's root stiffness; above 1 "
-       "stiffer (multiplies mu_root, eq 1)", minimum=0.05, maximum=20.0, soft_max=5.0, label="Stiffness"),
+    _p("", "stiffness", "float", 1.0, "Stiffness of this species relative to the field's stiffness: 2 is twice as "
+       "stiff (multiplies mu_root, eq 1)", minimum=0.05, maximum=20.0, soft_max=5.0, label="Stiffness \u00d7"),
     _p("", "color", "vec", (0.12, 0.32, 0.05), "Colour of the blade tips (linear RGB)", minimum=0.0, maximum=1.0,
        size=3, label="Color"),
     _p("", "density_map", "str", "", "Where this species grows: a map that scales its share (white: its share, "
-       "black: none). See paint.density for the sources", label="Density Map", path=True),
+       "black: none). See paint.density for the sources", label="Density", path=True),
 )
 
 # Columns of one ``[[keep_out.shapes]]`` row: where no grass grows.
@@ -187,6 +189,8 @@ EFFECTOR_FIELDS: tuple[Param, ...] = (
     _p("", "seed", "int", 1, "Seed of the noise", minimum=0, maximum=2**31 - 1, label="Seed"),
 )
 
+EXTENT_CORNERS = ("Min X", "Min Y", "Max X", "Max Y")  # the numbers of an extent [x0, y0, x1, y1]
+
 MAP_SOURCES = ("A PNG file (paths in a scene file are from its folder); in Blender also vertex_group:NAME or "
                "attribute:NAME of the terrain mesh, or image:NAME of an image (over the terrain's UV map, else "
                "the extent)")
@@ -204,47 +208,52 @@ WIND_KEY_FIELDS: tuple[Param, ...] = (
 PARAMS: tuple[Param, ...] = (
     # --- [field] paper III: blocks (patches) of square cells -----------------------------------
     _p("field", "blocks_x", "int", 32, "Blocks along X: the field is made and drawn in square blocks, so its length "
-       "is blocks x cells per block x cell size", minimum=1, maximum=1_638_400, soft_max=1024, label="Blocks X"),
+       "is blocks x cells per block x cell size", minimum=1, maximum=1_638_400, soft_max=1024,
+       advanced=True, label="Blocks X"),
     _p("field", "blocks_y", "int", 32, "Blocks along Y: the field is made and drawn in square blocks, so its width "
-       "is blocks x cells per block x cell size", minimum=1, maximum=1_638_400, soft_max=1024, label="Blocks Y"),
+       "is blocks x cells per block x cell size", minimum=1, maximum=1_638_400, soft_max=1024,
+       advanced=True, label="Blocks Y"),
     _p("field", "cells_per_block", "int", 16, "Cells along each side of a block", minimum=1, maximum=64, soft_max=32,
-       label="Cells per Block"),
+       advanced=True, label="Cells/Block"),
     _p("field", "cell_size", "float", 0.1, "Edge of a square cell; the blades of a cell bend together (paper V.B)",
-       unit="m", minimum=0.01, maximum=10.0, soft_max=1.0, label="Cell Size"),
+       unit="m", minimum=0.01, maximum=10.0, soft_max=1.0, advanced=True, label="Cell Size"),
     _p("field", "blades_per_cell", "int", 2, "Blades growing in each cell: more is denser grass ('num' of eq 9)",
-       minimum=0, maximum=64, soft_max=16, label="Blades per Cell"),
+       minimum=0, maximum=64, soft_max=16, advanced=True, label="Blades/Cell"),
     _p("field", "seed", "int", 0, "Another seed grows the blades elsewhere and runs other gusts; the same seed gives "
        "the same field", minimum=0, maximum=2**31 - 1, label="Seed"),
     # --- [blade] paper III.A, eqs 1-6 and V.A, eqs 14-32 ----------------------------------------
     _p("blade", "segments", "int", 5, "Rigid pieces per blade: more bend more smoothly and cost more (n)", minimum=1,
-       maximum=12, label="Segments"),
+       maximum=12, advanced=True, label="Segments"),
     _p("blade", "tip_width", "float", 0.15, "Width of a blade at its tip, as a fraction of its width at the root",
-       unit="fraction", minimum=0.0, maximum=1.0, label="Tip Width"),
+       unit="fraction", minimum=0.0, maximum=1.0, advanced=True, label="Tip Width"),
     _p("blade", "inclination", "float", 18.0, "Largest random lean of a blade at rest (alpha, paper III.A)",
        unit="deg", minimum=0.0, maximum=80.0, label="Lean"),
     _p("blade", "root_stiffness", "float", 8.0e-4, "How stiff a blade is at its root: softer blades bend further in "
        "the same wind (mu_root of eq 1: stiffness mu = mu_root / (L + x) at distance L from the root)",
-       unit="N*m^2/rad", minimum=1e-7, maximum=1.0, soft_max=0.01, label="Root Stiffness"),
+       unit="N*m^2/rad", minimum=1e-7, maximum=1.0, soft_max=0.01, advanced=True, label="Rigidity"),
     _p("blade", "stiffness_offset", "float", 0.05, "Keeps the stiffness at the root finite: larger makes a blade "
-       "more evenly stiff along its length (x of eq 1)", unit="m", minimum=1e-4, maximum=1.0, label="Stiffness Offset"),
+       "more evenly stiff along its length (x of eq 1)", unit="m", minimum=1e-4, maximum=1.0,
+       advanced=True, label="Stiff. Offset"),
     _p("blade", "density", "float", 0.003, "Mass of a blade per metre of its length: heavier blades droop more "
-       "(rho_grass of eq 2)", unit="kg/m", minimum=1e-5, maximum=1.0, soft_max=0.05, label="Mass per Length"),
+       "(rho_grass of eq 2)", unit="kg/m", minimum=1e-5, maximum=1.0, soft_max=0.05,
+       advanced=True, label="Mass/Length"),
     _p("blade", "nonlinear_stiffness", "float", 2.0e-3, "How much stiffer a blade grows the further it is bent (k of "
-       "eq 23)", unit="N*m/rad^2", minimum=0.0, maximum=1.0, soft_max=0.05, label="Stiffening"),
+       "eq 23)", unit="N*m/rad^2", minimum=0.0, maximum=1.0, soft_max=0.05, advanced=True, label="Stiffening"),
     _p("blade", "response_torque", "float", 2.0e-2, "How quickly a blade follows the wind: the torque at which it "
        "closes the gap to its pose in the wind at the reference rate (gamma of eq 26)", unit="N*m", minimum=1e-7,
-       maximum=10.0, soft_max=0.05, label="Response Torque"),
+       maximum=10.0, soft_max=0.05, advanced=True, label="Response"),
     _p("blade", "twist_stiffness", "float", 0.6, "Resistance to twisting, as a fraction of the bending stiffness",
-       unit="x bending", minimum=0.01, maximum=10.0, label="Twist Stiffness"),
+       unit="x bending", minimum=0.01, maximum=10.0, advanced=True, label="Twist"),
     _p("blade", "damping_mass", "float", 1.5, "How quickly a swaying blade comes to rest through the air's drag "
        "(alpha of eq 31: C = alpha M + beta K)", unit="1/s", minimum=0.0, maximum=100.0, soft_max=10.0,
-       label="Air Damping"),
+       advanced=True, label="Air Damping"),
     _p("blade", "damping_stiffness", "float", 0.004, "Damping by the blade's own material, growing with its "
-       "stiffness (beta of eq 31)", unit="s", minimum=0.0, maximum=1.0, soft_max=0.05, label="Inner Damping"),
+       "stiffness (beta of eq 31)", unit="s", minimum=0.0, maximum=1.0, soft_max=0.05,
+       advanced=True, label="Inner Damp."),
     _p("blade", "boundary_k", "float", 0.0, "Bend beyond which a blade starts to sway freely around its pose in the "
-       "wind (k of eq 28)", minimum=0.0, maximum=3.0, label="Free Sway Threshold"),
+       "wind (k of eq 28)", minimum=0.0, maximum=3.0, advanced=True, label="Free Sway"),
     _p("blade", "boundary_lambda", "float", 20.0, "How fast the free sway grows past that bend (lambda of eq 28)",
-       minimum=0.0, maximum=100.0, label="Free Sway Rate"),
+       minimum=0.0, maximum=100.0, advanced=True, label="Sway Rate"),
     _p("blade", "species", "table_list", (), "Grass species mixed by their shares; none: one default species",
        fields=SPECIES_FIELDS, label="Species"),
     # --- [wind] paper IV, eqs 12-13 --------------------------------------------------------------
@@ -255,44 +264,44 @@ PARAMS: tuple[Param, ...] = (
     _p("wind", "direction", "float", 30.0, "Direction the wind blows towards, counter-clockwise from +X", unit="deg",
        minimum=-3600.0, maximum=3600.0, soft_min=-180.0, soft_max=360.0, label="Direction"),
     _p("wind", "turbulence", "float", 1.2, "How gusty the wind is: the spread of the turbulent wind around its mean "
-       "(standard deviation of v', eq 12)", unit="m/s", minimum=0.0, maximum=30.0, soft_max=8.0, label="Turbulence"),
+       "(standard deviation of v', eq 12)", unit="m/s", minimum=0.0, maximum=30.0, soft_max=8.0, label="Gustiness"),
     _p("wind", "turbulence_scale", "float", 0.8, "Size of a gust patch (edge a of a turbulence unit, eq 13; the "
-       "paper uses one cell)", unit="m", minimum=0.01, maximum=100.0, soft_max=10.0, label="Gust Size"),
+       "paper uses one cell)", unit="m", minimum=0.01, maximum=100.0, soft_max=10.0, advanced=True, label="Gust Size"),
     _p("wind", "turbulence_period", "float", 1.5, "Seconds between independent gust patterns", unit="s", minimum=0.05,
-       maximum=600.0, soft_max=10.0, label="Gust Period"),
+       maximum=600.0, soft_max=10.0, advanced=True, label="Gust Period"),
     _p("wind", "gust_speed", "float", 9.0, "Blast: extra speed at the centre of a gust front", unit="m/s", minimum=0.0,
        maximum=60.0, soft_max=25.0, applies_when=("type", "blast"), label="Gust Speed"),
     _p("wind", "gust_width", "float", 6.0, "Blast: width of a gust front", unit="m", minimum=0.1, maximum=1000.0,
        soft_max=50.0, applies_when=("type", "blast"), label="Gust Width"),
     _p("wind", "gust_interval", "float", 6.0, "Blast: seconds between gust fronts", unit="s", minimum=0.5,
-       maximum=3600.0, soft_max=60.0, applies_when=("type", "blast"), label="Gust Interval"),
+       maximum=3600.0, soft_max=60.0, applies_when=("type", "blast"), label="Interval"),
     _p("wind", "vortex_radius", "float", 3.0, "Whirlwind: radius of the vortex's core", unit="m", minimum=0.1,
-       maximum=1000.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Vortex Radius"),
+       maximum=1000.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Core Radius"),
     _p("wind", "vortex_speed", "float", 9.0, "Whirlwind: fastest swirl, at the core's radius", unit="m/s", minimum=0.0,
-       maximum=60.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Vortex Speed"),
+       maximum=60.0, soft_max=30.0, applies_when=("type", "whirlwind"), label="Swirl Speed"),
     _p("wind", "gust_waves", "float", 0.0, "Gust waves: patches of stronger and weaker wind, tens of metres wide, "
        "carried downwind; the mean wind's speed varies by up to this share, and the cards and the far field "
        "brighten and darken with them to the horizon (0: none)", unit="fraction", minimum=0.0, maximum=1.0,
        label="Gust Waves"),
     _p("wind", "gust_wave_size", "float", 30.0, "Size of a gust wave's patch", unit="m", minimum=2.0,
-       maximum=1000.0, soft_max=200.0, label="Gust Wave Size"),
+       maximum=1000.0, soft_max=200.0, advanced=True, label="Wave Size"),
     _p("wind", "keys", "table_list", (), "Changes of the mean wind's speed and direction over time",
        fields=WIND_KEY_FIELDS, label="Keys"),
     # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------
     _p("lod", "enabled", "bool", True, "Blades near the view, cards further out, the canopy far away (paper III.D); "
-       "off: every blade is geometry", label="Levels of Detail"),
+       "off: every blade is geometry", label="Enabled"),
     _p("lod", "blade_near", "float", 6.0, "Distance where blades start giving way to cards (d_g1, eq 7)", unit="m",
-       minimum=0.0, maximum=10000.0, soft_max=100.0, label="Blades Fade Start"),
+       minimum=0.0, maximum=10000.0, soft_max=100.0, label="Blades Fade"),
     _p("lod", "blade_far", "float", 12.0, "Distance beyond which no blade is drawn (d_g2, eq 7)", unit="m",
        minimum=0.0, maximum=10000.0, soft_max=100.0, label="Blades End"),
     _p("lod", "card_near", "float", 25.0, "Distance where cards start giving way to the far canopy (d_s1, eq 10)",
-       unit="m", minimum=0.0, maximum=10000.0, soft_max=300.0, label="Cards Fade Start"),
+       unit="m", minimum=0.0, maximum=10000.0, soft_max=300.0, label="Cards Fade"),
     _p("lod", "card_far", "float", 40.0, "Distance beyond which no card is drawn (d_s2, eq 10)", unit="m", minimum=0.0,
        maximum=10000.0, soft_max=300.0, label="Cards End"),
     _p("lod", "card_width", "float", 1.6, "Width of a card in cells (above 1 cards overlap their neighbours)",
-       unit="cells", minimum=0.1, maximum=10.0, label="Card Width"),
+       unit="cells", minimum=0.1, maximum=10.0, advanced=True, label="Card Width"),
     _p("lod", "card_height", "float", 1.0, "Height of a card as a fraction of its cell's tallest blade at rest",
-       unit="fraction", minimum=0.05, maximum=5.0, label="Card Height"),
+       unit="fraction", minimum=0.05, maximum=5.0, advanced=True, label="Card Height"),
     # --- [terrain] the ground of batch renders (in Blender: the field's terrain mesh) -----------------
     _p("terrain", "heightmap", "str", "", "Hills under the grass: a greyscale PNG over the extent, black the lowest "
        "ground, white terrain.height above it; empty: flat (in Blender a terrain mesh rules)", label="Heightmap",
@@ -300,14 +309,16 @@ PARAMS: tuple[Param, ...] = (
     _p("terrain", "height", "float", 10.0, "How high the heightmap's white stands above its black", unit="m",
        minimum=0.0, maximum=10000.0, soft_max=200.0, label="Height"),
     _p("terrain", "extent", "vec", (0.0, 0.0, 0.0, 0.0), "The rectangle the heightmap covers, [x0, y0, x1, y1]; "
-       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent"),
+       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent",
+       components=EXTENT_CORNERS),
     # --- [paint] where grass grows and how tall (paint.py) -------------------------------------------
     _p("paint", "density", "str", "", "Where grass grows: a map of the share of blades that grow (white: all, "
        "black: none). " + MAP_SOURCES, label="Density", path=True),
     _p("paint", "length", "str", "", "How long the grass grows: a map of the blades' length (mid grey: as grown, "
        "black: mown away, white: twice as long). " + MAP_SOURCES, label="Length", path=True),
     _p("paint", "extent", "vec", (0.0, 0.0, 0.0, 0.0), "The rectangle the map files cover, [x0, y0, x1, y1]; "
-       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent"),
+       "all 0: the field's extent", unit="m", minimum=-1e5, maximum=1e5, size=4, label="Extent",
+       components=EXTENT_CORNERS),
     # --- [keep_out] footprints where nothing grows (houses, rocks, paths) ----------------------------
     _p("keep_out", "margin", "float", 0.1, "Bare ground kept around every footprint", unit="m", minimum=0.0,
        maximum=1000.0, soft_max=5.0, label="Margin"),
@@ -320,7 +331,7 @@ PARAMS: tuple[Param, ...] = (
        "slowly, then sways back as the paper's blades recover)", unit="s", minimum=0.1, maximum=600.0,
        soft_max=60.0, label="Recovery"),
     _p("interaction", "tolerance", "float", 0.01, "How far a blade tip may reach into a collider", unit="m",
-       minimum=0.0, maximum=1.0, soft_max=0.1, label="Tolerance"),
+       minimum=0.0, maximum=1.0, soft_max=0.1, advanced=True, label="Tolerance"),
     _p("interaction", "colliders", "table_list", (), "Spheres and capsules moving along keyed paths (in Blender: "
        "the objects of the field's Colliders collection)", fields=COLLIDER_FIELDS, label="Colliders",
        blender=False),
@@ -333,7 +344,7 @@ PARAMS: tuple[Param, ...] = (
     _p("camera", "height", "float", 1.6, "Eye height above the ground", unit="m", minimum=0.05, maximum=10000.0,
        soft_max=50.0, label="Height"),
     _p("camera", "fov", "float", 55.0, "Horizontal field of view", unit="deg", minimum=1.0, maximum=170.0,
-       label="Field of View"),
+       label="View Angle"),
     _p("camera", "speed", "float", 1.2, "Flythrough: speed along the path", unit="m/s", minimum=0.0, maximum=1000.0,
        soft_max=20.0, applies_when=("mode", "flythrough"), label="Speed"),
     _p("camera", "position", "vec", (0.0, -6.0, 1.6), "Fixed view: camera position (the field's centre is 0, 0)",
@@ -343,9 +354,9 @@ PARAMS: tuple[Param, ...] = (
     # --- [render] ------------------------------------------------------------------------------
     _p("render", "engine", "enum", "cycles", "Render engine", choices=("cycles", "eevee"), label="Engine"),
     _p("render", "samples", "int", 16, "Samples per pixel", minimum=1, maximum=65536, soft_max=512, label="Samples"),
-    _p("render", "resolution_x", "int", 640, "Image width", unit="px", minimum=16, maximum=16384, label="Resolution X"),
+    _p("render", "resolution_x", "int", 640, "Image width", unit="px", minimum=16, maximum=16384, label="Width"),
     _p("render", "resolution_y", "int", 360, "Image height", unit="px", minimum=16, maximum=16384,
-       label="Resolution Y"),
+       label="Height"),
     _p("render", "fps", "int", 24, "Frames per second of the animation and of the simulation", minimum=1, maximum=240,
        label="Frame Rate"),
     _p("render", "frame_start", "int", 1, "First frame", minimum=0, maximum=1_000_000, label="Frame Start"),
@@ -355,23 +366,23 @@ PARAMS: tuple[Param, ...] = (
     _p("render", "shutter", "float", 0.5, "Motion blur shutter time, in frames", minimum=0.01, maximum=2.0,
        label="Shutter"),
     _p("render", "sun_elevation", "float", 35.0, "Sun elevation above the horizon", unit="deg", minimum=-10.0,
-       maximum=90.0, label="Sun Elevation"),
+       maximum=90.0, label="Sun Height"),
     _p("render", "sun_azimuth", "float", 140.0, "Sun azimuth, counter-clockwise from +X", unit="deg", minimum=-360.0,
-       maximum=360.0, label="Sun Azimuth"),
+       maximum=360.0, label="Sun Turn"),
     _p("render", "haze_distance", "float", 0.0, "Aerial perspective: grass this far away shows 63 % haze (1 - 1/e); "
-       "0: no haze", unit="m", minimum=0.0, maximum=1e6, soft_max=10000.0, label="Haze Distance"),
+       "0: no haze", unit="m", minimum=0.0, maximum=1e6, soft_max=10000.0, label="Haze"),
     _p("render", "haze_color", "vec", (1.5, 1.5, 1.45), "Aerial perspective: the haze's radiance (linear RGB), about "
        "the sky's at the horizon", minimum=0.0, maximum=100.0, size=3, soft_max=5.0, label="Haze Color"),
     # --- [simulation] --------------------------------------------------------------------------------
     _p("simulation", "sub_steps", "int", 1, "Solver steps per frame at least (Windgrass adds more where stiff blades "
-       "need them to stay stable)", minimum=1, maximum=64, label="Substeps"),
+       "need them to stay stable)", minimum=1, maximum=64, advanced=True, label="Substeps"),
     _p("simulation", "preroll", "float", 3.0, "Seconds each stretch of simulation runs from rest before it is shown",
        unit="s", minimum=0.5, maximum=600.0, soft_max=10.0, label="Warm-up"),
     _p("simulation", "epoch", "float", 6.0, "Seconds between the starts of the simulated stretches: any frame is at "
        "most warm-up + epoch seconds of simulation away", unit="s", minimum=0.5, maximum=1e6, soft_max=60.0,
-       label="Epoch"),
+       advanced=True, label="Epoch"),
     _p("simulation", "cache_mb", "int", 1024, "Memory for the blocks kept around the camera", unit="MB", minimum=16,
-       maximum=1_000_000, label="Cache"),
+       maximum=1_000_000, advanced=True, label="Cache"),
     _p("simulation", "memory_mb", "int", 4096, "Memory a field may take in Blender in all (its meshes, simulation and "
        "blocks, and a render's copy of the meshes); settings that need more are refused, naming what fits",
        unit="MB", minimum=256, maximum=1_000_000, label="Memory"),
@@ -379,6 +390,84 @@ PARAMS: tuple[Param, ...] = (
 
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))
 BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
+
+
+# --------------------------------------------------------------------------------------------
+# Views: what an artist decides, in their words, read from and written into the parameters above
+
+
+@dataclass(frozen=True)
+class View:
+    """An artist's handle on some parameters of one section: ``read`` gives its value from their
+    values, ``write`` the values that give it (the nearest the parameters can hold: a field is whole
+    blocks, a cell whole blades). Never stored: the parameters are. Blender shows views first (the
+    parameters go to the Advanced panel); scene files and flags take them as well."""
+
+    param: Param  # its name, unit, range, label and help
+    uses: tuple[str, ...]  # the keys of its section it reads and writes
+    read: Callable[[Mapping[str, Any]], float]
+    write: Callable[[Mapping[str, Any], float], dict[str, Any]]
+    digits: int = 2  # decimals shown
+
+
+def _block_metres(f: Mapping[str, Any]) -> float:
+    return f["cells_per_block"] * f["cell_size"]
+
+
+def _size_view(axis: str) -> View:
+    key = f"blocks_{axis}"
+    top = BY_NAME[f"field.{key}"].maximum
+    return View(
+        _p("field", f"size_{axis}", "float", 0.0, f"Size of the field along {axis.upper()}: whole blocks of cells per "
+           "block x cell size (Advanced), the nearest to the size asked", unit="m", minimum=0.01,
+           maximum=MAX_FIELD_EXTENT, soft_max=500.0, label=f"Size {axis.upper()}"),
+        (key, "cells_per_block", "cell_size"),
+        lambda f: f[key] * _block_metres(f),
+        lambda f, v: {key: int(min(max(math.floor(v / _block_metres(f) + 0.5), 1), top))},
+        digits=4)  # (Blender writes lengths with units to this many significant digits: 51.2 m)
+
+
+# Stiffness felt: 0 is a blade of 1e-4 N*m^2/rad at its root (lies down in a breeze), 1 one of 1e-2
+# (hardly moves in a gale), spaced evenly in log(mu_root): the default 8e-4 reads 0.45.
+STIFFNESS_FEEL = (1e-4, 1e-2)
+
+
+def _feel(f: Mapping[str, Any]) -> float:
+    low, high = STIFFNESS_FEEL
+    return min(max(math.log(f["root_stiffness"] / low) / math.log(high / low), 0.0), 1.0)
+
+
+def _felt(f: Mapping[str, Any], v: float) -> dict[str, Any]:
+    low, high = STIFFNESS_FEEL
+    return {"root_stiffness": float(f"{low * (high / low) ** min(max(v, 0.0), 1.0):.3g}")}
+
+
+VIEWS: tuple[View, ...] = (
+    _size_view("x"),
+    _size_view("y"),
+    View(_p("field", "density", "float", 0.0, "Blades per square metre: whole blades per cell over the cell's "
+            "area (Advanced), the nearest to the density asked", unit="1/m^2", minimum=0.0, maximum=1e6,
+            soft_max=3000.0, label="Blades"),
+         ("blades_per_cell", "cell_size"),
+         lambda f: f["blades_per_cell"] / f["cell_size"] ** 2,
+         lambda f, v: {"blades_per_cell": int(min(max(math.floor(v * f["cell_size"] ** 2 + 0.5), 0),
+                                                   BY_NAME["field.blades_per_cell"].maximum))},
+         digits=0),
+    View(_p("blade", "stiffness", "float", 0.0, "How stiff the blades feel, 0 (they lie down in a breeze) to 1 (they "
+            "hardly move in a gale); sets the root stiffness (Advanced)", unit="fraction", minimum=0.0, maximum=1.0,
+            label="Stiffness"),
+         ("root_stiffness",), _feel, _felt),
+)
+VIEW_BY_NAME: dict[str, View] = {v.param.name: v for v in VIEWS}
+
+
+def named(name: str) -> Param:
+    """The parameter or the view (its Param) called ``name`` ("field.size_x")."""
+    return BY_NAME[name] if name in BY_NAME else VIEW_BY_NAME[name].param
+
+
+def section_views(section: str) -> tuple[View, ...]:
+    return tuple(v for v in VIEWS if v.param.section == section)
 
 
 def section_params(section: str) -> tuple[Param, ...]:
@@ -453,17 +542,19 @@ class Params:
 
     def replace(self, overrides: Mapping[str, Any] | None = None, **dotted: Any) -> Params:
         """New validated Params with ``{"wind.speed": 5.0}`` style overrides applied."""
-        data = self.to_dict()
         changes = {**(overrides or {}), **{k.replace("__", "."): v for k, v in dotted.items()}}
         if changes.get("wind.type", self.wind.type) != self.wind.type:
             # a new wind type brings its preset speed and turbulence unless those are given too
             changes = {**wind_preset(changes["wind.type"]), **changes}
+        elif "wind.type" in changes:
+            del changes["wind.type"]  # the same type keeps the speed and turbulence as they are
+        nested: dict[str, dict[str, Any]] = {}
         for name, value in changes.items():
             if "." not in name:
                 raise ParameterError(name, "expected a dotted name such as 'wind.speed'")
             section, key = name.split(".", 1)
-            data.setdefault(section, {})[key] = value
-        return from_dict(data)
+            nested.setdefault(section, {})[key] = value
+        return from_dict(nested, base=self)
 
     def species(self) -> tuple[dict[str, Any], ...]:
         """The species table; one default species when the user gave none."""
@@ -607,11 +698,16 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
         if not isinstance(entries, Mapping):
             raise ParameterError(section, f"[{section}] must be a table of key = value lines")
         known = {p.key: p for p in section_params(section)}
+        views = {v.param.key: v for v in section_views(section)}
         for key, value in entries.items():
-            if key not in known:
+            if key not in known and key not in views:
                 raise ParameterError(f"{section}.{key}",
-                                     f"unknown key in [{section}] (valid keys: {', '.join(known)})")
-            values[section][key] = _check_value(known[key], value)
+                                     f"unknown key in [{section}] (valid keys: {', '.join([*known, *views])})")
+            if key in known:
+                values[section][key] = _check_value(known[key], value)
+        for key, view in views.items():  # after the parameters they read (cell size, ...)
+            if key in entries:
+                values[section].update(_apply_view(view, entries, values[section]))
         if section == "wind" and "type" in entries:
             for key, value in WIND_TYPE_PRESETS[values["wind"]["type"]].items():
                 if key not in entries:
@@ -620,6 +716,15 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
     checked = {s: {p.key: _check_value(p, values[s][p.key]) for p in section_params(s)} for s in SECTIONS}
     _check_relations(checked)
     return Params(checked)
+
+
+def _apply_view(view: View, entries: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameter values that give ``view`` the value ``entries`` asks for."""
+    p = view.param
+    given = [key for key in view.write(values, view.read(values)) if key in entries]
+    if given:
+        raise ParameterError(p.name, f"given with {p.section}.{given[0]}, which it sets: give one of them")
+    return view.write(values, _check_value(p, entries[p.key]))
 
 
 TOP_LEVEL_TABLES = {"colliders": "interaction", "effectors": "interaction"}  # [[colliders]] = [[interaction.colliders]]
@@ -783,19 +888,20 @@ _NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?
 
 
 def cli_params() -> tuple[Param, ...]:
-    """Parameters that have a command-line flag (tables only come from TOML files)."""
-    return tuple(p for p in PARAMS if p.kind != "table_list")
+    """Parameters that have a command-line flag (tables only come from TOML files), views first."""
+    return tuple(v.param for v in VIEWS) + tuple(p for p in PARAMS if p.kind != "table_list")
 
 
 def add_cli_arguments(parser: Any) -> None:
     """Add one ``--section-key`` flag per parameter to an ``argparse`` parser."""
     for section in SECTIONS:
         group = parser.add_argument_group(f"[{section}] parameters")
-        for p in section_params(section):
+        for p in [v.param for v in section_views(section)] + list(section_params(section)):
             if p.kind == "table_list":
                 continue
             unit = f" [{p.unit}]" if p.unit else ""
-            help_text = f"{p.help}{unit}; default {_toml_value(_plain(p.default))}; valid {p.range_text()}"
+            default = "from the settings below" if p.name in VIEW_BY_NAME else _toml_value(_plain(p.default))
+            help_text = f"{p.help}{unit}; default {default}; valid {p.range_text()}"
             kw: dict[str, Any] = {"dest": p.name, "default": None, "help": help_text.replace("%", "%%")}
             if p.kind == "bool":
                 kw["type"] = _parse_bool

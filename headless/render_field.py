@@ -183,7 +183,7 @@ def resolve(args: argparse.Namespace):
     except ParameterError as exc:
         raise BadInputError(f"--config: {exc}") from None
     overrides = schema.cli_overrides(args)
-    flags = {name: schema.BY_NAME[name].cli_flag for name in overrides}
+    flags = {name: schema.named(name).cli_flag for name in overrides}
     for option, name in _ALIASES.items():
         value = getattr(args, option)
         if value is not None:

@@ -54,6 +54,8 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         if terrain is not None:
             values.update(self._fit_to(terrain, values))
         params = schema.defaults().replace({f"field.{k}": v for k, v in values.items()})
+        # One species row, so that the panel shows the blades' height, its spread and colour at once.
+        params = params.replace({"blade.species": [schema.row_defaults(schema.SPECIES_FIELDS)]})
         item = properties.add_field(scene, params)
         if terrain is not None:
             item.terrain = terrain

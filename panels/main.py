@@ -22,6 +22,16 @@ def wrapped(layout, context, text: str, icon: str = "NONE") -> None:
     col = layout.column(align=True)
     for i, line in enumerate(textwrap.wrap(text, chars) or [""]):
         col.label(text=line, icon=icon if i == 0 else "BLANK1" if icon != "NONE" else "NONE")
+
+
+def length_text(scene, metres: float) -> str:
+    """A length as the scene's unit system writes it (3.2 m, 10' 6", or a plain number)."""
+    units = scene.unit_settings
+    if units.system == "NONE":
+        return f"{metres:.4g}"
+    return bpy.utils.units.to_string(units.system, "LENGTH", metres * units.scale_length, precision=3)
+
+
 # Row PropertyGroup name -> its table parameter (the columns come from the schema).
 _ROW_TABLES = {cls.__name__: properties.table_param(name) for name, cls in properties.ROW_CLASSES.items()}
 
@@ -51,7 +61,9 @@ class WINDGRASS_UL_rows(bpy.types.UIList):
             sub = row.row()
             sub.ui_units_x = 1.2
             sub.prop(item, "color", text="")
-        shown = [k for k in keys if k != "color"][:3]
+        # a named row shows its name (a species), others their first two numbers (a wind key's time,
+        # speed): more would be cut at the sidebar's width
+        shown = ["name"] if "name" in keys else [k for k in keys if k != "color"][:2]
         for key in shown:
             row.prop(item, key, text="", emboss=key != "name")
 
@@ -104,10 +116,13 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 wrapped(box, context, status)
             f = item.field
             grid = FieldGrid(f.blocks_x, f.blocks_y, f.cells_per_block, f.cell_size, f.blades_per_cell)
-            size_x, size_y = grid.size
-            wrapped(layout, context, f"{size_x:.4g} x {size_y:.4g} m, {grid.n_blades:,} blades", icon="INFO")
-            layout.prop(item, "collection")
-            layout.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
+            size_x, size_y = (length_text(context.scene, v) for v in grid.size)
+            wrapped(layout, context, f"{size_x} x {size_y}, {grid.n_blades:,} blades", icon="INFO")
+            col = layout.column()
+            col.use_property_split = True
+            col.use_property_decorate = False
+            col.prop(item, "collection")
+            col.prop(item, "terrain")  # a mesh to root the blades on; Rebuild re-samples it
 
 
 CLASSES = (WINDGRASS_UL_fields, WINDGRASS_UL_rows, WINDGRASS_PT_main)

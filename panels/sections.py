@@ -29,7 +29,6 @@ PRESETS = {
     "blade": ("windgrass.species_preset", "preset", "Species Preset"),
     "wind": ("windgrass.wind_preset", "type", "Wind Preset"),
 }
-ROW_WORD = {"blade.species": "Species", "wind.keys": "Key"}
 
 
 def draw_table(layout, context, group, p: schema.Param) -> None:
@@ -40,12 +39,11 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
     index = properties.index_name(p)
     row.template_list("WINDGRASS_UL_rows", p.name, group, p.key, group, index, rows=3)
     col = row.column(align=True)
-    word = ROW_WORD.get(p.name, "Row")
     col.operator("windgrass.row_add", text="", icon="ADD").table = p.name
     col.operator("windgrass.row_remove", text="", icon="REMOVE").table = p.name
     rows = getattr(group, p.key)
     if not len(rows):
-        wrapped(box, context, f"No {word.lower()} rows: {p.help}", icon="INFO")
+        wrapped(box, context, f"No {p.ui_name.lower()}: {p.help}", icon="INFO")
         return
     chosen = min(getattr(group, index), len(rows) - 1)
     selected = rows[chosen]
@@ -54,7 +52,7 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
         if f.path:
             draw_map(col, selected, f.key, f"{p.name}[{chosen}].{f.key}")
         else:
-            col.prop(selected, f.key)
+            draw_value(col, selected, f)
 
 
 def draw_map(layout, owner, key: str, setting: str) -> None:
@@ -65,23 +63,48 @@ def draw_map(layout, owner, key: str, setting: str) -> None:
     row.operator("windgrass.map_pick", text="", icon="GROUP_VERTEX").setting = setting
 
 
-def draw_section(layout, context, item, section: str) -> None:
-    group = properties.group(item, section)
-    params = schema.blender_params(section)
+def draw_value(layout, owner, p: schema.Param) -> None:
+    """One setting: its label and value, the unit after it where Blender cannot show it (kg/m,
+    MB), a vector's numbers each with its own label (an extent's Min X ... Max Y)."""
+    if p.components:
+        col = layout.column(align=True)
+        for i, name in enumerate(p.components):
+            col.prop(owner, p.key, index=i, text=f"{p.ui_name} {name}" if i == 0 else name)
+        return
+    unit = properties.unit_suffix(p)
+    if not unit:
+        layout.prop(owner, p.key)
+        return
+    row = layout.row(align=True)
+    row.prop(owner, p.key)
+    sub = row.row()
+    sub.ui_units_x = max(1.5, 0.42 * len(unit))
+    sub.label(text=unit)
+
+
+def draw_params(layout, context, group, params) -> None:
     layout.use_property_split = True
     layout.use_property_decorate = True  # keyframe dots on the animatable ones (wind speed, direction)
-    if section in PRESETS:
-        op, prop, text = PRESETS[section]
-        layout.operator_menu_enum(op, prop, text=text, icon="PRESET")
     for p in params:
         if p.applies_when and getattr(group, p.applies_when[0]) != p.applies_when[1]:
             continue  # e.g. the gust front's settings while the wind is not a blast
         if p.kind == "table_list":
             draw_table(layout, context, group, p)
-        elif p.path and section == "paint":
+        elif p.path and p.section == "paint":
             draw_map(layout, group, p.key, p.name)
         else:
-            layout.prop(group, p.key)
+            draw_value(layout, group, p)
+
+
+def draw_section(layout, context, item, section: str) -> None:
+    """What an artist decides first (the section's views, then its settings but the advanced
+    ones, which ``_advanced_panel`` draws) and the section's notes."""
+    group = properties.group(item, section)
+    if section in PRESETS:
+        op, prop, text = PRESETS[section]
+        layout.operator_menu_enum(op, prop, text=text, icon="PRESET")
+    views = [v.param for v in schema.section_views(section)]
+    draw_params(layout, context, group, views + [p for p in schema.blender_params(section) if not p.advanced])
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):
@@ -138,4 +161,27 @@ def _panel(section: str) -> type:
     })
 
 
-CLASSES = tuple(_panel(s) for s in schema.SECTIONS)
+def _advanced_panel(section: str) -> type:
+    """The section's physical parameters, collapsed (as Blender's cloth and hair panels do)."""
+
+    def draw(self, context):
+        item = properties.active_field(context.scene)
+        params = [p for p in schema.blender_params(section) if p.advanced]
+        draw_params(self.layout, context, properties.group(item, section), params)
+
+    return type(f"WINDGRASS_PT_{section}_advanced", (bpy.types.Panel,), {
+        "bl_label": "Advanced",
+        "bl_idname": f"WINDGRASS_PT_{section}_advanced",
+        "bl_space_type": "VIEW_3D",
+        "bl_region_type": "UI",
+        "bl_category": CATEGORY,
+        "bl_parent_id": f"WINDGRASS_PT_{section}",
+        "bl_options": {"DEFAULT_CLOSED"},
+        "poll": classmethod(lambda cls, context: context.scene is not None
+                            and properties.active_field(context.scene) is not None),
+        "draw": draw,
+    })
+
+
+ADVANCED = tuple(s for s in schema.SECTIONS if any(p.advanced for p in schema.blender_params(s)))
+CLASSES = tuple(_panel(s) for s in schema.SECTIONS) + tuple(_advanced_panel(s) for s in ADVANCED)

@@ -67,7 +67,8 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
     ``camera_moved_only``: skip the write when this frame was written with the same camera
     (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
     if item.collection is None:
-        warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
+        if owned.was_built(item):  # (a field being added has none yet)
+            warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
         return None
     if bake.plays_cache(item):
         return None  # its objects play the cache

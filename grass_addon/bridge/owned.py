@@ -78,6 +78,11 @@ def registered(item) -> dict:
     return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
 
 
+def was_built(item) -> bool:
+    """Whether objects were ever made for the field (a field being added has none yet)."""
+    return item.get(REGISTRY) is not None or item.collection is not None
+
+
 def _tagged(item) -> dict:
     """What a 0.1 file's field made, found by its tag: objects inside its collection only."""
     coll = item.collection

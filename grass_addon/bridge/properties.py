@@ -35,18 +35,22 @@ _PREFIX = "WINDGRASS_PG_"
 # Units and conversion between schema values (user units) and Blender values
 
 
-# Units Blender's unit system shows by itself (the subtypes above); the others go into the label.
+# Units Blender's unit system shows by itself (the subtypes above); the panel writes the others
+# after the value (``unit_suffix``), so that labels stay short enough for the sidebar.
 NATIVE_UNITS = frozenset({"", "m", "m/s", "s", "deg", "px", "fraction"})
 PRETTY_UNITS = {"N*m^2/rad": "N\u00b7m\u00b2/rad", "N*m/rad^2": "N\u00b7m/rad\u00b2", "N*m": "N\u00b7m",
-                "x bending": "\u00d7 bending"}
+                "x bending": "\u00d7 bend", "1/m^2": "/m\u00b2"}
 
 
 def ui_label(p: schema.Param) -> str:
-    """The property's label in Blender: the schema's label, with its unit where Blender cannot
-    show it (``Mass per Length (kg/m)``, ``Cache (MB)``)."""
-    if p.unit in NATIVE_UNITS:
-        return p.ui_name
-    return f"{p.ui_name} ({PRETTY_UNITS.get(p.unit, p.unit)})"
+    """The property's label in Blender: the schema's label (short: the sidebar is narrow)."""
+    return p.ui_name
+
+
+def unit_suffix(p: schema.Param) -> str:
+    """The unit written after the value where Blender's unit system cannot show it (``kg/m``,
+    ``MB``); empty for the units Blender shows."""
+    return "" if p.unit in NATIVE_UNITS else PRETTY_UNITS.get(p.unit, p.unit)
 
 
 def _float_subtype(p: schema.Param) -> dict[str, str]:
@@ -256,10 +260,38 @@ def _section_class(section: str) -> type:
                                                        options=set())
         else:
             annotations[p.key] = make_property(p)
+    for view in schema.section_views(section):
+        annotations[view.param.key] = _view_property(view)
     cls = type(f"{_PREFIX}section_{section}", (bpy.types.PropertyGroup,),
                {"__annotations__": annotations, "__doc__": f"Windgrass [{section}] settings"})
     SECTION_CLASSES[section] = cls
     return cls
+
+
+def _view_property(view: schema.View) -> Any:
+    """A view (``schema.VIEWS``) as a property that stores nothing: it reads the parameters it
+    stands for and writes them (each write is the parameter's own edit: update, undo)."""
+    p = view.param
+    uses = [schema.BY_NAME[f"{p.section}.{key}"] for key in view.uses]
+
+    def values(settings) -> dict[str, Any]:
+        return {q.key: from_blender(q, getattr(settings, q.key)) for q in uses}
+
+    def get(settings) -> float:
+        return to_blender(p, float(view.read(values(settings))))
+
+    def set_(settings, value: float) -> None:
+        for key, new in view.write(values(settings), from_blender(p, value)).items():
+            q = schema.BY_NAME[f"{p.section}.{key}"]
+            if from_blender(q, getattr(settings, key)) != new:
+                setattr(settings, key, to_blender(q, new))
+
+    limits = {arg: to_blender(p, float(v)) for arg, v in (("min", p.minimum), ("max", p.maximum),
+              ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),
+              ("soft_max", p.soft_max if p.soft_max is not None else p.maximum)) if v is not None}
+    return bpy.props.FloatProperty(name=ui_label(p), description=description(p), get=get, set=set_,
+                                   options=set(), precision=view.digits, **limits,
+                                   **_float_subtype(p))
 
 
 def _mesh_poll(self: Any, obj: bpy.types.Object) -> bool:

@@ -146,25 +146,31 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     uid = coll["wg_uid"]
     base = coll.name
     blade_mat, card_mat, ground_mat, canopy_mat = field_materials(item)
-    # Where the user placed the field (the ground carries it) survives the rebuild.
-    old_ground = owned.ground_object(item)
-    placement = (old_ground.matrix_basis.copy(), old_ground.parent) if old_ground is not None else None
-    _remove_objects(owned.field_objects(item))
+    # The ground object stays (the artist's name for it, its place, parent and anything added to
+    # it survive the rebuild); its mesh and the slot objects are made anew.
+    ground = owned.ground_object(item)
+    _remove_objects([o for o in owned.field_objects(item) if o is not ground])
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key, data in list(owned.registered(item).items()):
-        if not isinstance(data, (bpy.types.Material, bpy.types.Image)):
+        if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground:
             del item[owned.REGISTRY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, sward.canopy_height(params),
                               sward.sward_top(params))
     paint_look.paint_map(item, uid, base, grid if painted else None, canopy_mat)
-    ground = bpy.data.objects.new(f"{base} ground", mesh)
+    if ground is None:
+        ground = bpy.data.objects.new(f"{base} ground", mesh)
+        _link(coll, ground, None)
+    else:
+        old_mesh, ground.data = ground.data, mesh
+        if old_mesh is not None and old_mesh.users == 0:
+            bpy.data.meshes.remove(old_mesh)
+            mesh.name = f"{base} ground"
     mesh.materials.append(ground_mat)
     mesh.materials.append(canopy_mat)
     owned.tag(ground, uid, owned.ROLE_GROUND)
     owned.tag(ground.data, uid, owned.ROLE_GROUND)
-    _link(coll, ground, None)
     owned.record(item, owned.ROLE_GROUND, ground)
     centre = terrain_centre if heightfield is not None else None
     if centre is not None:
@@ -174,8 +180,6 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
         ground.matrix_basis = Matrix.Translation((centre[0], centre[1], 0.0))
         coll["wg_terrain"] = item.terrain.name if item.terrain is not None else ""
     else:
-        if placement is not None:
-            ground.matrix_basis, ground.parent = placement
         if "wg_terrain" in coll and heightfield is None and maps.terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 

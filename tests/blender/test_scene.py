@@ -173,6 +173,7 @@ def test_resizing_the_field_rebuilds_slots_where_the_user_placed_it(bridge):
     scene, item = _add_field()
     owned.ground_object(item).location = (5.0, 0.0, 0.0)
     item.field.blocks_x = 3  # the property update rebuilds: 3 x 2 blocks now
+    bpy.context.view_layer.update()  # (the ground object stays: its new mesh's bounds once evaluated)
     ground = owned.ground_object(item)
     assert tuple(ground.location) == pytest.approx((5.0, 0.0, 0.0))
     assert ground.dimensions.x == pytest.approx(2.4, abs=1e-5)

@@ -165,3 +165,38 @@ def test_applies_when_names_a_choice_of_an_enum_of_the_section():
         key, choice = p.applies_when
         enum = schema.BY_NAME[f"{p.section}.{key}"]
         assert enum.kind == "enum" and choice in enum.choices, p.name
+
+
+def test_size_density_and_stiffness_in_an_artists_words_set_the_engines_parameters():
+    """Issue #28: a field sized in metres, its density in blades per square metre, stiffness as a
+    0-1 feel; scene files and flags take them, and the old keys still work."""
+    p = schema.loads_toml("[field]\nsize_x = 20.0\nsize_y = 9.0\ndensity = 400\ncell_size = 0.2\n")
+    block = p.field.cells_per_block * p.field.cell_size  # 16 cells of 0.2 m: 3.2 m blocks
+    assert (p.field.blocks_x, p.field.blocks_y) == (6, 3)  # 20 m -> 19.2 m, 9 m -> 9.6 m: whole blocks
+    assert abs(p.field.blocks_x * block - 20.0) <= block / 2 and abs(p.field.blocks_y * block - 9.0) <= block / 2
+    assert p.field.blades_per_cell == 16  # 400 blades/m^2 on 0.04 m^2 cells
+    # read back in the same words
+    views = {v.param.name: v.read(p.to_dict()[v.param.section]) for v in schema.VIEWS}
+    assert views["field.size_x"] == pytest.approx(6 * block) and views["field.density"] == pytest.approx(400)
+    # stiffness: 0 and 1 are the ends of the range, evenly spaced in log(mu_root)
+    low, high = schema.STIFFNESS_FEEL
+    assert schema.defaults().replace({"blade.stiffness": 0.0}).blade.root_stiffness == low
+    assert schema.defaults().replace({"blade.stiffness": 1.0}).blade.root_stiffness == high
+    mid = schema.defaults().replace({"blade.stiffness": 0.5}).blade.root_stiffness
+    assert math.isclose(mid, math.sqrt(low * high), rel_tol=1e-3)
+    # the old keys
+    old = schema.loads_toml("[field]\nblocks_x = 5\nblades_per_cell = 3\n")
+    assert (old.field.blocks_x, old.field.blades_per_cell) == (5, 3)
+    # both at once is a sentence naming both
+    with pytest.raises(ParameterError) as err:
+        schema.loads_toml("[field]\nsize_x = 20.0\nblocks_x = 5\n")
+    assert err.value.key == "field.size_x" and "field.blocks_x" in str(err.value)
+    with pytest.raises(ParameterError) as err:
+        schema.loads_toml("[field]\nsize_x = -3\n")
+    assert err.value.key == "field.size_x" and "0.01 to 16384 m" in str(err.value)
+    # flags
+    parser = argparse.ArgumentParser()
+    schema.add_cli_arguments(parser)
+    args = parser.parse_args(["--field-size-x", "12.8", "--field-density", "300", "--blade-stiffness", "1"])
+    q = schema.defaults().replace(schema.cli_overrides(args))
+    assert (q.field.blocks_x, q.field.blades_per_cell, q.blade.root_stiffness) == (8, 3, high)

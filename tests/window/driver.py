@@ -17,7 +17,8 @@ A step is a dict; its one action key says what it does:
   ``{"wait": 0.5}``                                seconds for timers and events (window only);
   ``{"check": "fields"}``                          every field matches its settings and shows grass;
   ``{"view": {...}}``, ``{"shading": "SOLID"}``, ``{"shot": "name"}``, ``{"save": path}``,
-  ``{"open": path}``, ``{"probe": "name"}``: see ``Driver``'s methods of those names.
+  ``{"open": path}``, ``{"probe": "name"}``, ``{"sidebar": "Grass"}``: see ``Driver``'s methods of
+  those names.
 ``"optional": true`` on a step: an operator whose poll fails, or an edit of a field that is not
 there (random sequences), is recorded as skipped instead of failing.
 Every step's outcome (and any Python error) goes to the report; a crash of Blender shows as the
@@ -302,6 +303,23 @@ class Driver:
             r3d.view_perspective = "PERSP"
         area.tag_redraw()
         return [list(r3d.view_location), r3d.view_distance, r3d.view_perspective], 1.0
+
+    def do_sidebar(self, category: str, step: dict):
+        """Show the largest 3D view's sidebar and turn to its ``category`` tab: each step clicks
+        the next place down the tab strip (its right edge) until the tab is ``category``; repeat
+        the step until the result names it."""
+        win, area, region = view3d()
+        area.spaces.active.show_region_ui = True
+        ui = next(r for r in area.regions if r.type == "UI")
+        tries = self.__dict__.setdefault("_tab_tries", [0])
+        if ui.width > 1 and ui.active_panel_category != category and not bpy.app.background:
+            scale = bpy.context.preferences.system.ui_scale
+            x = win.x + ui.x + ui.width - int(10 * scale)
+            y = win.height - (ui.y + ui.height) + int((20 + 24 * tries[0]) * scale)
+            tries[0] += 1
+            subprocess.run(["xdotool", "mousemove", str(x), str(y), "click", "1"], check=True, timeout=10)
+        area.tag_redraw()
+        return {"category": ui.active_panel_category, "width": ui.width}, 0.5
 
     def do_split(self, direction: str, step: dict):
         """Split the largest 3D view in two (``VERTICAL``: side by side)."""

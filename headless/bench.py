@@ -2,6 +2,7 @@
 
     python headless/bench.py [--blades N] [--segments S] [--frames F] [--json] [--peers]
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
+    python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
 
 Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks as give about
 N blades, laid out near-square (default 524,288 blades = 32 x 32 blocks). Each timed frame runs
@@ -220,6 +221,9 @@ def main(argv=None) -> int:
     parser.add_argument("--motion", action="store_true",
                         help="Update Motion of a 1M-vertex collider moved by keys and by a bone, against the "
                              "scene's own frame steps (bench_motion.py); other flags ignored")
+    parser.add_argument("--bake", action="store_true",
+                        help="the size and time of a bake of the default scene, Alembic against USD "
+                             "(bench_bake.py); other flags ignored")
     parser.add_argument("--render", action="store_true",
                         help="where a rendered frame of the default scene spends its time, against the same "
                              "frame rendered again (bench_render.py); other flags ignored")
@@ -228,6 +232,11 @@ def main(argv=None) -> int:
         import subprocess
 
         return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_render.py"))]
+                               + (["--json"] if args.json else []))
+    if args.bake:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_bake.py"))]
                                + (["--json"] if args.json else []))
     if args.motion:
         import subprocess

@@ -123,9 +123,13 @@ def build_parser() -> argparse.ArgumentParser:
                           f"{', '.join(schema.WIND_TYPES)}, each in OUT/variant_XX/")
     job.add_argument("--save-blend", action="store_true", help="also save the scene as OUT/scene.blend")
     job.add_argument("--bake", action="store_true",
-                     help="bake the grass of the frames into OUT/scene_windgrass/ (Alembic) and save "
-                          "OUT/scene.blend playing it: that file renders the grass in a Blender without "
+                     help="bake the grass of the frames into OUT/scene_windgrass/ (Alembic, or USD: "
+                          "--bake-format) and save OUT/scene.blend playing it: that file renders the grass in a "
+                          "Blender without "
                           "Windgrass; the frames are then rendered from the bake")
+    job.add_argument("--bake-format", choices=("alembic", "usd"), default="alembic",
+                     help="what --bake writes: Alembic (.abc, the default) or USD (.usdc: time-sampled points, "
+                          "velocities and extents for renderers outside Blender); scene.blend plays either")
     job.add_argument("--resume", action="store_true",
                      help="skip the frames already complete in --out (a farm task run again renders only what "
                           "is missing)")
@@ -474,7 +478,7 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
         blend = out / "scene.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)  # the cache goes beside it
         t_bake = time.perf_counter()
-        cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[1])
+        cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[1], fmt=args.bake_format)
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
         blend.with_suffix(".blend1").unlink(missing_ok=True)  # Blender's backup of the first save
         per_frame = addon_module("grass_addon.bridge.bake").cache_size(cache) / (frames[1] - frames[0] + 1)
@@ -520,7 +524,7 @@ def main(argv: list[str]) -> int:
         print(f"render_field.py: error: {too_old}", file=sys.stderr)
         return EXIT_FAILED
     if args.bake:
-        missing = addon_module("grass_addon.bridge.bake").missing_build_feature()
+        missing = addon_module("grass_addon.bridge.bake").missing_build_feature(args.bake_format)
         if missing:
             print(f"render_field.py: failed: --bake: {missing}", file=sys.stderr)
             return EXIT_FAILED

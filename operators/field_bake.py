@@ -1,5 +1,5 @@
-"""windgrass.field_bake: bake the active field to Alembic caches beside the .blend (it then plays
-and renders in any Blender)."""
+"""windgrass.field_bake: bake the active field to Alembic or USD caches beside the .blend (it then
+plays and renders in any Blender; USD also in other renderers and pipelines)."""
 
 import bpy
 
@@ -13,8 +13,9 @@ UI_STEPS = 4
 
 
 class WINDGRASS_OT_field_bake(bpy.types.Operator):
-    """Bake the active grass field over a frame range into an Alembic cache beside the .blend, as the
-    scene camera sees it; the file then plays and renders the grass in a Blender without Windgrass"""
+    """Bake the active grass field over a frame range into an Alembic or USD cache beside the .blend,
+    as the scene camera sees it; the file then plays and renders the grass in a Blender without
+    Windgrass, and a USD cache in other renderers"""
 
     bl_idname = "windgrass.field_bake"
     bl_label = "Bake Grass Field"
@@ -22,6 +23,11 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
 
     frame_start: bpy.props.IntProperty(name="Start", min=0, description="First frame to bake (the scene's by default)")
     frame_end: bpy.props.IntProperty(name="End", min=0, description="Last frame to bake (the scene's by default)")
+    format: bpy.props.EnumProperty(
+        name="Format", default="alembic",
+        items=[("alembic", "Alembic", "Alembic (.abc): Blender and most animation packages"),
+               ("usd", "USD", "USD (.usdc): time-sampled points, velocities and extents for renderers and "
+                              "pipelines outside Blender (Houdini, Omniverse, Unreal)")])
 
     @classmethod
     def poll(cls, context):
@@ -39,7 +45,7 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         self._range(scene)
         try:
             self._baker = runtime.start_bake(scene, properties.active_field(scene), self.frame_start,
-                                             self.frame_end, groups=UI_STEPS)
+                                             self.frame_end, groups=UI_STEPS, fmt=self.format)
         except WindgrassError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -94,7 +100,7 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         frames = self.frame_end - self.frame_start + 1
         size = bake.cache_size(folder)
         self.report({"INFO"}, f"Baked '{item.name}' frames {self.frame_start}-{self.frame_end} into {folder.name}/ "
-                              f"({size / frames / 1e6:.2f} MB per frame)")
+                              f"({bake.FORMAT_NAMES[self.format]}, {size / frames / 1e6:.2f} MB per frame)")
 
     @reported
     def execute(self, context):
@@ -102,7 +108,7 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         scene = context.scene
         self._range(scene)
         item = properties.active_field(scene)
-        folder = runtime.bake_field(scene, item, self.frame_start, self.frame_end)
+        folder = runtime.bake_field(scene, item, self.frame_start, self.frame_end, fmt=self.format)
         self._done(item, folder)
         return {"FINISHED"}
 

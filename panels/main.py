@@ -107,7 +107,7 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 wrapped(box, context, error)
             status = runtime.bake_status(context.scene, item)
             row = layout.row(align=True)
-            row.operator("windgrass.field_bake", text="Bake", icon="FILE_CACHE")
+            row.operator_menu_enum("windgrass.field_bake", "format", text="Bake", icon="FILE_CACHE")
             row.operator("windgrass.field_bake_free", text="Free Bake", icon="TRASH")
             layout.operator("windgrass.farm_job", icon="NETWORK_DRIVE")
             if status:

@@ -1,16 +1,19 @@
-"""Bake: a field's animation over a frame range into an Alembic cache beside the .blend.
+"""Bake: a field's animation over a frame range into an Alembic or a USD cache beside the .blend.
 
 The field's slot objects then play the cache through Mesh Sequence Cache modifiers, stock Blender,
 so the saved .blend plays and renders frame for frame like the live field in a Blender without
 Windgrass (render farms, other departments). What is baked is what the scene camera saw over the
 range: the LOD followed the camera while the frames were written. Every per-frame datum of a slot
-is in its positions and UV maps (materials.py), which Alembic keeps per frame.
+is in its positions and UV maps (materials.py), which Alembic keeps per frame. USD (``FORMATS``)
+holds the same: time-sampled points, velocities and extents, the UV maps as primvars, the
+materials as preview surfaces, for renderers and pipelines outside Blender; the field plays it
+through the same modifier.
 
 The record ``item["wg_bake"]`` says what the bake was made from (parameters digest, camera), so a
 later edit or camera move is reported as a stale bake. Free Bake returns to the live simulation.
 
 The files on disk follow what a file refers to, through undo: every bake writes files of its own
-names (``group_00_<bake>.abc``), Free Bake and undo only drop references, and the files no field
+names (``group_00_<bake>.abc`` or ``.usdc``), Free Bake and undo only drop references, and the files no field
 refers to are deleted when the .blend is saved (those the saved file does not use), when Blender
 leaves the file (open, new, quit: those the file on disk does not use). So undoing Free Bake finds
 its files, undoing a bake leaves nothing behind once the work is saved or left, and a field whose
@@ -35,6 +38,10 @@ from . import animation, owned
 RECORD = "wg_bake"
 MODIFIER = "Windgrass bake"
 ROLES = (owned.ROLE_BLADES, owned.ROLE_CARDS)
+# The formats a bake writes: their file extension and the build option Blender needs for them.
+FORMATS = {"alembic": (".abc", "alembic"), "usd": (".usdc", "usd")}
+FORMAT_NAMES = {"alembic": "Alembic", "usd": "USD"}
+USD_SINCE = (5, 0, 0)  # the oldest Blender whose USD writer samples a moving mesh's extent each frame (tested)
 
 
 class BakeError(WindgrassError):
@@ -98,18 +105,25 @@ def camera_fingerprint(scene) -> str:
     return h.hexdigest()
 
 
-def missing_build_feature() -> str | None:
-    """Why this Blender cannot bake (it was built without Alembic, as Debian's is), or None."""
-    if not getattr(bpy.app.build_options, "alembic", True):
-        return ("bake: this Blender was built without Alembic, the format the bake writes; bake in a Blender "
-                "from blender.org (its builds have Alembic)")
+def missing_build_feature(fmt: str = "alembic") -> str | None:
+    """Why this Blender cannot bake to ``fmt`` (it was built without Alembic, as Debian's is), or
+    None; an unknown format is named with the valid ones."""
+    if fmt not in FORMATS:
+        return f"bake: unknown format {fmt!r} (valid: {', '.join(FORMATS)})"
+    name = FORMAT_NAMES[fmt]
+    if fmt == "usd" and bpy.app.version < USD_SINCE:
+        return ("bake: USD needs Blender 5.0 or later (the USD writer of 4.2 keeps a moving mesh's extent, the "
+                "bounds renderers cull by, at its first frame); bake to Alembic here, or to USD in Blender 5.0+")
+    if not getattr(bpy.app.build_options, FORMATS[fmt][1], True):
+        return (f"bake: this Blender was built without {name}, the format asked for; bake in a Blender "
+                f"from blender.org (its builds have {name})")
     return None
 
 
-def check(scene, item, first: int, last: int) -> Path:
+def check(scene, item, first: int, last: int, fmt: str = "alembic") -> Path:
     """The cache's folder, once everything a bake needs is there; BakeError naming what is not.
     Nothing is written before every check has passed."""
-    missing = missing_build_feature()
+    missing = missing_build_feature(fmt)
     if missing:
         raise BakeError(missing)
     if item.collection is None or not owned.slot_objects(item, owned.ROLE_BLADES) and \
@@ -168,6 +182,24 @@ def _abc_name(name: str) -> str:
     return "".join("_" if c in " .:" else c for c in name)
 
 
+def _usd_name(name: str) -> str:
+    """A name as Blender's USD exporter writes it (a valid identifier: letters, digits and
+    underscores, not starting with a digit)."""
+    out = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in name)
+    return "_" + out if not out or out[0].isdigit() else out
+
+
+def object_path(fmt: str, obj) -> str:
+    """Where a slot object's mesh is in a bake's file (the Mesh Sequence Cache's object path)."""
+    if fmt == "usd":  # under its parents' prims (a slot is the ground's child)
+        chain = [obj.data.name]
+        while obj is not None:
+            chain.append(obj.name)
+            obj = obj.parent
+        return "/root/" + "/".join(_usd_name(name) for name in reversed(chain))
+    return f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
+
+
 class Baker:
     """One bake, step by step: each ``step`` exports one group of slot objects (all the frames)
     into its own Alembic file, so a long bake in the panel shows its progress and can stop between
@@ -178,13 +210,14 @@ class Baker:
     the exporter write every frame. With motion blur forced on meanwhile, each frame carries its
     velocities (Alembic ".velocities"), which the cache gives Cycles back in any Blender."""
 
-    def __init__(self, scene, item, first: int, last: int, digest: str, groups: int = 1):
+    def __init__(self, scene, item, first: int, last: int, digest: str, groups: int = 1, fmt: str = "alembic"):
         """``groups``: how many exports (and files) to split the objects into: more steps to show
         progress and stop between, but each export simulates every frame again and the files
-        share less data (scripts: 1; the panel: a few)."""
-        self.folder = check(scene, item, first, last)
+        share less data (scripts: 1; the panel: a few). ``fmt``: a key of ``FORMATS``."""
+        self.folder = check(scene, item, first, last, fmt)
         free_bake(scene, item)
         self.scene, self.item, self.first, self.last, self.digest = scene, item, int(first), int(last), digest
+        self.fmt = fmt
         objects = _slots(item)
         size = max(1, -(-len(objects) // max(1, int(groups))))
         self.groups = [objects[i:i + size] for i in range(0, len(objects), size)]
@@ -205,18 +238,15 @@ class Baker:
         index = len(self.done)
         if index == len(self.groups):
             return True
-        path = self.folder / f"group_{index:02d}_{self.tag}.abc"
-        partial = path.with_name(f".{path.stem}.partial.abc")
+        extension = FORMATS[self.fmt][0]
+        path = self.folder / f"group_{index:02d}_{self.tag}{extension}"
+        partial = path.with_name(f".{path.stem}.partial{extension}")
         group = bpy.data.collections.new(f".windgrass bake {index}")
         self.scene.collection.children.link(group)
         try:
             for obj in self.groups[index]:
                 group.objects.link(obj)
-            result = bpy.ops.wm.alembic_export(
-                filepath=str(partial), start=self.first, end=self.last, selected=False, collection=group.name,
-                flatten=True, uvs=True, normals=False, face_sets=False, export_hair=False,
-                export_particles=False, as_background_job=False, init_scene_frame_range=False,
-                evaluation_mode="RENDER")
+            result = self._export(partial, group)
             if "FINISHED" not in result or not partial.is_file() or partial.stat().st_size == 0:
                 raise BakeError(f"bake: Blender did not write the cache {path} ({result})")
             os.replace(partial, path)
@@ -229,6 +259,28 @@ class Baker:
                 partial.unlink()
         self.done.append(path)
         return len(self.done) == len(self.groups)
+
+    def _export(self, path: Path, group) -> set:
+        if self.fmt == "alembic":
+            return bpy.ops.wm.alembic_export(
+                filepath=str(path), start=self.first, end=self.last, selected=False, collection=group.name,
+                flatten=True, uvs=True, normals=False, face_sets=False, export_hair=False,
+                export_particles=False, as_background_job=False, init_scene_frame_range=False,
+                evaluation_mode="RENDER")
+        # USD writes the scene's frame range: the bake's for the export. The UV maps keep their
+        # names (the materials read them); each material also as a UsdPreviewSurface.
+        scene, kept = self.scene, (self.scene.frame_start, self.scene.frame_end)
+        scene.frame_start, scene.frame_end = self.first, self.last
+        options = dict(filepath=str(path), collection=group.name, selected_objects_only=False,
+                       export_animation=True, evaluation_mode="RENDER", export_uvmaps=True, rename_uvmaps=False,
+                       export_normals=False, export_materials=True, generate_preview_surface=True,
+                       export_hair=False, export_lights=False, export_cameras=False, relative_paths=True,
+                       export_textures_mode="NEW", export_textures=True)  # (the first is 4.3+'s, the second 4.2's)
+        known = {p.identifier for p in bpy.ops.wm.usd_export.get_rna_type().properties}
+        try:
+            return bpy.ops.wm.usd_export(**{k: v for k, v in options.items() if k in known})
+        finally:
+            scene.frame_start, scene.frame_end = kept
 
     def _restore(self) -> None:
         self.scene.render.use_motion_blur = self.blur
@@ -250,6 +302,9 @@ class Baker:
         for path in self.done:
             path.unlink(missing_ok=True)
         self.done.clear()
+        textures = self.folder / "textures"
+        if textures.is_dir() and not any(self.folder.glob("group_*.usdc")):
+            shutil.rmtree(textures, ignore_errors=True)
         _remove_empty(self.folder)
 
     def finish(self) -> Path:
@@ -267,18 +322,18 @@ class Baker:
             for obj in objects:
                 modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
                 modifier.cache_file = cache
-                modifier.object_path = f"/{_abc_name(obj.name)}/{_abc_name(obj.data.name)}"
+                modifier.object_path = object_path(self.fmt, obj)
                 modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
         self.item[RECORD] = {"folder": bpy.path.relpath(str(self.folder)), "first": self.first, "last": self.last,
                              "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches,
-                             "tag": self.tag}
+                             "tag": self.tag, "format": self.fmt}
         self.scene.frame_set(self.frame)
         return self.folder
 
 
-def bake_field(scene, item, first: int, last: int, digest: str) -> Path:
+def bake_field(scene, item, first: int, last: int, digest: str, fmt: str = "alembic") -> Path:
     """Bake frames ``first``-``last`` in one go, one file (scripts); returns the cache folder."""
-    return Baker(scene, item, first, last, digest).finish()
+    return Baker(scene, item, first, last, digest, fmt=fmt).finish()
 
 
 def free_bake(scene, item) -> bool:
@@ -334,17 +389,21 @@ def bake_root() -> Path | None:
 
 
 def collect_garbage(root: Path | None, keep: set[Path]) -> list[Path]:
-    """Delete the bake files under ``root`` (``<field>/group_*.abc`` and partial files) that are
+    """Delete the bake files under ``root`` (``<field>/group_*.abc`` or ``.usdc`` and partial files) that are
     not in ``keep``, then the folders left empty; returns what was deleted. Plain files only: it
     runs at exit too, when Blender's data may be gone."""
     if root is None or not Path(root).is_dir():
         return []
     gone = []
     for folder in [f for f in Path(root).iterdir() if f.is_dir()]:
-        for path in list(folder.glob("group_*.abc")) + list(folder.glob(".group_*.partial.abc")):
+        for path in [f for ext, _ in FORMATS.values() for f in (*folder.glob(f"group_*{ext}"),
+                                                                 *folder.glob(f".group_*.partial{ext}"))]:
             if path.resolve() not in keep:
                 path.unlink(missing_ok=True)
                 gone.append(path)
+        textures = folder / "textures"  # (the card atlas a USD bake's materials read)
+        if textures.is_dir() and not any(folder.glob("group_*.usdc")):
+            shutil.rmtree(textures, ignore_errors=True)
         _remove_empty(folder)
     return gone
 
@@ -374,8 +433,8 @@ def status(scene, item, digest: str | None) -> str | None:
 
 
 def cache_size(folder: Path) -> int:
-    """Bytes of the Alembic files of a bake."""
-    return sum(f.stat().st_size for f in Path(folder).glob("*.abc"))
+    """Bytes of the cache files of a bake (Alembic or USD)."""
+    return sum(f.stat().st_size for ext, _ in FORMATS.values() for f in Path(folder).glob(f"*{ext}"))
 
 
 def plays_cache(item) -> bool:

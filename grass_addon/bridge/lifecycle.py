@@ -94,7 +94,7 @@ def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     return item.collection
 
 
-def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Baker:
+def start_bake(scene, item, first: int, last: int, groups: int = 1, fmt: str = "alembic") -> bake.Baker:
     """A bake of frames ``first``-``last`` of the field in ``groups`` steps, ready to step
     (``bake.Baker``); BakeError or ParameterError on what prevents it."""
     properties.params_from_settings(item, scene)  # a setting out of range stops here, named
@@ -103,13 +103,13 @@ def start_bake(scene, item, first: int, last: int, groups: int = 1) -> bake.Bake
     rt = resolve(scene, item)
     if item.collection is None or item.collection.get(owned.TOPOLOGY) != rt.topology:
         build_field(scene, item)
-    return bake.Baker(scene, item, first, last, params_digest(scene, item), groups)
+    return bake.Baker(scene, item, first, last, params_digest(scene, item), groups, fmt)
 
 
-def bake_field(scene, item, first: int, last: int):
-    """Bake frames ``first``-``last`` of the field into Alembic caches beside the .blend and play
-    the field from them (``bake.py``); returns the cache folder."""
-    folder = start_bake(scene, item, first, last).finish()
+def bake_field(scene, item, first: int, last: int, fmt: str = "alembic"):
+    """Bake frames ``first``-``last`` of the field into Alembic (or USD: ``fmt``) caches beside
+    the .blend and play the field from them (``bake.py``); returns the cache folder."""
+    folder = start_bake(scene, item, first, last, fmt=fmt).finish()
     write_read_me()
     return folder
 

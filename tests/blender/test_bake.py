@@ -96,23 +96,27 @@ def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path)
     assert np.abs(baked[3] - baked[5]).mean() > 0.003  # the grass moves between frames
 
 
-def test_bake_reports_what_prevents_it(bridge, tmp_path):
+@pytest.mark.parametrize("fmt", ["alembic", "usd"])
+def test_bake_reports_what_prevents_it(bridge, tmp_path, fmt):
+    if fmt == "usd" and bpy.app.version < (5, 0, 0):
+        pytest.skip("USD bakes need Blender 5.0+ (test_usd_bake_on_an_older_blender_says_why checks the sentence)")
     _, _, runtime, _ = bridge
     scene, item = _scene(bridge)
     with pytest.raises(RuntimeError, match="save the .blend first"):
-        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format=fmt)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "f.blend"))
     with pytest.raises(RuntimeError, match=r"frames 1-99 are not within the scene's frames 1-8"):
-        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=99)
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=99, format=fmt)
     camera = scene.camera
     scene.camera = None
     with pytest.raises(RuntimeError, match="no camera"):
-        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format=fmt)
     scene.camera = camera
     (tmp_path / "f_windgrass").write_text("a file where the cache folder goes")
     with pytest.raises(RuntimeError, match="cannot write into"):
-        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3)
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format=fmt)
     assert runtime.bake_status(scene, item) is None  # still live, nothing half-made
+    assert not list(tmp_path.rglob("*.usdc")) and not list(tmp_path.rglob("*.abc"))
 
 
 def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
@@ -147,7 +151,7 @@ def test_a_stopped_bake_leaves_nothing_and_the_grass_live(bridge, tmp_path):
     baker.cancel()
     assert not list((tmp_path / "h_windgrass").rglob("*.abc"))
     assert runtime.bake_status(scene, item) is None
-    assert not any(m.name.startswith("Windgrass") for o in item.collection.objects for m in o.modifiers)
+    assert not any(m.name == "Windgrass bake" for o in item.collection.objects for m in o.modifiers)
     scene.frame_set(6)
     assert runtime.get_runtime(scene, item).frame == 6
 
@@ -188,7 +192,7 @@ def test_a_bake_that_would_fill_the_disk_is_refused_and_writes_nothing(bridge, t
             bpy.ops.windgrass.field_bake(frame_start=1, frame_end=8)
         assert sorted(p.name for p in small.iterdir()) == ["full.blend"]  # no cache folder, no partial file
         assert runtime.bake_status(scene, item) is None
-        assert not any(o.modifiers for o in item.collection.objects)
+        assert not any(m.name == "Windgrass bake" for o in item.collection.objects for m in o.modifiers)
     finally:
         bpy.ops.wm.read_factory_settings(use_empty=True)  # let go of the file before unmounting
         subprocess.run(["umount", str(small)], check=True)
@@ -276,3 +280,158 @@ def test_an_undo_during_a_panel_bake_keeps_nothing(bridge, tmp_path):
         baker.step()
     baker.abandon()
     assert not (tmp_path / "z_windgrass").exists()
+
+
+# --- USD (issue #30): the same bake as time-sampled USD meshes, read with Pixar's own library -----
+
+def _usd():
+    usd = pytest.importorskip("pxr.Usd", reason="usd-core (pip) reads the USD files")
+    from pxr import UsdGeom, UsdValidation
+
+    return usd, UsdGeom, UsdValidation
+
+
+def _usd_bake(bridge, tmp_path, first=1, last=6):
+    if bpy.app.version < (5, 0, 0):
+        pytest.skip("USD bakes need Blender 5.0+ (test_usd_bake_on_an_older_blender_says_why checks the sentence)")
+    scene, item = _scene(bridge)
+    blend = tmp_path / "meadow.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    live = tmp_path / "live.png"
+    scene.frame_set(4)
+    for blur, path in ((True, tmp_path / "live_blur.png"), (False, live)):
+        scene.render.use_motion_blur = blur
+        scene.render.filepath = str(path)
+        bpy.ops.render.render(write_still=True)
+    assert bpy.ops.windgrass.field_bake(frame_start=first, frame_end=last, format="usd") == {"FINISHED"}
+    files = sorted((tmp_path / "meadow_windgrass").rglob("*.usdc"))
+    assert len(files) == 1 and files[0].stat().st_size > 10_000
+    return scene, item, blend, live, files[0]
+
+
+def test_usd_bake_has_a_sample_at_every_frame_with_velocities_and_extents(bridge, tmp_path):
+    """Every frame a sample of points, velocities and extent; as many velocities as points; the
+    extent bounds the points; velocities advanced by one frame predict the next frame's points
+    (better than holding the points still: blades turn about their roots, so a straight step
+    misses by the curvature of their arcs); Pixar's validators find no error."""
+    Usd, UsdGeom, UsdValidation = _usd()
+    scene, item, blend, live, path = _usd_bake(bridge, tmp_path)
+    stage = Usd.Stage.Open(str(path))
+    fps = scene.render.fps / scene.render.fps_base
+    assert stage.GetTimeCodesPerSecond() == pytest.approx(fps)
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    assert sorted(m.GetPrim().GetName() for m in meshes) == sorted(
+        bpy.path.clean_name(o.data.name) for o in item.collection.objects if o.get("wg_role") in ("blades", "cards"))
+    frames = list(range(1, 7))
+    misses, steps = [], []
+    for mesh in meshes:
+        assert list(mesh.GetPointsAttr().GetTimeSamples()) == frames
+        assert list(mesh.GetVelocitiesAttr().GetTimeSamples()) == frames
+        assert list(mesh.GetExtentAttr().GetTimeSamples()) == frames
+        names = {p.GetPrimvarName() for p in UsdGeom.PrimvarsAPI(mesh).GetPrimvars()}
+        assert "UVMap" in names and names & {"wg_tint_rg", "wg_fade"}  # what the materials read
+        for frame in frames:
+            points = np.array(mesh.GetPointsAttr().Get(frame), dtype=np.float64)
+            velocities = np.array(mesh.GetVelocitiesAttr().Get(frame), dtype=np.float64)
+            assert velocities.shape == points.shape
+            lo, hi = np.array(mesh.GetExtentAttr().Get(frame), dtype=np.float64)
+            assert np.all(points >= lo - 1e-6) and np.all(points <= hi + 1e-6)
+            if frame < frames[-1]:
+                after = np.array(mesh.GetPointsAttr().Get(frame + 1), dtype=np.float64)
+                moving = np.linalg.norm(after - points, axis=1) > 1e-5
+                misses.append(np.linalg.norm(after - (points + velocities / fps), axis=1)[moving])
+                steps.append(np.linalg.norm(after - points, axis=1)[moving])
+    miss, step = np.concatenate(misses), np.concatenate(steps)
+    ratio = float(np.median(miss) / np.median(step))
+    print(f"USD velocities: median miss {np.median(miss) * 1e3:.2f} mm of a median step "
+          f"{np.median(step) * 1e3:.2f} mm per frame ({ratio:.2f})")
+    assert ratio < 0.5
+    context = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    errors = [e for e in context.Validate(stage) if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    assert not errors, [e.GetErrorAsString() for e in errors]
+
+
+def test_a_usd_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path):
+    """The saved file plays the USD through Blender's USD reader (Mesh Sequence Cache modifiers,
+    as Blender's own USD import makes them): rendered by a Blender without Windgrass, the frame is
+    the live add-on's."""
+    scene, item, blend, live, path = _usd_bake(bridge, tmp_path)
+    modifiers = [m for o in item.collection.objects for m in o.modifiers if m.type == "MESH_SEQUENCE_CACHE"]
+    assert modifiers and all(m.cache_file.filepath.endswith(".usdc") for m in modifiers)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
+    out = tmp_path / "without"
+    out.mkdir()
+    proc = subprocess.run([sys.executable, "-c", RENDER_WITHOUT_WINDGRASS, str(blend), str(out)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "Could not create cache reader" not in proc.stdout + proc.stderr
+    baked = {f: _pixels(out / f"frame_{f}.png") for f in (3, 4, 5)}
+    assert np.abs(baked[4] - _pixels(live)).mean() < 2.0 / 255.0
+    assert np.abs(baked[3] - baked[5]).mean() > 0.003  # the grass moves between frames
+
+
+IMPORT_USD_WITHOUT_WINDGRASS = textwrap.dedent("""
+    import sys
+    import bpy
+    blend, usd, out = sys.argv[-3], sys.argv[-2], sys.argv[-1]
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    assert "windgrass" not in sys.modules and not hasattr(bpy.types.Scene, "windgrass")
+    grass = [o for o in bpy.data.objects if o.get("wg_role") in ("blades", "cards")]
+    bpy.data.batch_remove(grass)  # the scene without its grass, which comes back from the USD alone
+    bpy.ops.wm.usd_import(filepath=usd, mtl_name_collision_mode="REFERENCE_EXISTING", set_frame_range=False,
+                          import_cameras=False, import_lights=False, create_world_material=False)
+    imported = [o for o in bpy.data.objects if o.type == "MESH" and o.get("wg_role") in ("blades", "cards")]
+    # USD names are identifiers ("Grass blades" is written "Grass_blades"): the shot's own materials
+    # are bound again by their Blender names, as a look file's binding would
+    for obj in imported:
+        for i, mat in enumerate(obj.data.materials):
+            obj.data.materials[i] = bpy.data.materials.get(mat.name.replace("_", " ")) or mat
+    print("imported:", sorted((o.name, [m.name for m in o.data.materials], [u.name for u in o.data.uv_layers],
+                               [m.type for m in o.modifiers]) for o in imported))
+    scene = bpy.context.scene
+    scene.frame_set(4)
+    for blur, name in ((False, "frame_4"), (True, "frame_4_blur")):
+        scene.render.use_motion_blur = blur
+        scene.render.filepath = f"{out}/{name}.png"
+        bpy.ops.render.render(write_still=True)
+""")
+
+
+def test_the_usd_imported_into_a_blender_without_windgrass_renders_the_live_grass(bridge, tmp_path):
+    """Round trip: the scene without its grass, the USD imported by Blender's own importer (the
+    materials found by name, as a shot's look file provides them): frame 4 renders as live."""
+    scene, item, blend, live, path = _usd_bake(bridge, tmp_path)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
+    out = tmp_path / "imported"
+    out.mkdir()
+    proc = subprocess.run([sys.executable, "-c", IMPORT_USD_WITHOUT_WINDGRASS, str(blend), str(path), str(out)],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    frame = _pixels(out / "frame_4.png")
+    assert np.abs(frame - _pixels(live)).mean() < 2.0 / 255.0
+    # motion blur from the USD's velocities: as the live add-on's, and visibly not the sharp frame
+    blurred, live_blurred = _pixels(out / "frame_4_blur.png"), _pixels(tmp_path / "live_blur.png")
+    blur = np.abs(live_blurred - _pixels(live)).mean()
+    assert blur > 0.5 / 255.0
+    assert np.abs(blurred - live_blurred).mean() < min(2.0 / 255.0, 0.25 * blur)
+
+
+def test_usd_bake_on_an_older_blender_says_why_and_writes_nothing(bridge, tmp_path):
+    """Blender 4.2's USD writer keeps a moving mesh's extent at its first frame (renderers cull the
+    grass by it): there a USD bake is a sentence naming what to do, and nothing is written."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "old.blend"))
+    from windgrass.grass_addon.errors import WindgrassError
+
+    with pytest.raises(WindgrassError, match="bake: unknown format 'obj' \\(valid: alembic, usd\\)"):
+        runtime.bake_field(scene, item, 1, 3, fmt="obj")
+    if bpy.app.version >= (5, 0, 0):
+        assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=2, format="usd") == {"FINISHED"}
+        return
+    with pytest.raises(RuntimeError, match="USD needs Blender 5.0 or later.*bake to Alembic here"):
+        bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format="usd")
+    assert runtime.bake_status(scene, item) is None and not (tmp_path / "old_windgrass").exists()

@@ -575,6 +575,25 @@ def test_bake_flag_writes_a_cache_and_a_blend_that_plays_it(env, tiny_config, tm
     assert frames_in(tmp_path) == ["frame_0001.png", "frame_0002.png"]
 
 
+def test_bake_format_usd_writes_a_usd_cache_the_saved_blend_plays(env, tiny_config, tmp_path):
+    import bpy
+
+    if bpy.app.version < (5, 0, 0):
+        proc = render(env, "--config", tiny_config, "--frames", "1-2", "--bake", "--bake-format", "usd",
+                      "--out", tmp_path)
+        assert proc.returncode == 1 and "USD needs Blender 5.0 or later" in proc.stderr
+        assert not list(tmp_path.rglob("*.usdc"))
+        return
+    proc = render(env, "--config", tiny_config, "--frames", "1-2", "--bake", "--bake-format", "usd", "--out",
+                  tmp_path, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    caches = list((tmp_path / "scene_windgrass").rglob("*.usdc"))
+    assert len(caches) == 1 and caches[0].stat().st_size > 1000 and not list(tmp_path.rglob("*.abc"))
+    assert frames_in(tmp_path) == ["frame_0001.png", "frame_0002.png"]
+    bad = render(env, "--config", tiny_config, "--bake", "--bake-format", "obj", "--out", tmp_path / "bad")
+    assert bad.returncode == 2 and "--bake-format" in bad.stderr and "usd" in bad.stderr
+
+
 def test_lod_comparison_script_measures_rows_images_and_flicker(env, tiny_config, tmp_path):
     import json
 

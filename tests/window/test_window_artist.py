@@ -308,3 +308,29 @@ def test_update_motion_samples_a_frame_at_a_time_in_the_window(real_blender):
     assert run.results("op")[-1] == ["RUNNING_MODAL"]
     before, after = run.results("python")[1:]
     assert before == [False, 1] and after == [True, 1]
+
+
+def _field_band(path):
+    """The 3D view's ground below the horizon seen from (0, -30, 6) (RGB 0..1): the cards' band
+    and the far canopy beyond."""
+    image = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
+    return image[380:700, 60:1000]
+
+
+def test_material_preview_reads_as_green_grass_once_its_shaders_are_compiled(real_blender):
+    """Issue #28 item 6: from 20-45 m the cards read as pale specks on dark ground. That is what
+    Material Preview shows while Mesa compiles EEVEE's shaders (about a minute here; the screenshot
+    "compiling" shows it, looked at, not asserted: its length varies); once compiled, the same view
+    of the card band and the far canopy is green grass: no pale specks, no black ground between
+    them. (Its other half, the floor grid over the ground, is Blender's: a plain plane at the grid's
+    height shows it the same; README, Limits.)"""
+    far = {"view": {"look": [[0.0, -30.0, 6.0], [0.0, 5.0, 0.0]]}}
+    steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"}, {"wait": 100.0},
+             {"shot": "compiled"}]
+    run = real_blender.run(steps, timeout=420)
+    run.assert_clean()
+    rgb = _field_band(run.shots / "compiled.png")
+    r, g, b = rgb.mean(axis=(0, 1))
+    assert g > 1.2 * r and g > 1.2 * b, (r, g, b)  # green
+    lum = rgb.mean(axis=2)
+    assert (lum > 0.45).mean() < 0.01 and (lum < 0.02).mean() < 0.05  # no pale specks on black ground

@@ -21,9 +21,15 @@ FIT_MAX_BLOCKS = 256
 
 
 def _field_options() -> dict:
-    """One operator option per [field] parameter, generated from the schema."""
-    return {p.key: properties.make_property(p, default=FIRST_CLICK.get(p.key), update=None, animatable=False)
-            for p in schema.section_params("field")}
+    """One operator option per [field] parameter and view (size, blades per m²), generated from the
+    schema; a view given wins over the parameters it sets."""
+    first = schema.defaults().replace({f"field.{k}": v for k, v in FIRST_CLICK.items()}).to_dict()["field"]
+    views = {v.param.key: properties.make_property(v.param, default=v.read(first), update=None, animatable=False,
+                                                   skip_save=True)  # (a size once typed is not the next Add's)
+             for v in schema.section_views("field")}
+    return {**views, **{p.key: properties.make_property(p, default=FIRST_CLICK.get(p.key), update=None,
+                                                        animatable=False)
+                        for p in schema.section_params("field")}}
 
 
 class WINDGRASS_OT_field_add(bpy.types.Operator):
@@ -51,6 +57,9 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         scene = context.scene
         terrain = self._terrain(context) if self.use_selected_mesh else None
         values = {p.key: getattr(self, p.key) for p in schema.section_params("field")}
+        for view in schema.section_views("field"):  # (the redo panel's Size X/Y and Blades)
+            if self.properties.is_property_set(view.param.key):
+                values.update(view.write(values, getattr(self, view.param.key)))
         if terrain is not None:
             values.update(self._fit_to(terrain, values))
         params = schema.defaults().replace({f"field.{k}": v for k, v in values.items()})
@@ -91,10 +100,20 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
                                  "a mesh of your own to grow the grass on")
         return obj
 
+    def draw(self, context):
+        """The redo panel: what an artist decides (size, density, seed); the blocks and cells that
+        give them are the field's Advanced settings."""
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        for key in [v.param.key for v in schema.section_views("field")] + ["seed", "use_selected_mesh"]:
+            layout.prop(self, key)
+
     def _fit_to(self, terrain, values: dict) -> dict:
         """blocks_x/blocks_y covering the terrain's XY extent (world bounding box) with the cell
         size kept, when not given; at least 1, at most FIT_MAX_BLOCKS blocks in all."""
-        if self.properties.is_property_set("blocks_x") or self.properties.is_property_set("blocks_y"):
+        given = ("blocks_x", "blocks_y", "size_x", "size_y")
+        if any(self.properties.is_property_set(key) for key in given):
             return {}
         corners = [terrain.matrix_world @ Vector(c) for c in terrain.bound_box]
         extent = (max(c.x for c in corners) - min(c.x for c in corners),

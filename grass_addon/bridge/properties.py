@@ -174,7 +174,7 @@ def _on_update(self: bpy.types.PropertyGroup, context: Any) -> None:
 
 
 def make_property(p: schema.Param, default: Any = None, update: Any = _on_update,
-                  animatable: bool | None = None) -> Any:
+                  animatable: bool | None = None, skip_save: bool = False) -> Any:
     """The ``bpy.props`` definition of one schema parameter (used by operators too).
 
     ``default`` overrides the schema default (in schema units). Table parameters need their
@@ -186,7 +186,7 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
         kw["update"] = update
     if animatable is None:
         animatable = p.name in ANIMATED
-    kw["options"] = {"ANIMATABLE"} if animatable else set()
+    kw["options"] = ({"ANIMATABLE"} if animatable else set()) | ({"SKIP_SAVE"} if skip_save else set())
     limits = {}
     for arg, limit in (("min", p.minimum), ("max", p.maximum),
                        ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),

@@ -106,3 +106,18 @@ def test_the_size_line_follows_the_scenes_unit_system(with_bridge):
     scene.unit_settings.system = "METRIC"
     scene.unit_settings.scale_length = 0.01  # a scene in centimetres
     assert length_text(scene, 12.8) == "12.8 cm"
+
+
+def test_add_takes_the_size_in_metres_and_blades_per_square_metre(with_bridge):
+    """The Add operator's redo panel speaks the same words: Size X/Y and Blades (per m²), the
+    nearest whole blocks and blades per cell; Blocks X/Y still work for scripts."""
+    assert bpy.ops.windgrass.field_add(size_x=8.0, size_y=3.0, density=300.0) == {"FINISHED"}
+    item = bpy.context.scene.windgrass.fields[-1]
+    assert (item.field.blocks_x, item.field.blocks_y, item.field.blades_per_cell) == (5, 2, 3)  # 1.6 m blocks
+    assert item.field.size_x == pytest.approx(8.0) and item.field.size_y == pytest.approx(3.2)
+    ground = _ground(item)
+    bpy.context.view_layer.update()
+    assert ground.dimensions.x == pytest.approx(8.0, abs=1e-4) and ground.dimensions.y == pytest.approx(3.2, abs=1e-4)
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}  # the first click: 12.8 m, 200 blades per m²
+    item = bpy.context.scene.windgrass.fields[-1]
+    assert item.field.size_x == pytest.approx(12.8) and item.field.density == pytest.approx(200.0)

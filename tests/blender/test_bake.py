@@ -286,9 +286,9 @@ def test_an_undo_during_a_panel_bake_keeps_nothing(bridge, tmp_path):
 
 def _usd():
     usd = pytest.importorskip("pxr.Usd", reason="usd-core (pip) reads the USD files")
-    from pxr import UsdGeom, UsdValidation
+    from pxr import UsdGeom, UsdShade, UsdValidation
 
-    return usd, UsdGeom, UsdValidation
+    return usd, UsdGeom, UsdShade, UsdValidation
 
 
 def _usd_bake(bridge, tmp_path, first=1, last=6):
@@ -314,7 +314,7 @@ def test_usd_bake_has_a_sample_at_every_frame_with_velocities_and_extents(bridge
     extent bounds the points; velocities advanced by one frame predict the next frame's points
     (better than holding the points still: blades turn about their roots, so a straight step
     misses by the curvature of their arcs); Pixar's validators find no error."""
-    Usd, UsdGeom, UsdValidation = _usd()
+    Usd, UsdGeom, UsdShade, UsdValidation = _usd()
     scene, item, blend, live, path = _usd_bake(bridge, tmp_path)
     stage = Usd.Stage.Open(str(path))
     fps = scene.render.fps / scene.render.fps_base
@@ -331,6 +331,10 @@ def test_usd_bake_has_a_sample_at_every_frame_with_velocities_and_extents(bridge
         assert list(mesh.GetExtentAttr().GetTimeSamples()) == frames
         names = {p.GetPrimvarName() for p in UsdGeom.PrimvarsAPI(mesh).GetPrimvars()}
         assert "UVMap" in names and names & {"wg_tint_rg", "wg_fade"}  # what the materials read
+        assert "displayColor" in names  # the materials' colour, for any renderer
+        material = UsdShade.MaterialBindingAPI(mesh.GetPrim()).ComputeBoundMaterial()[0]
+        shaders = [UsdShade.Shader(p) for p in Usd.PrimRange(material.GetPrim()) if p.IsA(UsdShade.Shader)]
+        assert any(s.GetIdAttr().Get() == "UsdPreviewSurface" for s in shaders)
         for frame in frames:
             points = np.array(mesh.GetPointsAttr().Get(frame), dtype=np.float64)
             velocities = np.array(mesh.GetVelocitiesAttr().Get(frame), dtype=np.float64)

@@ -84,3 +84,23 @@ def test_ctrl_z_after_a_rebuild_that_failed_does_not_crash(real_blender):
     assert error and "paint.length" in error and "terrain" in error  # a hidden field says why
     last = run.results("check")[-1]["fields"][0]
     assert last["error"] is None and last["vertices_shown"] > 0  # the length cleared: grass again
+
+
+def test_undo_and_redo_of_the_size_density_and_stiffness_handles(real_blender):
+    """The panel's Size X, Blades (per m²) and Stiffness write the settings they stand for: each
+    edit is one undo step in the window, and undo and redo bring the grass of each state back."""
+    read = ("f = bpy.context.scene.windgrass.fields[0]\n"
+            "result = [f.field.blocks_x, f.field.blades_per_cell, round(f.blade.root_stiffness, 6), "
+            "round(f.field.size_x, 3)]")
+    steps = [{"select": None}, {"op": "windgrass.field_add", "args": {"blocks_x": 4, "blocks_y": 4}}, *CHECK,
+             {"set": "windgrass.fields[0].field.size_x", "value": 9.6}, *CHECK,
+             {"set": "windgrass.fields[0].field.density", "value": 300.0}, *CHECK,
+             {"set": "windgrass.fields[0].blade.stiffness", "value": 0.0}, *CHECK, {"python": read},
+             {"key": "ctrl+z"}, *CHECK, {"key": "ctrl+z"}, *CHECK, {"key": "ctrl+z"}, *CHECK, {"python": read},
+             {"key": "ctrl+shift+z"}, *CHECK, {"key": "ctrl+shift+z"}, *CHECK, {"key": "ctrl+shift+z"}, *CHECK,
+             {"python": read}]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    edited, undone, redone = run.results("python")
+    assert edited == [6, 3, 0.0001, 9.6] and redone == edited  # 9.6 m = 6 blocks of 1.6 m, 300 /m² = 3 a cell
+    assert undone == [4, 2, 0.0008, 6.4]

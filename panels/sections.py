@@ -142,45 +142,38 @@ def draw_section(layout, context, item, section: str) -> None:
                 "frame range rule", icon="INFO")
 
 
-def _panel(section: str) -> type:
-    def draw(self, context):
-        item = properties.active_field(context.scene)
-        draw_section(self.layout, context, item, section)
-
-    return type(f"WINDGRASS_PT_{section}", (bpy.types.Panel,), {
-        "bl_label": LABELS.get(section, section.capitalize()),
-        "bl_idname": f"WINDGRASS_PT_{section}",
+def _panel_type(idname: str, label: str, parent: str, closed: bool, draw) -> type:
+    """A sub-panel of the Grass tab shown while a field is selected."""
+    return type(idname, (bpy.types.Panel,), {
+        "bl_label": label,
+        "bl_idname": idname,
         "bl_space_type": "VIEW_3D",
         "bl_region_type": "UI",
         "bl_category": CATEGORY,
-        "bl_parent_id": WINDGRASS_PT_main.bl_idname,
-        "bl_options": {"DEFAULT_CLOSED"} if section in HEADLESS else set(),
+        "bl_parent_id": parent,
+        "bl_options": {"DEFAULT_CLOSED"} if closed else set(),
         "poll": classmethod(lambda cls, context: context.scene is not None
                             and properties.active_field(context.scene) is not None),
         "draw": draw,
     })
+
+
+def _panel(section: str) -> type:
+    def draw(self, context):
+        draw_section(self.layout, context, properties.active_field(context.scene), section)
+
+    return _panel_type(f"WINDGRASS_PT_{section}", LABELS.get(section, section.capitalize()),
+                       WINDGRASS_PT_main.bl_idname, section in HEADLESS, draw)
 
 
 def _advanced_panel(section: str) -> type:
     """The section's physical parameters, collapsed (as Blender's cloth and hair panels do)."""
 
     def draw(self, context):
-        item = properties.active_field(context.scene)
         params = [p for p in schema.blender_params(section) if p.advanced]
-        draw_params(self.layout, context, properties.group(item, section), params)
+        draw_params(self.layout, context, properties.group(properties.active_field(context.scene), section), params)
 
-    return type(f"WINDGRASS_PT_{section}_advanced", (bpy.types.Panel,), {
-        "bl_label": "Advanced",
-        "bl_idname": f"WINDGRASS_PT_{section}_advanced",
-        "bl_space_type": "VIEW_3D",
-        "bl_region_type": "UI",
-        "bl_category": CATEGORY,
-        "bl_parent_id": f"WINDGRASS_PT_{section}",
-        "bl_options": {"DEFAULT_CLOSED"},
-        "poll": classmethod(lambda cls, context: context.scene is not None
-                            and properties.active_field(context.scene) is not None),
-        "draw": draw,
-    })
+    return _panel_type(f"WINDGRASS_PT_{section}_advanced", "Advanced", f"WINDGRASS_PT_{section}", True, draw)
 
 
 ADVANCED = tuple(s for s in schema.SECTIONS if any(p.advanced for p in schema.blender_params(s)))

@@ -64,6 +64,18 @@ RENDER_WITHOUT_WINDGRASS = textwrap.dedent("""
 """)
 
 
+def _without_windgrass(tmp_path, script: str, *args, out: str = "without"):
+    """Run ``script`` in a fresh Python with Blender and no Windgrass (its own user folder) with
+    ``args`` and an empty output folder last; returns (process, output folder)."""
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
+    folder = tmp_path / out
+    folder.mkdir()
+    proc = subprocess.run([sys.executable, "-c", script, *map(str, args), str(folder)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return proc, folder
+
+
 def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path):
     _, _, runtime, _ = bridge
     scene, item = _scene(bridge)
@@ -84,12 +96,7 @@ def test_a_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path)
     assert "Baked frames 1-6" in status and "stale" not in status
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
 
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
-    out = tmp_path / "without"
-    out.mkdir()
-    proc = subprocess.run([sys.executable, "-c", RENDER_WITHOUT_WINDGRASS, str(blend), str(out)], env=env,
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    proc, out = _without_windgrass(tmp_path, RENDER_WITHOUT_WINDGRASS, blend)
     assert "read me: This file has grass fields of the Windgrass extension" in proc.stdout
     baked = {f: _pixels(out / f"frame_{f}.png") for f in (3, 4, 5)}
     assert np.abs(baked[4] - _pixels(live)).mean() < 2.0 / 255.0
@@ -364,12 +371,7 @@ def test_a_usd_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_p
     modifiers = [m for o in item.collection.objects for m in o.modifiers if m.type == "MESH_SEQUENCE_CACHE"]
     assert modifiers and all(m.cache_file.filepath.endswith(".usdc") for m in modifiers)
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
-    out = tmp_path / "without"
-    out.mkdir()
-    proc = subprocess.run([sys.executable, "-c", RENDER_WITHOUT_WINDGRASS, str(blend), str(out)], env=env,
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    proc, out = _without_windgrass(tmp_path, RENDER_WITHOUT_WINDGRASS, blend)
     assert "Could not create cache reader" not in proc.stdout + proc.stderr
     baked = {f: _pixels(out / f"frame_{f}.png") for f in (3, 4, 5)}
     assert np.abs(baked[4] - _pixels(live)).mean() < 2.0 / 255.0
@@ -408,12 +410,7 @@ def test_the_usd_imported_into_a_blender_without_windgrass_renders_the_live_gras
     materials found by name, as a shot's look file provides them): frame 4 renders as live."""
     scene, item, blend, live, path = _usd_bake(bridge, tmp_path)
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"), HOME=str(tmp_path))
-    out = tmp_path / "imported"
-    out.mkdir()
-    proc = subprocess.run([sys.executable, "-c", IMPORT_USD_WITHOUT_WINDGRASS, str(blend), str(path), str(out)],
-                          env=env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    proc, out = _without_windgrass(tmp_path, IMPORT_USD_WITHOUT_WINDGRASS, blend, path, out="imported")
     frame = _pixels(out / "frame_4.png")
     assert np.abs(frame - _pixels(live)).mean() < 2.0 / 255.0
     # motion blur from the USD's velocities: as the live add-on's, and visibly not the sharp frame

@@ -39,6 +39,10 @@ def collect(group, where, inset):
         else:
             labels[where + '.' + prop.identifier] = (prop.name, inset)
 collect(item, 'field', 0)
+schema = bridge('properties').schema
+for p in schema.PARAMS:  # a vector drawn number by number: the labels the panel gives them
+    for i, part in enumerate(p.components):
+        labels[f'{p.name}[{i}]'] = (f'{p.ui_name} {part}' if i == 0 else part, 0)
 # the label column: 40 % of the row (the sidebar less 3 UI units of panel margins and the keyframe
 # dots' column), less one UI unit of text margins; a box (a table's selected row) takes half a unit
 room = lambda inset: 0.4 * (ui.width - 3.0 * unit - inset * 0.5 * unit) - unit

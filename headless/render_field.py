@@ -125,8 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     job.add_argument("--bake", action="store_true",
                      help="bake the grass of the frames into OUT/scene_windgrass/ (Alembic, or USD: "
                           "--bake-format) and save OUT/scene.blend playing it: that file renders the grass in a "
-                          "Blender without "
-                          "Windgrass; the frames are then rendered from the bake")
+                          "Blender without Windgrass; the frames are then rendered from the bake")
     job.add_argument("--bake-format", choices=("alembic", "usd"), default="alembic",
                      help="what --bake writes: Alembic (.abc, the default) or USD (.usdc: time-sampled points, "
                           "velocities and extents for renderers outside Blender); scene.blend plays either")

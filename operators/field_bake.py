@@ -100,7 +100,7 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         frames = self.frame_end - self.frame_start + 1
         size = bake.cache_size(folder)
         self.report({"INFO"}, f"Baked '{item.name}' frames {self.frame_start}-{self.frame_end} into {folder.name}/ "
-                              f"({bake.FORMAT_NAMES[self.format]}, {size / frames / 1e6:.2f} MB per frame)")
+                              f"({bake.FORMATS[self.format][2]}, {size / frames / 1e6:.2f} MB per frame)")
 
     @reported
     def execute(self, context):

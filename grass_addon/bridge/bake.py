@@ -38,9 +38,8 @@ from . import animation, owned
 RECORD = "wg_bake"
 MODIFIER = "Windgrass bake"
 ROLES = (owned.ROLE_BLADES, owned.ROLE_CARDS)
-# The formats a bake writes: their file extension and the build option Blender needs for them.
-FORMATS = {"alembic": (".abc", "alembic"), "usd": (".usdc", "usd")}
-FORMAT_NAMES = {"alembic": "Alembic", "usd": "USD"}
+# The formats a bake writes: (file extension, the build option Blender needs, the name shown).
+FORMATS = {"alembic": (".abc", "alembic", "Alembic"), "usd": (".usdc", "usd", "USD")}
 USD_SINCE = (5, 0, 0)  # the oldest Blender whose USD writer samples a moving mesh's extent each frame (tested)
 
 
@@ -110,11 +109,13 @@ def missing_build_feature(fmt: str = "alembic") -> str | None:
     None; an unknown format is named with the valid ones."""
     if fmt not in FORMATS:
         return f"bake: unknown format {fmt!r} (valid: {', '.join(FORMATS)})"
-    name = FORMAT_NAMES[fmt]
+    _, option, name = FORMATS[fmt]
     if fmt == "usd" and bpy.app.version < USD_SINCE:
-        return ("bake: USD needs Blender 5.0 or later (the USD writer of 4.2 keeps a moving mesh's extent, the "
-                "bounds renderers cull by, at its first frame); bake to Alembic here, or to USD in Blender 5.0+")
-    if not getattr(bpy.app.build_options, FORMATS[fmt][1], True):
+        since = f"{USD_SINCE[0]}.{USD_SINCE[1]}"
+        return (f"bake: USD needs Blender {since} or later (the USD writer of 4.2 keeps a moving mesh's extent, "
+                f"the bounds renderers cull by, at its first frame); bake to Alembic here, or to USD in Blender "
+                f"{since}+")
+    if not getattr(bpy.app.build_options, option, True):
         return (f"bake: this Blender was built without {name}, the format asked for; bake in a Blender "
                 f"from blender.org (its builds have {name})")
     return None
@@ -302,9 +303,6 @@ class Baker:
         for path in self.done:
             path.unlink(missing_ok=True)
         self.done.clear()
-        textures = self.folder / "textures"
-        if textures.is_dir() and not any(self.folder.glob("group_*.usdc")):
-            shutil.rmtree(textures, ignore_errors=True)
         _remove_empty(self.folder)
 
     def finish(self) -> Path:
@@ -396,20 +394,21 @@ def collect_garbage(root: Path | None, keep: set[Path]) -> list[Path]:
         return []
     gone = []
     for folder in [f for f in Path(root).iterdir() if f.is_dir()]:
-        for path in [f for ext, _ in FORMATS.values() for f in (*folder.glob(f"group_*{ext}"),
-                                                                 *folder.glob(f".group_*.partial{ext}"))]:
+        for path in [f for ext, *_ in FORMATS.values() for f in (*folder.glob(f"group_*{ext}"),
+                                                                  *folder.glob(f".group_*.partial{ext}"))]:
             if path.resolve() not in keep:
                 path.unlink(missing_ok=True)
                 gone.append(path)
-        textures = folder / "textures"  # (the card atlas a USD bake's materials read)
-        if textures.is_dir() and not any(folder.glob("group_*.usdc")):
-            shutil.rmtree(textures, ignore_errors=True)
         _remove_empty(folder)
     return gone
 
 
 def _remove_empty(folder: Path) -> None:
-    """The field's folder, then ``<blend>_windgrass``, when they hold nothing."""
+    """The field's folder, then ``<blend>_windgrass``, when they hold nothing; the card atlas a USD
+    bake writes beside its files (``textures/``) goes first when no USD file is left to read it."""
+    textures = Path(folder) / "textures"
+    if textures.is_dir() and not any(Path(folder).glob("group_*.usdc")):
+        shutil.rmtree(textures, ignore_errors=True)
     for empty in (Path(folder), Path(folder).parent):
         if empty.is_dir() and not any(empty.iterdir()):
             empty.rmdir()
@@ -434,7 +433,7 @@ def status(scene, item, digest: str | None) -> str | None:
 
 def cache_size(folder: Path) -> int:
     """Bytes of the cache files of a bake (Alembic or USD)."""
-    return sum(f.stat().st_size for ext, _ in FORMATS.values() for f in Path(folder).glob(f"*{ext}"))
+    return sum(f.stat().st_size for ext, *_ in FORMATS.values() for f in Path(folder).glob(f"*{ext}"))
 
 
 def plays_cache(item) -> bool:

@@ -173,6 +173,14 @@ def _on_update(self: bpy.types.PropertyGroup, context: Any) -> None:
         notify(fields[index])
 
 
+def _limits(p: schema.Param) -> dict[str, float]:
+    """The parameter's min, max and soft limits (a soft one missing is the hard one), in schema units."""
+    pairs = (("min", p.minimum), ("max", p.maximum),
+             ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),
+             ("soft_max", p.soft_max if p.soft_max is not None else p.maximum))
+    return {arg: limit for arg, limit in pairs if limit is not None}
+
+
 def make_property(p: schema.Param, default: Any = None, update: Any = _on_update,
                   animatable: bool | None = None, skip_save: bool = False) -> Any:
     """The ``bpy.props`` definition of one schema parameter (used by operators too).
@@ -187,12 +195,7 @@ def make_property(p: schema.Param, default: Any = None, update: Any = _on_update
     if animatable is None:
         animatable = p.name in ANIMATED
     kw["options"] = ({"ANIMATABLE"} if animatable else set()) | ({"SKIP_SAVE"} if skip_save else set())
-    limits = {}
-    for arg, limit in (("min", p.minimum), ("max", p.maximum),
-                       ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),
-                       ("soft_max", p.soft_max if p.soft_max is not None else p.maximum)):
-        if limit is not None:
-            limits[arg] = limit
+    limits = _limits(p)
     if p.kind == "int":
         subtype = {"subtype": "PIXEL"} if p.unit == "px" else {}
         return bpy.props.IntProperty(default=int(value), **{k: int(v) for k, v in limits.items()}, **subtype, **kw)
@@ -286,9 +289,7 @@ def _view_property(view: schema.View) -> Any:
             if from_blender(q, getattr(settings, key)) != new:
                 setattr(settings, key, to_blender(q, new))
 
-    limits = {arg: to_blender(p, float(v)) for arg, v in (("min", p.minimum), ("max", p.maximum),
-              ("soft_min", p.soft_min if p.soft_min is not None else p.minimum),
-              ("soft_max", p.soft_max if p.soft_max is not None else p.maximum)) if v is not None}
+    limits = {arg: to_blender(p, float(v)) for arg, v in _limits(p).items()}
     return bpy.props.FloatProperty(name=ui_label(p), description=description(p), get=get, set=set_,
                                    options=set(), precision=view.digits, **limits,
                                    **_float_subtype(p))

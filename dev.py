@@ -29,7 +29,6 @@ OLDEST = (ROOT / ".venv-4.2", ROOT / "requirements-blender-4.2.txt")
 # A real Blender with its window for tests/window: Debian 13's Blender 4.3 in a Debian 13 root made
 # with debootstrap (Debian 12 ships Blender 3.4), on a virtual screen (Xvfb, Mesa's software GL).
 TRIXIE = Path(os.environ.get("WINDGRASS_TRIXIE", Path.home() / ".cache" / "windgrass" / "trixie"))
-TRIXIE_MIRROR = "http://deb.debian.org/debian"
 TRIXIE_PACKAGES = ("blender", "python3-numpy", "xvfb", "xauth", "xdotool", "x11-apps", "netpbm")
 
 
@@ -93,7 +92,7 @@ def ensure_real_blender() -> Path | None:
     if not (TRIXIE / "usr" / "bin" / "apt-get").exists():
         shutil.rmtree(TRIXIE, ignore_errors=True)
         TRIXIE.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.check_call(["debootstrap", "--variant=minbase", "trixie", str(TRIXIE), TRIXIE_MIRROR],
+        subprocess.check_call(["debootstrap", "--variant=minbase", "trixie", str(TRIXIE)],
                               stdout=subprocess.DEVNULL)
     shutil.copy2("/etc/resolv.conf", TRIXIE / "etc" / "resolv.conf")
     env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "DEBIAN_FRONTEND": "noninteractive", "LANG": "C.UTF-8"}

@@ -20,7 +20,7 @@ from pathlib import Path
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, owned, properties
+from . import bake, floor, owned, properties
 from . import camera as field_camera
 from . import scene as field_scene
 from .edits import flush_pending, mark_dirty, painting, refresh_later
@@ -68,7 +68,9 @@ def on_render_post(scene, *_args):
 
 def watch_views() -> float | None:
     """Timer (the UI only): the 3D views moved (orbit, zoom, pan, another view) without a frame
-    change or a data edit, so no handler runs: redo each field's LOD and window for them."""
+    change or a data edit, so no handler runs: redo each field's LOD and window for them. Views
+    that start or stop drawing grass with EEVEE turn the floor grid off or back on (``floor.py``)."""
+    floor.follow_views()
     if not REGISTRY.fields or field_camera.rendering():
         return VIEW_POLL_S  # renders use the scene camera
     windows = bpy.context.window_manager.windows
@@ -222,7 +224,9 @@ def _live_fields():
 def on_save_pre(*_args):
     """A live field is saved as its settings, ground and materials: its slot meshes are emptied
     for the write (a 12.8 m field's slots are tens of MB) and filled again after it (on_save_post,
-    and on load in a reopened file). A bake keeps its meshes: they carry the cache."""
+    and on load in a reopened file). A bake keeps its meshes: they carry the cache. The 3D views'
+    floor grids are saved as the artist set them."""
+    floor.give_back(keep=True)
     for scene, item in _live_fields():
         try:
             field_scene.clear_slots(item)
@@ -236,6 +240,7 @@ def on_save_pre(*_args):
 def on_save_post(*_args):
     """After a save: the slot meshes get their quads and the current frame back; bake files the
     saved file does not refer to are deleted (an undone bake, a freed one)."""
+    floor.take_again()
     for scene, item in _live_fields():
         guarded(_refill, scene, item)
     REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
@@ -313,4 +318,5 @@ def unregister() -> None:
             bpy.app.timers.unregister(timer)
     properties.on_edit = None
     atexit.unregister(_at_exit)
+    floor.give_back(keep=False)
     REGISTRY.clear()

@@ -12,7 +12,10 @@ full effect). The settings mean what they mean in Blender:
   angle from Z in degrees;
 * wind: along the field's Z axis; force: along ``v`` (positive strength pushes away); vortex:
   around the Z axis, ``Z x v`` (positive strength turns counter-clockwise seen from +Z);
-  turbulence: a noise vector field of eddies ``size`` (fixed to the field, as Blender's);
+  turbulence: Blender's noise vector field, fixed to the field: each component three octaves of
+  Perlin's improved noise at the point's offset from the field plus its Z axis, over ``size``
+  (0: 1 m, as Blender); in Blender the bridge hands in Blender's own noise (``turbulence=``), else
+  ``perlin`` stands in: the same noise with Windgrass's own permutation;
 * noise: the strength changes randomly by up to ``noise`` times it (smoothly, a few times a second).
 
 The effectors at time t come from a track (``SampledEffectors``: Blender's, once per frame) or
@@ -96,9 +99,10 @@ class SampledEffectors:
     """Effectors sampled at ``times`` (ascending; Blender's, once per frame): those of the
     sample nearest to t (an effector switched off at a sample is absent from it)."""
 
-    def __init__(self, times, samples):
+    def __init__(self, times, samples, turbulence=None):
         self.times = np.asarray(times, np.float64)
         self.samples = [list(s) for s in samples]
+        self.turbulence = turbulence  # Blender's noise of a Turbulence (turbulence_vector's arguments), or None
 
     def at(self, t: float) -> list[Effector]:
         if not len(self.times):
@@ -111,6 +115,7 @@ class JoinedEffectors:
 
     def __init__(self, *sources):
         self.sources = sources
+        self.turbulence = next((t for t in (getattr(s, "turbulence", None) for s in sources) if t), None)
 
     def at(self, t: float) -> list[Effector]:
         return [e for s in self.sources for e in s.at(t)]
@@ -197,8 +202,61 @@ def value_noise(p: np.ndarray, seed: int) -> np.ndarray:
     return out
 
 
-def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
-    """(m, 3) the force field's push at ``points`` at time ``t``, in m/s of wind."""
+# Perlin's improved noise (2002): a permutation of 0..255 (twice, so that indices need no wrap)
+# hashes the lattice corners to one of 12 gradient directions (16 cases), blended by the quintic fade.
+_PERMUTATION = np.tile(np.random.default_rng(0x7E4B).permutation(256), 2).astype(np.int64)
+TURBULENCE_OCTAVES = 3  # Blender's turbulence field: octaves 1, 2, 4 at amplitudes 1, 1/2, 1/4
+
+
+def _gradient(h: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Perlin's grad(): the dot product of corner offset (x, y, z) with the gradient ``h & 15``."""
+    h = h & 15
+    u = np.where(h < 8, x, y)
+    v = np.where(h < 4, y, np.where((h == 12) | (h == 14), x, z))
+    return np.where(h & 1, -u, u) + np.where(h & 2, -v, v)
+
+
+def perlin(p: np.ndarray) -> np.ndarray:
+    """(m,) Perlin's improved noise of points (m, 3): about -1..1, 0 on the integer lattice."""
+    base = np.floor(p)
+    x, y, z = (p - base).T
+    fx, fy, fz = ((f * f * f * (f * (f * 6.0 - 15.0) + 10.0)) for f in (x, y, z))
+    i = base.astype(np.int64) & 255
+    P = _PERMUTATION
+    a, b = P[i[:, 0]] + i[:, 1], P[i[:, 0] + 1] + i[:, 1]
+    aa, ab, ba, bb = P[a] + i[:, 2], P[a + 1] + i[:, 2], P[b] + i[:, 2], P[b + 1] + i[:, 2]
+
+    def lerp(t, lo, hi):
+        return lo + t * (hi - lo)
+
+    near = lerp(fy, lerp(fx, _gradient(P[aa], x, y, z), _gradient(P[ba], x - 1, y, z)),
+                lerp(fx, _gradient(P[ab], x, y - 1, z), _gradient(P[bb], x - 1, y - 1, z)))
+    far = lerp(fy, lerp(fx, _gradient(P[aa + 1], x, y, z - 1), _gradient(P[ba + 1], x - 1, y, z - 1)),
+               lerp(fx, _gradient(P[ab + 1], x, y - 1, z - 1), _gradient(P[bb + 1], x - 1, y - 1, z - 1)))
+    return lerp(fz, near, far)
+
+
+def turbulence_vector(q: np.ndarray, noise=perlin) -> np.ndarray:
+    """(m, 3) Blender's turbulence at the offsets ``q`` (m, 3) already over the eddy size: each
+    component the octaves of ``noise`` at (x, y, z), (y, z, x) and (z, x, y), averaged by amplitude."""
+    out = np.zeros((len(q), 3))
+    for k, order in enumerate(((0, 1, 2), (1, 2, 0), (2, 0, 1))):
+        turned = q[:, order]
+        for octave in range(TURBULENCE_OCTAVES):
+            out[:, k] += 0.5 ** octave * noise(turned * 2.0 ** octave)
+    return out / sum(0.5 ** octave for octave in range(TURBULENCE_OCTAVES))
+
+
+def turbulence_offsets(e: Effector, points: np.ndarray) -> np.ndarray:
+    """Where Blender reads its turbulence noise for ``points``: their offset from the field's centre
+    plus its Z axis, over the eddy size (a size of 0, as Add > Force Field gives it, is 1 m)."""
+    axis = e.matrix[:3, 2] / max(np.linalg.norm(e.matrix[:3, 2]), 1e-12)
+    return (points - e.matrix[:3, 3] + axis) / (e.size if e.size > 0.0 else 1.0)
+
+
+def force(e: Effector, points: np.ndarray, t: float, turbulence=turbulence_vector) -> np.ndarray:
+    """(m, 3) the force field's push at ``points`` at time ``t``, in m/s of wind; ``turbulence``:
+    the noise field of a Turbulence (``turbulence_vector``'s arguments; Blender's in Blender)."""
     geometry = _geometry(e, points)
     vec, distance, axis, _ = geometry
     share = falloff(e, points, geometry)
@@ -216,8 +274,7 @@ def force(e: Effector, points: np.ndarray, t: float) -> np.ndarray:
         turn = _cross(axis, vec)
         direction = turn / np.maximum(np.linalg.norm(turn, axis=1), 1e-9)[:, None]
     else:  # turbulence: noise fixed to the field
-        local = (points - e.matrix[:3, 3]) / max(e.size, 1e-6)
-        direction = np.column_stack([value_noise(local, e.seed + k) for k in range(3)])
+        direction = turbulence(turbulence_offsets(e, points))
     return direction * (strength * share)[:, None]
 
 
@@ -248,6 +305,7 @@ class ForcedWind:
     def __init__(self, wind, effectors):
         self.wind = wind
         self.effectors = effectors
+        self.turbulence = getattr(effectors, "turbulence", None) or turbulence_vector
         self._kept = None
 
     def __getattr__(self, name):
@@ -261,11 +319,11 @@ class ForcedWind:
             for e in active:
                 reach = _reach(e)
                 if reach is None:
-                    out += force(e, points, t)[:, :2].astype(np.float32)
+                    out += force(e, points, t, self.turbulence)[:, :2].astype(np.float32)
                     continue
                 near = _within(points, e.matrix[:3, 3], reach)  # only these cells can feel it
                 if len(near):
-                    out[near] += force(e, points[near], t)[:, :2].astype(np.float32)
+                    out[near] += force(e, points[near], t, self.turbulence)[:, :2].astype(np.float32)
         return out
 
     def _points(self, layout) -> np.ndarray:

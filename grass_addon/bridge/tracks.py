@@ -258,6 +258,35 @@ def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
         **{key: kind(getattr(f, name, default)) for key, name, kind, default in FIELD_SETTINGS})
 
 
+def _blender_perlin(p: np.ndarray) -> np.ndarray:
+    """(m,) Blender's own improved Perlin noise (the noise its Turbulence field reads) of points (m, 3)."""
+    from mathutils import noise
+
+    return np.fromiter((noise.noise(v, noise_basis="PERLIN_NEW") for v in p.tolist()), np.float64, len(p))
+
+
+class BlenderTurbulence:
+    """``forces.turbulence_vector`` with Blender's noise: a Turbulence acts on the grass as on
+    Blender's particles. Blender's noise is read a point at a time (about 1 us): a still
+    Turbulence is read at the same cells every step, so the last few answers are kept."""
+
+    KEEP = 4
+
+    def __init__(self):
+        self._answers: dict[bytes, np.ndarray] = {}
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(q, np.float64)
+        key = hashlib.sha1(q.tobytes()).digest()
+        found = self._answers.get(key)
+        if found is None:
+            found = forces.turbulence_vector(q, noise=_blender_perlin)
+            if len(self._answers) >= self.KEEP:
+                self._answers.pop(next(iter(self._answers)))
+            self._answers[key] = found
+        return found
+
+
 def sample(scene, item, params, progress=None) -> dict:
     """Sample the field's colliders and force fields at every frame of ``frame_range``: the
     track to store (``store``). ``progress(done, total)`` after each frame. The scene is back at
@@ -409,7 +438,7 @@ def _decode(raw) -> tuple:
             raise DamagedTrackError(f"the force fields' samples: {exc}") from None
         if len(samples) != len(times):
             raise DamagedTrackError(f"{len(samples)} force-field samples for {len(times)} times")
-        effectors = forces.SampledEffectors(times, samples)
+        effectors = forces.SampledEffectors(times, samples, turbulence=BlenderTurbulence())
     return colliders, effectors, ""
 
 

@@ -214,14 +214,16 @@ def _force_field(kind, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0), **set
     return obj, coll
 
 
-def _particle_drift(coll, frames=3):
-    """(start (k, 3), drift (k, 3)) of Blender's particles born at rest on a 5 x 5 grid at the grass's
-    mid-height, no gravity, in the force fields of ``coll``, after ``frames`` frames (the oracle)."""
+def _particle_drift(coll, points, frames=3):
+    """(start (k, 3), drift (k, 3)) of Blender's particles born at rest at ``points`` (k, 3), no
+    gravity, in the force fields of ``coll``, after ``frames`` frames (the oracle)."""
     scene = bpy.context.scene
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=5, y_subdivisions=5, size=2.0, location=(0.0, 0.0, 0.15))
-    emitter = bpy.context.active_object
+    mesh = bpy.data.meshes.new("Emitter")
+    mesh.from_pydata([tuple(map(float, p)) for p in points], [], [])
+    emitter = bpy.data.objects.new("Emitter", mesh)
+    scene.collection.objects.link(emitter)
     ps = emitter.modifiers.new("P", "PARTICLE_SYSTEM").particle_system.settings
-    ps.count, ps.frame_start, ps.frame_end, ps.lifetime = len(emitter.data.vertices), 1, 1, 200
+    ps.count, ps.frame_start, ps.frame_end, ps.lifetime = len(points), 1, 1, 200
     ps.emit_from, ps.use_emit_random, ps.normal_factor = "VERT", False, 0.0
     ps.effector_weights.gravity = 0.0
     ps.effector_weights.collection = coll
@@ -234,27 +236,37 @@ def _particle_drift(coll, frames=3):
     return positions[0], positions[1] - positions[0]
 
 
-@pytest.mark.parametrize("kind", ["VORTEX", "FORCE"])
+AS_ADDED = {  # each type where Add > Force Field puts it and how it is turned: its settings are Blender's
+    "VORTEX": ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), "PLANE"),
+    "FORCE": ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), "POINT"),
+    "WIND": ((0.0, 0.0, 0.0), (0.0, math.radians(90.0), math.radians(30.0)), "PLANE"),  # (blowing along +X 30)
+    "TURBULENCE": ((0.3, -0.2, 0.0), (0.0, 0.0, 0.0), "POINT"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(AS_ADDED))
 def test_force_fields_as_blender_adds_them_move_the_grass_as_blenders_particles(bridge, kind):
-    """Blender is the oracle: a Vortex (Shape Plane, as Add > Force Field gives it: a turn and an
-    equal pull inwards) and a Force field (a push outwards), each with its as-added settings: where
-    Blender's particles drift is where the grass bends (within 15 degrees), 0.4-1 m from the field's
-    centre."""
+    """Blender is the oracle: every type of force field the grass feels, with the settings Add >
+    Force Field gives it (a Vortex of Shape Plane: a turn and an equal pull inwards; a Force
+    pushing outwards; a Wind of Shape Plane, turned to blow across the field; a Turbulence of
+    eddies of size 0, Blender's noise): where Blender's particles drift is where the grass bends
+    (within 15 degrees), 0.4-1 m from the field's centre."""
     _, runtime = bridge
     scene, item = _field(bridge)
-    obj, coll = _force_field(kind)
-    assert (obj.field.shape, obj.field.strength) == (("PLANE" if kind == "VORTEX" else "POINT"), 1.0)
+    location, rotation, shape = AS_ADDED[kind]
+    obj, coll = _force_field(kind, location=location, rotation=rotation)
+    assert (obj.field.shape, obj.field.strength) == (shape, 1.0)
     item.effector_collection = coll
     xy, bend = _cell_bends(runtime, scene, item, 24)
-    starts, drift = _particle_drift(coll)
-    r = np.hypot(starts[:, 0], starts[:, 1])
-    tested = 0
-    for start, move in zip(starts[(r > 0.4) & (r < 1.0)], drift[(r > 0.4) & (r < 1.0)]):
-        b = bend[np.argmin(np.hypot(xy[:, 0] - start[0], xy[:, 1] - start[1]))]
-        cosine = float(np.dot(b, move[:2]) / (np.linalg.norm(b) * np.linalg.norm(move[:2])))
-        assert cosine > math.cos(math.radians(15.0)), (kind, start, b, move)
-        tested += 1
-    assert tested >= 8
+    layout = runtime.get_runtime(scene, item).field.layout
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    cells = np.flatnonzero((r > 0.4) & (r < 1.0))[::7]  # particles where the grass feels the force:
+    points = np.column_stack([xy[cells], layout.cell_ground[cells] + 0.5 * layout.cell_length[cells]])
+    starts, drift = _particle_drift(coll, points)  # (each cell's centre, half the grass's height)
+    assert np.allclose(starts, points, atol=1e-5) and len(cells) >= 8
+    for cell, start, move in zip(cells, starts, drift):
+        cosine = float(np.dot(bend[cell], move[:2]) / (np.linalg.norm(bend[cell]) * np.linalg.norm(move[:2])))
+        assert cosine > math.cos(math.radians(15.0)), (kind, start, bend[cell], move)
 
 
 def test_a_wind_field_blows_the_grass_where_it_blows_blenders_particles(bridge):
@@ -562,3 +574,4 @@ def test_a_large_keyed_collider_is_sampled_once_and_the_grass_clears_it(bridge, 
         strips = _strips(drawn, scene, item, frame)
         _assert_clear_of(strips, rest, [(tuple(ball.matrix_world.translation), 0.3)],
                          0.005 + item.interaction.tolerance)
+

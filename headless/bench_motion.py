@@ -97,6 +97,4 @@ def main(argv) -> int:
 
 
 if __name__ == "__main__":
-    code = main(sys.argv[1:])
-    sys.stdout.flush()
-    os._exit(code)
+    common.finish(main(sys.argv[1:]))

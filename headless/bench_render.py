@@ -91,8 +91,4 @@ def main(argv) -> int:
 
 
 if __name__ == "__main__":
-    code = main(sys.argv[1:])
-    sys.stdout.flush()
-    import os
-
-    os._exit(code)
+    common.finish(main(sys.argv[1:]))

@@ -44,3 +44,13 @@ def emit(result, args=None, compact: bool | None = None, prefix: str = "") -> No
     text = json.dumps(result, separators=(",", ":")) if one_line else json.dumps(result, indent=2)
     print(prefix + text, flush=True)
     sys.stdout.flush()
+
+
+def finish(code: int) -> None:
+    """Leave with ``code`` at once, output flushed: the scripts that load Blender's ``bpy`` module
+    skip its teardown at exit (and ``blender -b -P`` would ignore a plain exit status)."""
+    import os
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

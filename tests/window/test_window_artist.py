@@ -378,7 +378,8 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     near = {"view": {"look": [[0.0, -6.0, 2.0], [0.0, 0.0, 0.0]]}}
     steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"}, {"wait": 100.0},
              {"shot": "compiled"}, near, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "near"},
-             {"shading": "SOLID"}, {"python": OVERLAYS}, {"shading": "MATERIAL"}, {"save": "{case}/floor.blend"},
+             {"shading": "SOLID"}, {"python": OVERLAYS}, {"shading": "RENDERED"}, {"python": OVERLAYS},
+             {"shading": "MATERIAL"}, {"save": "{case}/floor.blend"},
              {"python": OVERLAYS}, {"python": REOPEN}, {"wait": 20.0}, {"python": OVERLAYS},
              {"python": ARTIST_TURNS_THE_FLOOR_ON}, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "artist_on"}]
     run = real_blender.run(steps, timeout=480)
@@ -389,12 +390,12 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     lum = rgb.mean(axis=2)
     assert (lum > 0.45).mean() < 0.01 and (lum < 0.02).mean() < 0.05  # no pale specks on black ground
 
-    python = run.results("python")
-    material, solid, saved, reopened, artist = python[0], python[1], python[2], python[4], python[6]
+    material, solid, rendered, saved, in_file, reopened, _, artist = run.results("python")
     assert material["shading"] == "MATERIAL" and material["flags"] == [False, False, False]
     assert solid["shading"] == "SOLID" and solid["flags"] == [True, True, True]  # given back
+    assert rendered["shading"] == "RENDERED" and rendered["flags"] == [False, False, False]  # (EEVEE: the startup's)
     assert saved["flags"] == [False, False, False]  # (off again after the save)
-    assert python[3] == {"flags": [True, True, True], "shading": "MATERIAL"}  # the file has them on
+    assert in_file == {"flags": [True, True, True], "shading": "MATERIAL"}  # the file has them on
     assert reopened["flags"] == [False, False, False]  # the reopened file's Material Preview
     assert artist["flags"] == [True, True, True]  # the artist's choice stays
     hidden = _axis_contrast(run.shots / "near.png", material)

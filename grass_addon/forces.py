@@ -24,6 +24,7 @@ are fixed (a scene file's ``[[effectors]]``), so frame N is still a function of 
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, replace
 
@@ -305,7 +306,7 @@ class ForcedWind:
     def __init__(self, wind, effectors):
         self.wind = wind
         self.effectors = effectors
-        self.turbulence = getattr(effectors, "turbulence", None) or turbulence_vector
+        self.turbulence = _Kept(getattr(effectors, "turbulence", None) or turbulence_vector)
         self._kept = None
 
     def __getattr__(self, name):
@@ -333,6 +334,28 @@ class ForcedWind:
             points = np.column_stack([layout.cell_center, layout.cell_ground + 0.5 * layout.cell_length])
             kept = self._kept = (layout, points.astype(np.float64))
         return kept[1]
+
+
+class _Kept:
+    """A turbulence noise function that keeps its last few answers: a still Turbulence is read at
+    the same cells every step (the noise is a fixed field; Blender's is read a point at a time)."""
+
+    KEEP = 4
+
+    def __init__(self, noise):
+        self.noise = noise
+        self._answers: dict[bytes, np.ndarray] = {}
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(q, np.float64)
+        key = hashlib.sha1(q.tobytes()).digest()
+        found = self._answers.get(key)
+        if found is None:
+            found = self.noise(q)
+            if len(self._answers) >= self.KEEP:
+                self._answers.pop(next(iter(self._answers)))
+            self._answers[key] = found
+        return found
 
 
 def _within(points: np.ndarray, centre: np.ndarray, reach: float) -> np.ndarray:

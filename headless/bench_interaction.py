@@ -10,6 +10,9 @@ card vertices of every block that needs them) of a 1 km field seen from near its
 * ``colliders``: 10 balls (0.3-0.6 m) rolling across the view at 1-3 m/s, with their trails
   (interaction.recovery 4 s), ``ratio`` against the floor (goal: under 1.2);
 * ``vortex``: a Vortex force field over the view, ``ratio`` against the floor;
+* ``turbulence``: a Turbulence over the whole window (eddies of 1 m), the engine's own noise;
+  ``turbulence_blender``: the same with Blender's noise, as the add-on reads it (only where the
+  ``bpy`` module is there); either is read once while the field stands still;
 * ``far_colliders``: the same 10 balls 400 m away (outside the simulated window): ``ratio``
   (about 1.0: a collider that reaches no simulated cell costs nothing).
 """
@@ -27,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does n
 import common  # noqa: E402
 
 common.load()  # the engine as windgrass.grass_addon (numpy only, no Blender)
-from windgrass.grass_addon import schema  # noqa: E402
+from windgrass.grass_addon import forces, schema  # noqa: E402
 from windgrass.grass_addon.field import GrassField  # noqa: E402
 from windgrass.grass_addon.lod import Camera  # noqa: E402
 
@@ -57,10 +60,17 @@ def run(frames: int = 36) -> dict:
     base = schema.defaults().replace({"field.blocks_x": 625, "field.blocks_y": 625})
     cam = Camera.look_at((0.0, -1.0, 1.7), (0.0, 20.0, 0.0), math.radians(70.0))
     vortex = [{"type": "vortex", "position": [0.0, 8.0, 0.0], "strength": 6.0, "max_distance": 12.0}]
+    turbulence = [{"type": "turbulence", "position": [0.0, 8.0, 0.0], "strength": 3.0, "size": 1.0}]
     cases = {"plain": {}, "colliders": {"interaction.colliders": balls()},
-             "vortex": {"interaction.effectors": vortex},
+             "vortex": {"interaction.effectors": vortex}, "turbulence": {"interaction.effectors": turbulence},
              "far_colliders": {"interaction.colliders": balls(400.0)}}
     fields = {name: GrassField(base.replace(change)) for name, change in cases.items()}
+    blender = _blender_turbulence()
+    if blender is not None:
+        row = base.replace({"interaction.effectors": turbulence}).interaction.effectors[0]
+        still = forces.SampledEffectors([0.0], [[forces.from_row(row)]], turbulence=blender)
+        cases["turbulence_blender"] = {}
+        fields["turbulence_blender"] = GrassField(base, effectors=still)
     times: dict[str, list[float]] = {name: [] for name in cases}
     for frame in range(1, frames + 4):
         for name, field in fields.items():
@@ -74,6 +84,16 @@ def run(frames: int = 36) -> dict:
                      "ratio": round(statistics.median(ratios), 3)}
     out["goal"] = "colliders ratio < 1.2"
     return out
+
+
+def _blender_turbulence():
+    """Blender's noise as the add-on hands it to the engine, or None without the ``bpy`` module."""
+    try:
+        common.load(addon=True, register=False)
+        from windgrass.grass_addon.bridge.tracks import blender_turbulence
+    except ImportError:
+        return None
+    return blender_turbulence
 
 
 def main(argv) -> int:

@@ -265,26 +265,10 @@ def _blender_perlin(p: np.ndarray) -> np.ndarray:
     return np.fromiter((noise.noise(v, noise_basis="PERLIN_NEW") for v in p.tolist()), np.float64, len(p))
 
 
-class BlenderTurbulence:
+def blender_turbulence(q: np.ndarray) -> np.ndarray:
     """``forces.turbulence_vector`` with Blender's noise: a Turbulence acts on the grass as on
-    Blender's particles. Blender's noise is read a point at a time (about 1 us): a still
-    Turbulence is read at the same cells every step, so the last few answers are kept."""
-
-    KEEP = 4
-
-    def __init__(self):
-        self._answers: dict[bytes, np.ndarray] = {}
-
-    def __call__(self, q: np.ndarray) -> np.ndarray:
-        q = np.ascontiguousarray(q, np.float64)
-        key = hashlib.sha1(q.tobytes()).digest()
-        found = self._answers.get(key)
-        if found is None:
-            found = forces.turbulence_vector(q, noise=_blender_perlin)
-            if len(self._answers) >= self.KEEP:
-                self._answers.pop(next(iter(self._answers)))
-            self._answers[key] = found
-        return found
+    Blender's particles (read a point at a time, about 1 us; the engine keeps what a still one gives)."""
+    return forces.turbulence_vector(q, noise=_blender_perlin)
 
 
 def sample(scene, item, params, progress=None) -> dict:
@@ -438,7 +422,7 @@ def _decode(raw) -> tuple:
             raise DamagedTrackError(f"the force fields' samples: {exc}") from None
         if len(samples) != len(times):
             raise DamagedTrackError(f"{len(samples)} force-field samples for {len(times)} times")
-        effectors = forces.SampledEffectors(times, samples, turbulence=BlenderTurbulence())
+        effectors = forces.SampledEffectors(times, samples, turbulence=blender_turbulence)
     return colliders, effectors, ""
 
 

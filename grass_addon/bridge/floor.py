@@ -32,11 +32,13 @@ def _eevee(space, scene) -> bool:
     return shading == "MATERIAL" or (shading == "RENDERED" and scene.render.engine.startswith("BLENDER_EEVEE"))
 
 
-def _shows_grass(scene, view_layer) -> bool:
-    """Whether a field of ``scene`` is visible in ``view_layer`` (its ground: the field's parent)."""
+def _shows_grass(scene, view_layer, space) -> bool:
+    """Whether a field of ``scene`` is visible in ``view_layer`` and the 3D view ``space`` (its local
+    view and collections): its ground, the field's parent, is."""
     for item in scene.windgrass.fields if hasattr(scene, "windgrass") else ():
         ground = owned.ground_object(item) if item.collection is not None else None
-        if ground is not None and ground.name in view_layer.objects and ground.visible_get(view_layer=view_layer):
+        if ground is not None and ground.name in view_layer.objects and \
+                ground.visible_get(view_layer=view_layer, viewport=space):
             return True
     return False
 
@@ -62,7 +64,7 @@ def follow_views() -> None:
                 continue
             space = area.spaces.active
             key = space.as_pointer()
-            drawn = _eevee(space, window.scene) and _shows_grass(window.scene, window.view_layer)
+            drawn = _eevee(space, window.scene) and _shows_grass(window.scene, window.view_layer, space)
             if drawn and key not in REGISTRY.eevee_views:
                 REGISTRY.eevee_views.add(key)
                 turned = tuple(flag for flag in FLAGS if getattr(space.overlay, flag))

@@ -245,28 +245,36 @@ AS_ADDED = {  # each type where Add > Force Field puts it and how it is turned: 
 
 
 @pytest.mark.parametrize("kind", sorted(AS_ADDED))
-def test_force_fields_as_blender_adds_them_move_the_grass_as_blenders_particles(bridge, kind):
+def test_force_fields_as_blender_adds_them_move_the_grass_as_blenders_particles(bridge, drawn, kind):
     """Blender is the oracle: every type of force field the grass feels, with the settings Add >
     Force Field gives it (a Vortex of Shape Plane: a turn and an equal pull inwards; a Force
     pushing outwards; a Wind of Shape Plane, turned to blow across the field; a Turbulence of
-    eddies of size 0, Blender's noise): where Blender's particles drift is where the grass bends
-    (within 15 degrees), 0.4-1 m from the field's centre."""
+    eddies of size 0, Blender's noise): particles born at rest at the centres of cells 0.4-1 m from
+    the field's centre, at half the grass's height, drift where the tips Blender draws of the
+    blades rooted in those cells move from where they stand without the field (within 15 degrees)."""
     _, runtime = bridge
     scene, item = _field(bridge)
+    rest = _strips(drawn, scene, item, 24).copy()
     location, rotation, shape = AS_ADDED[kind]
     obj, coll = _force_field(kind, location=location, rotation=rotation)
     assert (obj.field.shape, obj.field.strength) == (shape, 1.0)
     item.effector_collection = coll
-    xy, bend = _cell_bends(runtime, scene, item, 24)
-    layout = runtime.get_runtime(scene, item).field.layout
+    strips = _strips(drawn, scene, item, 24)
+    roots, moved = rest[:, 0].mean(axis=1)[:, :2], (strips[:, -1] - rest[:, -1]).mean(axis=1)[:, :2]
+    rt = runtime.get_runtime(scene, item)
+    layout, half = rt.field.layout, 0.5 * rt.params.field.cell_size
+    xy = layout.cell_center.astype(np.float64)
     r = np.hypot(xy[:, 0], xy[:, 1])
-    cells = np.flatnonzero((r > 0.4) & (r < 1.0))[::7]  # particles where the grass feels the force:
+    cells = np.flatnonzero((r > 0.4) & (r < 1.0))[::7]
     points = np.column_stack([xy[cells], layout.cell_ground[cells] + 0.5 * layout.cell_length[cells]])
-    starts, drift = _particle_drift(coll, points)  # (each cell's centre, half the grass's height)
+    starts, drift = _particle_drift(coll, points)
     assert np.allclose(starts, points, atol=1e-5) and len(cells) >= 8
     for cell, start, move in zip(cells, starts, drift):
-        cosine = float(np.dot(bend[cell], move[:2]) / (np.linalg.norm(bend[cell]) * np.linalg.norm(move[:2])))
-        assert cosine > math.cos(math.radians(15.0)), (kind, start, bend[cell], move)
+        rooted = np.all(np.abs(roots - xy[cell]) <= half, axis=1)
+        assert rooted.sum() >= 2
+        tip = moved[rooted].mean(axis=0)
+        cosine = float(np.dot(tip, move[:2]) / (np.linalg.norm(tip) * np.linalg.norm(move[:2])))
+        assert cosine > math.cos(math.radians(15.0)), (kind, start, tip, move)
 
 
 def test_a_wind_field_blows_the_grass_where_it_blows_blenders_particles(bridge):

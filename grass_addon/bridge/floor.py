@@ -11,7 +11,8 @@ overlays the true depth, and the grass hides the grid there.
 So while a 3D view draws a grass field with EEVEE (Material Preview, or Rendered with EEVEE),
 Windgrass turns that view's floor and axes off, and turns back on what it turned off when the view
 no longer does (Solid shading, Cycles, the field hidden or removed). It acts when a view starts or
-stops drawing grass with EEVEE, never in between: an artist who turns the floor on again keeps it.
+stops drawing grass with EEVEE, never in between: an artist who turns the floor on again keeps it
+(through saves too: the record holds only what is still off).
 A file is saved with the overlays as the artist set them, and the add-on's unregister gives them
 back. The view timer (``handlers.watch_views``) calls ``follow_views``.
 """
@@ -53,9 +54,8 @@ def follow_views() -> None:
     """Turn the floor and axes off in each 3D view that starts drawing grass with EEVEE, back on
     in each that stops; forget views that are gone."""
     spaces = _spaces()
-    for key in [k for k in REGISTRY.eevee_views if k not in spaces]:
-        REGISTRY.eevee_views.discard(key)
-        REGISTRY.floors.pop(key, None)
+    for key in [k for k in REGISTRY.floors if k not in spaces]:
+        del REGISTRY.floors[key]
     for window in bpy.context.window_manager.windows:
         if window.screen is None:
             continue
@@ -65,25 +65,21 @@ def follow_views() -> None:
             space = area.spaces.active
             key = space.as_pointer()
             drawn = _eevee(space, window.scene) and _shows_grass(window.scene, window.view_layer, space)
-            if drawn and key not in REGISTRY.eevee_views:
-                REGISTRY.eevee_views.add(key)
-                turned = tuple(flag for flag in FLAGS if getattr(space.overlay, flag))
-                for flag in turned:
-                    setattr(space.overlay, flag, False)
-                REGISTRY.floors[key] = turned
+            if drawn and key not in REGISTRY.floors:
+                REGISTRY.floors[key] = tuple(flag for flag in FLAGS if getattr(space.overlay, flag))
+                _turn(space, REGISTRY.floors[key], False)
                 area.tag_redraw()
-            elif not drawn and key in REGISTRY.eevee_views:
-                REGISTRY.eevee_views.discard(key)
-                _turn(space, REGISTRY.floors.pop(key, ()), True)
+            elif not drawn and key in REGISTRY.floors:
+                _turn(space, REGISTRY.floors.pop(key), True)
                 area.tag_redraw()
+            elif drawn:  # what the artist turned on again is theirs: a save leaves it on
+                REGISTRY.floors[key] = tuple(f for f in REGISTRY.floors[key] if not getattr(space.overlay, f))
 
 
 def _turn(space, flags, on: bool) -> None:
-    """Set the overlay ``flags`` of ``space``: on (only those still off: the artist's changes
-    stay) or off."""
+    """Turn the overlay ``flags`` of ``space`` on or off."""
     for flag in flags:
-        if getattr(space.overlay, flag) != on:
-            setattr(space.overlay, flag, on)
+        setattr(space.overlay, flag, on)
 
 
 def give_back(keep: bool) -> None:
@@ -95,7 +91,6 @@ def give_back(keep: bool) -> None:
             _turn(spaces[key], flags, True)
     if not keep:
         REGISTRY.floors.clear()
-        REGISTRY.eevee_views.clear()
 
 
 def take_again() -> None:

@@ -50,8 +50,7 @@ class Registry:
     # the open file is as saved or loaded, but for the grass the add-on wrote since (its own writes
     # mark the file dirty: refilling the slots after a save, every frame's vertices)
     unchanged: bool = False
-    # 3D views drawing a field with EEVEE now, and the overlays turned off in each (floor.py)
-    eevee_views: set = field(default_factory=set)
+    # the 3D views drawing a field with EEVEE now: the overlays turned off in each (floor.py)
     floors: dict[int, tuple] = field(default_factory=dict)
 
     def state(self, key: Key) -> FieldState:
@@ -75,8 +74,7 @@ class Registry:
         self.states.clear()
         self.tracks.clear()
         self.warned.clear()
-        self.eevee_views.clear()  # (another file's views, or none)
-        self.floors.clear()
+        self.floors.clear()  # (another file's views, or none)
 
     def forget_missing(self, alive: set[Key]) -> None:
         """Drop the records of scenes or fields that no longer exist."""

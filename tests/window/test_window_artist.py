@@ -373,7 +373,7 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     thin blades do not hold; floor.py): while the view draws the field with EEVEE its floor and
     axes are off, so the axis running down the view is not seen over the grass; Solid shading gets
     them back; the saved file has them as the artist set them; an artist who turns them on again
-    keeps them, and then the same measure sees the axis (it would catch it)."""
+    keeps them (a save too), and then the same measure sees the axis (it would catch it)."""
     far = {"view": {"look": [[0.0, -30.0, 6.0], [0.0, 5.0, 0.0]]}}
     near = {"view": {"look": [[0.0, -6.0, 2.0], [0.0, 0.0, 0.0]]}}
     steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"}, {"wait": 100.0},
@@ -381,7 +381,8 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
              {"shading": "SOLID"}, {"python": OVERLAYS}, {"shading": "RENDERED"}, {"python": OVERLAYS},
              {"shading": "MATERIAL"}, {"save": "{case}/floor.blend"},
              {"python": OVERLAYS}, {"python": REOPEN}, {"wait": 20.0}, {"python": OVERLAYS},
-             {"python": ARTIST_TURNS_THE_FLOOR_ON}, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "artist_on"}]
+             {"python": ARTIST_TURNS_THE_FLOOR_ON}, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "artist_on"},
+             {"save": "{case}/floor.blend"}, {"wait": 1.0}, {"python": OVERLAYS}]
     run = real_blender.run(steps, timeout=480)
     run.assert_clean()
     rgb = _field_band(run.shots / "compiled.png")
@@ -390,14 +391,14 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     lum = rgb.mean(axis=2)
     assert (lum > 0.45).mean() < 0.01 and (lum < 0.02).mean() < 0.05  # no pale specks on black ground
 
-    material, solid, rendered, saved, in_file, reopened, _, artist = run.results("python")
+    material, solid, rendered, saved, in_file, reopened, _, artist, saved_again = run.results("python")
     assert material["shading"] == "MATERIAL" and material["flags"] == [False, False, False]
     assert solid["shading"] == "SOLID" and solid["flags"] == [True, True, True]  # given back
     assert rendered["shading"] == "RENDERED" and rendered["flags"] == [False, False, False]  # (EEVEE: the startup's)
     assert saved["flags"] == [False, False, False]  # (off again after the save)
     assert in_file == {"flags": [True, True, True], "shading": "MATERIAL"}  # the file has them on
     assert reopened["flags"] == [False, False, False]  # the reopened file's Material Preview
-    assert artist["flags"] == [True, True, True]  # the artist's choice stays
+    assert artist["flags"] == saved_again["flags"] == [True, True, True]  # the artist's choice stays, saved too
     hidden = _axis_contrast(run.shots / "near.png", material)
     shown = _axis_contrast(run.shots / "artist_on.png", artist)
     print(f"Y axis over the grass: {hidden:.1f} (floor off) / {shown:.1f} (the artist's floor on) of 255 in green")

@@ -85,17 +85,18 @@ def _turn(space, flags, on: bool) -> None:
 def give_back(keep: bool) -> None:
     """Turn on what the add-on turned off, in every view: before a save (``keep``: the records
     stay, ``take_again`` turns them off after it) or for good (unregister)."""
-    spaces = _spaces()
-    for key, flags in REGISTRY.floors.items():
-        if key in spaces:
-            _turn(spaces[key], flags, True)
+    _turn_recorded(True)
     if not keep:
         REGISTRY.floors.clear()
 
 
 def take_again() -> None:
     """After a save: turn off again what ``give_back(keep=True)`` turned on."""
+    _turn_recorded(False)
+
+
+def _turn_recorded(on: bool) -> None:
     spaces = _spaces()
     for key, flags in REGISTRY.floors.items():
         if key in spaces:
-            _turn(spaces[key], flags, False)
+            _turn(spaces[key], flags, on)

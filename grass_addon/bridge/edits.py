@@ -78,7 +78,7 @@ def flush_pending() -> float | None:
     waiting = False
     for key, state in pending.items():
         scene = scenes.get(key[0])
-        item = next((f for f in scene.windgrass.fields if f.uid == key[1]), None) if scene else None
+        item = properties.field_by_uid(scene, key[1]) if scene else None
         if item is None or item.collection is None:
             state.pending = None
             continue

@@ -450,6 +450,12 @@ def active_field(scene: bpy.types.Scene) -> Any | None:
     return root.fields[min(max(root.active_index, 0), len(root.fields) - 1)]
 
 
+def field_by_uid(scene: bpy.types.Scene, uid: str) -> Any | None:
+    """The field item of ``scene`` with ``uid`` (look an item up again after the collection grew:
+    ``fields.add()`` may move the items, and a Python reference to one is then dead)."""
+    return next((f for f in scene.windgrass.fields if f.uid == uid), None)
+
+
 def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name: str = "Grass") -> Any:
     """Append a field item (unique name and uid) holding ``params`` and make it active."""
     root = scene.windgrass

@@ -233,3 +233,49 @@ def test_duplicate_field_gives_a_working_field_and_copies_of_objects_are_named(b
     bpy.ops.wm.append(directory=str(path) + "/Collection/", filename="Grass")  # the first field's collection
     appended = owned.orphan_notes(bpy.context.scene)
     assert appended and "not a field" in appended[0], appended
+
+
+def test_duplicating_the_first_of_several_fields_again_and_again_keeps_blender_alive(bridge, drawn):
+    """Issue #37 item 1: four fields, then Duplicate Field on the first: the fifth duplicate killed
+    Blender (the operator kept the active field's item across ``fields.add()``, which moves the
+    items). Every copy is a working field whose grass Blender draws, beside its source."""
+    owned, runtime = bridge
+    scene = bpy.context.scene
+    for _ in range(4):
+        _add_field()
+    for n in range(6):
+        scene.windgrass.active_index = 0
+        assert bpy.ops.windgrass.field_duplicate() == {"FINISHED"}
+        assert len(scene.windgrass.fields) == 5 + n
+    scene.frame_set(3)
+    names = [f.name for f in scene.windgrass.fields]
+    assert len(set(names)) == len(names) == 10 and len({f.uid for f in scene.windgrass.fields}) == 10
+    for item in scene.windgrass.fields:
+        assert runtime.field_error(scene, item) is None
+        strips = drawn(item).reshape(-1, 6, 2, 3)
+        assert (np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0).sum() > 500, item.name
+    first = owned.ground_object(scene.windgrass.fields[0]).matrix_world.translation.x
+    copies = [owned.ground_object(f).matrix_world.translation.x for f in scene.windgrass.fields[4:]]
+    assert all(x - first > 1.6 for x in copies)  # beside the first (a 1.6 m field), not on top
+
+
+def test_duplicating_a_field_on_a_terrain_puts_the_copy_beside_it(bridge, drawn):
+    """Issue #37 item 1: on a terrain the copy landed on top of the original. It grows on a linked
+    copy of the terrain beside it: its drawn blades stand where the original's do, moved along X by
+    more than the terrain's width."""
+    owned, runtime = bridge
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=10, y_subdivisions=10, size=3.0)
+    hill = bpy.context.active_object
+    hill.data.vertices[55].co.z = 0.6
+    assert bpy.ops.windgrass.field_add(use_selected_mesh=True, cells_per_block=8) == {"FINISHED"}
+    scene = bpy.context.scene
+    assert bpy.ops.windgrass.field_duplicate() == {"FINISHED"}
+    first, second = scene.windgrass.fields
+    assert second.terrain is not None and second.terrain != hill and second.terrain.data == hill.data
+    scene.frame_set(1)
+    roots = [drawn(item).reshape(-1, 6, 2, 3)[:, 0].mean(axis=1) for item in (first, second)]
+    grown = [r[np.ptp(drawn(item).reshape(-1, 12, 3), axis=1).max(axis=1) > 0] for r, item in
+             zip(roots, (first, second))]
+    assert len(grown[0]) > 500 and len(grown[1]) == len(grown[0])
+    shift = grown[1].mean(axis=0) - grown[0].mean(axis=0)
+    assert shift[0] > 3.0 and abs(shift[1]) < 0.05 and abs(shift[2]) < 0.05

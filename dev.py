@@ -2,9 +2,9 @@
 """Windgrass developer entry point: sets up .venv with pinned packages, then runs a job.
 
     python3.11 dev.py render [render_field.py options]   # render the default grass animation
-    python3.11 dev.py test [pytest options]              # the test suite on Blender 5.0 (and a real
-                                                         # Blender 4.3 window, tests/window), then the
-                                                         # Blender tests on 4.2 LTS (.venv-4.2)
+    python3.11 dev.py test [pytest options]              # the test suite on Blender 5.2 LTS (and a real
+                                                         # Blender 5.2 window, tests/window), then the
+                                                         # Blender tests on 4.5 LTS (.venv-4.5)
     python3.11 dev.py test --quick                       # tests/core without the slow ones (< 30 s)
     python3.11 dev.py simulate [simulate.py options]     # numpy-only simulation summary
     python3.11 dev.py bench [bench.py options]           # benchmark JSON
@@ -19,36 +19,71 @@ import os
 import shutil
 import subprocess
 import sys
-import venv
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
-# (virtual environment, its requirements): the current Blender line, and the oldest supported one
-LATEST = (ROOT / ".venv", ROOT / "requirements.txt")
-OLDEST = (ROOT / ".venv-4.2", ROOT / "requirements-blender-4.2.txt")
-# A real Blender with its window for tests/window: Debian 13's Blender 4.3 in a Debian 13 root made
-# with debootstrap (Debian 12 ships Blender 3.4), on a virtual screen (Xvfb, Mesa's software GL).
-TRIXIE = Path(os.environ.get("WINDGRASS_TRIXIE", Path.home() / ".cache" / "windgrass" / "trixie"))
-TRIXIE_PACKAGES = ("blender", "python3-numpy", "xvfb", "xauth", "xdotool", "x11-apps", "netpbm")
+# (virtual environment, its requirements, its Python): the supported Blender lines. 5.2 LTS, the
+# bpy module for CPython 3.13, runs everything; 4.5 LTS (CPython 3.11), the oldest line the manifest
+# claims, runs the Blender tests again.
+LATEST = (ROOT / ".venv", ROOT / "requirements.txt", (3, 13))
+OLDEST = (ROOT / ".venv-4.5", ROOT / "requirements-blender-4.5.txt", (3, 11))
+# A real Blender with its window for tests/window: Debian's unstable suite ships Blender 5.2 LTS
+# (Debian 13 has 4.3), in a root made with debootstrap, on a virtual screen (Xvfb, Mesa's software GL).
+WINDOW_ROOT = Path(os.environ.get("WINDGRASS_WINDOW_ROOT", Path.home() / ".cache" / "windgrass" / "sid"))
+WINDOW_PACKAGES = ("blender", "python3-numpy", "python3-cattr", "python3-requests", "xvfb", "xauth", "xdotool",
+                   "x11-apps", "netpbm")
 
 
-def ensure_venv(env_dir: Path = LATEST[0], requirements: Path = LATEST[1]) -> Path:
-    """Create ``env_dir`` and install ``requirements`` once (again only when the file changes)."""
-    if sys.version_info[:2] != (3, 11):
-        sys.exit(f"dev.py needs Python 3.11 (the bpy module is built for it); this is {sys.version.split()[0]}")
+def find_python(version: tuple[int, int]) -> str | None:
+    """A CPython of ``version``: this one, pyenv's build of it, or ``python3.X`` on PATH; None when
+    the machine has none."""
+    if sys.version_info[:2] == version:
+        return sys.executable
+    name = "python{}.{}".format(*version)
+    pyenv = Path(os.environ.get("PYENV_ROOT", Path.home() / ".pyenv")) / "versions"
+    builds = sorted(pyenv.glob("{}.{}.*/bin/{}".format(*version, name)), reverse=True)  # (not pyenv's shims)
+    for candidate in [*map(str, builds), shutil.which(name)]:
+        if candidate and subprocess.run([candidate, "-c", f"import sys; sys.exit(sys.version_info[:2] != {version})"],
+                                        capture_output=True).returncode == 0:
+            return candidate
+    return None
+
+
+def ensure_venv(env_dir: Path, requirements: Path, version: tuple[int, int]) -> Path:
+    """Create ``env_dir`` with a CPython of ``version`` and install ``requirements`` once (again
+    only when the file changes; made anew when it holds another Python)."""
     python = env_dir / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
     stamp = env_dir / ".requirements.sha1"
     digest = hashlib.sha1(requirements.read_bytes()).hexdigest()
+    config = env_dir / "pyvenv.cfg"
+    wanted = "version = {}.{}.".format(*version)
+    if config.exists() and wanted not in config.read_text().replace("version_info", "version"):
+        print(f"dev.py: {env_dir.name} holds another Python; making it anew for Python {version[0]}.{version[1]}",
+              flush=True)
+        shutil.rmtree(env_dir)
     if python.exists() and stamp.exists() and stamp.read_text() == digest:
         return python
     if not python.exists():
-        print(f"dev.py: creating {env_dir.name}", flush=True)
-        venv.create(env_dir, with_pip=True)
+        base = find_python(version)
+        if base is None:
+            sys.exit(f"dev.py: {env_dir.name} needs CPython {version[0]}.{version[1]} and this machine has none")
+        print(f"dev.py: creating {env_dir.name} (Python {version[0]}.{version[1]})", flush=True)
+        subprocess.check_call([base, "-m", "venv", str(env_dir)])
     print(f"dev.py: installing {requirements.name} into {env_dir.name} (bpy is ~400 MB, first time only)",
           flush=True)
     subprocess.check_call([str(python), "-m", "pip", "install", "-q", "-r", str(requirements)])
     stamp.write_text(digest)
     return python
+
+
+def latest_or_oldest() -> tuple[Path, bool]:
+    """The 5.2 LTS environment, or 4.5 LTS's where no CPython 3.13 can be found (said once):
+    (its python, whether it is 5.2's)."""
+    if find_python(LATEST[2]) is not None or (LATEST[0] / ".requirements.sha1").exists():
+        return ensure_venv(*LATEST), True
+    print("dev.py: no CPython 3.13 here (Blender 5.2's bpy module needs it: pyenv install 3.13, or your "
+          "system's python3.13); using Blender 4.5 LTS (CPython 3.11) instead", flush=True)
+    return ensure_venv(*OLDEST), False
 
 
 def main(argv: list[str]) -> int:
@@ -63,53 +98,60 @@ def main(argv: list[str]) -> int:
     if not argv or argv[0] not in jobs:
         print(__doc__)
         return 2
-    python = ensure_venv()
+    if sys.version_info[:2] != (3, 11):
+        sys.exit(f"dev.py runs on Python 3.11 (the 4.5 LTS bpy module is built for it); this is "
+                 f"{sys.version.split()[0]}")
+    python, is_latest = latest_or_oldest()
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if argv[0] == "test":
-        return run_tests(python, argv[1:], env)
+        return run_tests(python, argv[1:], env, also_oldest=is_latest)
     cmd = [str(python), *jobs[argv[0]], *argv[1:]]
     return subprocess.call(cmd, cwd=ROOT, env=env)
 
 
 def ensure_real_blender() -> Path | None:
-    """The Debian 13 root with Blender for tests/window, made once (about a minute to five, as the
-    mirror allows); None (the window tests then skip, saying why) when this machine cannot make
-    one: not root, or WINDGRASS_TRIXIE=off."""
-    if os.environ.get("WINDGRASS_TRIXIE") == "off":
-        print("dev.py: WINDGRASS_TRIXIE=off: the real-Blender window tests are skipped", flush=True)
+    """The root of Debian's unstable suite with Blender 5.2 for tests/window, made once (a few
+    minutes, as the mirror allows); None (the window tests then skip, saying why) when this machine
+    cannot make one: not root, or WINDGRASS_WINDOW_ROOT=off."""
+    if os.environ.get("WINDGRASS_WINDOW_ROOT") == "off":
+        print("dev.py: WINDGRASS_WINDOW_ROOT=off: the real-Blender window tests are skipped", flush=True)
         return None
-    stamp = TRIXIE / ".windgrass-packages"
-    wanted = " ".join(TRIXIE_PACKAGES)
+    stamp = WINDOW_ROOT / ".windgrass-packages"
+    wanted = " ".join(WINDOW_PACKAGES)
     if stamp.exists() and stamp.read_text() == wanted:
-        return TRIXIE
+        return WINDOW_ROOT
     if os.geteuid() != 0:
-        print("dev.py: the real-Blender window tests need a Debian 13 root (debootstrap, chroot: run as root); "
+        print("dev.py: the real-Blender window tests need a Debian root (debootstrap, chroot: run as root); "
               "they are skipped", flush=True)
         return None
-    print(f"dev.py: making a Debian 13 root with Blender in {TRIXIE} (first time only)", flush=True)
+    print(f"dev.py: making a root of Debian's unstable suite with Blender 5.2 in {WINDOW_ROOT} (first time only)",
+          flush=True)
     if shutil.which("debootstrap") is None:
+        subprocess.check_call(["apt-get", "update", "-q"], stdout=subprocess.DEVNULL)
         subprocess.check_call(["apt-get", "install", "-y", "-q", "debootstrap"])
-    if not (TRIXIE / "usr" / "bin" / "apt-get").exists():
-        shutil.rmtree(TRIXIE, ignore_errors=True)
-        TRIXIE.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.check_call(["debootstrap", "--variant=minbase", "trixie", str(TRIXIE)],
+    if not (WINDOW_ROOT / "usr" / "bin" / "apt-get").exists():
+        shutil.rmtree(WINDOW_ROOT, ignore_errors=True)
+        WINDOW_ROOT.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.check_call(["debootstrap", "--variant=minbase", "sid", str(WINDOW_ROOT)],
                               stdout=subprocess.DEVNULL)
-    shutil.copy2("/etc/resolv.conf", TRIXIE / "etc" / "resolv.conf")
+    shutil.copy2("/etc/resolv.conf", WINDOW_ROOT / "etc" / "resolv.conf")
     env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "DEBIAN_FRONTEND": "noninteractive", "LANG": "C.UTF-8"}
-    subprocess.check_call(["chroot", str(TRIXIE), "apt-get", "update", "-q"], env=env, stdout=subprocess.DEVNULL)
-    subprocess.check_call(["chroot", str(TRIXIE), "apt-get", "install", "-y", "-q", "--no-install-recommends",
-                           *TRIXIE_PACKAGES], env=env, stdout=subprocess.DEVNULL)
+    # (the unstable suite's release file carries a date after which apt calls it stale)
+    subprocess.check_call(["chroot", str(WINDOW_ROOT), "apt-get", "-o", "Acquire::Check-Valid-Until=false",
+                           "update", "-q"], env=env, stdout=subprocess.DEVNULL)
+    subprocess.check_call(["chroot", str(WINDOW_ROOT), "apt-get", "install", "-y", "-q", "--no-install-recommends",
+                           *WINDOW_PACKAGES], env=env, stdout=subprocess.DEVNULL)
     stamp.write_text(wanted)
-    return TRIXIE
+    return WINDOW_ROOT
 
 
 QUICK = ["tests/core", "-m", "not slow"]
 
 
-def run_tests(python: Path, args: list[str], env: dict) -> int:
+def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True) -> int:
     """Every test on the current Blender (with the real-Blender window tests), then the Blender
-    tests on the oldest supported line (4.2 LTS): both must pass. Options go to both runs; test
-    paths given replace the defaults (``tests``, and ``tests/blender`` on 4.2). ``--quick``: the
+    tests on the oldest supported line (4.5 LTS): both must pass. Options go to both runs; test
+    paths given replace the defaults (``tests``, and ``tests/blender`` on 4.5). ``--quick``: the
     numpy tests without those marked slow, nothing else."""
     if "--quick" in args:
         rest = [a for a in args if a != "--quick"]
@@ -120,20 +162,20 @@ def run_tests(python: Path, args: list[str], env: dict) -> int:
     if not paths or any(parts in (("tests", "window"), ("tests",)) for parts in under.values()):
         root = ensure_real_blender()
         if root is not None:
-            env = dict(env, WINDGRASS_TRIXIE=str(root))
+            env = dict(env, WINDGRASS_WINDOW_ROOT=str(root))
     latest = subprocess.call([str(python), "-m", "pytest", *args, *([] if paths else ["tests"])],
                              cwd=ROOT, env=env)
     # the bpy-module Blender tests among the paths (all of them for "tests" or none given)
     blender = [p for p, parts in under.items() if parts == ("tests", "blender")]
     if not paths or ("tests",) in under.values():
         blender = ["tests/blender"]
-    if not blender:
+    if not blender or not also_oldest:
         return latest
     oldest_python = ensure_venv(*OLDEST)
-    print("dev.py: the Blender tests again on Blender 4.2 LTS (.venv-4.2)", flush=True)
+    print("dev.py: the Blender tests again on Blender 4.5 LTS (.venv-4.5)", flush=True)
     oldest = subprocess.call([str(oldest_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *blender],
                              cwd=ROOT, env=env)
-    # pytest's 5 (no test collected) on 4.2: the tests selected hold no Blender test
+    # pytest's 5 (no test collected) on 4.5: the tests selected hold no Blender test
     return latest or (0 if oldest == 5 else oldest)
 
 

@@ -229,6 +229,16 @@ def _select(array: np.ndarray, ids: np.ndarray, run: slice | None, scratch: dict
     return np.take(array, ids, axis=0, out=buf[: len(ids)])
 
 
+def _view(array: np.ndarray, shape: tuple) -> np.ndarray:
+    """``array`` seen with ``shape``, never a copy (writes through it reach ``array``): a ValueError
+    where only a copy could have that shape (numpy 2.5 deprecates assigning ``ndarray.shape``,
+    and numpy 1.26 has no ``reshape(copy=False)``)."""
+    view = array.reshape(shape)
+    if not np.may_share_memory(view, array):
+        raise ValueError(f"an array of shape {array.shape} cannot be seen as {shape} without a copy")
+    return view
+
+
 def _gather_cells(layout, const: _Constants, src: np.ndarray, ids: np.ndarray, dst: np.ndarray) -> None:
     """Cell-major copy of joint-major data: dst[i * P + c] = src[..., block_cells[ids[i], c]] for
     src (R..., C) and dst (k * P, R...). Runs of consecutive blocks of one block row are one
@@ -238,10 +248,8 @@ def _gather_cells(layout, const: _Constants, src: np.ndarray, ids: np.ndarray, d
         np.copyto(dst, np.moveaxis(np.take(src, layout.block_cells[ids].ravel(), axis=-1), -1, 0))
         return
     _, cpb, bx, _ = const.grid
-    field = src.view()
-    field.shape = rest + const.grid  # (R..., blocks_y, cpb, blocks_x, cpb), a view (never a copy)
-    squares = dst.view()
-    squares.shape = (len(ids), cpb, cpb) + rest
+    field = _view(src, rest + const.grid)  # (R..., blocks_y, cpb, blocks_x, cpb)
+    squares = _view(dst, (len(ids), cpb, cpb) + rest)
     r = len(rest)
     order = (r + 1, r, r + 2) + tuple(range(r))  # (R..., ly, m, lx) -> (m, ly, lx, R...)
     breaks = np.flatnonzero((np.diff(ids) != 1) | (np.diff(ids // bx) != 0)) + 1

@@ -36,7 +36,10 @@ def check_saved() -> Path:
         bpy.context.view_layer.update()  # (pending edits reach the handlers, which tell the grass's own apart)
     except Exception:
         pass
-    if bpy.data.is_dirty and not REGISTRY.unchanged:
+    # REGISTRY.unchanged: no edit of the artist's since the file was loaded or saved (the grass's own
+    # mesh writes make Blender call the file modified). Without a window Blender does not keep
+    # that flag (5.2: never modified; 4.5: always, even after a save): the add-on's record decides.
+    if not REGISTRY.unchanged and (bpy.data.is_dirty or bpy.app.background):
         raise ParameterError("file", "the file has unsaved changes: save it first (a farm renders the .blend on "
                              "disk, not what is open here)")
     return Path(bpy.data.filepath)

@@ -94,7 +94,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 6
+MATERIALS_VERSION = 7
 
 
 def _socket(sockets, *names: str):
@@ -119,12 +119,18 @@ def _set(node, value, *names: str) -> None:
     _socket(node.inputs, *names).default_value = value
 
 
-def _new_material(name: str, uid: str):
-    mat = bpy.data.materials.new(name)
+def with_nodes(mat):
+    """``mat`` with its node tree: a new material has one from Blender 5.0 on (``use_nodes`` is
+    deprecated there and goes in Blender 6); before 5.0 it is switched on."""
     if mat.node_tree is None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
-            mat.use_nodes = True  # removed in Blender 6, where every material has nodes
+            mat.use_nodes = True
+    return mat
+
+
+def _new_material(name: str, uid: str):
+    mat = with_nodes(bpy.data.materials.new(name))
     mat.node_tree.nodes.clear()
     mat["wg_uid"] = uid
     mat["wg_version"] = MATERIALS_VERSION
@@ -483,6 +489,7 @@ def _painted_share(t):
     # Painted grass (paint.py): the canopy stands for the share of blades that grow at each place
     # (a path is bare ground to the horizon), from the field's paint map over the ground's UVs.
     paint_map = t.add("ShaderNodeTexImage", -900, -1250, name=NODE_PAINT_MAP)
+    paint_map.mute = True  # until set_paint_map gives it an image
     paint_map.interpolation = "Linear"
     paint_map.extension = "EXTEND"
     # the ground's UVs span the field; the map spans what is painted (set_paint_map)
@@ -658,6 +665,7 @@ def set_paint_map(canopy, image, field_extent=None, map_extent=None) -> None:
     node, flag, mapping = nodes.get(NODE_PAINT_MAP), nodes.get(NODE_PAINTED), nodes.get(NODE_PAINT_MAPPING)
     if node is not None:
         node.image = image
+        node.mute = image is None  # (an Image Texture without an image is an error to Cycles from 5.2 on)
     if flag is not None:
         flag.outputs[0].default_value = 1.0 if image is not None else 0.0
     if mapping is not None and field_extent is not None and map_extent is not None:

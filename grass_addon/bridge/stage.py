@@ -23,7 +23,7 @@ from mathutils import Euler, Vector
 from ..clock import Clock
 from ..errors import ParameterError
 from ..grid import FieldGrid
-from . import animation
+from . import animation, materials
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here
 
@@ -412,7 +412,7 @@ def setup_colliders(scene, params) -> list:
     clock = Clock.of(params)
     material = bpy.data.materials.get("Windgrass Collider") or bpy.data.materials.new("Windgrass Collider")
     material.diffuse_color = (0.55, 0.12, 0.08, 1.0)
-    material.use_nodes = True
+    materials.with_nodes(material)
     bsdf = material.node_tree.nodes.get("Principled BSDF")
     if bsdf is not None:
         bsdf.inputs["Base Color"].default_value = (0.55, 0.12, 0.08, 1.0)

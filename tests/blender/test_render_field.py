@@ -196,6 +196,9 @@ def test_cycles_frames_show_grass_in_wind(cycles_run):
     assert len(progress) == 4 and progress[0].startswith("frame 1/4") and "ETA" in progress[0]
     assert "done: 4 frame(s)" in proc.stdout and str(out) in proc.stdout
     assert not list(out.glob(".*")), "temporary files left behind"
+    # Cycles loads every image the materials read (5.2 called an Image Texture without an image
+    # "Image file  does not exist" and "Failed to load 1 image files")
+    assert "Failed to load" not in proc.stdout + proc.stderr and "does not exist" not in proc.stdout + proc.stderr
 
 
 def test_save_blend_and_video(cycles_run):

@@ -29,3 +29,14 @@ def test_the_engine_has_one_import_name():
 
     assert not [name for name in sys.modules if name == "grass_addon" or name.startswith("grass_addon.")]
     assert schema.ParameterError is errors.ParameterError
+
+
+def test_a_deprecation_warning_from_the_add_ons_code_fails_the_test():
+    """Issue #35: numpy 2.5 deprecated assigning ``ndarray.shape`` on the per-frame path, and the
+    suite only printed it. A DeprecationWarning raised from Windgrass's code is an error."""
+    import pytest
+    from windgrass.grass_addon import kinematics
+
+    with pytest.raises(DeprecationWarning):
+        exec(compile("import warnings\nwarnings.warn('old', DeprecationWarning)", kinematics.__file__, "exec"),
+             {"__name__": kinematics.__name__})

@@ -1,13 +1,13 @@
 """A real Blender binary with its window, for what only the artist's Blender shows.
 
 The bpy module runs in background mode: no window, no event loop, no keymap, no viewport, no real
-undo stack as the window pushes it. These tests run Debian 13's Blender (4.3) in a Debian 13 root
-made by ``dev.py`` (``debootstrap``; see README "Get going"), with its window on a virtual screen
-(Xvfb, Mesa's software OpenGL), the extension built and installed by Blender's own tool, and drive
-it as an artist would through ``driver.py``: operators as the UI calls them, property edits
+undo stack as the window pushes it. These tests run Debian's Blender 5.2 LTS in a root of Debian's
+unstable suite made by ``dev.py`` (``debootstrap``; see README "Get going"), with its window on a
+virtual screen (Xvfb, Mesa's software OpenGL), the extension built and installed by Blender's own
+tool, and drive it as an artist would through ``driver.py``: operators as the UI calls them, property edits
 followed by the undo step the window pushes, keys typed with ``xdotool``, screenshots.
 
-``WINDGRASS_TRIXIE`` names the root (default ``~/.cache/windgrass/trixie``). Without one (or not
+``WINDGRASS_WINDOW_ROOT`` names the root (default ``~/.cache/windgrass/sid``). Without one (or not
 as root: ``chroot`` needs it) the tests are skipped with that reason; ``dev.py test`` makes the
 root first, so CI runs them.
 """
@@ -32,9 +32,9 @@ if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))  # scenarios.py
 
 
-def trixie_root() -> Path:
-    default = Path(pwd.getpwuid(os.getuid()).pw_dir) / ".cache" / "windgrass" / "trixie"
-    return Path(os.environ.get("WINDGRASS_TRIXIE", default))
+def window_root() -> Path:
+    default = Path(pwd.getpwuid(os.getuid()).pw_dir) / ".cache" / "windgrass" / "sid"
+    return Path(os.environ.get("WINDGRASS_WINDOW_ROOT", default))
 
 
 @dataclass
@@ -75,7 +75,7 @@ class Run:
 
 
 class RealBlender:
-    """Debian 13's Blender in its root, with Windgrass installed as an extension."""
+    """Debian's Blender 5.2 in its root, with Windgrass installed as an extension."""
 
     def __init__(self, root: Path, work: Path):
         self.root, self.work = root, work  # work: a folder inside root
@@ -142,11 +142,11 @@ class RealBlender:
 
 @pytest.fixture(scope="session")
 def real_blender():
-    root = trixie_root()
+    root = window_root()
     if os.geteuid() != 0:
-        pytest.skip("the real-Blender tests run Debian 13's Blender through chroot, which needs root")
+        pytest.skip("the real-Blender tests run Debian's Blender through chroot, which needs root")
     if not (root / "usr" / "bin" / "blender").exists():
-        pytest.skip(f"no Debian 13 root with Blender at {root} (python3.11 dev.py test makes one)")
+        pytest.skip(f"no Debian root with Blender at {root} (python3.11 dev.py test makes one)")
     work = Path(tempfile.mkdtemp(prefix="windgrass-window-", dir=root / "tmp"))
     try:
         blender = RealBlender(root, work)

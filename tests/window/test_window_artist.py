@@ -376,14 +376,15 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     keeps them (a save too), and then the same measure sees the axis (it would catch it)."""
     far = {"view": {"look": [[0.0, -30.0, 6.0], [0.0, 5.0, 0.0]]}}
     near = {"view": {"look": [[0.0, -6.0, 2.0], [0.0, 0.0, 0.0]]}}
-    steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"}, {"wait": 100.0},
-             {"shot": "compiled"}, near, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "near"},
+    steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"},
+             {"settle": "shaders", "max": 900}, {"shot": "compiled"}, near, {"wait": 3.0}, {"python": OVERLAYS},
+             {"shot": "near"},
              {"shading": "SOLID"}, {"python": OVERLAYS}, {"shading": "RENDERED"}, {"python": OVERLAYS},
              {"shading": "MATERIAL"}, {"save": "{case}/floor.blend"},
              {"python": OVERLAYS}, {"python": REOPEN}, {"wait": 20.0}, {"python": OVERLAYS},
              {"python": ARTIST_TURNS_THE_FLOOR_ON}, {"wait": 3.0}, {"python": OVERLAYS}, {"shot": "artist_on"},
              {"save": "{case}/floor.blend"}, {"wait": 1.0}, {"python": OVERLAYS}]
-    run = real_blender.run(steps, timeout=480)
+    run = real_blender.run(steps, timeout=1500)  # (a safety net: the steps wait on progress)
     run.assert_clean()
     rgb = _field_band(run.shots / "compiled.png")
     r, g, b = rgb.mean(axis=(0, 1))

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import blade
+from . import blade, meadow
 from .blocks import Species
 from .schema import Params
-from .sward import blade_colour_ramp, sample_blades
+from .sward import colour_ramp, sample_blades
 
 # Purpose of the random stream that picks each cell's variant (np.random.default_rng([purpose, P])).
 RNG_CARD_VARIANTS = 8
@@ -81,7 +81,10 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     height = float(block.card_height[cell])
     axis = float(block.card_facing[cell])
     a = np.array([np.cos(axis), np.sin(axis)])
-    taper = blade.joint_widths(params.blade.tip_width, n)
+    widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower)
+    kind = block.blade_species
+    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
+                                  block.blade_head, block.blade_flower)  # (B, n + 1, 3), heads and dry tips
     for b in blades:
         facing = float(block.blade_facing[b])
         lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
@@ -91,9 +94,8 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
         up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
         root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
         u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
-        half = 0.5 * widen * float(block.blade_width[b]) * taper / card_w
-        tip = species.color[int(block.blade_species[b])].astype(np.float64)
-        colour = blade_colour_ramp(tip, np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
+        half = 0.5 * widen * float(block.blade_width[b]) * widths[b] / card_w
+        colour = colour_ramp(joints[b], np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
         _draw_strip(rgb, alpha, ys, u, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]

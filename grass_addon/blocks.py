@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import blade
+from . import blade, meadow
 from .errors import ParameterError
 from .grid import FieldGrid
 from .paint import MIN_LENGTH_SCALE, Paint
@@ -40,6 +40,9 @@ class Block:
     blade_inclination: np.ndarray
     blade_shade: np.ndarray
     blade_species: np.ndarray  # (B,) int16
+    blade_head: np.ndarray  # (B,) float32: seed head width / stem width at the last joint but one; 0: none
+    blade_flower: np.ndarray  # (B,) float32: flower width / stem width at the tip; 0: none
+    blade_dry: np.ndarray  # (B,) float32: how dry its tip is, 0..1 (meadow.py)
     blade_rest_tilt: np.ndarray  # (B, n)
     blade_ground_slope: np.ndarray | None  # (B, 2) or None on flat ground
     cell_center: np.ndarray  # (P, 2) float32
@@ -79,6 +82,10 @@ class Species:
         self.width = np.array([r["width"] for r in rows], dtype=np.float64)
         self.stiffness = np.array([r["stiffness"] for r in rows], dtype=np.float64)
         self.color = np.array([r["color"] for r in rows], dtype=np.float32).reshape(-1, 3)
+        self.heads = np.array([r["heads"] for r in rows], dtype=np.float64)
+        self.head_size = np.array([r["head_size"] for r in rows], dtype=np.float64)
+        self.head_color = np.array([r["head_color"] for r in rows], dtype=np.float32).reshape(-1, 3)
+        self.flower = np.array([r["head_shape"] == "flower" for r in rows], dtype=bool)
         self.mean_length = float(np.dot(self.p, self.length))
         self.mean_variation = float(np.dot(self.p, self.length_variation))
         self.longest = float(np.max(self.length + 4.0 * self.length_variation))  # no blade is longer
@@ -143,11 +150,13 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # paper III.A (2): random position inside the cell and random orientation
     offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
     root = np.empty((n_blades, 3), dtype=np.float32)
-    root[:, :2] = np.repeat(centre64, num, axis=0) + offset
+    # a meadow's tussocks pull the roots towards their clumps' centres (meadow.py)
+    root[:, :2] = meadow.clumped(np.repeat(centre64, num, axis=0) + offset, int(f.seed), float(f.clumping),
+                                 float(f.clump_size))
     root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
     facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
     painted = paint is not None and not paint.empty
-    local = paint.species_weights_at(root[:, :2], species.p) if painted else None
+    local = _local_shares(params, species, paint if painted else None, root[:, :2])
     kind, length, width, stiffness, inclination, *barren = _sample_blades(rng, n_blades, params, species, local)
     shade = rng.random(n_blades).astype(np.float32)
     alive = None
@@ -158,6 +167,10 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         alive = (grow_number < paint.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
         if barren:
             alive &= ~barren[0]
+    if f.patchiness > 0.0:
+        length = np.maximum(length * meadow.length_scale(root[:, :2], params), MIN_BLADE_LENGTH)
+    head, flower, dry = meadow.heads_and_dryness(np.random.default_rng([int(f.seed), meadow.RNG_MEADOW, block]), kind,
+                                         species, params)
     n = int(params.blade.segments)
     rest_tilt = _rest_tilt(params, length, stiffness, inclination) if n_blades else np.zeros((0, n))
 
@@ -189,6 +202,7 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     return Block(
         blade_root=root, blade_facing=facing, blade_length=length.astype(f32), blade_width=width.astype(f32),
         blade_inclination=inclination.astype(f32), blade_shade=shade, blade_species=kind,
+        blade_head=head, blade_flower=flower, blade_dry=dry,
         blade_rest_tilt=np.ascontiguousarray(rest_tilt, dtype=f32),
         blade_ground_slope=None if terrain is None else terrain.gradient(root[:, :2]),
         cell_center=cell_center, cell_ground=ground_z(terrain, cell_center).astype(f32),
@@ -197,6 +211,16 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
         card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
         z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density)
+
+
+def _local_shares(params: Params, species: Species, paint: Paint | None, xy: np.ndarray) -> np.ndarray | None:
+    """(n, species) the species' shares where the blades stand: painted species maps times the
+    meadow's patches (meadow.py); None where the table's shares hold everywhere."""
+    local = None if paint is None else paint.species_weights_at(xy, species.p)
+    patched = meadow.species_weights(xy, params, species.p if local is None else np.ones(len(species.p)))
+    if patched is None:
+        return local
+    return patched if local is None else local * patched
 
 
 def _cell_blades(params, species, cell_rng, P: int, num: int, length, width, stiffness, rest_tilt) -> tuple:
@@ -249,7 +273,7 @@ class BlockCache:
         f, n = self.params.field, int(self.params.blade.segments)
         P = self.grid.cells_per_block ** 2
         B = P * int(f.blades_per_cell)
-        per_blade = 4 * (3 + 5 + n + (2 if self.terrain is not None else 0)) + 2
+        per_blade = 4 * (3 + 8 + n + (2 if self.terrain is not None else 0)) + 2
         per_cell = 4 * (2 + 1 + 3 + n + 1 + 3)
         return B * per_blade + P * per_cell + 8
 

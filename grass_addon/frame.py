@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import slots
+from . import meadow, slots
 
 BLADES, CARDS = "blades", "cards"
 # per-vertex attributes (the bridge writes each into the UV map of that role's name)
@@ -52,20 +52,25 @@ def block_distance(layout, lod, views) -> np.ndarray:
 
 
 def blade_tints(layout, local: np.ndarray) -> dict:
-    """Per corner of every blade quad of the positions ``local`` (FREE: zero): the species colour
-    (r, g), (b, shade)."""
-    corners = layout.segments * 4  # per blade: n quads
+    """Per corner of every blade quad of the positions ``local`` (FREE: zero): the colour at the
+    corner's joint (``meadow.joint_colours``) as (r, g), (b, shade); quad j's corners are (left_j,
+    right_j, right_j+1, left_j+1)."""
+    n = layout.segments
     bpb = layout.blades_per_block
     shown = local >= 0
-    rg = np.zeros((len(local), bpb, 2), dtype=np.float32)
-    bs = np.zeros((len(local), bpb, 2), dtype=np.float32)
+    rg = np.zeros((len(local), bpb, n, 4, 2), dtype=np.float32)
+    bs = np.zeros((len(local), bpb, n, 4, 2), dtype=np.float32)
     blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
-    colour = layout.species_color[layout.blade_species[blades]]
+    kind = layout.blade_species[blades]
+    joints = meadow.joint_colours(n, layout.species_color[kind], layout.species_head_color[kind],
+                                  layout.blade_dry[blades], layout.blade_head[blades],
+                                  layout.blade_flower[blades])  # (shown, bpb, n + 1, 3)
+    corner_joint = (np.arange(n)[:, None] + np.array([0, 0, 1, 1])[None, :])  # (n, 4)
+    colour = joints[:, :, corner_joint]  # (shown, bpb, n, 4, 3)
     rg[shown] = colour[..., :2]
-    bs[shown, :, 0] = colour[..., 2]
-    bs[shown, :, 1] = layout.blade_shade[blades]
-    return {TINT_RG: np.repeat(rg.reshape(-1, 2), corners, axis=0),
-            TINT_BS: np.repeat(bs.reshape(-1, 2), corners, axis=0)}
+    bs[shown, ..., 0] = colour[..., 2]
+    bs[shown, ..., 1] = layout.blade_shade[blades][..., None, None]
+    return {TINT_RG: rg.reshape(-1, 2), TINT_BS: bs.reshape(-1, 2)}
 
 
 def card_fade(layout, local: np.ndarray, lod) -> dict:

@@ -43,7 +43,7 @@ import weakref
 
 import numpy as np
 
-from . import blade, workers
+from . import blade, meadow, workers
 
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
@@ -125,6 +125,11 @@ class _Constants:
         # repeated for every joint (nb, bpb, n+1).
         w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
         self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
+        # a seed head widens the strip at its last joint but one, a flower at its tip (meadow.py)
+        for joint, width in ((n - 1, layout.blade_head), (n, layout.blade_flower)):
+            if joint >= 1 and width.any():
+                widening = meadow.head_widening(width, layout.params.blade.tip_width, n, joint)
+                self.w_side[..., joint] *= widening.reshape(nb, bpb)
         root = layout.blade_root.astype(np.float64)
         self.root_xy = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(nb, bpb)
         # The ground stops each segment (blade.GROUND_TILT): flat ground as one row of the limit;

@@ -45,6 +45,9 @@ class FieldLayout:
     blade_shade: np.ndarray
     blade_species: np.ndarray
     blade_rest_tilt: np.ndarray
+    blade_head: np.ndarray  # (n_blades,) float32 seed head width / stem width; 0: no head (meadow.py)
+    blade_flower: np.ndarray  # (n_blades,) float32 flower width / stem width; 0: no flower
+    blade_dry: np.ndarray  # (n_blades,) float32 how dry the tip is, 0..1
     # the representative blade of each cell, simulated by the solver (paper V.B)
     cell_length: np.ndarray
     cell_width: np.ndarray
@@ -57,6 +60,7 @@ class FieldLayout:
     card_shade: np.ndarray
     card_center: np.ndarray  # (n_cells, 2) float32: each card's foot, jittered inside its cell
     species_color: np.ndarray  # (n_species, 3) float32 linear RGB
+    species_head_color: np.ndarray  # (n_species, 3) float32 linear RGB of its seed heads or flowers
     cell_ground: np.ndarray  # (n_cells,) float32 ground z at each cell centre (0 on flat ground)
     block_z_range: np.ndarray  # (n_blocks, 2) float32 lowest, highest ground (0, 0 on flat ground)
     terrain: Heightfield | None = None  # None = flat ground z = 0; blade_root z lies on it
@@ -107,14 +111,15 @@ def _block_cells(blocks_x: int, blocks_y: int, cpb: int) -> np.ndarray:
 
 
 _BLADE_ARRAYS = ("blade_root", "blade_facing", "blade_length", "blade_width", "blade_inclination",
-                 "blade_shade", "blade_species", "blade_rest_tilt")  # concatenated block after block
+                 "blade_shade", "blade_species", "blade_rest_tilt", "blade_head", "blade_flower",
+                 "blade_dry")  # block after block
 _CELL_ARRAYS = ("cell_center", "cell_ground", "cell_length", "cell_width", "cell_root_stiffness",
                 "cell_rest_tilt", "cell_facing", "card_height", "card_facing", "card_shade",
                 "card_center")
 
 
 def _layout(params: Params, grid: FieldGrid, ids: np.ndarray, block_cells: np.ndarray, arrays: dict,
-            species_color: np.ndarray, terrain, z_range: np.ndarray, slope) -> FieldLayout:
+            species_colors: tuple, terrain, z_range: np.ndarray, slope) -> FieldLayout:
     """A FieldLayout of blocks ``ids`` whose blade and cell ``arrays`` are already in place."""
     num, P = grid.blades_per_cell, grid.cells_per_block_total
     nb = len(ids)
@@ -123,7 +128,7 @@ def _layout(params: Params, grid: FieldGrid, ids: np.ndarray, block_cells: np.nd
         block_bounds=grid.block_bounds(ids).astype(np.float32),
         blade_cell=np.repeat(block_cells.ravel().astype(np.int32), num),
         blade_slot=np.tile(np.arange(num, dtype=np.int32), nb * P),
-        species_color=species_color, terrain=terrain,
+        species_color=species_colors[0], species_head_color=species_colors[1], terrain=terrain,
         block_z_range=np.ascontiguousarray(z_range, dtype=np.float32), blade_ground_slope=slope, **arrays)
 
 
@@ -155,7 +160,8 @@ def _assemble(params: Params, cache: BlockCache, ids: np.ndarray, blocks: list[B
         arrays["cell_density"] = cells("cell_density")
     slope = None if cache.terrain is None else blades("blade_ground_slope")
     z_range = np.stack([b.z_range for b in blocks]) if blocks else np.zeros((0, 2), np.float32)
-    return _layout(params, cache.grid, ids, block_cells, arrays, cache.species.color, cache.terrain, z_range, slope)
+    colors = (cache.species.color, cache.species.head_color)
+    return _layout(params, cache.grid, ids, block_cells, arrays, colors, cache.terrain, z_range, slope)
 
 
 def window_layout(cache: BlockCache, blocks) -> FieldLayout:
@@ -188,5 +194,6 @@ def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
         arrays["blade_alive"], arrays["cell_density"] = layout.blade_alive[blades], layout.cell_density[cells]
     slope = layout.blade_ground_slope
     block_cells = np.arange(local.size * P, dtype=np.int32).reshape(local.size, P)
-    return _layout(layout.params, layout.grid, layout.block_ids[local], block_cells, arrays, layout.species_color,
+    colors = (layout.species_color, layout.species_head_color)
+    return _layout(layout.params, layout.grid, layout.block_ids[local], block_cells, arrays, colors,
                    layout.terrain, layout.block_z_range[local], None if slope is None else slope[blades])

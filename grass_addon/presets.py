@@ -5,7 +5,8 @@ validates a preset through the schema, so a preset can never hold a value the sc
 
 Numbers are chosen from what the grass looks like outdoors:
 - lawn: mown turf, 4-8 cm high (usual mowing heights), narrow dense blades;
-- meadow: unmown hay meadow, 30-60 cm, with some dry straw-coloured blades;
+- meadow: unmown hay meadow, 30-60 cm: fine and broad grasses with seed panicles, tall timothy
+  stems, buttercups and daisies, some dry straw-coloured blades;
 - wild: tall rough grass and reeds, 0.6-1.2 m.
 
 Stiffness: the weight torque at the root grows with the square of the blade length (eqs 2-4,
@@ -31,12 +32,27 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
          "width": 0.0018, "stiffness": 0.8, "color": (0.06, 0.24, 0.06)},
     ),
     "meadow": (
-        {"name": "meadow grass", "weight": 0.6, "length": 0.32, "length_variation": 0.07,
-         "width": 0.008, "stiffness": 1.0, "color": (0.12, 0.32, 0.05)},
-        {"name": "timothy", "weight": 0.3, "length": 0.5, "length_variation": 0.1,
-         "width": 0.007, "stiffness": 2.5, "color": (0.16, 0.34, 0.06)},
-        {"name": "dry grass", "weight": 0.1, "length": 0.4, "length_variation": 0.08,
-         "width": 0.006, "stiffness": 1.6, "color": (0.36, 0.30, 0.12)},
+        # fine and broad grasses with seed panicles, tall flowering stems, flowers and some dry blades
+        {"name": "meadow grass", "weight": 0.5, "length": 0.32, "length_variation": 0.07,
+         "width": 0.006, "stiffness": 1.0, "color": (0.10, 0.30, 0.045),
+         "heads": 0.06, "head_color": (0.26, 0.24, 0.13), "head_size": 2.0},
+        {"name": "timothy", "weight": 0.12, "length": 0.6, "length_variation": 0.1,
+         "width": 0.005, "stiffness": 3.5, "color": (0.16, 0.34, 0.06),
+         "heads": 0.5, "head_color": (0.24, 0.26, 0.12), "head_size": 2.2},
+        {"name": "cocksfoot", "weight": 0.18, "length": 0.42, "length_variation": 0.09,
+         "width": 0.011, "stiffness": 1.8, "color": (0.09, 0.25, 0.07),
+         "heads": 0.1, "head_color": (0.22, 0.17, 0.16), "head_size": 2.2},
+        {"name": "buttercup", "weight": 0.05, "length": 0.4, "length_variation": 0.08,
+         "width": 0.004, "stiffness": 1.6, "color": (0.11, 0.29, 0.05),
+         "heads": 0.8, "head_color": (0.80, 0.55, 0.02), "head_size": 7.0,
+         "head_shape": "flower"},
+        {"name": "ox-eye daisy", "weight": 0.04, "length": 0.45, "length_variation": 0.08,
+         "width": 0.004, "stiffness": 2.0, "color": (0.12, 0.30, 0.06),
+         "heads": 0.8, "head_color": (0.75, 0.75, 0.70), "head_size": 7.0,
+         "head_shape": "flower"},
+        {"name": "dry grass", "weight": 0.11, "length": 0.4, "length_variation": 0.08,
+         "width": 0.006, "stiffness": 1.6, "color": (0.36, 0.30, 0.12),
+         "heads": 0.1, "head_color": (0.34, 0.28, 0.14), "head_size": 2.0},
     ),
     "wild": (
         {"name": "tall grass", "weight": 0.5, "length": 0.8, "length_variation": 0.15,
@@ -50,9 +66,19 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
 
 PRESET_NAMES: tuple[str, ...] = tuple(SPECIES_PRESETS)
 
+# The look each preset gives besides its species (meadow.py): a lawn is even, a meadow grows in
+# tussocks and patches, with some dry tips; wild grass more so.
+LOOKS: dict[str, dict[str, Any]] = {
+    "lawn": {"field.clumping": 0.0, "field.patchiness": 0.0, "blade.dry_tips": 0.0},
+    "meadow": {"field.clumping": 0.35, "field.clump_size": 0.45, "field.patchiness": 0.7, "field.patch_size": 8.0,
+               "blade.dry_tips": 0.2},
+    "wild": {"field.clumping": 0.5, "field.clump_size": 0.7, "field.patchiness": 0.8, "field.patch_size": 12.0,
+             "blade.dry_tips": 0.3},
+}
+
 PRESET_HELP: dict[str, str] = {
     "lawn": "Mown lawn: short (4-8 cm) narrow blades",
-    "meadow": "Hay meadow: 30-60 cm grasses with some dry blades",
+    "meadow": "Hay meadow: 30-60 cm grasses in tussocks and patches, seed heads, flowers, dry tips",
     "wild": "Wild field: tall grass (0.6-1.2 m) and reeds",
 }
 
@@ -67,5 +93,5 @@ def species_rows(name: str) -> tuple[dict[str, Any], ...]:
 
 
 def apply_preset(params: schema.Params, name: str) -> schema.Params:
-    """``params`` with its species table replaced by preset ``name``."""
-    return params.replace({"blade.species": [dict(r) for r in species_rows(name)]})
+    """``params`` with its species table and look (``LOOKS``) replaced by preset ``name``."""
+    return params.replace({"blade.species": [dict(r) for r in species_rows(name)], **LOOKS[name]})

@@ -132,6 +132,14 @@ SPECIES_FIELDS: tuple[Param, ...] = (
        size=3, label="Color"),
     _p("", "density_map", "str", "", "Where this species grows: a map that scales its share (white: its share, "
        "black: none). See paint.density for the sources", label="Density", path=True),
+    _p("", "heads", "float", 0.0, "Share of this species' stems that carry a seed head or a flower at their tip",
+       unit="fraction", minimum=0.0, maximum=1.0, label="Heads"),
+    _p("", "head_color", "vec", (0.45, 0.36, 0.2), "Colour of the seed heads or flowers (linear RGB)", minimum=0.0,
+       maximum=1.0, size=3, label="Head Color"),
+    _p("", "head_size", "float", 3.0, "Width of a head as a multiple of the stem's width", unit="x width",
+       minimum=1.0, maximum=30.0, soft_max=12.0, label="Head Size"),
+    _p("", "head_shape", "enum", "seed", "A seed head is a spindle over the stem's top two segments; a flower "
+       "opens at the tip of its top segment", choices=("seed", "flower"), label="Head Shape"),
 )
 
 # Columns of one ``[[keep_out.shapes]]`` row: where no grass grows.
@@ -221,6 +229,15 @@ PARAMS: tuple[Param, ...] = (
        minimum=0, maximum=64, soft_max=16, advanced=True, label="Blades/Cell"),
     _p("field", "seed", "int", 0, "Another seed grows the blades elsewhere and runs other gusts; the same seed gives "
        "the same field", minimum=0, maximum=2**31 - 1, label="Seed"),
+    _p("field", "clumping", "float", 0.0, "Grass grows in tussocks: how far each blade is drawn towards its "
+       "clump's centre (0: evenly spread, 1: all on the centre)", unit="fraction", minimum=0.0, maximum=0.95,
+       label="Clumping"),
+    _p("field", "clump_size", "float", 0.5, "Distance between neighbouring tussocks", unit="m", minimum=0.05,
+       maximum=10.0, soft_max=2.0, label="Clump Size"),
+    _p("field", "patchiness", "float", 0.0, "Patches where the grass grows taller or shorter and the species mix "
+       "changes (0: the same everywhere)", unit="fraction", minimum=0.0, maximum=1.0, label="Patches"),
+    _p("field", "patch_size", "float", 8.0, "Size of a patch", unit="m", minimum=0.5, maximum=1000.0,
+       soft_max=50.0, label="Patch Size"),
     # --- [blade] paper III.A, eqs 1-6 and V.A, eqs 14-32 ----------------------------------------
     _p("blade", "segments", "int", 5, "Rigid pieces per blade: more bend more smoothly and cost more (n)", minimum=1,
        maximum=12, advanced=True, label="Segments"),
@@ -254,6 +271,8 @@ PARAMS: tuple[Param, ...] = (
        "wind (k of eq 28)", minimum=0.0, maximum=3.0, advanced=True, label="Free Sway"),
     _p("blade", "boundary_lambda", "float", 20.0, "How fast the free sway grows past that bend (lambda of eq 28)",
        minimum=0.0, maximum=100.0, advanced=True, label="Sway Rate"),
+    _p("blade", "dry_tips", "float", 0.0, "Share of the blades whose tips have dried to straw", unit="fraction",
+       minimum=0.0, maximum=1.0, label="Dry Tips"),
     _p("blade", "species", "table_list", (), "Grass species mixed by their shares; none: one default species",
        fields=SPECIES_FIELDS, label="Species"),
     # --- [wind] paper IV, eqs 12-13 --------------------------------------------------------------

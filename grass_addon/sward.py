@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import blade
+from . import blade, meadow
 from .blocks import Species, make_block
 from .grid import FieldGrid
 from .schema import Params
@@ -97,8 +97,9 @@ def _segment_spans(params: Params, block):
     seg = block.blade_length.astype(np.float64)[:, None] / n
     rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))
     joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
-    taper = blade.segment_widths(params.blade.tip_width, n)
-    seen = block.blade_width.astype(np.float64)[:, None] * taper[None, :] * np.abs(rise)
+    widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower)
+    taper = 0.5 * (widths[:, :-1] + widths[:, 1:])  # each segment's mean width (heads widen the top)
+    seen = block.blade_width.astype(np.float64)[:, None] * taper * np.abs(rise)
     return np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:]), seen
 
 
@@ -128,7 +129,9 @@ def _layer_colours(params: Params, edges: np.ndarray) -> np.ndarray:
     inside = np.clip((np.minimum(high[None], edges[1:, None, None]) - np.maximum(low[None], edges[:-1, None, None]))
                      / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)
     weight = inside * seen[None]  # (layers, blades, segments)
-    colour = _segment_colours(params, block, 0.5)
+    # each segment's colour at its area's centroid (a head widens its top: its colour weighs more)
+    w = meadow.joint_widths(params.blade.tip_width, int(params.blade.segments), block.blade_head, block.blade_flower)
+    colour = _segment_colours(params, block, (w[:, :-1] + 2.0 * w[:, 1:]) / (3.0 * (w[:, :-1] + w[:, 1:])))
     total = np.einsum("lbs,bsc->lc", weight, colour)
     return total / np.maximum(weight.sum(axis=(1, 2)), 1e-12)[:, None]
 
@@ -137,10 +140,13 @@ def _segment_colours(params: Params, block, at) -> np.ndarray:
     """Linear RGB (blades, segments, 3) of each segment at the share ``at`` of its length (a
     number or (blades, segments)), in the blade material's ramp with each blade's shade."""
     n = int(params.blade.segments)
-    tip = Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]
-    v = (np.arange(n) + np.asarray(at, np.float64)) / n
+    species, kind = Species(params), block.blade_species.astype(np.int64)
+    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
+                                  block.blade_head, block.blade_flower).astype(np.float64)  # heads, dry tips
+    at = np.broadcast_to(np.asarray(at, np.float64), (len(kind), n))
+    tip = joints[:, :-1] + (joints[:, 1:] - joints[:, :-1]) * at[..., None]
     shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
-    return blade_colour_ramp(tip, v) * shade[:, None, None]
+    return colour_ramp(tip, (np.arange(n) + at) / n) * shade[:, None, None]
 
 
 def fringe_colour(params: Params) -> tuple[float, float, float]:
@@ -172,10 +178,11 @@ def _canopy(tips: np.ndarray) -> float:
     return float(CANOPY_SHARE * np.mean(tips))
 
 
-def blade_colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The blade material's colour at heights ``v`` (0 root .. 1 tip) for tip colours ``tip``
-    (..., 3): a smoothstep from the base colour to the tip colour over v in [0, GRADIENT_END]."""
-    u = np.clip(v / GRADIENT_END, 0.0, 1.0)
+def colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The blade material's colour (..., 3) at heights ``v`` (..., 0 root .. 1 tip) for the tip
+    colours ``tip`` (..., 3) there: a smoothstep from the base colour to the tip colour over v in
+    [0, GRADIENT_END]."""
+    u = np.clip(np.asarray(v) / GRADIENT_END, 0.0, 1.0)
     s = u * u * (3.0 - 2.0 * u)
     base = np.asarray(BLADE_BASE_COLOUR)
-    return base + (np.asarray(tip)[..., None, :] - base) * s[..., None]
+    return base + (np.asarray(tip) - base) * s[..., None]

@@ -6,15 +6,19 @@ import math
 import bpy
 from mathutils import Vector
 
-from ..grass_addon import schema
+from ..grass_addon import presets, schema
 from ..grass_addon.bridge import properties, runtime
 from ..grass_addon.errors import WindgrassError
 from ..grass_addon.grid import FieldGrid
 from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
-# (12.8 m square, 32,768 blades); every other value is the schema default.
-FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8}
+# (12.8 m square, 32,768 blades), a meadow (presets.py: its species, tussocks, patches and dry
+# tips) in a breeze whose gust waves run over it; every other value is the schema default.
+FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8,
+               **{k.split(".")[1]: v for k, v in presets.LOOKS["meadow"].items() if k.startswith("field.")}}
+FIRST_LOOK = "meadow"
+FIRST_GUST_WAVES = 0.3
 # On a terrain the field fits the mesh's XY extent (cell size kept) unless blocks_x/blocks_y are
 # given, up to this many blocks (a light field; the artist can grow it in the panel).
 FIT_MAX_BLOCKS = 256
@@ -62,9 +66,9 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
                 values.update(view.write(values, getattr(self, view.param.key)))
         if terrain is not None:
             values.update(self._fit_to(terrain, values))
-        params = schema.defaults().replace({f"field.{k}": v for k, v in values.items()})
-        # One species row, so that the panel shows the blades' height, its spread and colour at once.
-        params = params.replace({"blade.species": [schema.row_defaults(schema.SPECIES_FIELDS)]})
+        # a meadow: the preset's species and look, then the field's settings as given here
+        params = presets.apply_preset(schema.defaults(), FIRST_LOOK).replace(
+            {"wind.gust_waves": FIRST_GUST_WAVES, **{f"field.{k}": v for k, v in values.items()}})
         item = properties.add_field(scene, params)
         if terrain is not None:
             item.terrain = terrain

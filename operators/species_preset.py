@@ -16,7 +16,8 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
 
     bl_idname = "windgrass.species_preset"
     bl_label = "Grass Species Preset"
-    bl_description = "Replace the species of the active grass field by a preset mix (lawn, meadow, wild)"
+    bl_description = ("Replace the species of the active grass field by a preset mix (lawn, meadow, wild) and "
+                      "take the preset's tussocks, patches and dry tips")
     bl_options = {"REGISTER", "UNDO"}
     bl_property = "preset"
 
@@ -31,6 +32,9 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
         item = properties.active_field(context.scene)
         rows = presets.species_rows(self.preset)  # validated by the schema
         properties.write_rows(item, properties.table_param("blade.species"), rows)
+        for name, value in presets.LOOKS[self.preset].items():
+            section, key = name.split(".")
+            setattr(properties.group(item, section), key, value)
         names = ", ".join(r["name"] for r in rows)
         self.report({"INFO"}, f"Species of '{item.name}': {names}")
         return {"FINISHED"}

@@ -94,7 +94,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 7
+MATERIALS_VERSION = 8
 
 
 def _socket(sockets, *names: str):
@@ -289,9 +289,9 @@ def blade_material(name: str, uid: str):
     mix = t.mix_rgb(-750, 100, a=BLADE_BASE_COLOUR)
     t.link(grad, "Result", mix, "Factor_Float")
     t.link(tip, "Vector", mix, "B_Color")
-    hue = t.add("ShaderNodeMapRange", -750, -300)  # shade 0..1 -> hue shift +-0.02
-    _set(hue, 0.48, "To Min")
-    _set(hue, 0.52, "To Max")
+    hue = t.add("ShaderNodeMapRange", -750, -300)  # shade 0..1 -> hue shift +-0.035 (+-13 degrees)
+    _set(hue, 0.465, "To Min")
+    _set(hue, 0.535, "To Max")
     value = t.add("ShaderNodeMapRange", -750, -550)  # shade 0..1 -> value x0.7 .. x1.3
     _set(value, 0.7, "To Min")
     _set(value, 1.3, "To Max")

@@ -325,7 +325,7 @@ def test_params_round_trip_through_the_settings(scene):
     item = properties.add_field(scene)
     properties.apply_params(item, params)
     assert properties.params_from_settings(item) == params
-    assert len(item.blade.species) == 3 and item.blade.species[1].name == "timothy"
+    assert len(item.blade.species) == 6 and item.blade.species[1].name == "timothy"
 
 
 @pytest.mark.parametrize("setting, key", [

@@ -363,3 +363,22 @@ def test_a_slope_stops_blades_leaning_uphill():
     tips = centres[:, -1]
     roots = layout.blade_root
     assert np.all(tips[:, 0] > roots[:, 0])  # they still lean uphill
+
+
+def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_the_tip():
+    """Meadow heads (meadow.py): a seed head makes the strip ``head`` times the blade's root width
+    at joint n - 1, a flower at the tip joint n; the other joints keep the linear taper. Checked
+    by hand against the width vector of every joint, untwisted and unbent."""
+    from windgrass.grass_addon import presets
+
+    params = presets.apply_preset(schema.defaults(), "meadow").replace(
+        {"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4, "field.blades_per_cell": 3})
+    layout = build_layout(params)
+    n = layout.segments
+    assert (layout.blade_head > 0).any() and (layout.blade_flower > 0).any()
+    width = np.linalg.norm(np.diff(strips(layout, cells_of(layout)), axis=2)[:, :, 0], axis=2)
+    taper = 1.0 + (params.blade.tip_width - 1.0) * np.arange(n + 1) / n
+    expected = layout.blade_width[:, None] * taper[None, :]
+    expected[:, n - 1] = np.where(layout.blade_head > 0, layout.blade_width * layout.blade_head, expected[:, n - 1])
+    expected[:, n] = np.where(layout.blade_flower > 0, layout.blade_width * layout.blade_flower, expected[:, n])
+    np.testing.assert_allclose(width, expected, rtol=1e-5, atol=1e-7)

@@ -4,7 +4,7 @@ sward's."""
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import atlas, presets, schema, sward
+from windgrass.grass_addon import atlas, meadow, presets, schema, sward
 
 
 @pytest.fixture(params=["default", "meadow"])
@@ -85,6 +85,16 @@ def test_cards_cover_what_their_blades_cover(params):
     assert cards_stop == pytest.approx(blades_stop, rel=0.15)  # measured: 1.06 (default), 1.07 (meadow)
 
 
+def _palette(params) -> np.ndarray:
+    """(k, 3) the colours a field's blades are given: each species', its heads' where it has any,
+    and a dry tip's straw where some tips are dry."""
+    species = sward.Species(params)
+    parts = [species.color, species.head_color[species.heads > 0]]
+    if params.blade.dry_tips > 0:
+        parts.append(meadow.STRAW[None, :])
+    return np.concatenate(parts)
+
+
 def test_card_atlas_is_the_blades_colours_rooted_at_the_bottom(params):
     image = atlas.card_atlas(params)
     size = atlas.CARD_PIXELS
@@ -92,12 +102,20 @@ def test_card_atlas_is_the_blades_colours_rooted_at_the_bottom(params):
     alpha = image[..., 3]
     rows = alpha.mean(axis=1)
     assert rows[: size // 8].mean() > rows[size // 2: 5 * size // 8].mean()  # blades taper, tips droop
-    # opaque pixels take the blade material's ramp: from the dark base to a shaded species colour
-    colours = sward.Species(params).color
+    # opaque pixels take the blade material's ramp: from the dark base to a shaded colour of the
+    # blades' palette (their species, their heads, a dry tip's straw)
+    colours = _palette(params)
     rgb = image[..., :3][alpha > 0.5]
     assert rgb.size and np.all(rgb <= 1.3 * colours.max(axis=0) + 1e-6)
     assert np.all(rgb >= 0.7 * np.asarray(sward.BLADE_BASE_COLOUR) - 1e-6)
     assert (rgb[:, 1] >= rgb[:, 2]).mean() > 0.95  # green over blue, like every species colour
+    # the seed heads and flowers of the blades drawn are on the cards, in their colours
+    species, block = sward.Species(params), sward.sample_blades(params)
+    drawn = np.arange(atlas.CARD_VARIANTS * int(params.field.blades_per_cell))
+    headed = drawn[(block.blade_head[drawn] > 0) | (block.blade_flower[drawn] > 0)]
+    assert params.species() != presets.species_rows("meadow") or headed.size  # (the meadow's sample has some)
+    for colour in species.head_color[np.unique(block.blade_species[headed])]:
+        assert (np.abs(rgb / rgb.sum(axis=1, keepdims=True) - colour / colour.sum()).max(axis=1) < 0.03).any()
     # each variant shows different blades
     variants = alpha.reshape(size, atlas.CARD_VARIANTS, size).transpose(1, 0, 2)
     assert not np.array_equal(variants[0], variants[1])
@@ -119,7 +137,9 @@ def test_the_sward_looks_darker_the_steeper_it_is_seen(params):
     assert np.all(np.diff(luminance) < 0)
     species = sward.Species(params)
     tip = species.p @ species.color
-    assert np.all(look[0] <= 1.3 * tip) and np.all(look[0] >= 0.5 * tip)  # the tips, with each blade's shade
+    palette = _palette(params)  # (heads and dry tips: the far view sees them too)
+    assert np.all(look[0] <= 1.3 * palette.max(axis=0))
+    assert np.all(look[0] >= 0.5 * np.minimum(tip, palette.min(axis=0)))
     floor = 0.5 * (np.asarray(sward.THATCH_COLOUR) + np.asarray(sward.LITTER_COLOUR))
     assert np.all(look[-1] <= floor)  # straight down: the floor, in the blades' shade
     assert luminance[2] < 0.75 * luminance[0]  # a tenth's slope already sees much deeper
@@ -151,6 +171,11 @@ def _trace(params, exit_z: float, slope: float, rays: int, rng):
         [np.zeros_like(seg[:, :1]), np.cumsum(seg, axis=1)], axis=1)
     taper = 1.0 - (1.0 - params.blade.tip_width) * np.arange(n + 1) / n
     width = block.blade_width.astype(np.float64)[:, None] * taper
+    # a seed head is head times the root width at joint n - 1, a flower at the tip (meadow.py)
+    width[:, n - 1] = np.where(block.blade_head > 0, block.blade_width * np.maximum(taper[n - 1], block.blade_head),
+                               width[:, n - 1])
+    width[:, n] = np.where(block.blade_flower > 0, block.blade_width * np.maximum(taper[n], block.blade_flower),
+                           width[:, n])
     side = np.stack([-np.sin(facing), np.cos(facing), np.zeros_like(facing)], axis=1)
     reach = (joints[..., 2].max() - exit_z) / slope  # horizontal length of the traced part of a ray
     tile = float(params.field.cells_per_block * params.field.cell_size)
@@ -207,6 +232,26 @@ def test_sward_depth_is_what_rays_leaving_the_field_cross(params, slope):
         assert _ray_blocked(params, z, slope, 800, rng) == pytest.approx(expected, abs=0.07)
 
 
+def _tip_colour(params, block, blade, v) -> np.ndarray:
+    """(rays, 3) the colour the blade material ramps to at share ``v`` of blade ``blade``'s length,
+    by hand: its species' colour, towards straw above meadow.DRY_FROM on a dry blade, the head's
+    colour from joint n - 1 on for a seed head and at the tip for a flower, linear between joints."""
+    species, n = sward.Species(params), int(params.blade.segments)
+    kind = block.blade_species.astype(np.int64)[blade]
+    joint_t = np.arange(n + 1) / n
+    dry = np.clip((joint_t - meadow.DRY_FROM) / (1.0 - meadow.DRY_FROM), 0.0, 1.0)
+    joints = species.color[kind][:, None, :] + (meadow.STRAW - species.color[kind][:, None, :]) * \
+        (block.blade_dry[blade][:, None, None] * dry[None, :, None])
+    head, flower = block.blade_head[blade] > 0, block.blade_flower[blade] > 0
+    joints[head, n - 1:] = species.head_color[kind][head][:, None, :]
+    joints[flower, n] = species.head_color[kind][flower]
+    v = np.clip(v, 0.0, 1.0)  # (rays that meet no blade: any)
+    j = np.minimum((v * n).astype(int), n - 1)
+    frac = (v * n - j)[:, None]
+    rows = np.arange(len(v))
+    return joints[rows, j] + (joints[rows, j + 1] - joints[rows, j]) * frac
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("slope", [0.1, 0.25])
 def test_sward_look_is_what_rays_from_above_meet(params, slope):
@@ -216,14 +261,14 @@ def test_sward_look_is_what_rays_from_above_meet(params, slope):
     the floor's where it meets none. Their mean is ``sward_look``'s colour."""
     params = params.replace({"field.cells_per_block": 4})
     rng = np.random.default_rng(11)
-    stopped, z, blade, v = _trace(params, 0.0, slope, 800, rng)
+    stopped, z, blade, v = _trace(params, 0.0, slope, 1600, rng)  # (heads make the colours vary more)
     block = sward.sample_blades(params)
     heights, depth = sward.sward_profile(params, 129)
     lit = np.exp(-np.interp(z, heights, depth) / sward.LIGHT_SLOPE)
-    tip = sward.Species(params).color.astype(np.float64)[block.blade_species.astype(np.int64)]
+    tip = _tip_colour(params, block, blade, v)
     shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
     u = np.clip(v / sward.GRADIENT_END, 0.0, 1.0)
-    ramp = np.asarray(sward.BLADE_BASE_COLOUR) + (tip[blade] - sward.BLADE_BASE_COLOUR) * (u * u * (3 - 2 * u))[:, None]
+    ramp = np.asarray(sward.BLADE_BASE_COLOUR) + (tip - sward.BLADE_BASE_COLOUR) * (u * u * (3 - 2 * u))[:, None]
     floor = 0.5 * (np.asarray(sward.THATCH_COLOUR) + np.asarray(sward.LITTER_COLOUR))
     floor = floor * np.exp(-depth[0] / sward.LIGHT_SLOPE)
     seen = np.where(stopped[:, None], ramp * (shade[blade] * lit)[:, None], floor)

@@ -1,0 +1,170 @@
+"""A meadow's variety, decided when a block is made: tussocks, patches, heads and dry tips.
+
+The paper grows every blade at a uniform random place in its cell, of one species mix everywhere:
+a freshly sown lawn. A meadow is uneven at every scale, and each of these is a pure function of
+(parameters, seed, place), so a block is the same whenever and wherever it is made (blocks.py):
+
+- **Tussocks** (``field.clumping``, ``field.clump_size``): grasses grow in clumps around clump
+  centres, one on each cell of a lattice of the clump size, jittered. A blade's root is pulled
+  towards the nearest centre by the clumping share (0: where it was drawn, 1: onto the centre), so
+  tussocks stand with bare gaps between them; no blade is added or lost, and each blade keeps its
+  own cell's bend (the pull is at most half a clump, smaller than the wind's eddies).
+- **Patches** (``field.patchiness``, ``field.patch_size``): low-frequency value noise, two octaves
+  at the patch size and a third of it, scales the blades' length (taller and shorter stands) and
+  each species' share (a patch of flowers, a dry patch), metres to tens of metres wide.
+- **Heads** (species ``heads``, ``head_color``, ``head_size``, ``head_shape``): a share of a
+  species' stems carry a seed head or a flower at their tip. A seed head widens the strip at its
+  last joint but one, so the top two segments make a spindle (a panicle, a spike); a flower
+  widens it at the tip, so the top segment opens into a cup (kinematics.py). Both are in the
+  head's colour and ride the solver's own tip; cards and the far canopy take their colour from
+  the same blades.
+- **Dry tips** (``blade.dry_tips``): a share of the blades fade to straw towards their tips.
+
+Random numbers come from their own stream, ``np.random.default_rng([seed, RNG_MEADOW, block])``,
+drawn after every draw of the plain field, so a field without variety is the same bits as before.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import blade
+
+RNG_MEADOW = 3  # purpose of the meadow's random stream (blocks.RNG_BLADES = 1, RNG_CELLS = 2)
+STRAW = np.array([0.42, 0.34, 0.15], dtype=np.float32)  # linear RGB of a dry tip
+PATCH_LENGTH = 0.45  # at patchiness 1 a patch's blades are 1 -+ this much of their length
+PATCH_SHARE = 2.0  # at patchiness 1 a species' share varies by e^(+-this) from patch to patch
+DRY_FROM = 0.45  # a dry blade is green up to this fraction of its length, straw at its tip
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """A uniform number in [0, 1) for each integer lattice point (i, j), a pure function of
+    (seed, channel, i, j) (SplitMix64's finaliser over the packed key)."""
+    with np.errstate(over="ignore"):
+        x = (np.uint64(seed & 0xFFFFFFFF) * _GOLDEN ^ np.uint64(channel) * np.uint64(0xBF58476D1CE4E5B9))
+        x = x + i.astype(np.int64).astype(np.uint64) * np.uint64(0x94D049BB133111EB)
+        x = x ^ (j.astype(np.int64).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93))
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        x = x ^ (x >> np.uint64(31))
+    return (x >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))
+
+
+def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
+    """(n,) smooth noise in [0, 1] over points ``xy`` (n, 2) in metres: random values on a lattice
+    of edge ``size``, blended by the smoothstep of the position between them."""
+    p = np.asarray(xy, dtype=np.float64).reshape(-1, 2) / float(size)
+    cell = np.floor(p)
+    f = p - cell
+    w = f * f * (3.0 - 2.0 * f)
+    i, j = cell[:, 0], cell[:, 1]
+    v00, v10 = _hash01(seed, channel, i, j), _hash01(seed, channel, i + 1, j)
+    v01, v11 = _hash01(seed, channel, i, j + 1), _hash01(seed, channel, i + 1, j + 1)
+    bottom = v00 + (v10 - v00) * w[:, 0]
+    top = v01 + (v11 - v01) * w[:, 0]
+    return bottom + (top - bottom) * w[:, 1]
+
+
+def patches(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
+    """(n,) patch noise in [-1, 1]: two octaves of ``value_noise`` at ``size`` and a third of it,
+    spread so that the field's patches reach both ends."""
+    a = value_noise(xy, seed, 2 * channel + 101, size)
+    b = value_noise(xy, seed, 2 * channel + 102, size / 3.0)
+    return np.clip(2.6 * ((0.7 * a + 0.3 * b) - 0.5), -1.0, 1.0)
+
+
+def clump_centres(xy: np.ndarray, seed: int, size: float) -> np.ndarray:
+    """(n, 2) the nearest tussock centre to each point: one centre on each cell of the lattice of
+    edge ``size``, jittered anywhere inside its cell (the 3 x 3 lattice cells around a point hold
+    its nearest)."""
+    p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    home = np.floor(p / size)
+    best = np.empty_like(p)
+    best_d = np.full(len(p), np.inf)
+    for di in (-1.0, 0.0, 1.0):
+        for dj in (-1.0, 0.0, 1.0):
+            i, j = home[:, 0] + di, home[:, 1] + dj
+            centre = np.stack([(i + _hash01(seed, 11, i, j)) * size, (j + _hash01(seed, 12, i, j)) * size], axis=1)
+            d = ((centre - p) ** 2).sum(axis=1)
+            nearer = d < best_d
+            best[nearer], best_d[nearer] = centre[nearer], d[nearer]
+    return best
+
+
+def clumped(xy: np.ndarray, seed: int, clumping: float, size: float) -> np.ndarray:
+    """(n, 2) roots ``xy`` pulled towards their tussock centres: ``c + (p - c) (1 - clumping)``."""
+    p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if clumping <= 0.0:
+        return p
+    centre = clump_centres(p, seed, size)
+    return centre + (p - centre) * (1.0 - float(clumping))
+
+
+def length_scale(xy: np.ndarray, params) -> np.ndarray:
+    """(n,) the patches' scale of the blades' length at ``xy`` (1 without patches)."""
+    f = params.field
+    if f.patchiness <= 0.0:
+        return np.ones(len(np.asarray(xy).reshape(-1, 2)))
+    return 1.0 + PATCH_LENGTH * float(f.patchiness) * patches(xy, int(f.seed), 0, float(f.patch_size))
+
+
+def species_weights(xy: np.ndarray, params, weights: np.ndarray) -> np.ndarray | None:
+    """(n, species) each species' share at ``xy``, changed patch by patch (every species its own
+    noise), or None without patches or with one species."""
+    f = params.field
+    if f.patchiness <= 0.0 or len(weights) < 2:
+        return None
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(xy), len(weights)))
+    for k, w in enumerate(weights):
+        out[:, k] = w * np.exp(PATCH_SHARE * float(f.patchiness) * patches(xy, int(f.seed), k + 1,
+                                                                          float(f.patch_size)))
+    return out
+
+
+def heads_and_dryness(rng: np.random.Generator, kind: np.ndarray, species, params) -> tuple:
+    """(head, flower, dry) per blade: the width of a seed head at the stem's last joint but one and
+    of a flower at its tip, as multiples of the stem's root width (0: none; ``head_size`` of the
+    species on its ``heads`` share of stems, by its ``head_shape``), and how dry its tip is (0..1;
+    ``blade.dry_tips`` of the blades, uniformly 0.5..1)."""
+    count = len(kind)
+    u_head, u_dry, dryness = rng.random(count), rng.random(count), rng.random(count)
+    size = np.where(u_head < species.heads[kind], species.head_size[kind], 0.0).astype(np.float32)
+    flower = species.flower[kind]
+    dry = np.where(u_dry < float(params.blade.dry_tips), 0.5 + 0.5 * dryness, 0.0).astype(np.float32)
+    return np.where(flower, 0.0, size).astype(np.float32), np.where(flower, size, 0.0).astype(np.float32), dry
+
+
+def head_widening(head: np.ndarray, tip_width: float, n: int, joint: int) -> np.ndarray:
+    """(B,) float32: the factor on a blade's width at ``joint`` that makes it ``head`` times the
+    stem's root width there (1 where there is no head, or where the taper is already wider)."""
+    taper = blade.joint_widths(tip_width, n)[joint]
+    return np.maximum(np.asarray(head, dtype=np.float32) / np.float32(taper), np.float32(1.0))
+
+
+def joint_widths(tip_width: float, n: int, head: np.ndarray, flower: np.ndarray) -> np.ndarray:
+    """(B, n + 1) each joint's width as a fraction of the blade's root width: the taper
+    (blade.joint_widths), widened by a seed head at joint n - 1 and by a flower at the tip."""
+    out = np.repeat(blade.joint_widths(tip_width, n)[None, :], len(head), axis=0)
+    for joint, width in ((n - 1, head), (n, flower)):
+        if joint >= 1:
+            out[:, joint] *= head_widening(width, tip_width, n, joint)
+    return out
+
+
+def joint_colours(n: int, colour: np.ndarray, head_colour: np.ndarray, dry: np.ndarray, head: np.ndarray,
+                  flower: np.ndarray) -> np.ndarray:
+    """(..., n + 1, 3) float32 linear RGB at each joint of blades of tip ``colour`` (..., 3): it
+    fades to straw towards a dry tip (``dry``), and takes ``head_colour`` from joint n - 1 on for
+    a seed head (the spindle over the top two segments), at the tip for a flower (its cup)."""
+    colour = np.asarray(colour, dtype=np.float32)[..., None, :]
+    t = np.arange(n + 1, dtype=np.float32) / n
+    ramp = np.clip((t - DRY_FROM) / (1.0 - DRY_FROM), 0.0, 1.0)
+    out = colour + (STRAW - colour) * (np.asarray(dry, dtype=np.float32)[..., None, None] * ramp[:, None])
+    heads = np.asarray(head_colour, dtype=np.float32)[..., None, :]
+    for first, width in ((n - 1, head), (n, flower)):
+        if first >= 1:
+            headed = (np.asarray(width) > 0.0)[..., None, None]
+            out[..., first:, :] = np.where(headed, heads, out[..., first:, :])
+    return out.astype(np.float32)

@@ -1,0 +1,131 @@
+"""A meadow, as Blender draws it (issue #34): Add Grass Field grows tussocks, seed heads and
+flowers that ride their stems' tips; the Lawn preset is even. Every assertion reads the evaluated
+slot meshes (the ``drawn`` fixture) and the UV maps the materials read."""
+
+import bpy
+import numpy as np
+import pytest
+
+
+@pytest.fixture
+def runtime(with_bridge):
+    from windgrass.grass_addon.bridge import runtime
+
+    return runtime
+
+
+def _settle(runtime) -> None:
+    """Let edits made as in the panel settle (the runtime applies them once they stop)."""
+    import time
+
+    for _ in range(20):
+        time.sleep(runtime.EDIT_SETTLE_S + 0.05)
+        if runtime.flush_pending() is None:
+            return
+    raise AssertionError("the edits did not settle")
+
+
+def _strips(drawn, item) -> np.ndarray:
+    """(blades, joints, [left, right], 3) of the blades Blender draws (collapsed ones left out)."""
+    n = item.blade.segments
+    strips = drawn(item).reshape(-1, n + 1, 2, 3)
+    return strips[np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0]
+
+
+def _counts_variance_over_mean(roots: np.ndarray, square: float = 0.25) -> float:
+    """Blades rooted in each square of ``square`` metres over the roots' extent (whole squares
+    inside it): the variance of the counts over their mean (1 for roots at random, less for an
+    even spread, more for clumps)."""
+    lo = roots.min(axis=0) + square
+    hi = roots.max(axis=0) - square
+    edges = [np.arange(lo[k], hi[k], square) for k in range(2)]
+    counts, _, _ = np.histogram2d(roots[:, 0], roots[:, 1], bins=edges)
+    return float(counts.var() / counts.mean())
+
+
+def test_add_grass_field_grows_tussocks_and_the_lawn_preset_is_even(runtime, drawn):
+    """The roots Blender draws, counted in 0.25 m squares: a meadow's tussocks give counts whose
+    variance is at least 1.5 times their mean (grasses grow in clumps); the Lawn preset spreads
+    them more evenly than at random (variance below the mean)."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(1)
+    meadow = _counts_variance_over_mean(_strips(drawn, item)[:, 0].mean(axis=1)[:, :2])
+    assert bpy.ops.windgrass.species_preset(preset="lawn") == {"FINISHED"}
+    _settle(runtime)
+    scene.frame_set(2)
+    lawn = _counts_variance_over_mean(_strips(drawn, item)[:, 0].mean(axis=1)[:, :2])
+    assert meadow >= 1.5 and lawn < 1.0, (meadow, lawn)
+
+
+def _widths(strips: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(strips[:, :, 1] - strips[:, :, 0], axis=2)
+
+
+def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn):
+    """Blades with a flower open at their tip (the top joint at least three times the root's
+    width, where a plain blade tapers to a sixth); seed heads are widest at the joint below the
+    tip. Over frames of wind the widened joints stay the strip's own joints: every segment keeps
+    its length (the heads ride the solver's tips, no second body), the tips sway, and the head's
+    corners carry the head's colour in the UV maps the material reads."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    n = item.blade.segments
+    tips, lengths = [], None
+    for frame in (1, 9, 17):
+        scene.frame_set(frame)
+        strips = _strips(drawn, item)
+        width = _widths(strips)
+        flowers = width[:, n] > 3.0 * width[:, 0]
+        seeds = (width[:, n - 1] > 1.5 * width[:, 0]) & ~flowers
+        plain = ~flowers & ~seeds
+        assert 0.02 < flowers.mean() < 0.2 and 0.02 < seeds.mean() < 0.3, (flowers.mean(), seeds.mean())
+        assert np.all(width[plain, n] < 0.3 * width[plain, 0])  # plain blades taper to their tips
+        centre = strips.mean(axis=2)
+        segment = np.linalg.norm(np.diff(centre, axis=1), axis=2)
+        if lengths is None:
+            lengths = segment
+        else:  # the same blades in the same order (the slots show the same blocks): lengths kept
+            np.testing.assert_allclose(segment, lengths, rtol=1e-3, atol=1e-5)
+        tips.append(centre[:, n])
+    assert np.percentile(np.linalg.norm(tips[1] - tips[0], axis=1), 90) > 0.005  # they sway in the wind
+
+
+def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime, drawn):
+    """The tint the blade material reads (UV maps wg_tint_rg and wg_tint_bs) at each blade's tip
+    corners: a buttercup's yellow and a daisy's white on the blades that open into flowers, and
+    straw on some tips, while every root corner keeps a species' green."""
+    from windgrass.grass_addon import meadow, presets
+
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(1)
+    n = item.blade.segments
+    rows = presets.species_rows("meadow")
+    greens = np.array([r["color"] for r in rows])
+    flowers = np.array([r["head_color"] for r in rows if r["head_shape"] == "flower"])
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    tip_colours, root_colours = [], []
+    for obj in (o for o in item.collection.objects if o.get("wg_role") == "blades"):
+        mesh = obj.evaluated_get(depsgraph).data
+        rg = np.empty(len(mesh.loops) * 2, np.float32)
+        bs = np.empty(len(mesh.loops) * 2, np.float32)
+        mesh.uv_layers["wg_tint_rg"].data.foreach_get("uv", rg)
+        mesh.uv_layers["wg_tint_bs"].data.foreach_get("uv", bs)
+        colour = np.concatenate([rg.reshape(-1, 2), bs.reshape(-1, 2)[:, :1]], axis=1).reshape(-1, n, 4, 3)
+        shown = colour.reshape(len(colour), -1).any(axis=1)
+        tip_colours.append(colour[shown, n - 1, 2])  # the top segment's top corner
+        root_colours.append(colour[shown, 0, 0])
+    tips, roots = np.concatenate(tip_colours), np.concatenate(root_colours)
+    assert len(tips) > 1000
+
+    def share_near(colours, target, tolerance=0.02):
+        return float((np.abs(colours - target).max(axis=1) < tolerance).mean())
+
+    for colour in flowers:
+        assert share_near(tips, colour) > 0.005, colour
+    assert share_near(tips, meadow.STRAW, 0.08) > 0.02  # dry tips, straw-coloured (more or less dry)
+    assert np.all(np.abs(roots[:, None, :] - greens[None]).max(axis=2).min(axis=1) < 1e-4)

@@ -1,0 +1,72 @@
+"""A meadow's variety (meadow.py): tussocks, patches, heads, dry tips; a pure function of the
+seed and the place."""
+
+import numpy as np
+from windgrass.grass_addon import meadow, presets, schema
+from windgrass.grass_addon.blocks import BlockCache, Species, make_block
+from windgrass.grass_addon.grid import FieldGrid
+
+
+def _meadow(**overrides):
+    values = {"field.blocks_x": 6, "field.blocks_y": 6, "field.blades_per_cell": 3}
+    values.update(overrides)
+    return presets.apply_preset(schema.defaults(), "meadow").replace(values)
+
+
+def test_tussocks_pull_each_root_towards_its_nearest_clump_centre():
+    """Brute force over the lattice: every point's nearest jittered centre, and the pulled root on
+    the segment to it at (1 - clumping) of the distance."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-3.0, 3.0, (400, 2))
+    size, seed = 0.45, 5
+    i, j = np.meshgrid(np.arange(-10, 10), np.arange(-10, 10), indexing="ij")
+    i, j = i.ravel().astype(float), j.ravel().astype(float)
+    centres = np.stack([(i + meadow._hash01(seed, 11, i, j)) * size, (j + meadow._hash01(seed, 12, i, j)) * size], 1)
+    nearest = centres[((points[:, None] - centres[None]) ** 2).sum(axis=2).argmin(axis=1)]
+    np.testing.assert_allclose(meadow.clump_centres(points, seed, size), nearest, atol=1e-12)
+    pulled = meadow.clumped(points, seed, 0.35, size)
+    np.testing.assert_allclose(pulled, nearest + 0.65 * (points - nearest), atol=1e-12)
+    assert np.array_equal(meadow.clumped(points, seed, 0.0, size), points)
+
+
+def test_a_meadows_roots_are_clumped_and_a_lawns_are_even():
+    """Counts of roots in 0.25 m squares: variance over mean at least 1.5 for the meadow preset
+    (tussocks), below 1 for the lawn's even spread (the paper's random place in each cell)."""
+    def ratio(params):
+        grid = FieldGrid.of(params)
+        roots = np.concatenate([make_block(params, grid, Species(params), b).blade_root[:, :2]
+                                for b in range(grid.n_blocks)])
+        edges = np.arange(-4.5, 4.5001, 0.25)
+        counts, _, _ = np.histogram2d(roots[:, 0], roots[:, 1], bins=[edges, edges])
+        return counts.var() / counts.mean()
+
+    assert ratio(_meadow()) >= 1.5
+    assert ratio(presets.apply_preset(_meadow(), "lawn")) < 1.0
+
+
+def test_patches_change_height_and_mix_over_metres_and_are_the_same_anywhere():
+    """Patch noise spans -1..1 over a field, varies little over a blade's reach and much over
+    tens of metres; blocks made alone or in a window are the same bits (seed and place alone)."""
+    xy = np.random.default_rng(1).uniform(-200.0, 200.0, (20000, 2))
+    p = meadow.patches(xy, 7, 0, 8.0)
+    assert p.min() < -0.9 and p.max() > 0.9
+    near = meadow.patches(xy + 0.05, 7, 0, 8.0)
+    far = meadow.patches(xy + 20.0, 7, 0, 8.0)
+    assert np.abs(near - p).mean() < 0.05 < 0.3 < np.abs(far - p).mean()
+    params = _meadow()
+    alone = make_block(params, FieldGrid.of(params), Species(params), 7)
+    cached = BlockCache(params).get([3, 7, 11])[1]
+    for name in ("blade_root", "blade_length", "blade_species", "blade_head", "blade_flower", "blade_dry"):
+        assert np.array_equal(getattr(alone, name), getattr(cached, name)), name
+
+
+def test_each_species_has_its_share_of_heads_and_the_blades_their_dry_tips():
+    params = _meadow(**{"field.blocks_x": 12, "field.blocks_y": 12, "field.patchiness": 0.0})
+    grid, species = FieldGrid.of(params), Species(params)
+    blocks = [make_block(params, grid, species, b) for b in range(grid.n_blocks)]
+    kind = np.concatenate([b.blade_species for b in blocks])
+    headed = np.concatenate([(b.blade_head > 0) | (b.blade_flower > 0) for b in blocks])
+    dry = np.concatenate([b.blade_dry for b in blocks])
+    for k, row in enumerate(params.species()):
+        assert abs(headed[kind == k].mean() - row["heads"]) < 0.05, row["name"]
+    assert abs((dry > 0).mean() - params.blade.dry_tips) < 0.02 and dry[dry > 0].min() >= 0.5

@@ -3,6 +3,7 @@
     python headless/bench.py [--blades N] [--segments S] [--frames F] [--json] [--peers]
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
     python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
+    python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py)
 
 Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks as give about
 N blades, laid out near-square (default 524,288 blades = 32 x 32 blocks). Each timed frame runs
@@ -227,7 +228,16 @@ def main(argv=None) -> int:
     parser.add_argument("--render", action="store_true",
                         help="where a rendered frame of the default scene spends its time, against the same "
                              "frame rendered again (bench_render.py); other flags ignored")
+    parser.add_argument("--realism", action="store_true",
+                        help="how much the default scene reads as a meadow: clumps, each species' sway peak, the "
+                             "gust waves' speed; with --image PNG, a rendered frame's colours (bench_realism.py)")
+    parser.add_argument("--image", help="with --realism: a rendered frame of scenes/default.toml")
     args = parser.parse_args(argv)
+    if args.realism:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_realism.py"))]
+                               + (["--json"] if args.json else []) + (["--image", args.image] if args.image else []))
     if args.render:
         import subprocess
 

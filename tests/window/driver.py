@@ -15,8 +15,9 @@ A step is a dict; its one action key says what it does:
   ``{"undo": 1}`` / ``{"redo": 1}``                 ``ed.undo`` / ``ed.redo`` as operators;
   ``{"frame": 1}``                                 a frame change by that many frames;
   ``{"wait": 0.5}``                                seconds for timers and events (window only);
-  ``{"settle": "shaders", "max": 900}``            until EEVEE's shaders are compiled, as long as it
-                                                   takes (at most ``max`` s): progress, not a guess;
+  ``{"settle": "shaders", "max": 900}``            until EEVEE's shaders are compiled (or until a few
+                                                   lines of Python set ``result`` true), as long as
+                                                   it takes (at most ``max`` s): progress, not a guess;
   ``{"check": "fields"}``                          every field matches its settings and shows grass;
   ``{"view": {...}}``, ``{"shading": "SOLID"}``, ``{"shot": "name"}``, ``{"save": path}``,
   ``{"open": path}``, ``{"probe": "name"}``, ``{"sidebar": "Grass"}``: see ``Driver``'s methods of
@@ -259,24 +260,28 @@ class Driver:
         return seconds, float(seconds)
 
     def do_settle(self, what: str, step: dict):
-        """Polled each second (the step repeats itself) until no shader compilation has run for
-        three seconds in a row, or ``max`` seconds: on a loaded machine it waits longer instead of
-        failing. The result: seconds waited and whether it was still compiling."""
-        if what != "shaders":
-            raise ValueError(f"unknown settle {what!r}")
+        """Polled each second (the step repeats itself) until ``what`` holds: ``"shaders"``, no
+        shader compilation has run for three seconds in a row; else a few lines of Python setting
+        ``result`` (as ``python`` steps), true once done. At most ``max`` seconds: on a loaded
+        machine it waits longer instead of failing. The result: seconds waited and whether it
+        still had not settled."""
         if bpy.app.background:
-            return {"waited": 0.0, "compiling": False}, None
+            return {"waited": 0.0, "settled": True}, None
         now = time.monotonic()
         start, quiet = self.settling or (now, None)
-        compiling = bpy.app.is_job_running("SHADER_COMPILATION")
-        quiet = None if compiling else (quiet or now)
-        if (quiet is None or now - quiet < 3.0) and now - start < float(step.get("max", 900)):
+        if what == "shaders":
+            busy = bpy.app.is_job_running("SHADER_COMPILATION")
+            quiet = None if busy else (quiet or now)
+            done = quiet is not None and now - quiet >= 3.0
+        else:
+            done = bool(self.do_python(what, step))
+        if not done and now - start < float(step.get("max", 900)):
             self.settling = (start, quiet)
             self.index -= 1  # (this step again in a second, recorded once)
             self.report["steps"].pop()
             return None, 1.0
         self.settling = None
-        return {"waited": round(now - start, 1), "compiling": compiling}, 0.2
+        return {"waited": round(now - start, 1), "settled": done}, 0.2
 
     def do_check(self, what: str, step: dict):
         states = [field_state(s, item) for s in bpy.data.scenes if hasattr(s, "windgrass")

@@ -1,0 +1,139 @@
+"""How much the default scene reads as a meadow in wind, in numbers; prints ONE JSON object.
+
+    python headless/bench_realism.py [--image PNG] [--json]     (dev.py bench --realism)
+
+* clumps: blades rooted in each 0.25 m square of a meadow (the "meadow" preset) and of a lawn
+  (the "lawn" preset): the counts' variance over their mean (1 at random, less even, more clumped);
+* sway: each species' tip sway in gusty wind at 4 and 8 m/s (60 s of the engine's cell bends, at
+  the scene's 24 fps, cells where the species is the most blades): the frequency where the sway's
+  spectrum peaks above 0.3 Hz and the peak's height over the spectrum's mean from 0.1 to 0.3 Hz;
+* waves: the downwind speed of the gust waves (wind.displacement over 10 s) against the mean wind;
+* image (``--image``, a rendered frame of scenes/default.toml, e.g. renders/frame_0012.png): the
+  near grass (the image's lowest fifth): its hue's spread (the 5th to the 95th percentile, in
+  degrees) and the share of its pixels that are not green (hue outside 60-170 degrees); the far
+  band (the rows from the horizon down to a tenth of the image): how much its 8 x 8-pixel tiles
+  differ in brightness (their standard deviation over their mean).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import common  # noqa: E402
+
+common.load()
+from windgrass.grass_addon import presets, schema  # noqa: E402
+from windgrass.grass_addon.field import GrassField  # noqa: E402
+from windgrass.grass_addon.layout import build_layout  # noqa: E402
+
+SQUARE = 0.25  # m: the squares the roots are counted in
+SWAY_SECONDS = 60.0
+FPS = 24
+
+
+def clump_ratio(preset: str) -> float:
+    params = presets.apply_preset(schema.loads_toml(_default_scene()), preset).replace(
+        {"field.blocks_x": 4, "field.blocks_y": 4})
+    roots = build_layout(params).blade_root[:, :2]
+    edges = np.arange(roots.min() + SQUARE, roots.max() - SQUARE, SQUARE)
+    counts, _, _ = np.histogram2d(roots[:, 0], roots[:, 1], bins=[edges, edges])
+    return round(float(counts.var() / counts.mean()), 2)
+
+
+def _default_scene() -> str:
+    return (Path(__file__).resolve().parents[1] / "scenes" / "default.toml").read_text()
+
+
+def sway(speed: float) -> dict:
+    """{species: {peak_hz, peak_over_slow}} of the tip sway at mean wind ``speed``."""
+    params = schema.loads_toml(_default_scene()).replace(
+        {"field.blocks_x": 2, "field.blocks_y": 2, "wind.speed": speed, "wind.turbulence": 0.3 * speed,
+         "wind.gust_waves": 0.0, "lod.enabled": False, "render.fps": FPS})
+    field = GrassField(params)
+    frames = int(SWAY_SECONDS * FPS)
+    angle = np.radians(params.wind.direction)
+    along = np.array([np.cos(angle), np.sin(angle)])
+    tips = np.empty((frames, field.layout.n_cells), np.float64)
+    for f in range(frames):
+        cells = field.seek(f + 1)
+        tips[f] = cells.bend.sum(axis=1) @ along  # the tip's tilt downwind (radians)
+    series = tips - tips.mean(axis=0)
+    power = (np.abs(np.fft.rfft(series * np.hanning(frames)[:, None], axis=0)) ** 2)
+    hz = np.fft.rfftfreq(frames, 1.0 / FPS)
+    layout = field.layout
+    num = layout.blades_per_cell
+    kinds = layout.blade_species.reshape(-1, num)
+    dominant = np.array([np.bincount(k, minlength=len(params.species())).argmax() for k in kinds])
+    cell_of = layout.blade_cell.reshape(-1, num)[:, 0]
+    out = {}
+    for k, row in enumerate(params.species()):
+        mine = cell_of[dominant == k]
+        if mine.size == 0:
+            continue
+        spectrum = power[:, mine].mean(axis=1)
+        fast = hz > 0.3
+        peak = int(np.flatnonzero(fast)[spectrum[fast].argmax()])
+        slow = spectrum[(hz >= 0.1) & (hz <= 0.3)].mean()
+        out[row["name"]] = {"peak_hz": round(float(hz[peak]), 2),
+                            "peak_over_slow": round(float(spectrum[peak] / slow), 3)}
+    return out
+
+
+def wave_speed(speed: float) -> float:
+    params = schema.loads_toml(_default_scene()).replace({"wind.speed": speed})
+    field = GrassField(params.replace({"field.blocks_x": 2, "field.blocks_y": 2}))
+    moved = np.linalg.norm(np.asarray(field.wind.displacement(10.0)) - np.asarray(field.wind.displacement(0.0)))
+    return round(float(moved / 10.0), 2)
+
+
+def image_figures(path: Path) -> dict:
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
+    h = rgb.shape[0]
+    near = rgb[int(0.8 * h):].reshape(-1, 3)
+    hue = _hue(near)
+    green = (hue >= 60.0) & (hue <= 170.0)
+    spread = np.percentile(hue[green], 95) - np.percentile(hue[green], 5)
+    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    horizon = int(np.argmax(np.abs(np.diff(lum.mean(axis=1))) > 0.02)) + 2
+    band = lum[horizon:horizon + max(8, h // 10)]
+    tiles = band[: band.shape[0] // 8 * 8, : band.shape[1] // 8 * 8]
+    tiles = tiles.reshape(tiles.shape[0] // 8, 8, tiles.shape[1] // 8, 8).mean(axis=(1, 3))
+    return {"near_hue_spread_deg": round(float(spread), 1), "near_not_green_share": round(float(1 - green.mean()), 4),
+            "far_band_tile_contrast": round(float(tiles.std() / tiles.mean()), 4),
+            "far_band_rows": [horizon, horizon + band.shape[0]]}
+
+
+def _hue(rgb: np.ndarray) -> np.ndarray:
+    """Hue in degrees (0 red, 120 green, 240 blue) of linear or display RGB rows."""
+    r, g, b = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    mx, mn = rgb.max(axis=1), rgb.min(axis=1)
+    d = np.where(mx - mn > 1e-9, mx - mn, 1.0)
+    h = np.where(mx == r, (g - b) / d % 6.0, np.where(mx == g, (b - r) / d + 2.0, (r - g) / d + 4.0))
+    return np.where(mx - mn > 1e-9, 60.0 * h, -1.0)
+
+
+def main(argv=None) -> int:
+    parser = common.parser(__doc__)
+    parser.add_argument("--image", type=Path, help="a rendered frame of scenes/default.toml (PNG)")
+    args = parser.parse_args(argv)
+    result = {"clumps_variance_over_mean": {"meadow": clump_ratio("meadow"), "lawn": clump_ratio("lawn")},
+              "sway": {"4 m/s": sway(4.0), "8 m/s": sway(8.0)},
+              "wave_speed_m_s": {"4 m/s": wave_speed(4.0), "8 m/s": wave_speed(8.0)}}
+    if args.image is not None:
+        if not args.image.is_file():
+            print(f"bench_realism.py: error: --image {args.image} is not a file (valid: a PNG)", file=sys.stderr)
+            return 2
+        result["image"] = image_figures(args.image)
+    common.emit(result, args)
+    return 0
+
+
+if __name__ == "__main__":
+    common.finish(main())

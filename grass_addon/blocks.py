@@ -150,9 +150,10 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # paper III.A (2): random position inside the cell and random orientation
     offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
     root = np.empty((n_blades, 3), dtype=np.float32)
-    # a meadow's tussocks pull the roots towards their clumps' centres (meadow.py)
-    root[:, :2] = meadow.clumped(np.repeat(centre64, num, axis=0) + offset, int(f.seed), float(f.clumping),
-                                 float(f.clump_size))
+    # a meadow's tussocks pull the roots towards their clumps' centres (meadow.py), inside the field
+    pulled = meadow.clumped(np.repeat(centre64, num, axis=0) + offset, int(f.seed), float(f.clumping),
+                            float(f.clump_size))
+    root[:, :2] = np.clip(pulled, grid.origin, np.asarray(grid.origin) + grid.size)
     root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
     facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
     painted = paint is not None and not paint.empty

@@ -70,3 +70,13 @@ def test_each_species_has_its_share_of_heads_and_the_blades_their_dry_tips():
     for k, row in enumerate(params.species()):
         assert abs(headed[kind == k].mean() - row["heads"]) < 0.05, row["name"]
     assert abs((dry > 0).mean() - params.blade.dry_tips) < 0.02 and dry[dry > 0].min() >= 0.5
+
+
+def test_tussocks_keep_every_root_on_the_field():
+    """A clump centre beyond the field's edge pulls its roots no further than the edge (the drawn
+    ground ends there)."""
+    params = _meadow(**{"field.clumping": 0.9, "field.clump_size": 2.0, "field.blocks_x": 2, "field.blocks_y": 2})
+    grid = FieldGrid.of(params)
+    roots = np.concatenate([make_block(params, grid, Species(params), b).blade_root[:, :2] for b in range(4)])
+    half = 0.5 * np.asarray(grid.size)
+    assert np.all(np.abs(roots) <= half + 1e-6) and np.any(np.abs(roots) >= half - 1e-6)

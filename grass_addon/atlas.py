@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import blade, meadow
+from . import meadow
 from .blocks import Species
 from .schema import Params
 from .sward import colour_ramp, sample_blades
@@ -63,10 +63,12 @@ def _card_width(params: Params) -> float:
 
 
 def _blade_share(params: Params, block, cell: int, blades) -> float:
-    """Whole area of the cell's blades (tapered strips, face on) over its card's area."""
+    """Whole area of the cell's blades (tapered strips with their heads, face on) over its card's area."""
     card_w = _card_width(params)
-    taper = blade.mean_width(params.blade.tip_width)
-    area = sum(taper * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
+    widths = meadow.joint_widths(params.blade.tip_width, int(params.blade.segments), block.blade_head,
+                                 block.blade_flower)
+    taper = 0.5 * (widths[:, :-1] + widths[:, 1:]).mean(axis=1)  # the strip's mean width (heads included)
+    area = sum(taper[b] * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
     return area / (card_w * float(block.card_height[cell]))
 
 

@@ -33,7 +33,7 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
     ),
     "meadow": (
         # fine and broad grasses with seed panicles, tall flowering stems, flowers and some dry blades
-        {"name": "meadow grass", "weight": 0.5, "length": 0.32, "length_variation": 0.07,
+        {"name": "meadow grass", "weight": 0.56, "length": 0.32, "length_variation": 0.07,
          "width": 0.006, "stiffness": 1.0, "color": (0.10, 0.30, 0.045),
          "heads": 0.06, "head_color": (0.26, 0.24, 0.13), "head_size": 2.0},
         {"name": "timothy", "weight": 0.12, "length": 0.6, "length_variation": 0.1,
@@ -44,13 +44,13 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
          "heads": 0.1, "head_color": (0.22, 0.17, 0.16), "head_size": 2.2},
         {"name": "buttercup", "weight": 0.05, "length": 0.4, "length_variation": 0.08,
          "width": 0.004, "stiffness": 1.6, "color": (0.11, 0.29, 0.05),
-         "heads": 0.8, "head_color": (0.80, 0.55, 0.02), "head_size": 7.0,
+         "heads": 0.8, "head_color": (0.80, 0.55, 0.02), "head_size": 5.0,
          "head_shape": "flower"},
         {"name": "ox-eye daisy", "weight": 0.04, "length": 0.45, "length_variation": 0.08,
          "width": 0.004, "stiffness": 2.0, "color": (0.12, 0.30, 0.06),
-         "heads": 0.8, "head_color": (0.75, 0.75, 0.70), "head_size": 7.0,
+         "heads": 0.8, "head_color": (0.62, 0.62, 0.56), "head_size": 5.0,
          "head_shape": "flower"},
-        {"name": "dry grass", "weight": 0.11, "length": 0.4, "length_variation": 0.08,
+        {"name": "dry grass", "weight": 0.05, "length": 0.4, "length_variation": 0.08,
          "width": 0.006, "stiffness": 1.6, "color": (0.36, 0.30, 0.12),
          "heads": 0.1, "head_color": (0.34, 0.28, 0.14), "head_size": 2.0},
     ),
@@ -70,8 +70,8 @@ PRESET_NAMES: tuple[str, ...] = tuple(SPECIES_PRESETS)
 # tussocks and patches, with some dry tips; wild grass more so.
 LOOKS: dict[str, dict[str, Any]] = {
     "lawn": {"field.clumping": 0.0, "field.patchiness": 0.0, "blade.dry_tips": 0.0},
-    "meadow": {"field.clumping": 0.35, "field.clump_size": 0.45, "field.patchiness": 0.7, "field.patch_size": 8.0,
-               "blade.dry_tips": 0.2},
+    "meadow": {"field.clumping": 0.3, "field.clump_size": 0.45, "field.patchiness": 0.7, "field.patch_size": 8.0,
+               "blade.dry_tips": 0.12},
     "wild": {"field.clumping": 0.5, "field.clump_size": 0.7, "field.patchiness": 0.8, "field.patch_size": 12.0,
              "blade.dry_tips": 0.3},
 }

@@ -103,7 +103,9 @@ def scene_params(args, preset: str, fixed: bool, strip_height: float | None = No
         if preset not in presets.PRESET_NAMES:
             valid = ", ".join(("default", "painted", *presets.PRESET_NAMES))
             raise ParameterError("presets", f"unknown preset {preset!r} (valid: {valid})")
-        params = presets.apply_preset(params, preset)
+        # the preset's species without its look (tussocks, patches, heads: meadow.py), which the cards
+        # and the far canopy do not carry yet (issue #34): the levels of detail are compared without it
+        params = params.replace({"blade.species": [dict(r, heads=0.0) for r in presets.species_rows(preset)]})
     return params
 
 

@@ -121,8 +121,8 @@ def _edited(depsgraph) -> bool:
     edited the file (``REGISTRY.unchanged``)."""
     for update in depsgraph.updates:
         original = getattr(update.id, "original", None) or update.id
-        if isinstance(original, bpy.types.Scene):
-            continue
+        if isinstance(original, bpy.types.Scene) or original.is_embedded_data:
+            continue  # (a material's node tree: its material is among the updates too)
         if getattr(original, "get", lambda key: None)("wg_uid") is None:
             return True
     return False

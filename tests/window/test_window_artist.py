@@ -226,8 +226,8 @@ terrain = bpy.context.active_object
 terrain.name = "Terrain"
 group = terrain.vertex_groups.new(name="meadow")
 group.add([v.index for v in terrain.data.vertices if v.co.x > 0.0], 1.0, "REPLACE")
-# weight 0 on the west half (Blender 5.x draws vertices outside the group black, weight 0 blue)
-group.add([v.index for v in terrain.data.vertices if v.co.x <= 0.0], 0.0, "REPLACE")
+# a weight near 0 on the west half: Blender 5.2 draws 0 (and vertices outside the group) black
+group.add([v.index for v in terrain.data.vertices if v.co.x <= 0.0], 0.05, "REPLACE")
 result = terrain.name
 """
 
@@ -370,8 +370,9 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
 
     From 20-45 m the cards read as pale specks on dark ground: that is what Material Preview shows
     while Mesa compiles EEVEE's shaders (about a minute here; the screenshot "compiling" shows it,
-    looked at, not asserted: its length varies); once compiled, the view of the card band and the
-    far canopy is green grass: no pale specks, no black ground between them.
+    looked at, not asserted: its length varies; the test waits for the compilation to end); once
+    compiled, the view of the card band and the far canopy is a green meadow (issue #34: its
+    flowers and seed heads are the pale points it shows) with no black ground between them.
 
     The floor grid and axes drew over the grass everywhere (EEVEE gives the overlays a depth that
     thin blades do not hold; floor.py): while the view draws the field with EEVEE its floor and
@@ -392,9 +393,12 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     run.assert_clean()
     rgb = _field_band(run.shots / "compiled.png")
     r, g, b = rgb.mean(axis=(0, 1))
-    assert g > 1.2 * r and g > 1.2 * b, (r, g, b)  # green
+    hue = 60.0 * ((b - r) / (g - min(r, b)) + 2.0)  # (g the largest: green's side of the hue circle)
+    assert g > r and g > 1.2 * b and 70.0 < hue < 160.0, (r, g, b, hue)  # green (a meadow's: 84 deg on 5.2)
     lum = rgb.mean(axis=2)
-    assert (lum > 0.45).mean() < 0.01 and (lum < 0.02).mean() < 0.05  # no pale specks on black ground
+    # no pale specks on black ground: the meadow's flowers, seed heads and dry tips are pale (6 % of
+    # the band on 5.2), its ground is not black
+    assert (lum > 0.45).mean() < 0.1 and (lum < 0.02).mean() < 0.05
 
     material, solid, rendered, saved, in_file, reopened, _, artist, saved_again = run.results("python")
     assert material["shading"] == "MATERIAL" and material["flags"] == [False, False, False]

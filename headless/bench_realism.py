@@ -4,8 +4,8 @@
 
 * clumps: blades rooted in each 0.25 m square of a meadow (the "meadow" preset) and of a lawn
   (the "lawn" preset): the counts' variance over their mean (1 at random, less even, more clumped);
-* sway: each species' tip sway in gusty wind at 4 and 8 m/s (60 s of the engine's cell bends, at
-  the scene's 24 fps, cells where the species is the most blades): the frequency where the sway's
+* sway: each species of the meadow preset: its tip sway in gusty wind at 4 and 8 m/s (60 s of the
+  engine's cell bends at 24 fps, cells where the species is the most blades): the frequency where the sway's
   spectrum peaks above 0.3 Hz and the peak's height over the spectrum's mean from 0.1 to 0.3 Hz;
 * waves: the downwind speed of the gust waves (wind.displacement over 10 s) against the mean wind;
 * image (``--image``, a rendered frame of scenes/default.toml, e.g. renders/frame_0012.png): the
@@ -51,7 +51,7 @@ def _default_scene() -> str:
 
 def sway(speed: float) -> dict:
     """{species: {peak_hz, peak_over_slow}} of the tip sway at mean wind ``speed``."""
-    params = schema.loads_toml(_default_scene()).replace(
+    params = presets.apply_preset(schema.loads_toml(_default_scene()), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "wind.speed": speed, "wind.turbulence": 0.3 * speed,
          "wind.gust_waves": 0.0, "lod.enabled": False, "render.fps": FPS})
     field = GrassField(params)

@@ -480,7 +480,7 @@ def test_the_far_canopy_shows_a_trail_as_the_grass_does(tmp_path):
     bands in the same rows (Cycles, the strip view of headless/lod_compare.py)."""
     import lod_compare
 
-    args = lod_compare.parse_args(["--resolution", "320x180", "--samples", "8", "--out", str(tmp_path)])
+    args = lod_compare.parse_args(["--resolution", "320x180", "--samples", "16", "--out", str(tmp_path)])
     params = lod_compare.scene_params(args, "default", fixed=True, strip_height=6.0)
     assert params.lod.card_far < 30.0
     rolled = params.replace({"interaction.recovery": 10.0, "interaction.colliders": [{"shape": "sphere", "radius": 1.0,

@@ -35,6 +35,11 @@ def _field(bridge, terrain=None, **paint):
     assert bpy.ops.windgrass.field_add(**options) == {"FINISHED"}
     scene = bpy.context.scene
     item = scene.windgrass.fields[-1]
+    # the paper's even field of one species (Add gives a meadow: tussocks would carry roots across a
+    # painted edge, patches and other species would change the lengths a map sets)
+    even = properties.params_from_settings(item).replace({"blade.species": [], "field.clumping": 0.0,
+                                                         "field.patchiness": 0.0, "blade.dry_tips": 0.0})
+    properties.apply_params(item, even)
     with properties.batch(item):
         for key, value in paint.items():
             setattr(item.paint, key, value)

@@ -130,7 +130,7 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     """K_t of eq 10 is computed in the far canopy's shader from the view distance: its Map Range
     goes from d_s1 to d_s2 and follows the settings; with the LOD off the far texture never shows.
     The canopy lies above the ground at the sward's height."""
-    from windgrass.grass_addon import sward
+    from windgrass.grass_addon import meadow, sward
     from windgrass.grass_addon.bridge import materials, properties
 
     owned, _ = bridge
@@ -141,7 +141,8 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     z = _positions(ground)[:, 2]
     params = properties.params_from_settings(item, scene)
     height, top = sward.canopy_height(params), sward.sward_top(params)
-    assert 0.05 < height < top < 0.6  # a sward of 0.32 m blades
+    longest = max(r["length"] + 4.0 * r["length_variation"] for r in params.species())  # (blocks.Species)
+    assert 0.05 < height < top < longest * (1.0 + meadow.PATCH_LENGTH * params.field.patchiness)  # no tip higher
     # the ground, the canopy plane and the top of its fringe along the field's edge (the tallest tip)
     np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, top], atol=1e-5)
     # the shader knows each corner's height above the ground, and which corners are the fringe's

@@ -28,26 +28,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import blade
+from . import blade, wind
 
 RNG_MEADOW = 3  # purpose of the meadow's random stream (blocks.RNG_BLADES = 1, RNG_CELLS = 2)
 STRAW = np.array([0.42, 0.34, 0.15], dtype=np.float32)  # linear RGB of a dry tip
 PATCH_LENGTH = 0.45  # at patchiness 1 a patch's blades are 1 -+ this much of their length
 PATCH_SHARE = 2.0  # at patchiness 1 a species' share varies by e^(+-this) from patch to patch
 DRY_FROM = 0.45  # a dry blade is green up to this fraction of its length, straw at its tip
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
 def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """A uniform number in [0, 1) for each integer lattice point (i, j), a pure function of
-    (seed, channel, i, j) (SplitMix64's finaliser over the packed key)."""
+    (seed, channel, i, j) (SplitMix64's finaliser, ``wind.mix64``, over the packed key)."""
     with np.errstate(over="ignore"):
-        x = (np.uint64(seed & 0xFFFFFFFF) * _GOLDEN ^ np.uint64(channel) * np.uint64(0xBF58476D1CE4E5B9))
-        x = x + i.astype(np.int64).astype(np.uint64) * np.uint64(0x94D049BB133111EB)
-        x = x ^ (j.astype(np.int64).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93))
-        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        x = x ^ (x >> np.uint64(31))
+        x = (np.uint64(seed & 0xFFFFFFFF) * wind.GOLDEN ^ np.uint64(channel) * wind.MIX1)
+        x = x + i.astype(np.int64).astype(np.uint64) * wind.MIX2
+        x = wind.mix64(x ^ (j.astype(np.int64).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)))
     return (x >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))
 
 

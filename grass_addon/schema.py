@@ -15,6 +15,7 @@ import hashlib
 import json
 import math
 import re
+import stat
 import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -800,13 +801,29 @@ def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
 # TOML and command line
 
 
+MAX_SCENE_BYTES = 4 << 20  # a scene file of more is not one (the longest in scenes/ has a few KB)
+MAX_KEY_DEPTH = 16  # parts of one dotted key or table name (the schema's deepest has 3)
+
+
 def load_toml(path: str | Path, base: Params | None = None) -> Params:
-    """Read a scene file; every problem is a ParameterError naming the file and the key."""
+    """Read a scene file; every problem is a ParameterError naming the file and the key. Only a
+    regular file of at most MAX_SCENE_BYTES is read (a pipe would wait forever, a device never end)."""
     path = Path(path)
-    if path.is_dir():
-        raise ParameterError("config", f"{path} is a folder, not a TOML scene file")
     try:
-        text = path.read_text(encoding="utf-8")
+        info = path.stat()
+    except OSError as exc:
+        raise ParameterError("config", f"cannot read {path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ParameterError("config", f"{path} is a folder, not a TOML scene file")
+    if not stat.S_ISREG(info.st_mode):
+        raise ParameterError("config", f"{path} is not a regular file (a pipe or a device); valid: a TOML scene file")
+    if info.st_size > MAX_SCENE_BYTES:
+        raise ParameterError("config", f"{path} has {info.st_size:,} bytes; a scene file has at most "
+                             f"{MAX_SCENE_BYTES:,}")
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_SCENE_BYTES + 1)
+        text = raw.decode("utf-8")
     except OSError as exc:
         raise ParameterError("config", f"cannot read {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
@@ -815,9 +832,26 @@ def load_toml(path: str | Path, base: Params | None = None) -> Params:
     return loads_toml(text, base, source=str(path), folder=path.resolve().parent)
 
 
+_DOTTED = re.compile(r"[\w\-\"']+(?:[ \t]*\.[ \t]*[\w\-\"']+)+")
+
+
+def _deepest_key(text: str) -> int:
+    """The most parts of a dotted key (a table's name, a key, a key inside an inline table) in a
+    TOML text: an upper bound (a dotted word in a string counts too)."""
+    return max((m.group().count(".") + 1 for m in _DOTTED.finditer(text)), default=1)
+
+
 def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", folder: Path | None = None) -> Params:
     """Params of a scene file's text; ``folder``: where relative file paths in it start (the
-    scene file's folder; None: the current folder)."""
+    scene file's folder; None: the current folder). Keys dotted deeper than MAX_KEY_DEPTH are
+    refused before parsing (Python's TOML parser takes time and memory growing as the depth squared)."""
+    if len(text) > MAX_SCENE_BYTES:
+        raise ParameterError("config", f"{source} has {len(text):,} characters; a scene file has at most "
+                             f"{MAX_SCENE_BYTES:,}")
+    depth = _deepest_key(text)
+    if depth > MAX_KEY_DEPTH:
+        raise ParameterError("config", f"{source} has a key of {depth} dotted parts; a scene file's keys have at "
+                             f"most {MAX_KEY_DEPTH} (its settings have 2 or 3, e.g. wind.speed)")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

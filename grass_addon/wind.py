@@ -43,14 +43,14 @@ KERNEL_1D = (0.25, 0.5, 0.25)
 KERNEL_STD = 6.0 / 16.0
 KERNEL_LAG1 = 2.0 / 3.0  # correlation of neighbouring units after [1, 2, 1] / 4: 0.25 / 0.375
 
-_MIX1, _MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+MIX1, MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
-def _mix64(x: np.ndarray) -> np.ndarray:
+def mix64(x: np.ndarray) -> np.ndarray:
     """splitmix64's finaliser: a bijective scramble of uint64 values (wrapping arithmetic)."""
-    x = (x ^ (x >> np.uint64(30))) * _MIX1
-    x = (x ^ (x >> np.uint64(27))) * _MIX2
+    x = (x ^ (x >> np.uint64(30))) * MIX1
+    x = (x ^ (x >> np.uint64(27))) * MIX2
     return x ^ (x >> np.uint64(31))
 
 
@@ -60,11 +60,11 @@ def unit_gaussians(seed: int, key: int, i0: int, j0: int, i1: int, j1: int) -> n
     (seed, TURBULENCE_PURPOSE, key, i, j) through Box-Muller, so a unit's value never depends on
     which other units are drawn with it."""
     with np.errstate(over="ignore"):
-        base = _mix64(np.uint64(seed % 2**64) * _GOLDEN + np.uint64(TURBULENCE_PURPOSE))
-        base = _mix64(base ^ (np.uint64(key % 2**64) * _MIX1))
-        i = np.arange(i0, i1, dtype=np.int64).astype(np.uint64) * _MIX2
-        j = np.arange(j0, j1, dtype=np.int64).astype(np.uint64) * _GOLDEN
-        h = _mix64(_mix64(base ^ j[:, None]) ^ i[None, :])
+        base = mix64(np.uint64(seed % 2**64) * GOLDEN + np.uint64(TURBULENCE_PURPOSE))
+        base = mix64(base ^ (np.uint64(key % 2**64) * MIX1))
+        i = np.arange(i0, i1, dtype=np.int64).astype(np.uint64) * MIX2
+        j = np.arange(j0, j1, dtype=np.int64).astype(np.uint64) * GOLDEN
+        h = mix64(mix64(base ^ j[:, None]) ^ i[None, :])
     # two 26-bit uniforms: (0, 1] from the high bits (log stays finite), (0, 1) from the low bits
     u1 = ((h >> np.uint64(38)).astype(np.float64) + 1.0) * (1.0 / 2**26)
     u2 = ((h & np.uint64(0x3FFFFFF)).astype(np.float64) + 0.5) * (1.0 / 2**26)

@@ -1,6 +1,7 @@
 """headless/simulate.py and headless/bench.py run as scripts on tiny fields (numpy only)."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -107,6 +108,31 @@ def test_bad_input_exits_2_naming_the_parameter(args, name):
     assert proc.returncode == 2
     assert name in proc.stderr
     assert "Traceback" not in proc.stderr and "_parse" not in proc.stderr
+
+
+def _scene_file(tmp_path, kind):
+    if kind == "pipe":
+        path = tmp_path / "scene.toml"
+        os.mkfifo(path)  # (nothing ever writes to it: reading would wait forever)
+        return path
+    if kind == "device":
+        return "/dev/zero"  # (endless: reading it all took 3 GB)
+    path = tmp_path / "scene.toml"
+    if kind == "deep key":  # 39 KB: Python's TOML parser took 2.3 GB for it
+        path.write_text("[wind]\n" + ".".join(["a"] * 20000) + " = 1\n")
+    else:  # "huge": a 5 MB file of comments
+        path.write_text(("# " + "x" * 98 + "\n") * 50000)
+    return path
+
+
+@pytest.mark.parametrize("kind, words", [("pipe", "not a regular file"), ("device", "not a regular file"),
+                                         ("deep key", "20000 dotted parts"), ("huge", "at most 4,194,304")])
+def test_a_scene_file_that_is_no_scene_file_is_refused_at_once(tmp_path, kind, words):
+    """Issue #37 item 8: a pipe hung simulate.py, /dev/zero took 3 GB, and a key dotted a few
+    thousand deep took gigabytes in the TOML parser; each is refused in a moment, naming --config."""
+    proc = run("simulate.py", "--config", _scene_file(tmp_path, kind), "--frames", 1, timeout=60)  # (no hang)
+    assert proc.returncode == 2 and "config" in proc.stderr and words in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
 
 
 # numpy's savez leaves its ZipFile to the garbage collector when a value fails to serialise

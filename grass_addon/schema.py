@@ -424,7 +424,7 @@ class View:
     parameters go to the Advanced panel); scene files and flags take them as well."""
 
     param: Param  # its name, unit, range, label and help
-    uses: tuple[str, ...]  # the keys of its section it reads and writes
+    uses: tuple[str, ...]  # the keys of its section it writes (the first) and reads
     read: Callable[[Mapping[str, Any]], float]
     write: Callable[[Mapping[str, Any], float], dict[str, Any]]
     digits: int = 2  # decimals shown
@@ -739,12 +739,57 @@ def from_dict(data: Mapping[str, Any], base: Params | None = None) -> Params:
 
 
 def _apply_view(view: View, entries: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
-    """The parameter values that give ``view`` the value ``entries`` asks for."""
+    """The parameter values that give ``view`` the value ``entries`` asks for. A view made of whole
+    things (blocks, blades per cell) takes the nearest it can hold; asked for more or less than its
+    parameter's range holds, it says so (``density = 1`` would be a field without a blade)."""
     p = view.param
     given = [key for key in view.write(values, view.read(values)) if key in entries]
     if given:
         raise ParameterError(p.name, f"given with {p.section}.{given[0]}, which it sets: give one of them")
-    return view.write(values, _check_value(p, entries[p.key]))
+    asked = _check_value(p, entries[p.key])
+    out = view.write(values, asked)
+    whole = BY_NAME[f"{p.section}.{view.uses[0]}"]
+    if whole.kind == "int":
+        lo, hi = (view.read({**values, view.uses[0]: n}) for n in (whole.minimum, whole.maximum))
+        step = view.read({**values, view.uses[0]: whole.minimum + 1}) - lo
+        if not lo - step / 2 <= asked <= hi + step / 2 or (asked > 0 and view.read({**values, **out}) == 0):
+            unit = f" {p.unit}" if p.unit else ""
+            reads = ", ".join(f"{p.section}.{k} = {_fmt(values[k])}" for k in view.uses[1:])
+            valid = f"{_fmt(max(lo, step))} to {_fmt(min(hi, p.maximum))}{unit}{' (or 0)' if lo == 0 else ''}"
+            raise ParameterError(p.name, f"{_fmt(asked)}{unit} cannot be made of whole {whole.key.split('_')[0]} "
+                                 f"({whole.name}) with {reads}: valid {valid}")
+    return out
+
+
+def check_flags(flags: Mapping[str, Any]) -> None:
+    """Each of ``{"wind.speed": 5.0}`` in its parameter's (or view's) own range, on its own."""
+    for name, value in flags.items():
+        _check_value(named(name), value, name)
+
+
+def merge_flags(data: Mapping[str, Any], flags: Mapping[str, Any]) -> dict[str, Any]:
+    """A scene file's sections with command-line ``flags`` ({"field.cell_size": 0.2}) put in, as if
+    the file said them: a flag replaces the file's key and any view that sets the same parameter
+    (``--field-blocks-x`` replaces ``size_x``), and a view the file gives keeps its meaning in the
+    flag's terms (``size_x = 20`` stays 20 m with ``--field-cell-size 0.2``)."""
+    out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in _lift_tables(data).items()}
+    for name, value in flags.items():
+        section, key = name.split(".", 1)
+        entries = out.setdefault(section, {})
+        if not isinstance(entries, dict):
+            continue  # (from_dict reports the file's section that is no table)
+        view = VIEW_BY_NAME.get(name)
+        sets = {view.uses[0]} if view else {key}
+        for other in section_views(section):
+            if other.uses[0] in sets:
+                entries.pop(other.param.key, None)
+        for k in sets:
+            entries.pop(k, None)
+        if name == "wind.type":  # (a flag's wind type brings its preset speed and turbulence, as in replace)
+            for k in WIND_TYPE_PRESETS[value] if value in WIND_TYPE_PRESETS else ():
+                entries.pop(k, None)
+        entries[key] = value
+    return out
 
 
 TOP_LEVEL_TABLES = {"colliders": "interaction", "effectors": "interaction"}  # [[colliders]] = [[interaction.colliders]]
@@ -805,7 +850,7 @@ MAX_SCENE_BYTES = 4 << 20  # a scene file of more is not one (the longest in sce
 MAX_KEY_DEPTH = 16  # parts of one dotted key or table name (the schema's deepest has 3)
 
 
-def load_toml(path: str | Path, base: Params | None = None) -> Params:
+def load_toml(path: str | Path, base: Params | None = None, flags: Mapping[str, Any] | None = None) -> Params:
     """Read a scene file; every problem is a ParameterError naming the file and the key. Only a
     regular file of at most MAX_SCENE_BYTES is read (a pipe would wait forever, a device never end)."""
     path = Path(path)
@@ -829,7 +874,7 @@ def load_toml(path: str | Path, base: Params | None = None) -> Params:
     except UnicodeDecodeError:
         raise ParameterError("config", f"{path} is not UTF-8 text (a TOML scene file is UTF-8; "
                              "binary files and UTF-16 cannot be read)") from None
-    return loads_toml(text, base, source=str(path), folder=path.resolve().parent)
+    return loads_toml(text, base, source=str(path), folder=path.resolve().parent, flags=flags)
 
 
 _DOTTED = re.compile(r"[\w\-\"']+(?:[ \t]*\.[ \t]*[\w\-\"']+)+")
@@ -841,9 +886,11 @@ def _deepest_key(text: str) -> int:
     return max((m.group().count(".") + 1 for m in _DOTTED.finditer(text)), default=1)
 
 
-def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", folder: Path | None = None) -> Params:
+def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", folder: Path | None = None,
+               flags: Mapping[str, Any] | None = None) -> Params:
     """Params of a scene file's text; ``folder``: where relative file paths in it start (the
-    scene file's folder; None: the current folder). Keys dotted deeper than MAX_KEY_DEPTH are
+    scene file's folder; None: the current folder); ``flags``: command-line values put in first
+    (``merge_flags``). Keys dotted deeper than MAX_KEY_DEPTH are
     refused before parsing (Python's TOML parser takes time and memory growing as the depth squared)."""
     if len(text) > MAX_SCENE_BYTES:
         raise ParameterError("config", f"{source} has {len(text):,} characters; a scene file has at most "
@@ -861,7 +908,7 @@ def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", fo
     try:
         if folder is not None:
             _resolve_paths(data, Path(folder))
-        return from_dict(data, base)
+        return from_dict(merge_flags(data, flags) if flags else data, base)
     except ParameterError as exc:
         raise ParameterError(exc.key, f"{exc.message} (in {source})") from None
 

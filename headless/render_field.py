@@ -181,10 +181,6 @@ def resolve(args: argparse.Namespace):
     config = args.config if args.config is not None else DEFAULT_CONFIG
     if args.config is not None and not config.is_file():
         raise BadInputError(f"--config: {config} does not exist or is not a file")
-    try:
-        params = schema.load_toml(config)
-    except ParameterError as exc:
-        raise BadInputError(f"--config: {exc}") from None
     overrides = schema.cli_overrides(args)
     flags = {name: schema.named(name).cli_flag for name in overrides}
     for option, name in _ALIASES.items():
@@ -199,10 +195,12 @@ def resolve(args: argparse.Namespace):
     if args.resolution is not None:
         overrides["render.resolution_x"], overrides["render.resolution_y"] = parse_resolution(args.resolution)
     try:
-        params = params.replace(overrides)
+        schema.check_flags(overrides)  # (each flag's own range, named by its flag)
+        # the flags go into the file's text, so that its sizes and densities keep their meaning
+        params = schema.load_toml(config, flags=overrides)
     except ParameterError as exc:
         flag = flags.get(exc.key)
-        raise (BadInputError(f"{flag}: {exc}") if flag else exc) from None
+        raise BadInputError(f"{flag}: {exc}" if flag else f"--config: {exc}") from None
     if args.variants < 1:
         raise BadInputError(f"--variants: {args.variants} must be >= 1")
     last_seed = params.field.seed + args.variants - 1

@@ -50,11 +50,13 @@ def parse_args(argv):
 
 
 def load_params(args) -> schema.Params:
-    params = schema.load_toml(args.config) if args.config else schema.defaults()
     overrides = schema.cli_overrides(args)
     if args.fps is not None:
         overrides["render.fps"] = args.fps
-    return params.replace(overrides) if overrides else params
+    if not args.config:
+        return schema.defaults().replace(overrides)
+    schema.check_flags(overrides)
+    return schema.load_toml(args.config, flags=overrides)  # (a file's sizes keep their meaning)
 
 
 def _sample_blocks(layout) -> tuple[np.ndarray, bool]:

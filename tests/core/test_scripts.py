@@ -135,6 +135,31 @@ def test_a_scene_file_that_is_no_scene_file_is_refused_at_once(tmp_path, kind, w
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("line, words", [
+    ("density = 1", "valid 100 to 6400 1/m^2 (or 0)"),  # (at the default 0.1 m cell: whole blades per cell)
+    ("density = 1e6", "valid 100 to 6400 1/m^2 (or 0)"),
+    ("size_x = 0.5", "valid 1.6 to 16384 m"),  # (whole blocks of 16 cells of 0.1 m)
+])
+def test_a_density_or_size_a_field_cannot_have_is_refused_naming_its_range(tmp_path, line, words):
+    """Issue #37 item 9: density = 1 gave a field without a blade, 1e6 one of 6,400 per m^2."""
+    cfg = tmp_path / "scene.toml"
+    cfg.write_text(f"[field]\n{line}\n")
+    proc = run("simulate.py", "--config", cfg, "--frames", 1, timeout=60)
+    assert proc.returncode == 2 and f"field.{line.split()[0]}" in proc.stderr and words in proc.stderr, proc.stderr
+
+
+def test_a_files_size_stays_in_metres_when_a_flag_changes_the_cell_size(tmp_path):
+    """Issue #37 item 9: size_x = 20 with --field-cell-size 0.2 gave a 40 m field. The file's 20 m
+    and 10 m hold (to whole blocks: 16 cells of 0.2 m are 3.2 m, so 19.2 m and 9.6 m), and a flag
+    for the blocks replaces the file's size."""
+    cfg = tmp_path / "scene.toml"
+    cfg.write_text("[field]\nsize_x = 20\nsize_y = 10\nblades_per_cell = 1\n")
+    proc = run("simulate.py", "--config", cfg, "--field-cell-size", "0.2", "--field-blocks-y", "2", "--frames", 1,
+               timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "19.2 x 6.4 m" in proc.stdout, proc.stdout
+
+
 # numpy's savez leaves its ZipFile to the garbage collector when a value fails to serialise
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
 def test_a_failed_trace_write_keeps_the_earlier_trace(tmp_path):

@@ -32,19 +32,39 @@ SPECIFICATION = "jobtemplate-2023-09"
 FLAMENCO_JOB_TYPE = Path(__file__).with_name("windgrass_flamenco.js")  # (shipped with the add-on)
 
 
-def parse_frames(text: str, first: int, last: int) -> tuple[int, int]:
-    """(A, B) of 'A-B' or 'N' within the scene's ``first``..``last``; ParameterError otherwise."""
-    match = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", str(text))
-    if not match:
-        raise ParameterError("frames", f"{text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)")
-    a = int(match.group(1))
-    b = int(match.group(2)) if match.group(2) is not None else a
-    if b < a:
-        raise ParameterError("frames", f"{text!r} ends before it starts (valid: A-B with A <= B)")
-    if a < first or b > last:
-        raise ParameterError("frames", f"{text!r} is outside the scene's frames {first}-{last} (valid: a range "
-                             "within them)")
-    return a, b
+_FRAMES = re.compile(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?")
+
+
+def parse_frames(text: str, first: int, last: int) -> tuple[int, ...]:
+    """The frames of 'A-B', 'N' or a list of them ('5,6', '9,10,20,21', '1-4,8': what Flamenco's
+    chunker and OpenJD's range expressions give a task), in order, each once, within the scene's
+    ``first``..``last``; ParameterError otherwise."""
+    valid = "'A-B', one frame number or a list of them (e.g. 1-48, 12 or 9,10,20-21)"
+    spans = []
+    for part in str(text).split(","):
+        match = _FRAMES.fullmatch(part)
+        if not match:
+            raise ParameterError("frames", f"{text!r} is not {valid}")
+        a = int(match.group(1))
+        b = int(match.group(2)) if match.group(2) is not None else a
+        if b < a:
+            raise ParameterError("frames", f"{text!r}: {part.strip()} ends before it starts (valid: A-B with A <= B)")
+        if a < first or b > last:
+            raise ParameterError("frames", f"{text!r} is outside the scene's frames {first}-{last} (valid: frames "
+                                 "within them)")
+        spans.append((a, b))
+    return tuple(sorted({f for a, b in spans for f in range(a, b + 1)}))
+
+
+def frames_text(frames) -> str:
+    """'1-4,8' for frames (1, 2, 3, 4, 8): runs of consecutive frames as A-B."""
+    runs: list[list[int]] = []
+    for f in frames:
+        if runs and f == runs[-1][1] + 1:
+            runs[-1][1] = f
+        else:
+            runs.append([f, f])
+    return ",".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
 def check_chunk(chunk) -> int:

@@ -4,7 +4,7 @@
 // Two kinds of job, chunked like Flamenco's own "Simple Blender Render":
 //   scene_file  a Windgrass scene file (TOML): each task runs
 //               {blender} -b -P <windgrass_dir>/headless/render_field.py -- --config SCENE
-//                   --frames A-B --out DIR --resume
+//                   --frames CHUNK --out DIR --resume    (CHUNK: "1-4", "5,6" or "9,10,20,21")
 //   blend       a saved .blend with live grass: each task runs the .blend with farm_render.py,
 //               which installs the extension zip when the worker's Blender has none
 // Every written frame prints Blender's "Saved: '<path>'" line; frames already complete on disk
@@ -23,7 +23,7 @@ const JOB_TYPE = {
     { key: "extension_zip", type: "string", subtype: "file_path", description: "The Windgrass extension zip (kind blend)" },
     { key: "version", type: "string", description: "The Windgrass version the job was made with (kind blend)" },
     { key: "frames", type: "string", required: true, eval: "f'{C.scene.frame_start}-{C.scene.frame_end}'",
-      description: "Frames to render: 'A-B'" },
+      description: "Frames to render: 'A-B' or a list of them ('1-10,20-30'); each task gets its chunk as Flamenco writes it ('5,6', '9,10,20,21'), which the scripts read" },
     { key: "chunk_size", type: "int32", default: 4, description: "Frames a task renders in one Blender" },
     { key: "render_output_root", type: "string", subtype: "dir_path", required: true,
       description: "Folder the frames are written to (frame_NNNN.png)" },
@@ -34,6 +34,9 @@ function compileJob(job) {
   const settings = job.settings;
   if (!(settings.chunk_size >= 1)) {
     throw `chunk_size is ${settings.chunk_size}; valid: a whole number of frames, at least 1`;
+  }
+  if (settings.kind !== "blend" && settings.kind !== "scene_file") {
+    throw `kind is ${JSON.stringify(settings.kind)}; valid: "blend" or "scene_file"`;
   }
   if (settings.kind === "scene_file" && !settings.scene_file) {
     throw "a scene_file job needs the scene file (scene_file)";

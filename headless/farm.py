@@ -37,7 +37,7 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Pat
         raise ParameterError("config", f"{config} is not a scene file")
     params = schema.load_toml(config)
     farm.check_chunk(chunk)
-    a, b = farm.parse_frames(frames, params.render.frame_start, params.render.frame_end)
+    chosen = farm.parse_frames(frames, params.render.frame_start, params.render.frame_end)
     for folder, name in ((out, "out"), (bundle, "bundle")):
         try:
             ensure_writable(folder, create=True)
@@ -55,7 +55,7 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Pat
         shutil.copy2(HEADLESS / name, runtime / "headless" / name)
     (bundle / "flamenco").mkdir(exist_ok=True)
     (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
-    span = f"{a}-{b}"
+    span = farm.frames_text(chosen)
     template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}")
     return farm.write_bundle(bundle, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()),

@@ -68,6 +68,7 @@ ParameterError = schema.ParameterError
 WindgrassError = addon_module("grass_addon.errors").WindgrassError
 ensure_writable = addon_module("grass_addon.folders").ensure_writable
 FieldGrid = addon_module("grass_addon.grid").FieldGrid
+farm = addon_module("grass_addon.farm")
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
@@ -106,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
     job.add_argument("--config", metavar="SCENE.toml", type=Path,
                      help=f"scene file (TOML, see scenes/); default {DEFAULT_CONFIG.relative_to(REPO)}")
     job.add_argument("--frames", metavar="A-B",
-                     help="frames to render, 'A-B' or one frame 'N', within render.frame_start.."
+                     help="frames to render, 'A-B', one frame 'N' or a list of them ('9,10,20-21', as Flamenco "
+                          "gives a task), within render.frame_start.."
                           "render.frame_end (default: all of them); any sub-range renders the same "
                           "images as the full run")
     job.add_argument("--out", metavar="DIR", type=Path,
@@ -155,25 +157,16 @@ def parse_resolution(text: str) -> tuple[int, int]:
     return w, h
 
 
-def parse_frames(text: str, params) -> tuple[int, int]:
-    """``'A-B'`` or ``'N'`` -> (first, last), inside the scene's render.frame_start..frame_end."""
+def parse_frames(text: str, params) -> tuple[int, ...]:
+    """``'A-B'``, ``'N'`` or Flamenco's lists (``'5,6'``, ``'9,10,20,21'``) -> the frames, inside the
+    scene's render.frame_start..frame_end."""
     start, end = params.render.frame_start, params.render.frame_end
-    parts = text.split("-")
     try:
-        if len(parts) == 1:
-            first = last = int(parts[0])
-        elif len(parts) == 2:
-            first, last = int(parts[0]), int(parts[1])
-        else:
-            raise ValueError
-    except ValueError:
-        raise BadInputError(f"--frames: {text!r} is not 'A-B' or one frame number (e.g. 1-48 or 12)") from None
-    if last < first:
-        raise BadInputError(f"--frames: {text!r} ends before it starts (valid: A-B with A <= B)")
-    if first < start or last > end:
-        raise BadInputError(f"--frames: {text!r} is outside the scene's frames {start}-{end} "
-                       "(render.frame_start/frame_end; set them with --render-frame-start/-end)")
-    return first, last
+        return farm.parse_frames(text, start, end)
+    except ParameterError as exc:
+        raise BadInputError(f"--frames: {exc.message} (render.frame_start/frame_end: set them with "
+                            "--render-frame-start/-end)" if "outside" in exc.message else f"--frames: {exc.message}"
+                            ) from None
 
 
 def resolve(args: argparse.Namespace):
@@ -210,7 +203,7 @@ def resolve(args: argparse.Namespace):
     if params.camera.mode == "fixed" and params.camera.position == params.camera.target:
         raise ParameterError("camera.target", "equals camera.position; the camera needs a point to look at")
     if args.frames is None:
-        frames = (params.render.frame_start, params.render.frame_end)
+        frames = tuple(range(params.render.frame_start, params.render.frame_end + 1))
     else:
         frames = parse_frames(args.frames, params)
     return params, frames, config
@@ -357,7 +350,7 @@ def _whole(path: Path) -> bool:
     return True
 
 
-def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopAfterFrame | None = None,
+def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopAfterFrame | None = None,
                   resume: bool = False) -> list[Path]:
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame and Blender's
     ``Saved: '<path>'`` line (what farm managers read). Each frame is written under a temporary name,
@@ -366,12 +359,11 @@ def render_frames(scene, params, frames: tuple[int, int], out: Path, stop: StopA
     import bpy
 
     stage = addon_module("grass_addon.bridge.stage")
-    first, last = frames
-    total = last - first + 1
+    total = len(frames)
     written: list[Path] = []
     scene.render.use_file_extension = False
     began = time.perf_counter()
-    for i, frame in enumerate(range(first, last + 1), start=1):
+    for i, frame in enumerate(frames, start=1):
         if stop is not None and stop.requested:
             break
         if resume and _whole(out / FRAME_NAME.format(frame)):
@@ -475,10 +467,11 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
         blend = out / "scene.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)  # the cache goes beside it
         t_bake = time.perf_counter()
-        cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[1], fmt=args.bake_format)
+        # (the bake holds every frame from the first to the last asked: a list's gaps too)
+        cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[-1], fmt=args.bake_format)
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
         blend.with_suffix(".blend1").unlink(missing_ok=True)  # Blender's backup of the first save
-        per_frame = addon_module("grass_addon.bridge.bake").cache_size(cache) / (frames[1] - frames[0] + 1)
+        per_frame = addon_module("grass_addon.bridge.bake").cache_size(cache) / (frames[-1] - frames[0] + 1)
         print(f"baked {cache}/ in {time.perf_counter() - t_bake:.1f} s ({per_frame / 1e6:.2f} MB per frame); "
               f"saved {blend}", flush=True)
     elif args.save_blend:
@@ -525,7 +518,7 @@ def main(argv: list[str]) -> int:
         if missing:
             print(f"render_field.py: failed: --bake: {missing}", file=sys.stderr)
             return EXIT_FAILED
-    print(f"config {config}; frames {frames[0]}-{frames[1]}; output {out}", flush=True)
+    print(f"config {config}; frames {farm.frames_text(frames)}; output {out}", flush=True)
     note = addon_module("grass_addon.simulation").seek_note(params)
     if note:
         print(f"note: {note}", flush=True)

@@ -1,4 +1,4 @@
-"""A farm task: render frames A-B of the open .blend (copied into job bundles by ``farm.py``).
+"""A farm task: render frames A-B (or a list: 9,10,20-21) of the open .blend (copied into job bundles by ``farm.py``).
 
     blender -b FILE.blend -P farm_render.py -- --frames A-B --out DIR [--version V] [--extension ZIP]
 
@@ -25,7 +25,7 @@ FRAME_NAME = "frame_{:04d}.png"
 def _args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]  # (blender -P, or python)
     parser = argparse.ArgumentParser(prog="farm_render.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", required=True, help="A-B or N")
+    parser.add_argument("--frames", required=True, help="A-B, N or a list of them (9,10,20-21)")
     parser.add_argument("--out", required=True, help="folder of frame_NNNN.png")
     parser.add_argument("--version", default="", help="the Windgrass version the job was made with")
     parser.add_argument("--extension", default="", help="a Windgrass extension zip to install first")
@@ -90,24 +90,32 @@ def prepare(args) -> None:
     print(f"Windgrass extension {_version(module)} ({module.__name__}): {fields} live grass field(s)", flush=True)
 
 
-def frames(text: str, scene) -> tuple[int, int]:
-    a, _, b = text.partition("-")
-    first, last = int(a), int(b or a)
-    if last < first:
-        raise ValueError(f"--frames {text}: ends before it starts")
-    return first, last
+def frames(text: str) -> list[int]:
+    """The frames of 'A-B', 'N' or a list of them ('9,10,20-21', as Flamenco's chunker gives a
+    task), in order, each once. (This script runs where the extension may be missing: it keeps
+    its own copy of ``grass_addon.farm.parse_frames``'s reading, without the scene's range.)"""
+    out = set()
+    for part in text.split(","):
+        a, sep, b = part.strip().partition("-") if not part.strip().startswith("-") else ("", "", "")
+        if not a.strip().isdigit() or (sep and not b.strip().isdigit()):
+            raise ValueError(f"--frames {text}: not 'A-B', a frame number or a list of them (e.g. 1-4 or 9,10,20-21)")
+        first, last = int(a), int(b or a)
+        if last < first:
+            raise ValueError(f"--frames {text}: {part.strip()} ends before it starts")
+        out.update(range(first, last + 1))
+    return sorted(out)
 
 
 def render(args) -> int:
     scene = bpy.context.scene
-    first, last = frames(args.frames, scene)
+    chosen = frames(args.frames)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     module = windgrass()
     runtime = None if module is None else sys.modules[f"{module.__name__}.grass_addon.bridge.runtime"]
     scene.render.use_file_extension = False
     scene.render.image_settings.file_format = "PNG"
-    for frame in range(first, last + 1):
+    for frame in chosen:
         final = out / FRAME_NAME.format(frame)
         if whole_png(final):
             print(f"Skipped: '{final}' (already rendered)", flush=True)

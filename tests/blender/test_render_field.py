@@ -212,12 +212,15 @@ def test_save_blend_and_video(cycles_run):
 
 
 def test_sub_range_renders_the_same_pixels(cycles_run, env, tiny_config, tmp_path):
-    """Render-farm contract: frames 3-4 alone equal frames 3-4 of the 1-4 run, pixel for pixel and
-    byte for byte (no render-time text in the PNGs)."""
+    """Render-farm contract: a task's frames alone equal those frames of the 1-4 run, pixel for pixel
+    and byte for byte (no render-time text in the PNGs). The task's frames are written as Flamenco's
+    chunker hands them out (issue #36: '5,6' for a chunk of two frames, '9,10,20,21' across a gap;
+    'A-B' was all render_field.py took, so each such task failed): here '1,3,4'."""
     full, _ = cycles_run
-    proc = render(env, "--config", tiny_config, "--engine", "cycles", "--frames", "3-4", "--out", tmp_path)
+    proc = render(env, "--config", tiny_config, "--engine", "cycles", "--frames", "1,3,4", "--out", tmp_path)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    assert frames_in(tmp_path) == ["frame_0003.png", "frame_0004.png"]
+    assert frames_in(tmp_path) == ["frame_0001.png", "frame_0003.png", "frame_0004.png"]
+    assert "frames 1,3-4;" in proc.stdout
     for name in frames_in(tmp_path):
         assert pixels(tmp_path / name) == pixels(full / name), name
         assert (tmp_path / name).read_bytes() == (full / name).read_bytes(), name
@@ -342,6 +345,8 @@ BAD_INPUTS = [
     (["--config", "no/such/scene.toml"], "--config"),
     (["--frames", "4-2"], "--frames"),
     (["--frames", "one-two"], "--frames"),
+    (["--frames", "1,,2"], "--frames"),
+    (["--frames", "3,1-999"], "--frames"),
     (["--frames", "1-999"], "--frames"),
     (["--resolution", "64by36"], "--resolution"),
     (["--resolution", "8x8"], "--resolution"),

@@ -12,6 +12,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from windgrass.grass_addon import farm
 
 REPO = Path(__file__).resolve().parents[2]
 NODE = shutil.which("node") or shutil.which("nodejs")
@@ -25,15 +26,23 @@ const author = {
   Command: (type, parameters) => ({type, parameters}),
 };
 function print() {}
-function frameChunker(frames, chunkSize) {  // Flamenco's: "A-B" (or "A") chunks of at most chunkSize frames
-  const out = [];
+function frameChunker(frames, chunkSize) {
+  // What Flamenco's chunker hands tasks (seen from its own job compiler, issue #36): the frames of
+  // "1-10,20-25" in order, chunkSize at a time, each chunk written as its runs: "1-4" for a run of
+  // three or more, "5,6" for a run of two, "9,10,20,21" across a gap
+  const all = [];
   for (const part of String(frames).split(",")) {
     const [a, b] = part.trim().split("-").map(Number);
-    const last = Number.isNaN(b) ? a : b;
-    for (let s = a; s <= last; s += chunkSize) {
-      const e = Math.min(s + chunkSize - 1, last);
-      out.push(s === e ? `${s}` : `${s}-${e}`);
+    for (let f = a; f <= (b === undefined ? a : b); f++) all.push(f);
+  }
+  const out = [];
+  for (let i = 0; i < all.length; i += chunkSize) {
+    const chunk = all.slice(i, i + chunkSize), runs = [];
+    for (const f of chunk) {
+      const run = runs[runs.length - 1];
+      if (run && f === run[1] + 1) run[1] = f; else runs.push([f, f]);
     }
+    out.push(runs.map(([s, e]) => e - s >= 2 ? `${s}-${e}` : e > s ? `${s},${e}` : `${s}`).join(","));
   }
   return out;
 }
@@ -64,15 +73,15 @@ def _compile(tmp_path, **settings) -> dict:
 
 
 def _frames(chunk: str) -> list[int]:
-    a, _, b = chunk.partition("-")
-    return list(range(int(a), int(b or a) + 1))
+    """A task's frames as render_field.py and farm_render.py read them."""
+    return list(farm.parse_frames(chunk, -10**6, 10**6))
 
 
 pytestmark = [pytest.mark.skipif(NODE is None, reason="Node is not installed (Debian: apt-get install nodejs)"),
               pytest.mark.slow]  # (each test starts Node: dev.py test --quick leaves them out)
 
 
-@pytest.mark.parametrize("frames", ["1-30", "7-7", "10-17"])
+@pytest.mark.parametrize("frames", ["1-30", "7-7", "10-17", "9-10,20-21", "1-3,7,9-12"])
 @pytest.mark.parametrize("chunk", [1, 2, 3, 4, 7, 100])
 @pytest.mark.parametrize("kind", ["blend", "scene_file"])
 def test_tasks_cover_the_frame_range_exactly_once(tmp_path, frames, chunk, kind):
@@ -93,14 +102,14 @@ def test_tasks_cover_the_frame_range_exactly_once(tmp_path, frames, chunk, kind)
             assert command["type"] == "blender-render" and command["parameters"]["blendfile"] == "/shots/meadow.blend"
             assert args[:2] == ["--python", "/farm/windgrass/farm_render.py"]
             assert args[args.index("--version") + 1] == "0.2.0"
-    a, _, b = frames.partition("-")
-    assert covered == list(range(int(a), int(b) + 1))
+    assert covered == _frames(frames)  # each frame once, in order
 
 
 @pytest.mark.parametrize("settings, words", [
     ({"chunk_size": 0}, "at least 1"),
     ({"kind": "scene_file"}, "needs the scene file"),
     ({"blendfile": ""}, "needs the saved .blend"),
+    ({"kind": "movie"}, 'valid: "blend" or "scene_file"'),
 ])
 def test_bad_settings_are_a_sentence(tmp_path, settings, words):
     assert words in _compile(tmp_path, **settings)["error"]

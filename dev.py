@@ -3,7 +3,7 @@
 
     python3.11 dev.py render [render_field.py options]   # render the default grass animation
     python3.11 dev.py test [pytest options]              # the test suite on Blender 5.2 LTS (and a real
-                                                         # Blender 5.2 window, tests/window), then the
+                                                         # Blender 5.2 window, tests/window), and the
                                                          # Blender tests on 4.5 LTS (.venv-4.5)
     python3.11 dev.py test --quick                       # tests/core without the slow ones (< 30 s)
     python3.11 dev.py simulate [simulate.py options]     # numpy-only simulation summary
@@ -146,13 +146,20 @@ def ensure_real_blender() -> Path | None:
 
 
 QUICK = ["tests/core", "-m", "not slow"]
+# Two test processes (pytest-xdist): the tests share out test by test, the ones that share a
+# module's renders of minutes (xdist_group marks) in one process
+PARALLEL = ["-n", "2", "--dist", "loadgroup"]
 
 
 def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True) -> int:
     """Every test on the current Blender (with the real-Blender window tests), then the Blender
-    tests on the oldest supported line (4.5 LTS): both must pass. Options go to both runs; test
+    tests on the oldest supported line (4.5 LTS): both must pass. Options go to every run; test
     paths given replace the defaults (``tests``, and ``tests/blender`` on 4.5). ``--quick``: the
-    numpy tests without those marked slow, nothing else."""
+    numpy tests without those marked slow, nothing else.
+
+    The whole suite (no paths) fits two cores: the window tests (one Blender with its window, about
+    one core) run beside the 4.5 LTS Blender tests, then tests/core and tests/blender on 5.2 LTS
+    in two processes."""
     if "--quick" in args:
         rest = [a for a in args if a != "--quick"]
         return subprocess.call([str(python), "-m", "pytest", *QUICK, *rest], cwd=ROOT, env=env)
@@ -163,20 +170,49 @@ def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True
         root = ensure_real_blender()
         if root is not None:
             env = dict(env, WINDGRASS_WINDOW_ROOT=str(root))
-    latest = subprocess.call([str(python), "-m", "pytest", *args, *([] if paths else ["tests"])],
+    if paths:
+        latest = subprocess.call([str(python), "-m", "pytest", *args], cwd=ROOT, env=env)
+        blender = [p for p, parts in under.items() if parts == ("tests", "blender")]
+        if ("tests",) in under.values():
+            blender = ["tests/blender"]
+        if not blender or not also_oldest:
+            return latest
+        oldest = run_oldest(blender, options, env)
+        return latest or (0 if oldest == 5 else oldest)  # (5: no test collected: none of them a Blender test)
+    oldest_python = ensure_venv(*OLDEST) if also_oldest else None
+    window = run_beside(python, ["tests/window", *options], env) if "WINDGRASS_WINDOW_ROOT" in env else None
+    oldest = run_oldest(["tests/blender"], options, env) if oldest_python else 0
+    window_status = 0 if window is None else window()
+    print("dev.py: tests/core and tests/blender on the current Blender line, in two processes", flush=True)
+    latest = subprocess.call([str(python), "-m", "pytest", *PARALLEL, *options, "tests/core", "tests/blender"],
                              cwd=ROOT, env=env)
-    # the bpy-module Blender tests among the paths (all of them for "tests" or none given)
-    blender = [p for p, parts in under.items() if parts == ("tests", "blender")]
-    if not paths or ("tests",) in under.values():
-        blender = ["tests/blender"]
-    if not blender or not also_oldest:
-        return latest
+    return latest or window_status or oldest
+
+
+def run_oldest(blender: list[str], options: list[str], env: dict) -> int:
     oldest_python = ensure_venv(*OLDEST)
     print("dev.py: the Blender tests again on Blender 4.5 LTS (.venv-4.5)", flush=True)
-    oldest = subprocess.call([str(oldest_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *blender],
-                             cwd=ROOT, env=env)
-    # pytest's 5 (no test collected) on 4.5: the tests selected hold no Blender test
-    return latest or (0 if oldest == 5 else oldest)
+    return subprocess.call([str(oldest_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *blender],
+                           cwd=ROOT, env=env)
+
+
+def run_beside(python: Path, args: list[str], env: dict):
+    """pytest ``args`` started now in the background, its output kept in a file; the function
+    returned waits for it, prints that output and gives its exit status."""
+    log = open(ROOT / ".window-tests.log", "w+")  # (gitignored)
+    print(f"dev.py: the real-Blender window tests ({args[0]}) run beside, their output follows when they end",
+          flush=True)
+    proc = subprocess.Popen([str(python), "-m", "pytest", "-p", "no:cacheprovider", *args], cwd=ROOT, env=env,
+                            stdout=log, stderr=subprocess.STDOUT)
+
+    def wait() -> int:
+        status = proc.wait()
+        log.seek(0)
+        print(f"dev.py: the window tests ended ({status}):\n{log.read()}", flush=True)
+        log.close()
+        return status
+
+    return wait
 
 
 if __name__ == "__main__":

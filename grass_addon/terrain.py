@@ -32,7 +32,8 @@ class Heightfield:
     heights: (ny + 1, nx + 1) float32, row j along Y, column i along X; nx, ny >= 1.
     """
 
-    def __init__(self, origin_xy, spacing: float, heights):
+    def __init__(self, origin_xy, spacing: float, heights, rise: float = 0.0):
+        self.rise = float(rise)  # how far the mesh it samples rises above it at most (``surface_rise``)
         self.origin_xy = np.asarray(origin_xy, dtype=np.float64).reshape(2)
         self.spacing = float(spacing)
         self.heights = np.ascontiguousarray(heights, dtype=np.float32)
@@ -155,6 +156,27 @@ def ground_z(terrain: Heightfield | None, xy) -> np.ndarray:
     if terrain is None:
         return np.zeros(xy.shape[:-1], np.float32)
     return terrain.sample(xy)
+
+
+def surface_rise(triangles, heightfield: Heightfield) -> float:
+    """How far a mesh's surface (``triangles`` (T, 3, 3) in the field's frame) rises above the
+    bilinear heightfield sampled from it, at most, over the heightfield's extent: points along each
+    edge (a piecewise-flat mesh is highest above a smooth sampling along its ridges), 0 if nowhere.
+    A ground drawn over the mesh lifted this much more hides it (a ridge 2 mm up showed the
+    terrain's material through the grass as dashed lines, issue #37)."""
+    tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    if len(tris) == 0:
+        return 0.0
+    edges = np.stack([tris, np.roll(tris, -1, axis=1)], axis=2).reshape(-1, 2, 3)  # (E, 2, 3)
+    t = np.linspace(0.0, 1.0, 5)[None, :, None]
+    points = (edges[:, :1] * (1.0 - t) + edges[:, 1:] * t).reshape(-1, 3)
+    lo = heightfield.origin_xy
+    hi = lo + heightfield.spacing * np.array([heightfield.nx, heightfield.ny])
+    inside = np.all((points[:, :2] >= lo) & (points[:, :2] <= hi), axis=1)
+    if not inside.any():
+        return 0.0
+    points = points[inside]
+    return float(max(0.0, np.max(points[:, 2] - heightfield.sample(points[:, :2]))))
 
 
 def fill_missing(heights, hit, fallback: float | None = None) -> np.ndarray:

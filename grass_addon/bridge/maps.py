@@ -396,4 +396,6 @@ def sample_terrain(scene, item, params):
     heights, hit = terrain_core.drape(tris, origin, spacing, nx, ny)
     if not hit.all():
         heights = terrain_core.fill_missing(heights, hit, fallback=float(lo[2]))
-    return terrain_core.Heightfield(origin, spacing, heights), (float(centre[0]), float(centre[1]))
+    surface = terrain_core.Heightfield(origin, spacing, heights)
+    rise = terrain_core.surface_rise(tris, surface)  # (the ground drawn over the mesh hides its ridges)
+    return terrain_core.Heightfield(origin, spacing, heights, rise), (float(centre[0]), float(centre[1]))

@@ -8,7 +8,9 @@ import numpy as np
 from . import materials
 
 # The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
-# the user's terrain mesh where both coincide; blade roots stay on the surface (hidden by 2 mm).
+# the user's terrain mesh where both coincide, and more where the terrain's ridges rise above the
+# heightfield's smooth sampling of it (``Heightfield.rise``); blade roots stay on the sampled surface
+# (hidden by the lift).
 GROUND_LIFT = 0.002
 
 
@@ -67,7 +69,7 @@ def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float
         xy = np.stack([(u - 0.5) * size[0], (v - 0.5) * size[1]], axis=-1)  # exactly the field's extent
         floor = np.empty((ny + 1, nx + 1, 3), np.float32)
         floor[..., :2] = xy
-        floor[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT)
+        floor[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT + heightfield.rise)
         floor = floor.reshape(-1, 3)
         corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
         faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)

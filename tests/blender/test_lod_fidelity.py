@@ -30,6 +30,11 @@ MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-specie
                                 "row under an overcast sky (goal 0.04)", strict=False)
 
 
+# dev.py test runs the tests in two processes (pytest-xdist, --dist loadgroup): the tests of one
+# set of renders (a module fixture of minutes) run in the same one
+SQUARE = pytest.mark.xdist_group("lod_square")
+
+
 def _cases(names):
     return [pytest.param(n, marks=MEADOW_OPEN) if "meadow" in n else n for n in names]
 
@@ -46,6 +51,7 @@ def comparison(tmp_path_factory):
     return lod_compare.compare(args), out
 
 
+@SQUARE
 @pytest.mark.parametrize("case", _cases(["default_sun", "default_overcast", "meadow_sun", "meadow_overcast",
                                           "painted_sun", "painted_overcast"]))
 def test_the_lod_render_matches_the_all_geometry_render(comparison, case):
@@ -73,6 +79,7 @@ def strips(tmp_path_factory):
     return lod_compare.compare(args), out
 
 
+@pytest.mark.xdist_group("lod_strip")
 @pytest.mark.parametrize("case", STRIP_CASES)
 def test_the_lod_holds_from_low_and_high_eyes_for_each_species(strips, case):
     import numpy as np
@@ -89,6 +96,7 @@ def test_the_lod_holds_from_low_and_high_eyes_for_each_species(strips, case):
         assert figures["row_ratio_max"] <= SEAM_GOAL, json.dumps(figures)
 
 
+@SQUARE
 @pytest.mark.parametrize("light", ["sun", "overcast"])
 def test_a_painted_path_is_bare_ground_near_in_the_card_band_and_far(comparison, light):
     """The path painted from the camera's feet to the far edge: in the LOD render its pixels are
@@ -116,6 +124,7 @@ def test_a_painted_path_is_bare_ground_near_in_the_card_band_and_far(comparison,
         assert np.abs(lod[row][path].mean(axis=0) - geo[row][path].mean(axis=0)).max() < 0.04, name
 
 
+@SQUARE
 def test_a_slow_flythrough_does_not_pop(comparison):
     """Frame-to-frame change of the LOD render: no more than that of the all-geometry render
     (within the sampling noise of 6 samples: 25 %)."""

@@ -21,9 +21,9 @@ def bridge(with_bridge):
     return owned, runtime
 
 
-def _slope_mesh(func=lambda co: SLOPE * co[:, 0] + LIFT, location=OFFSET):
-    """A 4 m grid of 20 x 20 quads displaced to z = func(local xy), selected and active."""
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=20, size=4.0, location=location)
+def _slope_mesh(func=lambda co: SLOPE * co[:, 0] + LIFT, location=OFFSET, quads=20):
+    """A 4 m grid of ``quads`` x ``quads`` displaced to z = func(local xy), selected and active."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=quads, y_subdivisions=quads, size=4.0, location=location)
     obj = bpy.context.active_object
     _displace(obj, func)
     return obj
@@ -106,6 +106,44 @@ def test_blades_are_rooted_on_the_selected_mesh(bridge):
     lift = canopy[:, 2] - floor[:, 2]
     assert lift.min() > 0.05 and np.ptp(lift) < 1e-4
     assert ground.active_material is not None and ground.active_material.get("wg_role") == "ground_material"
+
+
+def test_a_bumpy_terrain_does_not_show_through_the_field(bridge):
+    """Issue #37 item 2: a field on a rough mesh showed the terrain's material through the grass as
+    dashed lines along its grid (its ridges rose above the ground drawn 2 mm over a smooth sampling
+    of it). Rays straight down over the field, 40 x 40 of them, first meet the grass or the field's
+    ground, never the terrain, while the ground still follows it (within a few centimetres)."""
+    owned, _ = bridge
+    terrain = _slope_mesh(lambda co: 0.3 * np.sin(3.1 * co[:, 0]) * np.cos(2.3 * co[:, 1]) + 0.15 * np.sin(
+        11.0 * co[:, 0] + 7.0 * co[:, 1]) + LIFT, location=(3.07, 1.13, 0.0), quads=7)
+    scene, item = _add_field()
+    scene.frame_set(1)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    x, y = np.meshgrid(np.linspace(-0.78, 0.78, 40), np.linspace(-0.78, 0.78, 40))
+    first = []
+    centre = np.array(terrain.location)[:2]  # (the field is centred on its terrain)
+    ground = owned.ground_object(item)
+    canopy = {p.index for p in ground.data.polygons if p.material_index != 0}
+    for px, py in zip(x.ravel() + centre[0], y.ravel() + centre[1]):
+        z = 5.0
+        while True:  # (through the far canopy's layer: a see-through plane where the blades are drawn)
+            hit, location, _, face, obj, _ = scene.ray_cast(depsgraph, (px, py, z), (0.0, 0.0, -1.0))
+            assert hit
+            if obj.name != ground.name or face not in canopy:
+                break
+            z = location.z - 1e-4
+        first.append((obj.name, location.z))
+    shown = [name for name, _ in first if name == terrain.name]
+    assert not shown, f"{len(shown)} of {len(first)} rays from above meet the terrain first"
+    assert {name for name, _ in first} <= {o.name for o in item.collection.all_objects}
+    g = np.array(ground.matrix_world)
+    floor = _positions(ground) @ g[:3, :3].T + g[:3, 3]
+    inside = np.all(np.abs(floor[:, :2] - centre) < 0.75, axis=1)
+    # (the ground's floor layer: below everything else of the field at its place)
+    co = _positions(terrain) @ np.array(terrain.matrix_world)[:3, :3].T + np.array(terrain.matrix_world)[:3, 3]
+    near = np.all(np.abs(co[:, :2] - centre) < 0.7, axis=1)
+    assert inside.any() and near.any()
+    assert floor[inside, 2].min() < co[near, 2].max()  # (it follows the bumps: not a lid above them)
 
 
 def test_field_size_fits_the_terrain_unless_given(bridge):

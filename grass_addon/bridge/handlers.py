@@ -261,9 +261,8 @@ def on_undo_redo_post(*_args):
     the module docstring) with that step's mesh data: every runtime resolves again from the
     settings (its digest decides whether the engine is kept) and rewrites every slot. In the UI
     that waits for a timer, outside Blender's undo code; in scripts it happens at once. No
-    datablock is added or removed here."""
-    for state in REGISTRY.states.values():
-        state.error = None
+    datablock is added or removed here. A field's error stays until that refresh finds it again or
+    not (cleared here, a hidden field's panel said nothing for up to 20 s in a loaded window)."""
     for rt in REGISTRY.fields.values():
         rt.dirty = True
         rt.blades.state.forget()

@@ -23,9 +23,9 @@ IMAGE_GOAL = 0.03
 # row's (the default species; at 96x54 and 6 samples a row's noise is a few per cent).
 SEAM_GOAL = 0.15
 # The Meadow preset's six species (issue #34: fine and broad grasses, timothy, buttercups, daisies,
-# dry grass) come out up to 0.059 off in a row under an overcast sky on Blender 5.2 (the far
-# canopy and the cards' brightness are fitted to the species' mean, not yet to such a mix): an
-# open defect, marked so that the run says so and passes once it is mended.
+# dry grass) come out up to 0.059 off in a row of the square view under an overcast sky on Blender
+# 5.2 (the far canopy and the cards' brightness are fitted to the species' mean, not yet to such a
+# mix): an open defect, marked so that the run says so and passes once it is mended.
 MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is up to 0.059 off a "
                                 "row under an overcast sky (goal 0.04)", strict=False)
 
@@ -36,7 +36,8 @@ SQUARE = pytest.mark.xdist_group("lod_square")
 
 
 def _cases(names):
-    return [pytest.param(n, marks=MEADOW_OPEN) if "meadow" in n else n for n in names]
+    # (the strips from 1.1 m and 6 m and the square view in sun hold for the meadow on 4.5 and 5.2)
+    return [pytest.param(n, marks=MEADOW_OPEN) if n == "meadow_overcast" else n for n in names]
 
 
 STRIP_CASES = _cases([f"strip{h}m_{preset}_{light}" for h in ("1.1", "6") for preset in ("default", "meadow")

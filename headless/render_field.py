@@ -350,6 +350,17 @@ def _whole(path: Path) -> bool:
     return True
 
 
+def _clear_the_way(final: Path, partial: Path) -> None:
+    """Before a frame is written: a leftover partial file (or a link planted under its name, which
+    Blender would write through, outside the folder) is removed; a folder under either name is a
+    sentence (issue #36: it was a traceback)."""
+    for path in (final, partial):
+        if path.is_dir() and not path.is_symlink():
+            raise FrameWriteError(f"{path} is a folder where frame {final.name} goes: move it away")
+    if partial.is_symlink() or partial.exists():
+        partial.unlink()
+
+
 def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopAfterFrame | None = None,
                   resume: bool = False) -> list[Path]:
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame and Blender's
@@ -378,6 +389,7 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopA
         t_update = time.perf_counter() - t0
         final = out / FRAME_NAME.format(frame)
         partial = final.with_name("." + final.stem + PARTIAL_SUFFIX)
+        _clear_the_way(final, partial)
         scene.render.filepath = str(partial)
         try:
             result = bpy.ops.render.render(write_still=True, scene=scene.name)

@@ -126,6 +126,11 @@ def render(args) -> int:
             if error:
                 raise RuntimeError(f"grass field '{item.name}' cannot be simulated: {error}")
         partial = out / ("." + final.stem + ".partial.png")
+        for path in (final, partial):
+            if path.is_dir() and not path.is_symlink():
+                raise RuntimeError(f"{path} is a folder where frame {final.name} goes: move it away")
+        if partial.is_symlink() or partial.exists():
+            partial.unlink()  # (a leftover, or a link Blender would write through, outside the folder)
         scene.render.filepath = str(partial)
         try:
             bpy.ops.render.render(write_still=True)
@@ -133,7 +138,7 @@ def render(args) -> int:
                 raise RuntimeError(f"Blender did not write frame {frame} whole to {out}")
             os.replace(partial, final)
         finally:
-            if partial.exists():
+            if partial.exists() or partial.is_symlink():
                 partial.unlink()
         print(f"Saved: '{final}'", flush=True)
     return 0

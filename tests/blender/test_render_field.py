@@ -385,14 +385,48 @@ def test_bad_input_exits_2_naming_the_option(env, tiny_config, tmp_path, args, n
     assert not (out.exists() and list(out.rglob("*.png")))
 
 
+def _files_of_at_most(size: int):
+    """For a child process: no file it writes grows past ``size`` bytes (writes past it fail with
+    EFBIG, as on a full disk, instead of the signal that would end it)."""
+    import resource
+    import signal
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size, size))
+    return limit
+
+
 def test_a_frame_that_cannot_be_written_fails_and_leaves_nothing(env, tiny_config, tmp_path):
-    """A full disk: the frame's temporary file goes to /dev/full (writes fail with ENOSPC).
-    The job fails with status 1 and no file looks like a finished frame."""
-    (tmp_path / ".frame_0001.partial.png").symlink_to("/dev/full")
-    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", tmp_path, timeout=120)
+    """A full disk (writes past 1 KB fail): the job fails with status 1 and no file looks like a
+    finished frame."""
+    proc = subprocess.run([sys.executable, str(SCRIPT), "--config", str(tiny_config), "--frames", "1", "--out",
+                           str(tmp_path)], env=env, cwd=REPO, capture_output=True, text=True, timeout=120,
+                          preexec_fn=_files_of_at_most(1024))
     assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert "frame 1" in proc.stderr and "done:" not in proc.stdout
     assert frames_in(tmp_path) == [] and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("planted", ["link", "folder"])
+def test_what_lies_under_a_frames_names_is_never_written_through(env, tiny_config, tmp_path, planted):
+    """Issue #36: a link planted under a frame's temporary name made the render write through it,
+    outside the output folder; a folder named like a frame gave a traceback. The link is removed
+    and the frame written in the folder; a folder in the way is a sentence, and left alone."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere.png"
+    out.mkdir()
+    if planted == "link":
+        (out / ".frame_0001.partial.png").symlink_to(elsewhere)
+    else:
+        (out / "frame_0001.png").mkdir()
+    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", out, timeout=120)
+    assert not elsewhere.exists()
+    if planted == "link":
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert frames_in(out) == ["frame_0001.png"] and not (out / ".frame_0001.partial.png").is_symlink()
+    else:
+        assert proc.returncode == 1 and "is a folder where frame frame_0001.png goes" in proc.stderr, proc.stderr
+        assert "Traceback" not in proc.stderr and (out / "frame_0001.png").is_dir()
 
 
 def test_incomplete_pngs_are_refused(addon, tmp_path):

@@ -26,6 +26,7 @@ import signal
 import struct
 import sys
 import time
+import zlib
 from pathlib import Path
 
 HEADLESS = Path(__file__).resolve().parent
@@ -69,6 +70,7 @@ WindgrassError = addon_module("grass_addon.errors").WindgrassError
 ensure_writable = addon_module("grass_addon.folders").ensure_writable
 FieldGrid = addon_module("grass_addon.grid").FieldGrid
 farm = addon_module("grass_addon.farm")
+images = addon_module("grass_addon.images")
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
@@ -342,12 +344,16 @@ def check_fields(scene) -> None:
             raise FieldError(f"grass field '{item.name}' cannot be simulated: {error}")
 
 
-def _whole(path: Path) -> bool:
+def _whole(path: Path, size: tuple[int, int]) -> bool:
+    """The file is a PNG that decodes completely to ``size`` (width, height) pixels: a frame
+    ``--resume`` may keep (signature and end were not enough: a PNG zeroed in its middle, or a
+    whole one of another size under the frame's name, were kept; issue #36)."""
     try:
         check_png(path)
-    except OSError:
+        pixels = images.decode_png(path.read_bytes())
+    except (OSError, ValueError, zlib.error):
         return False
-    return True
+    return pixels.shape[:2] == (size[1], size[0])
 
 
 def _clear_the_way(final: Path, partial: Path) -> None:
@@ -371,13 +377,15 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopA
 
     stage = addon_module("grass_addon.bridge.stage")
     total = len(frames)
+    r = scene.render
+    size = (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)
     written: list[Path] = []
     scene.render.use_file_extension = False
     began = time.perf_counter()
     for i, frame in enumerate(frames, start=1):
         if stop is not None and stop.requested:
             break
-        if resume and _whole(out / FRAME_NAME.format(frame)):
+        if resume and _whole(out / FRAME_NAME.format(frame), size):
             written.append(out / FRAME_NAME.format(frame))
             print(f"frame {i}/{total} (#{frame}) already rendered: kept", flush=True)
             continue

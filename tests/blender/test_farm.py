@@ -8,9 +8,11 @@ is missing; a saved .blend with live grass renders on a Blender that has never s
 from __future__ import annotations
 
 import os
+import struct
 import subprocess
 import sys
 import textwrap
+import zlib
 from pathlib import Path
 
 import bpy
@@ -97,6 +99,15 @@ def _openjd(bundle: Path, stand_in: Path, env: dict, *more: str) -> subprocess.C
                            "--step", "Render", *more], capture_output=True, text=True, env=env, timeout=900)
 
 
+def _png(width: int, height: int) -> bytes:
+    """A whole grey RGB PNG of that size."""
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    rows = b"".join(b"\0" + b"\x80" * 3 * width for _ in range(height))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
 def _pixels(folder: Path) -> dict[str, np.ndarray]:
     from windgrass.grass_addon import images
 
@@ -127,17 +138,23 @@ def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, s
     assert list(farm_frames) == [f"frame_{i:04d}.png" for i in range(1, 7)] == list(one_frames)
     for name in farm_frames:
         assert np.array_equal(farm_frames[name], one_frames[name]), name
-    # a chunk killed mid-way: frame 3 gone, frame 4 cut off; the job run again renders those two
+    # a chunk killed mid-way: frame 3 gone, frame 4 cut off; frame 5 zeroed in its middle (its
+    # signature and end intact), frame 6 a whole PNG of another size: the job run again renders
+    # those four (issue #36: the last two were kept)
     (out / "frame_0003.png").unlink()
     data = (out / "frame_0004.png").read_bytes()
     (out / "frame_0004.png").write_bytes(data[: len(data) // 2])
-    kept = {n: (out / n).stat().st_mtime_ns for n in farm_frames if n not in ("frame_0003.png", "frame_0004.png")}
+    data = bytearray((out / "frame_0005.png").read_bytes())
+    data[len(data) // 3: 2 * len(data) // 3] = bytes(len(data) // 3)
+    (out / "frame_0005.png").write_bytes(bytes(data))
+    (out / "frame_0006.png").write_bytes(_png(8, 8))
+    redo = ("frame_0003.png", "frame_0004.png", "frame_0005.png", "frame_0006.png")
+    kept = {n: (out / n).stat().st_mtime_ns for n in farm_frames if n not in redo}
     again = _openjd(bundle, stand_in, env)
     assert again.returncode == 0, again.stderr[-3000:]
-    assert again.stdout.count("already rendered: kept") == 4
+    assert again.stdout.count("already rendered: kept") == 2
     assert sorted(line.split("Saved: ")[1] for line in again.stdout.splitlines()
-                  if "Saved: '" in line and ".partial" not in line) == [f"'{out / 'frame_0003.png'}'",
-                                                                        f"'{out / 'frame_0004.png'}'"]
+                  if "Saved: '" in line and ".partial" not in line) == [f"'{out / n}'" for n in redo]
     assert all((out / n).stat().st_mtime_ns == t for n, t in kept.items())
     rerun = _pixels(out)
     assert all(np.array_equal(rerun[n], one_frames[n]) for n in one_frames)

@@ -15,9 +15,11 @@ A step is a dict; its one action key says what it does:
   ``{"undo": 1}`` / ``{"redo": 1}``                 ``ed.undo`` / ``ed.redo`` as operators;
   ``{"frame": 1}``                                 a frame change by that many frames;
   ``{"wait": 0.5}``                                seconds for timers and events (window only);
-  ``{"settle": "shaders", "max": 900}``            until EEVEE's shaders are compiled (or until a few
-                                                   lines of Python set ``result`` true), as long as
-                                                   it takes (at most ``max`` s): progress, not a guess;
+  ``{"settle": "shaders", "max": 900}``            until EEVEE's shaders are compiled (``"view"``:
+                                                   until the screen stays the same for a second; or
+                                                   until a few lines of Python set ``result`` true), as
+                                                   long as it takes (at most ``max`` s): progress, not
+                                                   a guess;
   ``{"check": "fields"}``                          every field matches its settings and shows grass;
   ``{"view": {...}}``, ``{"shading": "SOLID"}``, ``{"shot": "name"}``, ``{"save": path}``,
   ``{"open": path}``, ``{"probe": "name"}``, ``{"sidebar": "Grass"}``: see ``Driver``'s methods of
@@ -146,6 +148,7 @@ class Driver:
         self.index = 0
         self.messages: list[str] = []
         self.settling: tuple | None = None  # (started, quiet since) while a settle step waits
+        self.last_screen: np.ndarray | None = None  # the screen a second ago (settle "view")
 
     # ---------------------------------------------------------------- running
 
@@ -273,6 +276,8 @@ class Driver:
             busy = bpy.app.is_job_running("SHADER_COMPILATION")
             quiet = None if busy else (quiet or now)
             done = quiet is not None and now - quiet >= 3.0
+        elif what == "view":
+            done = self._screen_still()
         else:
             done = bool(self.do_python(what, step))
         if not done and now - start < float(step.get("max", 900)):
@@ -280,8 +285,18 @@ class Driver:
             self.index -= 1  # (this step again in a second, recorded once)
             self.report["steps"].pop()
             return None, 1.0
-        self.settling = None
+        self.settling = self.last_screen = None
         return {"waited": round(now - start, 1), "settled": done}, 0.2
+
+    def _screen_still(self) -> bool:
+        """The screen is the same as a second ago (the viewport has gathered its samples: its
+        first ones are noisy; mean difference under 0.1 %)."""
+        ppm = subprocess.run("xwd -root -silent | xwdtopnm 2>/dev/null", shell=True, capture_output=True,
+                             check=True, timeout=60).stdout
+        magic, width, height, top, pixels = ppm.split(maxsplit=4)
+        image = np.frombuffer(pixels[:int(width) * int(height) * 3], np.uint8).astype(np.float32) / float(top)
+        last, self.last_screen = self.last_screen, image
+        return last is not None and last.shape == image.shape and float(np.abs(image - last).mean()) < 1e-3
 
     def do_check(self, what: str, step: dict):
         states = [field_state(s, item) for s in bpy.data.scenes if hasattr(s, "windgrass")

@@ -382,7 +382,8 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     far = {"view": {"look": [[0.0, -30.0, 6.0], [0.0, 5.0, 0.0]]}}
     near = {"view": {"look": [[0.0, -6.0, 2.0], [0.0, 0.0, 0.0]]}}
     steps = [*FIELD, far, {"shading": "MATERIAL"}, {"wait": 5.0}, {"shot": "compiling"},
-             {"settle": "shaders", "max": 900}, {"shot": "compiled"}, near, {"wait": 3.0}, {"python": OVERLAYS},
+             {"settle": "shaders", "max": 900}, {"settle": "view", "max": 120}, {"shot": "compiled"},
+             near, {"wait": 3.0}, {"python": OVERLAYS},
              {"shot": "near"},
              {"shading": "SOLID"}, {"python": OVERLAYS}, {"shading": "RENDERED"}, {"python": OVERLAYS},
              {"shading": "MATERIAL"}, {"save": "{case}/floor.blend"},
@@ -395,9 +396,10 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     r, g, b = rgb.mean(axis=(0, 1))
     hue = 60.0 * ((b - r) / (g - min(r, b)) + 2.0)  # (g the largest: green's side of the hue circle)
     assert g > r and g > 1.2 * b and 70.0 < hue < 160.0, (r, g, b, hue)  # green (a meadow's: 84 deg on 5.2)
-    # no pale specks on black ground, as a person sees the band: 4 x 4 pixel patches (single pixels
-    # flicker with the view's samples: the meadow's pale seed heads and flowers were 6 % of the pixels
-    # here once the view had gathered its samples, 19 % in a loaded CI's first ones; 0.6 % of patches)
+    # no pale specks on black ground, as a person sees the band once the view has gathered its
+    # samples (the screen still): 4 x 4 pixel patches (the meadow's pale seed heads and flowers are
+    # 6 % of the pixels here, 0.6 % of patches; 19 % of the pixels in a loaded CI's shot, taken
+    # before the view stood still)
     h, w = (rgb.shape[0] // 4) * 4, (rgb.shape[1] // 4) * 4
     lum = rgb[:h, :w].reshape(h // 4, 4, w // 4, 4, 3).mean(axis=(1, 3, 4))
     assert (lum > 0.45).mean() < 0.1 and (lum < 0.02).mean() < 0.05

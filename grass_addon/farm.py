@@ -84,7 +84,7 @@ def _param(name: str, kind: str, default, description: str, **more) -> dict:
 def _common_params(frames: str, chunk: int, out_dir: str, name: str) -> list[dict]:
     return [
         _param("JobName", "STRING", name, "What the farm shows for the job"),
-        _param("BlenderExecutable", "STRING", "blender", "The Blender the workers run (4.2 or newer): a name on "
+        _param("BlenderExecutable", "STRING", "blender", "The Blender the workers run (4.5 or newer): a name on "
                "their PATH or a full path"),
         _param("Frames", "STRING", frames, "The frames to render, A-B"),
         _param("ChunkSize", "INT", chunk, "Frames a task renders in one Blender", minValue=1),

@@ -2,7 +2,7 @@
 """Render a grass field swaying in the wind to numbered PNGs (paper VI: a fly-through).
 
     python headless/render_field.py [options]                 # bpy module (the .venv)
-    blender -b -P headless/render_field.py -- [options]       # a Blender 4.2+ install
+    blender -b -P headless/render_field.py -- [options]       # a Blender 4.5+ install
 
 With no --config the scene is scenes/default.toml. Every schema parameter has a flag
 (--wind-speed 6 ...); precedence: schema defaults < --config file < flags. Frames go to
@@ -26,6 +26,7 @@ import signal
 import struct
 import sys
 import time
+import tomllib
 import zlib
 from pathlib import Path
 
@@ -35,7 +36,9 @@ DEFAULT_CONFIG = REPO / "scenes" / "default.toml"
 DEFAULT_OUT = REPO / "renders"
 sys.path.insert(0, str(HEADLESS))  # (Blender's -P does not put the script's folder on the path)
 
-OLDEST_BLENDER = (4, 2, 0)
+# the manifest's blender_version_min (Blender's own check for the extension; 4.5.0)
+OLDEST_BLENDER = tuple(int(v) for v in tomllib.loads((REPO / "blender_manifest.toml").read_text())[
+    "blender_version_min"].split("."))
 
 
 def blender_version_error(version: tuple[int, ...]) -> str | None:

@@ -110,14 +110,22 @@ def missing_build_feature(fmt: str = "alembic") -> str | None:
     if fmt not in FORMATS:
         return f"bake: unknown format {fmt!r} (valid: {', '.join(FORMATS)})"
     _, option, name = FORMATS[fmt]
-    if fmt == "usd" and bpy.app.version < USD_SINCE:
-        since = f"{USD_SINCE[0]}.{USD_SINCE[1]}"
-        return (f"bake: USD needs Blender {since} or later (the USD writer of 4.2 keeps a moving mesh's extent, "
+    since = f"{USD_SINCE[0]}.{USD_SINCE[1]}"
+    here = f"{bpy.app.version[0]}.{bpy.app.version[1]}"
+    alembic = getattr(bpy.app.build_options, FORMATS["alembic"][1], True)
+    usd_ok = bpy.app.version >= USD_SINCE
+    if not alembic and not usd_ok:  # (each format would point to the other: neither works here)
+        return (f"bake: this Blender {here} can bake to neither format: it was built without Alembic, and its USD "
+                f"writer keeps a moving mesh's extent at its first frame (fixed in {since}); bake in Blender "
+                f"{since}+ (USD), or in a Blender from blender.org (Alembic)")
+    if fmt == "usd" and not usd_ok:
+        return (f"bake: USD needs Blender {since} or later (the USD writer of {here} keeps a moving mesh's extent, "
                 f"the bounds renderers cull by, at its first frame); bake to Alembic here, or to USD in Blender "
                 f"{since}+")
     if not getattr(bpy.app.build_options, option, True):
-        return (f"bake: this Blender was built without {name}, the format asked for; bake in a Blender "
-                f"from blender.org (its builds have {name})")
+        other = "USD" if fmt == "alembic" else "Alembic"
+        return (f"bake: this Blender was built without {name}, the format asked for; bake to {other} here, or in a "
+                f"Blender from blender.org (its builds have {name})")
     return None
 
 

@@ -2,7 +2,7 @@
 
     blender -b FILE.blend -P farm_render.py -- --frames A-B --out DIR [--version V] [--extension ZIP]
 
-Runs in any Blender 4.2+. A live grass field needs the Windgrass extension: the job's environment
+Runs in any Blender 4.5+. A live grass field needs the Windgrass extension: the job's environment
 installs it (OpenJD), or ``--extension`` installs the zip here (Flamenco); ``--version`` refuses an
 extension other than the one the job was made with. Each frame is written under a temporary name
 and renamed into place when whole, then Blender's ``Saved: '<path>'`` line is printed; a frame

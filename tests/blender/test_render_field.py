@@ -448,8 +448,9 @@ def test_older_blender_is_named_with_the_version_needed(addon):
     import render_field
 
     assert render_field.blender_version_error((3, 4, 1)) == \
-        "Windgrass needs Blender 4.2 or newer (this is 3.4.1)"
-    assert render_field.blender_version_error((4, 2, 0)) is None
+        "Windgrass needs Blender 4.5 or newer (this is 3.4.1)"  # (the manifest's floor: 4.5 LTS)
+    assert render_field.blender_version_error((4, 2, 0)) == "Windgrass needs Blender 4.5 or newer (this is 4.2.0)"
+    assert render_field.blender_version_error((4, 5, 0)) is None
     assert render_field.blender_version_error((5, 0, 1)) is None
 
 

@@ -40,7 +40,12 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
         if not self.directory:
             self.report({"ERROR"}, "Choose the folder the job bundle is written to")
             return {"CANCELLED"}
-        folder = farm_job.write_blend_bundle(context.scene, Path(bpy.path.abspath(self.directory)), self.chunk_size)
+        folder = Path(bpy.path.abspath(self.directory))
+        if bpy.data.filepath and folder.resolve() == Path(bpy.data.filepath).resolve().parent:
+            # the file browser falls back to the .blend's folder when the suggested one does not exist
+            # yet: the bundle (a dozen files and folders) goes into a folder of its own there
+            folder = folder / (Path(bpy.data.filepath).stem + "_farm_job")
+        folder = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size)
         self.report({"INFO"}, f"Farm job written to {folder}: openjd run {folder / 'template.yaml'} --job-param "
                               f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit {folder}")
         return {"FINISHED"}

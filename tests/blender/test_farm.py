@@ -239,6 +239,18 @@ def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tm
         assert np.array_equal(one_frames[name], farm_frames[name]), name
 
 
+def test_farm_job_into_the_blends_own_folder_writes_a_folder_of_its_own(tmp_path, with_bridge):
+    """Issue #37 item 5: the file browser falls back to the .blend's folder when the suggested
+    bundle folder does not exist yet, and the bundle's files were strewn beside the .blend; they
+    go into <name>_farm_job/ there, and the report names it."""
+    blend = _live_blend(tmp_path, with_bridge)
+    before = {p.name for p in tmp_path.iterdir()}
+    bpy.ops.windgrass.farm_job(directory=str(tmp_path) + "/", chunk_size=2)
+    # (and the frames' folder, the scene's output path: made ready for the workers)
+    assert {p.name for p in tmp_path.iterdir()} - before == {"live_farm_job", "farm"}
+    assert (tmp_path / "live_farm_job" / "template.yaml").is_file() and blend.is_file()
+
+
 def test_farm_job_refuses_an_unsaved_or_modified_file(tmp_path, with_bridge):
     with pytest.raises(RuntimeError, match="not saved"):
         bpy.ops.windgrass.farm_job(directory=str(tmp_path / "b") + "/")

@@ -24,6 +24,9 @@ LABELS = {
 }
 # Sections only used by headless renders (headless/render_field.py) start closed.
 HEADLESS = frozenset({"camera", "render", "terrain"})
+# A section's on/off switch, drawn in its header as Blender's own panels do (Motion Blur, Bloom):
+# the body is greyed out while it is off.
+HEADER_SWITCH = {"lod": "enabled"}
 # Preset operators drawn on top of a section: (operator, its enum property, button text).
 PRESETS = {
     "blade": ("windgrass.species_preset", "preset", "Species Preset"),
@@ -104,7 +107,11 @@ def draw_section(layout, context, item, section: str) -> None:
         op, prop, text = PRESETS[section]
         layout.operator_menu_enum(op, prop, text=text, icon="PRESET")
     views = [v.param for v in schema.section_views(section)]
-    draw_params(layout, context, group, views + [p for p in schema.blender_params(section) if not p.advanced])
+    switch = HEADER_SWITCH.get(section)
+    if switch:
+        layout.active = bool(getattr(group, switch))
+    draw_params(layout, context, group, views + [p for p in schema.blender_params(section)
+                                                 if not p.advanced and p.key != switch])
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):
@@ -142,9 +149,10 @@ def draw_section(layout, context, item, section: str) -> None:
                 "frame range rule", icon="INFO")
 
 
-def _panel_type(idname: str, label: str, parent: str, closed: bool, draw) -> type:
-    """A sub-panel of the Grass tab shown while a field is selected."""
-    return type(idname, (bpy.types.Panel,), {
+def _panel_type(idname: str, label: str, parent: str, closed: bool, draw, **more) -> type:
+    """A sub-panel of the Grass tab shown while a field is selected (``more``: e.g. its
+    ``draw_header``)."""
+    return type(idname, (bpy.types.Panel,), {**more,
         "bl_label": label,
         "bl_idname": idname,
         "bl_space_type": "VIEW_3D",
@@ -162,8 +170,15 @@ def _panel(section: str) -> type:
     def draw(self, context):
         draw_section(self.layout, context, properties.active_field(context.scene), section)
 
+    more = {}
+    if section in HEADER_SWITCH:
+        def draw_header(self, context):
+            group = properties.group(properties.active_field(context.scene), section)
+            self.layout.prop(group, HEADER_SWITCH[section], text="")
+
+        more["draw_header"] = draw_header
     return _panel_type(f"WINDGRASS_PT_{section}", LABELS.get(section, section.capitalize()),
-                       WINDGRASS_PT_main.bl_idname, section in HEADLESS, draw)
+                       WINDGRASS_PT_main.bl_idname, section in HEADLESS, draw, **more)
 
 
 def _advanced_panel(section: str) -> type:

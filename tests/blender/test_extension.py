@@ -239,6 +239,8 @@ def test_units_map_to_blender_subtypes(scene):
     assert props["type"].type == "ENUM"
     assert set(props["type"].enum_items.keys()) == set(_schema().WIND_TYPES)
     assert item.lod.bl_rna.properties["enabled"].type == "BOOLEAN"
+    # (its switch is in the Levels of Detail panel's header, as Blender's own Motion Blur's: #37 item 7)
+    assert "draw_header" in vars(bpy.types.WINDGRASS_PT_lod)
     species = properties.ROW_CLASSES["blade.species"].bl_rna.properties
     assert species["color"].subtype == "COLOR" and species["color"].array_length == 3
     assert item.camera.bl_rna.properties["position"].array_length == 3

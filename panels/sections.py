@@ -112,6 +112,16 @@ def draw_section(layout, context, item, section: str) -> None:
         layout.active = bool(getattr(group, switch))
     draw_params(layout, context, group, views + [p for p in schema.blender_params(section)
                                                  if not p.advanced and p.key != switch])
+    if section == "field":
+        try:
+            f = properties.params_from_settings(item).field
+        except WindgrassError:
+            f = None  # (a setting out of range: the main panel says which)
+        if f is not None:
+            block = f.cells_per_block * f.cell_size
+            wrapped(layout, context, f"Sizes are whole blocks of {block:g} m and densities whole blades per cell of "
+                    f"{f.cell_size:g} m: a value typed is rounded to the nearest (Advanced: Cells/Block, Cell Size)",
+                    icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

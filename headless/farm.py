@@ -29,6 +29,7 @@ from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
 
 SCRIPTS = ("render_field.py", "addon_loader.py", "common.py")
+OWNED = ".written-by-windgrass-farm"  # in the bundle's windgrass/: farm.py may replace that folder
 
 
 def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Path:
@@ -44,6 +45,11 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Pat
         except OSError as exc:
             raise ParameterError(name, f"cannot write into {folder}: {exc.strerror or exc}") from None
     runtime = bundle / "windgrass"
+    mark = runtime / OWNED
+    if runtime.is_symlink() or (runtime.exists() and not mark.is_file()):
+        # (it deleted such a folder with whatever a user kept there: a clone lost its .git)
+        raise ParameterError("bundle", f"{runtime} exists and was not written by farm.py: move it away or give "
+                             "another bundle folder (farm.py replaces only the windgrass/ it wrote)")
     if runtime.exists():
         shutil.rmtree(runtime)
     root = HEADLESS.parent
@@ -53,6 +59,7 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Pat
     (runtime / "headless").mkdir(parents=True, exist_ok=True)
     for name in SCRIPTS:
         shutil.copy2(HEADLESS / name, runtime / "headless" / name)
+    mark.write_text("Written by Windgrass's farm.py, which replaces this folder when it writes the bundle again.\n")
     (bundle / "flamenco").mkdir(exist_ok=True)
     (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     span = farm.frames_text(chosen)

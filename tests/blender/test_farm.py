@@ -176,6 +176,33 @@ def test_bad_farm_input_is_a_sentence(tmp_path, args, words):
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
 
 
+def test_farm_py_replaces_only_the_windgrass_folder_it_wrote(tmp_path):
+    """Issue #36: farm.py deleted BUNDLE/windgrass/ with whatever a user kept there (a clone named
+    windgrass lost its .git). A folder it did not write is a sentence and stays; its own is
+    replaced when the bundle is written again."""
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY)
+    bundle = tmp_path / "bundle"
+    (bundle / "windgrass" / ".git").mkdir(parents=True)
+    (bundle / "windgrass" / ".git" / "HEAD").write_text("ref: refs/heads/main\n")
+
+    def farm_py():
+        return subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene),
+                               "--out", str(tmp_path / "out"), str(bundle)], capture_output=True, text=True,
+                              env=_env(tmp_path), timeout=120)
+
+    refused = farm_py()
+    assert refused.returncode == 2 and "was not written by farm.py" in refused.stderr, refused.stderr
+    assert (bundle / "windgrass" / ".git" / "HEAD").read_text() == "ref: refs/heads/main\n"
+    (bundle / "windgrass" / ".git" / "HEAD").unlink()
+    (bundle / "windgrass" / ".git").rmdir()
+    (bundle / "windgrass").rmdir()
+    for _ in range(2):  # (the second time over its own folder)
+        made = farm_py()
+        assert made.returncode == 0, made.stderr
+        assert (bundle / "windgrass" / "headless" / "render_field.py").is_file()
+
+
 def _live_blend(tmp_path, with_bridge) -> Path:
     """A saved .blend with a live field, a keyed ball rolling through it and a camera."""
     from windgrass.grass_addon.bridge import properties

@@ -68,10 +68,18 @@ def _version(module) -> str:
     return ""
 
 
+def live_fields() -> set:
+    """The tags of the .blend's live grass fields, read without the add-on: a field's collection
+    carries ``wg_uid``, a baked field's cache files the same tag (Blender 5.0 no longer answers
+    ``scene.get("windgrass")`` for the add-on's settings: frames rendered without grass passed)."""
+    fields = {c.get("wg_uid") for c in bpy.data.collections if c.get("wg_uid")}
+    return fields - {c.get("wg_uid") for c in bpy.data.cache_files}
+
+
 def prepare(args) -> None:
     """Install the extension when asked, check its version, and make sure every live field can be
     simulated; RuntimeError with a sentence otherwise."""
-    live = any(getattr(s, "get", lambda k: None)("windgrass") for s in bpy.data.scenes)
+    live = bool(live_fields())
     module = windgrass()
     if module is None and args.extension:
         blend = bpy.data.filepath

@@ -287,6 +287,22 @@ def test_farm_job_refuses_an_unsaved_or_modified_file(tmp_path, with_bridge):
         bpy.ops.windgrass.farm_job(directory=str(tmp_path / "b") + "/")
 
 
+def test_a_task_on_a_blender_without_windgrass_fails_with_a_sentence_and_writes_nothing(tmp_path, stand_in,
+                                                                                         with_bridge):
+    """Issue #36 item 5: a .blend task on a worker without the extension (its zip missing or not
+    installed) rendered frames without grass and exited 0 on Blender 5.x (the live-grass check
+    read ``scene.get("windgrass")``, which 5.0 no longer answers)."""
+    blend = _live_blend(tmp_path, with_bridge)
+    out = tmp_path / "frames"
+    proc = subprocess.run([str(stand_in), "-b", str(blend), "-P", str(REPO / "grass_addon" / "bridge" /
+                                                                       "farm_render.py"),
+                           "--", "--frames", "1-2", "--out", str(out)], capture_output=True, text=True,
+                          env=_env(tmp_path, tmp_path / "user-without-windgrass"), timeout=300)
+    assert proc.returncode == 1 and "has live grass fields but Blender has no Windgrass" in proc.stderr, \
+        proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert not out.exists() or not list(out.glob("*.png"))
+
+
 def test_the_wrong_extension_version_is_a_sentence(tmp_path, stand_in, with_bridge):
     """A worker whose Windgrass is another version than the job's: the task fails with a sentence."""
     blend = _live_blend(tmp_path, with_bridge)

@@ -67,6 +67,17 @@ def frames_text(frames) -> str:
     return ",".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
+def other_blender(wanted: str, version) -> str | None:
+    """The sentence for a worker whose Blender is not the job's line ``wanted`` ('5.2'; '' takes
+    any), else None: two lines render the same frame a little differently (18/255 on average between
+    4.3 and 5.0), so a job's frames come from one."""
+    here = f"{version[0]}.{version[1]}"
+    if not wanted or wanted == here:
+        return None
+    return (f"this worker runs Blender {here}, the job's frames are made with Blender {wanted}: give the job that "
+            f"Blender (BlenderExecutable), or set BlenderVersion to '' to let any Blender render them")
+
+
 def check_chunk(chunk) -> int:
     if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
         raise ParameterError("chunk", f"{chunk!r} frames a task (valid: a whole number, at least 1)")
@@ -81,8 +92,10 @@ def _param(name: str, kind: str, default, description: str, **more) -> dict:
     return out
 
 
-def _common_params(frames: str, chunk: int, out_dir: str, name: str) -> list[dict]:
+def _common_params(frames: str, chunk: int, out_dir: str, name: str, blender: str = "") -> list[dict]:
     return [
+        _param("BlenderVersion", "STRING", blender, "The Blender line (X.Y) the frames are made with: a worker on "
+               "another refuses; empty: any Blender renders them", minLength=0),
         _param("JobName", "STRING", name, "What the farm shows for the job"),
         _param("BlenderExecutable", "STRING", "blender", "The Blender the workers run (4.5 or newer): a name on "
                "their PATH or a full path"),
@@ -106,23 +119,24 @@ def _chunked_step(name: str, args: list[str], environments: list | None = None) 
     return step
 
 
-def scene_template(frames: str, chunk: int, name: str) -> dict:
+def scene_template(frames: str, chunk: int, name: str, blender: str = "") -> dict:
     """The OpenJD template of a scene-file job (paths as the bundle's parameter values give them)."""
-    params = _common_params(frames, chunk, "output", name) + [
+    params = _common_params(frames, chunk, "output", name, blender) + [
         _param("WindgrassDir", "PATH", "windgrass", "The Windgrass scripts and add-on carried in the bundle",
                objectType="DIRECTORY", dataFlow="IN"),
         _param("SceneFile", "PATH", "scene/scene.toml", "The scene file (TOML) with its maps beside it",
                objectType="FILE", dataFlow="IN"),
     ]
     args = ["-b", "-P", "{{Param.WindgrassDir}}/headless/render_field.py", "--", "--config", "{{Param.SceneFile}}",
-            "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}", "--resume"]
+            "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}", "--resume",
+            "--blender-version={{Param.BlenderVersion}}"]
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
             "parameterDefinitions": params, "steps": [_chunked_step("Render", args)]}
 
 
-def blend_template(frames: str, chunk: int, name: str, version: str) -> dict:
+def blend_template(frames: str, chunk: int, name: str, version: str, blender: str = "") -> dict:
     """The OpenJD template of a saved .blend with live grass: the extension installed per session."""
-    params = _common_params(frames, chunk, "output", name) + [
+    params = _common_params(frames, chunk, "output", name, blender) + [
         _param("BlendFile", "PATH", "scene/scene.blend", "The saved .blend", objectType="FILE", dataFlow="IN"),
         _param("ExtensionZip", "PATH", f"windgrass-{version}.zip", "The Windgrass extension the .blend was made "
                "with", objectType="FILE", dataFlow="IN"),
@@ -140,7 +154,8 @@ def blend_template(frames: str, chunk: int, name: str, version: str) -> dict:
                      "{{Param.ExtensionZip}}"]}}},
     }
     args = ["-b", "{{Param.BlendFile}}", "-P", "{{Param.FarmScript}}", "--", "--frames", "{{Task.Param.Frame}}",
-            "--out", "{{Param.OutputDir}}", "--version", "{{Param.WindgrassVersion}}"]
+            "--out", "{{Param.OutputDir}}", "--version", "{{Param.WindgrassVersion}}",
+            "--blender-version={{Param.BlenderVersion}}"]
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
             "parameterDefinitions": params, "steps": [_chunked_step("Render", args, [install])]}
 

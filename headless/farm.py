@@ -15,6 +15,7 @@ Farm Job in Blender. Bad input: a sentence and exit status 2.
 
 from __future__ import annotations
 
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -32,8 +33,9 @@ SCRIPTS = ("render_field.py", "addon_loader.py", "common.py")
 OWNED = ".written-by-windgrass-farm"  # in the bundle's windgrass/: farm.py may replace that folder
 
 
-def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Path:
-    """The bundle for ``config``'s frames ``frames`` in chunks of ``chunk`` into ``out``."""
+def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path, blender: str = "") -> Path:
+    """The bundle for ``config``'s frames ``frames`` in chunks of ``chunk`` into ``out``; ``blender``:
+    the Blender line (X.Y) its frames are made with ('' any)."""
     if not config.is_file():
         raise ParameterError("config", f"{config} is not a scene file")
     params = schema.load_toml(config)
@@ -63,10 +65,10 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path) -> Pat
     (bundle / "flamenco").mkdir(exist_ok=True)
     (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     span = farm.frames_text(chosen)
-    template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}")
+    template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}", blender)
     return farm.write_bundle(bundle, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()),
-        "WindgrassDir": str(runtime.resolve()), "SceneFile": str(config.resolve())})
+        "WindgrassDir": str(runtime.resolve()), "SceneFile": str(config.resolve()), "BlenderVersion": blender})
 
 
 def main(argv=None) -> int:
@@ -75,6 +77,9 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", help="A-B within the scene's frames (default: all of them)")
     parser.add_argument("--chunk", type=int, default=4, help="frames a task renders (default 4)")
     parser.add_argument("--out", type=Path, required=True, help="the folder the frames are written to")
+    parser.add_argument("--blender-version", metavar="X.Y", default="",
+                        help="the Blender line the frames are made with: a worker on another refuses (default: any; "
+                             "two lines render a frame a little differently)")
     parser.add_argument("bundle", type=Path, help="the job bundle's folder (made)")
     args = parser.parse_args(argv)
     try:
@@ -82,7 +87,9 @@ def main(argv=None) -> int:
         if frames is None:
             params = schema.load_toml(args.config) if args.config.is_file() else None
             frames = f"{params.render.frame_start}-{params.render.frame_end}" if params else "1"
-        bundle = write(args.config, frames, args.chunk, args.out, args.bundle)
+        if args.blender_version and not re.fullmatch(r"\d+\.\d+", args.blender_version):
+            raise ParameterError("blender-version", f"{args.blender_version!r} is not a Blender line such as 5.2")
+        bundle = write(args.config, frames, args.chunk, args.out, args.bundle, args.blender_version)
     except ParameterError as exc:
         print(f"farm.py: error: {exc}", file=sys.stderr)
         return 2

@@ -141,6 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "is missing)")
     job.add_argument("--video", action="store_true",
                      help="also encode the frames as OUT/animation.mp4 (Blender's FFmpeg)")
+    job.add_argument("--blender-version", metavar="X.Y", default="",
+                     help="the Blender line the job's frames are made with (a farm job's): another refuses, since "
+                          "two lines render the same frame a little differently (default: any)")
     schema.add_cli_arguments(parser)
     return parser
 
@@ -532,7 +535,7 @@ def main(argv: list[str]) -> int:
               "inside .venv (python3.11 dev.py render) or as blender -b -P headless/render_field.py -- ...",
               file=sys.stderr)
         return EXIT_FAILED
-    too_old = blender_version_error(bpy.app.version)
+    too_old = blender_version_error(bpy.app.version) or farm.other_blender(args.blender_version, bpy.app.version)
     if too_old:
         print(f"render_field.py: error: {too_old}", file=sys.stderr)
         return EXIT_FAILED

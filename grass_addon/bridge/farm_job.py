@@ -61,8 +61,9 @@ def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None)
     (folder / "flamenco").mkdir(exist_ok=True)
     (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     span = f"{scene.frame_start}-{scene.frame_end}"
-    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version)
+    blender = f"{bpy.app.version[0]}.{bpy.app.version[1]}"  # (the line this file's frames are made with)
+    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender)
     return farm.write_bundle(folder, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(blend),
         "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),
-        "WindgrassVersion": version})
+        "WindgrassVersion": version, "BlenderVersion": blender})

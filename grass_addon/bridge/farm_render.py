@@ -1,6 +1,7 @@
 """A farm task: render frames A-B (or a list: 9,10,20-21) of the open .blend (copied into job bundles by ``farm.py``).
 
     blender -b FILE.blend -P farm_render.py -- --frames A-B --out DIR [--version V] [--extension ZIP]
+        [--blender-version X.Y]
 
 Runs in any Blender 4.5+. A live grass field needs the Windgrass extension: the job's environment
 installs it (OpenJD), or ``--extension`` installs the zip here (Flamenco); ``--version`` refuses an
@@ -29,6 +30,8 @@ def _args():
     parser.add_argument("--out", required=True, help="folder of frame_NNNN.png")
     parser.add_argument("--version", default="", help="the Windgrass version the job was made with")
     parser.add_argument("--extension", default="", help="a Windgrass extension zip to install first")
+    parser.add_argument("--blender-version", default="", help="the Blender line (X.Y) the job's frames are made "
+                        "with; another refuses (default: any)")
     return parser.parse_args(argv)
 
 
@@ -79,6 +82,11 @@ def live_fields() -> set:
 def prepare(args) -> None:
     """Install the extension when asked, check its version, and make sure every live field can be
     simulated; RuntimeError with a sentence otherwise."""
+    here = f"{bpy.app.version[0]}.{bpy.app.version[1]}"
+    if args.blender_version and args.blender_version != here:  # (as grass_addon.farm.other_blender says it)
+        raise RuntimeError(f"this worker runs Blender {here}, the job's frames are made with Blender "
+                           f"{args.blender_version}: give the job that Blender (BlenderExecutable), or set "
+                           "BlenderVersion to '' to let any Blender render them")
     live = bool(live_fields())
     module = windgrass()
     if module is None and args.extension:

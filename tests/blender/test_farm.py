@@ -203,6 +203,24 @@ def test_farm_py_replaces_only_the_windgrass_folder_it_wrote(tmp_path):
         assert (bundle / "windgrass" / "headless" / "render_field.py").is_file()
 
 
+def test_a_worker_on_another_blender_line_refuses_the_jobs_frames(tmp_path, stand_in):
+    """Issue #36 item 4: the same frame from two Blender lines differs (18/255 on average), and a
+    job took any Blender on the workers' PATH. A job says the line its frames are made with; a
+    worker on another fails with a sentence and writes nothing."""
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY)
+    bundle, out = tmp_path / "bundle", tmp_path / "out"
+    made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), "--frames",
+                           "1-2", "--chunk", "2", "--blender-version", "4.0", "--out", str(out), str(bundle)],
+                          capture_output=True, text=True, env=_env(tmp_path), timeout=120)
+    assert made.returncode == 0, made.stderr
+    run = _openjd(bundle, stand_in, _env(tmp_path))
+    here = ".".join(str(v) for v in bpy.app.version[:2])
+    assert run.returncode != 0
+    assert f"this worker runs Blender {here}, the job's frames are made with Blender 4.0" in run.stdout + run.stderr
+    assert not list(out.glob("*.png"))
+
+
 def _live_blend(tmp_path, with_bridge) -> Path:
     """A saved .blend with a live field, a keyed ball rolling through it and a camera."""
     from windgrass.grass_addon.bridge import properties

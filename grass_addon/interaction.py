@@ -162,6 +162,32 @@ def nearest_sample(times: np.ndarray, t: float) -> int:
     return k
 
 
+def check_work(colliders, params, top: float) -> None:
+    """Refuse, before anything is computed, colliders whose remembered contacts a frame alone
+    would take too long to weigh: spheres at an instant times the recovery's frames (``top``: the
+    grass's height, m)."""
+    fps = Clock.of(params).fps
+    recovery = float(params.interaction.recovery)
+    window = int(math.ceil(recovery * fps))
+    reach = 1.5 * max(float(top), 1e-3) + float(params.interaction.tolerance) + 1.0
+    spheres = sum(_spheres_per_instant(c, reach) for c in colliders)
+    work = spheres * window
+    if work > MAX_SPHERE_FRAMES:
+        longest = max(0.1, math.floor(MAX_SPHERE_FRAMES / max(spheres, 1) / fps * 10) / 10)
+        raise ParameterError(
+            "interaction.recovery", f"{spheres:g} collider spheres remembered for {recovery:g} s weigh "
+            f"{work:,.0f} contacts for a frame shown alone; valid: interaction.recovery up to {longest:g} s "
+            "with these colliders (or fewer colliders)")
+
+
+def check_scene(params) -> None:
+    """A scene file's colliders checked as the engine will (``check_work``), before a scene is
+    built for them (render_field.py built 10,000 for minutes before the engine refused them)."""
+    colliders = colliders_from_params(params)
+    if colliders:
+        check_work(colliders, params, max(float(sp["length"]) for sp in params.species()))
+
+
 def colliders_from_params(params) -> list[PathCollider]:
     """The ``[[colliders]]`` of a scene file (validated by the schema)."""
     out = []
@@ -412,7 +438,7 @@ class Interaction:
         self.fps = self.clock.fps
         self.window = int(math.ceil(self.recovery * self.fps))
         self.chunk = max(1, self.window // CHUNKS_PER_WINDOW)
-        self._check_work()
+        check_work(self.colliders, params, self.top)
         self._contacts: OrderedDict[int, Contacts] = OrderedDict()
         self._window: tuple | None = None  # (layout, WindowCells) of the last layout seen
         self._spheres_at: tuple | None = None  # (t, Spheres) of the last instant asked
@@ -423,18 +449,6 @@ class Interaction:
 
     def time(self, frame: int) -> float:
         return self.clock.seconds(frame)
-
-    def _check_work(self) -> None:
-        """Refuse, before anything is computed, colliders whose remembered contacts a frame alone
-        would take too long to weigh: spheres at an instant times the recovery's frames."""
-        spheres = sum(_spheres_per_instant(c, 1.5 * self.top + self.tolerance + 1.0) for c in self.colliders)
-        work = spheres * self.window
-        if work > MAX_SPHERE_FRAMES:
-            longest = max(0.1, math.floor(MAX_SPHERE_FRAMES / max(spheres, 1) / self.fps * 10) / 10)
-            raise ParameterError(
-                "interaction.recovery", f"{spheres:g} collider spheres remembered for {self.recovery:g} s weigh "
-                f"{work:,.0f} contacts for a frame shown alone; valid: interaction.recovery up to {longest:g} s "
-                "with these colliders (or fewer colliders)")
 
     def spheres(self, t: float) -> Spheres:
         """The colliders' spheres at time ``t`` that can reach the field (within their radius, the

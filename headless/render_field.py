@@ -202,6 +202,7 @@ def resolve(args: argparse.Namespace):
     except ParameterError as exc:
         flag = flags.get(exc.key)
         raise BadInputError(f"{flag}: {exc}" if flag else f"--config: {exc}") from None
+    addon_module("grass_addon.interaction").check_scene(params)  # (refused before a scene is built)
     if args.variants < 1:
         raise BadInputError(f"--variants: {args.variants} must be >= 1")
     last_seed = params.field.seed + args.variants - 1

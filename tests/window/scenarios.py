@@ -6,8 +6,8 @@ import numpy as np
 
 
 def fuzz_steps(seed: int, count: int, keys: bool, paint: bool = False) -> list[dict]:
-    """A random sequence of what an artist does to a field (add, presets, edits, rebuild, remove,
-    undo, redo), each followed by a frame change and a check. ``keys``: undo and redo as typed
+    """A random sequence of what an artist does to a field (add, duplicate, presets, edits, rebuild,
+    remove, undo, redo), each followed by a frame change and a check. ``keys``: undo and redo as typed
     keys (the window) instead of operators."""
     rng = np.random.default_rng(seed)
     edits = [("field.blades_per_cell", [1, 2, 3, 4]), ("field.seed", [0, 1, 2, 3]),
@@ -31,8 +31,10 @@ def fuzz_steps(seed: int, count: int, keys: bool, paint: bool = False) -> list[d
             steps.append({"op": "windgrass.wind_preset", "args": {"type": wind}})
         elif roll < 0.55:
             steps.append({"op": "windgrass.field_rebuild"})
-        elif roll < 0.6:
+        elif roll < 0.58:
             steps.append({"op": "windgrass.field_add", "args": {"blocks_x": 2, "blocks_y": 2}})
+        elif roll < 0.6:  # (the fifth duplicate of the first of four fields crashed Blender: issue #37)
+            steps.append({"op": "windgrass.field_duplicate"})
         elif roll < 0.63:
             steps.append({"op": "windgrass.field_remove"})
         elif roll < 0.85:

@@ -11,12 +11,13 @@ CATEGORY = "Grass"
 CHAR_PX = 7.0  # width of an average character of the interface font at scale 1 (pixels)
 
 
-def wrapped(layout, context, text: str, icon: str = "NONE") -> None:
+def wrapped(layout, context, text: str, icon: str = "NONE", inset: float = 0.0) -> None:
     """``text`` as labels that fit the region's width (the sidebar can be narrow): the first line
-    with ``icon``, the rest below it."""
+    with ``icon``, the rest below it; ``inset``: UI units (20 px) of the width the layout's boxes
+    take (a table's box: its text was cut, "No keys: Changes of the mean win...")."""
     region = getattr(context, "region", None)
-    width = region.width if region is not None else 300
     scale = context.preferences.view.ui_scale if context.preferences is not None else 1.0
+    width = (region.width if region is not None else 300) - inset * 20.0 * scale
     indent = 2 if icon != "NONE" else 0
     chars = max(16, int(width / (CHAR_PX * scale)) - 4 - indent)
     col = layout.column(align=True)

@@ -46,7 +46,7 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
     col.operator("windgrass.row_remove", text="", icon="REMOVE").table = p.name
     rows = getattr(group, p.key)
     if not len(rows):
-        wrapped(box, context, f"No {p.ui_name.lower()}: {p.help}", icon="INFO")
+        wrapped(box, context, f"No {p.ui_name.lower()}: {p.help}", icon="INFO", inset=2.0)
         return
     chosen = min(getattr(group, index), len(rows) - 1)
     selected = rows[chosen]

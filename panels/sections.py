@@ -119,9 +119,8 @@ def draw_section(layout, context, item, section: str) -> None:
             f = None  # (a setting out of range: the main panel says which)
         if f is not None:
             block = f.cells_per_block * f.cell_size
-            wrapped(layout, context, f"Sizes are whole blocks of {block:g} m and densities whole blades per cell of "
-                    f"{f.cell_size:g} m: a value typed is rounded to the nearest (Advanced: Cells/Block, Cell Size)",
-                    icon="INFO")
+            wrapped(layout, context, f"Sizes round to whole blocks of {block:g} m, densities to whole blades per "
+                    f"{f.cell_size:g} m cell (Advanced)", icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

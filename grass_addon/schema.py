@@ -773,11 +773,15 @@ def merge_flags(data: Mapping[str, Any], flags: Mapping[str, Any]) -> dict[str, 
     (``--field-blocks-x`` replaces ``size_x``), and a view the file gives keeps its meaning in the
     flag's terms (``size_x = 20`` stays 20 m with ``--field-cell-size 0.2``)."""
     out = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in _lift_tables(data).items()}
-    for name, value in flags.items():
+    for name, value in sorted(flags.items(), key=lambda kv: kv[0] != "wind.type"):  # (a type before its speed)
         section, key = name.split(".", 1)
         entries = out.setdefault(section, {})
         if not isinstance(entries, dict):
             continue  # (from_dict reports the file's section that is no table)
+        if name == "wind.type" and value != entries.get("type", BY_NAME["wind.type"].default):
+            # (another wind type brings its preset speed and turbulence, as in Params.replace)
+            for k in WIND_TYPE_PRESETS[value] if value in WIND_TYPE_PRESETS else ():
+                entries.pop(k, None)
         view = VIEW_BY_NAME.get(name)
         sets = {view.uses[0]} if view else {key}
         for other in section_views(section):
@@ -785,9 +789,6 @@ def merge_flags(data: Mapping[str, Any], flags: Mapping[str, Any]) -> dict[str, 
                 entries.pop(other.param.key, None)
         for k in sets:
             entries.pop(k, None)
-        if name == "wind.type":  # (a flag's wind type brings its preset speed and turbulence, as in replace)
-            for k in WIND_TYPE_PRESETS[value] if value in WIND_TYPE_PRESETS else ():
-                entries.pop(k, None)
         entries[key] = value
     return out
 

@@ -200,3 +200,14 @@ def test_size_density_and_stiffness_in_an_artists_words_set_the_engines_paramete
     args = parser.parse_args(["--field-size-x", "12.8", "--field-density", "300", "--blade-stiffness", "1"])
     q = schema.defaults().replace(schema.cli_overrides(args))
     assert (q.field.blocks_x, q.field.blades_per_cell, q.blade.root_stiffness) == (8, 3, high)
+
+
+@pytest.mark.parametrize("file, flags, speed", [
+    ({"speed": 3.0}, {"wind.type": "moderate_breeze"}, 6.7),  # another type: its preset speed
+    ({"type": "moderate_breeze", "speed": 3.0}, {"wind.type": "moderate_breeze"}, 3.0),  # the same: nothing changes
+    ({"type": "moderate_breeze", "speed": 3.0}, {"wind.speed": 1.0, "wind.type": "calm"}, 1.0),  # a speed given wins
+])
+def test_flags_put_into_a_scene_file_keep_the_wind_types_rules(file, flags, speed):
+    """Flags go into the scene file's text before it is read (issue #37 item 9); a flag's wind type
+    still brings its preset speed unless the flags give one, as on top of a read file."""
+    assert schema.from_dict(schema.merge_flags({"wind": file}, flags)).wind.speed == speed

@@ -8,11 +8,9 @@ is missing; a saved .blend with live grass renders on a Blender that has never s
 from __future__ import annotations
 
 import os
-import struct
 import subprocess
 import sys
 import textwrap
-import zlib
 from pathlib import Path
 
 import bpy
@@ -99,15 +97,6 @@ def _openjd(bundle: Path, stand_in: Path, env: dict, *more: str) -> subprocess.C
                            "--step", "Render", *more], capture_output=True, text=True, env=env, timeout=900)
 
 
-def _png(width: int, height: int) -> bytes:
-    """A whole grey RGB PNG of that size."""
-    def chunk(kind, body):
-        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
-    rows = b"".join(b"\0" + b"\x80" * 3 * width for _ in range(height))
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
-
-
 def _pixels(folder: Path) -> dict[str, np.ndarray]:
     from windgrass.grass_addon import images
 
@@ -147,7 +136,9 @@ def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, s
     data = bytearray((out / "frame_0005.png").read_bytes())
     data[len(data) // 3: 2 * len(data) // 3] = bytes(len(data) // 3)
     (out / "frame_0005.png").write_bytes(bytes(data))
-    (out / "frame_0006.png").write_bytes(_png(8, 8))
+    from windgrass.grass_addon import images
+
+    (out / "frame_0006.png").write_bytes(images.encode_png(np.full((8, 8), 0.5)))
     redo = ("frame_0003.png", "frame_0004.png", "frame_0005.png", "frame_0006.png")
     kept = {n: (out / n).stat().st_mtime_ns for n in farm_frames if n not in redo}
     again = _openjd(bundle, stand_in, env)

@@ -67,7 +67,9 @@ def _blade_share(params: Params, block, cell: int, blades) -> float:
     card_w = _card_width(params)
     widths = meadow.joint_widths(params.blade.tip_width, int(params.blade.segments), block.blade_head,
                                  block.blade_flower)
-    taper = 0.5 * (widths[:, :-1] + widths[:, 1:]).mean(axis=1)  # the strip's mean width (heads included)
+    shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
+                                   block.blade_flower)
+    taper = (0.5 * (widths[:, :-1] + widths[:, 1:]) * shares).sum(axis=1)  # the strip's mean width (with heads)
     area = sum(taper[b] * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
     return area / (card_w * float(block.card_height[cell]))
 
@@ -87,17 +89,21 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     kind = block.blade_species
     joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
                                   block.blade_head, block.blade_flower)  # (B, n + 1, 3), heads and dry tips
+    ends = meadow.segment_colours(joints, block.blade_flower)  # (B, n, bottom/top, 3): a flower's cup whole
+    v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
+    segs = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
+        n, block.blade_length, block.blade_width, block.blade_flower)
     for b in blades:
         facing = float(block.blade_facing[b])
         lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
-        seg = float(block.blade_length[b]) / n
+        seg = segs[b]
         tilt = block.blade_rest_tilt[b].astype(np.float64)
         along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
         up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
         root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
         u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
         half = 0.5 * widen * float(block.blade_width[b]) * widths[b] / card_w
-        colour = colour_ramp(joints[b], np.arange(n + 1) / n) * (0.7 + 0.6 * float(block.blade_shade[b]))
+        colour = colour_ramp(ends[b], v_ends) * (0.7 + 0.6 * float(block.blade_shade[b]))  # (n, 2, 3)
         _draw_strip(rgb, alpha, ys, u, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
@@ -116,8 +122,9 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
 
 def _draw_strip(rgb, alpha, ys, u, v, half, colour) -> None:
     """Composite one blade (a tapered strip through points (u, v) with half-widths ``half``, in
-    card units) over a square card image, one row at a time: each row crosses the strip where its
-    height v lies between two joints; edges anti-aliased over one pixel."""
+    card units, coloured ``colour`` (n, bottom/top, 3) along each segment) over a square card
+    image, one row at a time: each row crosses the strip where its height v lies between two
+    joints; edges anti-aliased over one pixel."""
     size = alpha.shape[1]
     rows = np.flatnonzero((ys >= v.min()) & (ys <= v.max()))
     if rows.size == 0:
@@ -128,7 +135,7 @@ def _draw_strip(rgb, alpha, ys, u, v, half, colour) -> None:
     t = np.clip((y - v[j]) / dv, 0.0, 1.0)
     centre = u[j] + (u[j + 1] - u[j]) * t
     width = half[j] + (half[j + 1] - half[j]) * t
-    col = colour[j] + (colour[j + 1] - colour[j]) * t[:, None]
+    col = colour[j, 0] + (colour[j, 1] - colour[j, 0]) * t[:, None]
     xs = (np.arange(size) + 0.5) / size
     cover = np.clip((width[:, None] - np.abs(xs[None, :] - centre[:, None])) * size + 0.5, 0.0, 1.0)
     rgb[rows] = col[:, None, :] * cover[..., None] + rgb[rows] * (1.0 - cover[..., None])

@@ -136,9 +136,12 @@ def _cumsum_rows(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def tip_height(length: np.ndarray, tilt: np.ndarray) -> np.ndarray:
-    """Height of each blade's tip above its root: sum over its n segments of (length / n) cos(tilt)."""
-    return (length[:, None] / tilt.shape[1] * np.cos(tilt)).sum(axis=1)
+def tip_height(length: np.ndarray, tilt: np.ndarray, shares: np.ndarray | None = None) -> np.ndarray:
+    """Height of each blade's tip above its root: sum over its n segments of (length / n) cos(tilt),
+    or of length times each segment's share of it (``shares`` (B, n), meadow.segment_shares)."""
+    if shares is None:
+        return (length[:, None] / tilt.shape[1] * np.cos(tilt)).sum(axis=1)
+    return (length[:, None] * shares * np.cos(tilt)).sum(axis=1)
 
 
 def rest_tilt(inclination: np.ndarray, angles: np.ndarray) -> np.ndarray:

@@ -184,7 +184,8 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # paper III.B: card height = reference height + stochastic modifier; random orientation. The
     # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
     # (the blades' own lengths are the stochastic part), times lod.card_height.
-    tallest = _tallest(P, num, length, rest_tilt, alive, cell_length, cell_rest_tilt)
+    shares = meadow.segment_shares(n, length, width, flower)  # a flower's top segment is its cup
+    tallest = _tallest(P, num, length, rest_tilt, shares, alive, cell_length, cell_rest_tilt)
     cell_density = None
     if alive is not None:
         cell_density = alive.reshape(P, num).mean(axis=1).astype(np.float32) if num > 0 \
@@ -238,12 +239,12 @@ def _cell_blades(params, species, cell_rng, P: int, num: int, length, width, sti
             _rest_tilt(params, c_len, c_stiff, c_inc).astype(np.float32))
 
 
-def _tallest(P: int, num: int, length, rest_tilt, alive, cell_length, cell_rest_tilt) -> np.ndarray:
+def _tallest(P: int, num: int, length, rest_tilt, shares, alive, cell_length, cell_rest_tilt) -> np.ndarray:
     """(P,) each cell's tallest blade at rest, of the blades that grow where some do (a card
     stands for them), the representative blade's height when cells hold no blades."""
     if num == 0:
         return blade.tip_height(cell_length, cell_rest_tilt)
-    tips = blade.tip_height(length, rest_tilt).reshape(P, num)
+    tips = blade.tip_height(length, rest_tilt, shares).reshape(P, num)
     if alive is not None:  # the card stands for the blades that grow
         grown = alive.reshape(P, num)
         tips = np.where(grown.any(axis=1)[:, None], np.where(grown, tips, 0.0), tips)

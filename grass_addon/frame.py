@@ -53,8 +53,8 @@ def block_distance(layout, lod, views) -> np.ndarray:
 
 def blade_tints(layout, local: np.ndarray) -> dict:
     """Per corner of every blade quad of the positions ``local`` (FREE: zero): the colour at the
-    corner's joint (``meadow.joint_colours``) as (r, g), (b, shade); quad j's corners are (left_j,
-    right_j, right_j+1, left_j+1)."""
+    corner's end of its segment (``meadow.segment_colours``: a joint's, a flower's cup wholly in its
+    colour) as (r, g), (b, shade); quad j's corners are (left_j, right_j, right_j+1, left_j+1)."""
     n = layout.segments
     bpb = layout.blades_per_block
     shown = local >= 0
@@ -65,8 +65,8 @@ def blade_tints(layout, local: np.ndarray) -> dict:
     joints = meadow.joint_colours(n, layout.species_color[kind], layout.species_head_color[kind],
                                   layout.blade_dry[blades], layout.blade_head[blades],
                                   layout.blade_flower[blades])  # (shown, bpb, n + 1, 3)
-    corner_joint = (np.arange(n)[:, None] + np.array([0, 0, 1, 1])[None, :])  # (n, 4)
-    colour = joints[:, :, corner_joint]  # (shown, bpb, n, 4, 3)
+    ends = meadow.segment_colours(joints, layout.blade_flower[blades])  # (shown, bpb, n, bottom/top, 3)
+    colour = ends[:, :, :, [0, 0, 1, 1]]  # (shown, bpb, n, 4, 3)
     rg[shown] = colour[..., :2]
     bs[shown, ..., 0] = colour[..., 2]
     bs[shown, ..., 1] = layout.blade_shade[blades][..., None, None]

@@ -117,17 +117,19 @@ class _Constants:
         d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
         # rest tilt vector blade_rest_tilt * d_b, (nb, bpb, n) complex
         self.rest = (layout.blade_rest_tilt.astype(np.float64) * d_b).astype(np.complex64).reshape(nb, bpb, n)
-        seg = (layout.blade_length.astype(np.float64) / n).astype(np.float32)  # l/n
-        self.seg = np.ascontiguousarray(np.broadcast_to(seg.reshape(nb, bpb, 1), (nb, bpb, n)))
+        # l/n, but a flower's top segment is its cup (meadow.segment_shares)
+        shares = meadow.segment_shares(n, layout.blade_length, layout.blade_width, layout.blade_flower)
+        seg = (layout.blade_length.astype(np.float64)[:, None] * shares).astype(np.float32)
+        self.seg = np.ascontiguousarray(seg.reshape(nb, bpb, n))
         # linear taper of the width along the blade, per joint (multiplies the per-cell e^{i Phi})
         self.taper = blade.joint_widths(layout.params.blade.tip_width, n).astype(np.float32)
         # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f},
         # repeated for every joint (nb, bpb, n+1).
         w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
         self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
-        # a seed head widens the strip at its last joint but one, a flower at its tip (meadow.py)
-        for joint, width in ((n - 1, layout.blade_head), (n, layout.blade_flower)):
-            if joint >= 1 and width.any():
+        # a seed head widens the strip at its last joint but one, a flower its top two joints (meadow.py)
+        for joint, width in meadow.widened_joints(n, layout.blade_head, layout.blade_flower):
+            if width.any():
                 widening = meadow.head_widening(width, layout.params.blade.tip_width, n, joint)
                 self.w_side[..., joint] *= widening.reshape(nb, bpb)
         root = layout.blade_root.astype(np.float64)

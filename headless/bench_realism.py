@@ -4,9 +4,12 @@
 
 * clumps: blades rooted in each 0.25 m square of a meadow (the "meadow" preset) and of a lawn
   (the "lawn" preset): the counts' variance over their mean (1 at random, less even, more clumped);
-* sway: each species of the meadow preset: its tip sway in gusty wind at 4 and 8 m/s (60 s of the
+* sway: each species of the meadow preset: its tip sway in gusty wind at 4 and 8 m/s (60 s of four seeds' fields, the
   engine's cell bends at 24 fps, cells where the species is the most blades): the frequency where the sway's
   spectrum peaks above 0.3 Hz and the peak's height over the spectrum's mean from 0.1 to 0.3 Hz;
+  and the grass's own sway: where the tip's spectrum over that of the gusts it meets (the
+  turbulence at its cell) peaks between 0.3 and 3 Hz (its resonance) and that gain over the gain at
+  0.1-0.3 Hz;
 * waves: the downwind speed of the gust waves (wind.displacement over 10 s) against the mean wind;
 * image (``--image``, a rendered frame of scenes/default.toml, e.g. renders/frame_0012.png): the
   near grass (the image's lowest fifth): its hue's spread (the 5th to the 95th percentile, in
@@ -33,6 +36,7 @@ from windgrass.grass_addon.layout import build_layout  # noqa: E402
 
 SQUARE = 0.25  # m: the squares the roots are counted in
 SWAY_SECONDS = 60.0
+SWAY_SEEDS = (7, 8, 9, 10)
 FPS = 24
 
 
@@ -50,38 +54,63 @@ def _default_scene() -> str:
 
 
 def sway(speed: float) -> dict:
-    """{species: {peak_hz, peak_over_slow}} of the tip sway at mean wind ``speed``."""
+    """{species: {peak_hz, peak_over_slow}} of the tip sway at mean wind ``speed``: the spectra of
+    SWAY_SEEDS fields (one 3.2 m field's gusts are one sample of the wind: its spectrum's bumps are
+    chance), each cell's from SWAY_SECONDS of its bend, averaged over the cells where the species is
+    the most blades."""
     params = presets.apply_preset(schema.loads_toml(_default_scene()), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "wind.speed": speed, "wind.turbulence": 0.3 * speed,
          "wind.gust_waves": 0.0, "lod.enabled": False, "render.fps": FPS})
-    field = GrassField(params)
     frames = int(SWAY_SECONDS * FPS)
+    hz = np.fft.rfftfreq(frames, 1.0 / FPS)
     angle = np.radians(params.wind.direction)
     along = np.array([np.cos(angle), np.sin(angle)])
-    tips = np.empty((frames, field.layout.n_cells), np.float64)
-    for f in range(frames):
-        cells = field.seek(f + 1)
-        tips[f] = cells.bend.sum(axis=1) @ along  # the tip's tilt downwind (radians)
-    series = tips - tips.mean(axis=0)
-    power = (np.abs(np.fft.rfft(series * np.hanning(frames)[:, None], axis=0)) ** 2)
-    hz = np.fft.rfftfreq(frames, 1.0 / FPS)
-    layout = field.layout
-    num = layout.blades_per_cell
-    kinds = layout.blade_species.reshape(-1, num)
-    dominant = np.array([np.bincount(k, minlength=len(params.species())).argmax() for k in kinds])
-    cell_of = layout.blade_cell.reshape(-1, num)[:, 0]
+    names = [row["name"] for row in params.species()]
+    spectra = {name: [] for name in names}
+    for seed in SWAY_SEEDS:
+        field = GrassField(params.replace({"field.seed": seed}))
+        tips = np.empty((frames, field.layout.n_cells), np.float64)
+        gusts = np.empty_like(tips)
+        for f in range(frames):
+            tips[f] = field.seek(f + 1).bend.sum(axis=1) @ along  # the tip's tilt downwind (radians)
+            gusts[f] = field.sim.wind.turbulence((f + 1) / FPS) @ along  # the gusts it meets (m/s)
+        power = _power(tips, frames)
+        forcing = _power(gusts, frames)
+        layout = field.layout
+        num = layout.blades_per_cell
+        kinds = layout.blade_species.reshape(-1, num)
+        dominant = np.array([np.bincount(k, minlength=len(names)).argmax() for k in kinds])
+        cell_of = layout.blade_cell.reshape(-1, num)[:, 0]
+        for k, name in enumerate(names):
+            mine = cell_of[dominant == k]
+            if mine.size:
+                spectra[name].append((power[:, mine].mean(axis=1), forcing[:, mine].mean(axis=1)))
     out = {}
-    for k, row in enumerate(params.species()):
-        mine = cell_of[dominant == k]
-        if mine.size == 0:
+    fast, slow_band = hz > 0.3, (hz >= 0.1) & (hz <= 0.3)
+    for name, rows in spectra.items():
+        if not rows:
             continue
-        spectrum = power[:, mine].mean(axis=1)
-        fast = hz > 0.3
+        spectrum = np.mean([r[0] for r in rows], axis=0)
+        transfer = _smooth(spectrum) / np.maximum(_smooth(np.mean([r[1] for r in rows], axis=0)), 1e-30)
         peak = int(np.flatnonzero(fast)[spectrum[fast].argmax()])
-        slow = spectrum[(hz >= 0.1) & (hz <= 0.3)].mean()
-        out[row["name"]] = {"peak_hz": round(float(hz[peak]), 2),
-                            "peak_over_slow": round(float(spectrum[peak] / slow), 3)}
+        band = (hz > 0.3) & (hz < 3.0)
+        own = int(np.flatnonzero(band)[transfer[band].argmax()])
+        out[name] = {"peak_hz": round(float(hz[peak]), 2),
+                     "peak_over_slow": round(float(spectrum[peak] / spectrum[slow_band].mean()), 3),
+                     "resonance_hz": round(float(hz[own]), 2),
+                     "resonance_gain": round(float(transfer[own] / transfer[slow_band].mean()), 2)}
     return out
+
+
+def _power(series: np.ndarray, frames: int) -> np.ndarray:
+    """Power spectra (bins, columns) of the columns of ``series`` (Hann window)."""
+    centred = series - series.mean(axis=0)
+    return np.abs(np.fft.rfft(centred * np.hanning(frames)[:, None], axis=0)) ** 2
+
+
+def _smooth(spectrum: np.ndarray, bins: int = 9) -> np.ndarray:
+    """A spectrum averaged over ``bins`` neighbouring bins (0.15 Hz at 60 s)."""
+    return np.convolve(spectrum, np.ones(bins) / bins, mode="same")
 
 
 def wave_speed(speed: float) -> float:

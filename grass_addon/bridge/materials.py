@@ -45,6 +45,10 @@ NODE_TRAIL_NEAR = "wg_trail_near"
 NODE_TRAIL_FAR = "wg_trail_far"
 NODE_TRAIL_AMOUNT = "wg_trail_amount"
 NODE_TRAIL_DEPTH = "wg_trail_depth"
+# The meadow's patches (sward.patch_tint): the tint image over the field and its mapping (the
+# field's frame onto the image, set by ``update_patches``).
+NODE_PATCH_IMAGE = "wg_patch_image"
+NODE_PATCH_MAPPING = "wg_patch_mapping"
 GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
 GUST_REFERENCE_SPEED = 5.0  # m/s: the swing is full from this mean wind on, as (speed / it)^2 below (the bend)
 
@@ -94,7 +98,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 8
+MATERIALS_VERSION = 9
 
 
 def _socket(sockets, *names: str):
@@ -249,6 +253,22 @@ class _Tree:
         self.link(gain, "Value", out, "B_Color")
         return out
 
+    def patched(self, colour_node, colour_out: str, patch_image, x: float, y: float):
+        """The colour times the meadow's patch tint at the place (object coordinates: the field's
+        frame, mapped onto the image by NODE_PATCH_MAPPING); no tint without an image."""
+        if patch_image is None:
+            return colour_node, colour_out
+        coord = self.add("ShaderNodeTexCoord", x - 600, y - 250)
+        mapping = self.add("ShaderNodeMapping", x - 400, y - 250, name=NODE_PATCH_MAPPING)
+        self.link(coord, "Object", mapping, "Vector")
+        tex = self.add("ShaderNodeTexImage", x - 200, y - 250, name=NODE_PATCH_IMAGE, image=patch_image,
+                       interpolation="Linear", extension="EXTEND")
+        self.link(mapping, "Vector", tex, "Vector")
+        out = self.mix_rgb(x, y, blend="MULTIPLY")
+        self.link(colour_node, colour_out, out, "A_Color")
+        self.link(tex, "Color", out, "B_Color")
+        return out, "Result_Color"
+
     def foliage(self, colour_node, colour_out: str, x: float, y: float, specular: float = 0.35,
                 roughness: float = 0.55):
         """Principled (reflection) + Translucent (light through the blade), mixed."""
@@ -314,7 +334,7 @@ def set_card_image(mat, image) -> None:
             node.image = image
 
 
-def card_material(name: str, uid: str, image, gust_image=None):
+def card_material(name: str, uid: str, image, gust_image=None, patch_image=None):
     """Cards (paper III.B): the atlas of the field's own blades (``atlas.card_atlas``), shaded
     like the blades (the same foliage shader); its alpha times ``wg_fade`` (K_b of eqs 7 and 11)
     mixes that with a Transparent BSDF."""
@@ -349,8 +369,9 @@ def card_material(name: str, uid: str, image, gust_image=None):
     # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
     lit = t.mix_rgb(-950, 300, blend="MULTIPLY", b=(CARD_LIGHT, CARD_LIGHT, CARD_LIGHT, 1.0))
     t.link(tex, "Color", lit, "A_Color")
-    colour, colour_out = (lit, "Result_Color") if gust_image is None else \
-        (t.gusted(lit, "Result_Color", gust_image, -800, 300), "Result_Color")
+    colour, colour_out = t.patched(lit, "Result_Color", patch_image, -880, 500)
+    if gust_image is not None:
+        colour, colour_out = t.gusted(colour, colour_out, gust_image, -800, 300), "Result_Color"
     shader = t.hazed(t.foliage(colour, colour_out, -500, 0, specular=CARD_SPECULAR, roughness=CARD_ROUGHNESS),
                      "Shader", -100, 0)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
@@ -385,7 +406,7 @@ def ground_material(name: str, uid: str):
     return mat
 
 
-def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
+def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patch_image=None):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
     (``sward.canopy_height``). Its colour is what a ray with the slope of the camera's ray sees
     of the sward (``sward.sward_look``, times SWARD_LIGHT) with fine streaks; its opacity rises
@@ -401,10 +422,11 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None):
     bsdf = t.add("ShaderNodeBsdfPrincipled", -450, 0)
     _set(bsdf, 1.0, "Roughness")
     _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+    grass, grass_out = t.patched(grass, "Result_Color", patch_image, -780, 500)
     if gust_image is None:
-        t.link(grass, "Result_Color", bsdf, "Base Color")
+        t.link(grass, grass_out, bsdf, "Base Color")
     else:
-        t.link(t.gusted(grass, "Result_Color", gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
+        t.link(t.gusted(grass, grass_out, gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
     camera = t.add("ShaderNodeCameraData", -900, -650)
     kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
     t.link(camera, "View Distance", kt, "Value")
@@ -707,6 +729,19 @@ def update_gusts(params, *mats) -> None:
             continue
         nodes[NODE_GUST_AMOUNT].outputs[0].default_value = gust_swing(params, float(params.wind.speed))
         _set(nodes[NODE_GUST_MAPPING], (scale, scale, 1.0), "Scale")
+
+
+def update_patches(params, *mats) -> None:
+    """Map the field's frame onto the patch image (sward.patch_tint): (x - origin) / size."""
+    grid = FieldGrid.of(params)
+    size, origin = grid.size, grid.origin
+    for mat in mats:
+        nodes = mat.node_tree.nodes if mat is not None and mat.node_tree is not None else None
+        if nodes is None or nodes.get(NODE_PATCH_MAPPING) is None:
+            continue
+        mapping = nodes[NODE_PATCH_MAPPING]
+        _set(mapping, (1.0 / size[0], 1.0 / size[1], 1.0), "Scale")
+        _set(mapping, (-float(origin[0]) / size[0], -float(origin[1]) / size[1], 0.0), "Location")
 
 
 def set_gust_offset(displacement, speed: float, params, *mats) -> None:

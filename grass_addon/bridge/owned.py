@@ -25,6 +25,7 @@ ROLE_CANOPY_MATERIAL = "canopy_material"
 ROLE_CARD_IMAGE = "card_image"
 ROLE_GUST_IMAGE = "gust_image"
 ROLE_TRAIL_IMAGE = "trail_image"
+ROLE_PATCH_IMAGE = "patch_image"
 ROLE_PAINT_MAP = "paint_map"
 
 

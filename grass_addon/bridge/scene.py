@@ -72,12 +72,17 @@ def field_materials(item):
         trails = textures.ensure_trail_image(f"{base_name} trails")
         owned.tag(trails, uid, owned.ROLE_TRAIL_IMAGE)
         owned.record(item, owned.ROLE_TRAIL_IMAGE, trails)
+    patches = owned.registered(item).get(owned.ROLE_PATCH_IMAGE)
+    if not isinstance(patches, bpy.types.Image):
+        patches = textures.ensure_patch_image(f"{base_name} patches")
+        owned.tag(patches, uid, owned.ROLE_PATCH_IMAGE)
+        owned.record(item, owned.ROLE_PATCH_IMAGE, patches)
     blade = _material(item, owned.ROLE_BLADE_MATERIAL, lambda: materials.blade_material(f"{base_name} blades", uid))
     card = _material(item, owned.ROLE_CARD_MATERIAL,
-                     lambda: materials.card_material(f"{base_name} cards", uid, image, gusts))
+                     lambda: materials.card_material(f"{base_name} cards", uid, image, gusts, patches))
     ground = _material(item, owned.ROLE_GROUND_MATERIAL, lambda: materials.ground_material(f"{base_name} ground", uid))
     canopy = _material(item, owned.ROLE_CANOPY_MATERIAL,
-                       lambda: materials.canopy_material(f"{base_name} canopy", uid, gusts, trails))
+                       lambda: materials.canopy_material(f"{base_name} canopy", uid, gusts, trails, patches))
     return blade, card, ground, canopy
 
 
@@ -110,6 +115,10 @@ def update_field_materials(item, params, scene=None) -> None:
     if isinstance(gust_image, bpy.types.Image):
         textures.paint_gust_image(gust_image, params)
     materials.update_gusts(params, reg.get(owned.ROLE_CARD_MATERIAL), reg.get(owned.ROLE_CANOPY_MATERIAL))
+    patch_image = reg.get(owned.ROLE_PATCH_IMAGE)
+    if isinstance(patch_image, bpy.types.Image):
+        textures.paint_patch_image(patch_image, params)
+    materials.update_patches(params, reg.get(owned.ROLE_CARD_MATERIAL), reg.get(owned.ROLE_CANOPY_MATERIAL))
     if coll is not None:
         coll[MATERIALS_DIGEST] = digest
 

@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 
-from .. import atlas, gusts, interaction
+from .. import atlas, gusts, interaction, sward
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -92,10 +92,11 @@ def _grey_image(name: str, n: int):
 
 
 def _write_grey(image, values: np.ndarray) -> None:
-    """Write ``values`` (rows from the bottom, as Blender's pixel rows) into ``image``'s R, G and B
-    (alpha 1) and pack it: a packed image is saved with the file, not a modified image to Blender."""
-    rgba = np.ones((*values.shape, 4), np.float32)
-    rgba[..., 0] = rgba[..., 1] = rgba[..., 2] = values
+    """Write ``values`` (rows from the bottom, as Blender's pixel rows; (h, w), or (h, w, 3) colours)
+    into ``image``'s R, G and B (alpha 1) and pack it: a packed image is saved with the file, not a
+    modified image to Blender."""
+    rgba = np.ones((*values.shape[:2], 4), np.float32)
+    rgba[..., :3] = values[..., None] if values.ndim == 2 else values
     image.pixels.foreach_set(rgba.ravel())
     image.pack()
 
@@ -107,6 +108,27 @@ def paint_gust_image(image, params) -> None:
         return
     _write_grey(image, gusts.pattern(seed))  # row 0 is y = 0, as Blender's pixel rows
     image[GUST_KEY] = seed
+
+
+PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from
+
+
+def ensure_patch_image(name: str):
+    """The packed float image of how the meadow's patches tint the far grass over the field
+    (``sward.patch_tint``), linear values."""
+    return _grey_image(name, sward.PATCH_PIXELS)
+
+
+def paint_patch_image(image, params) -> None:
+    """Write the patches' tint of the field's settings (its field and blade sections: what decides
+    the species mix) into ``image`` unless it already holds it."""
+    settings = params.to_dict()
+    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"]],
+                                  sort_keys=True).encode()).hexdigest()
+    if image.get(PATCH_KEY) == key:
+        return
+    _write_grey(image, sward.patch_tint(params))
+    image[PATCH_KEY] = key
 
 
 def ensure_trail_image(name: str):

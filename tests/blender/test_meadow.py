@@ -130,3 +130,56 @@ def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime, drawn
         assert share_near(tips, colour) > 0.005, colour
     assert share_near(tips, meadow.STRAW, 0.08) > 0.02  # dry tips, straw-coloured (more or less dry)
     assert np.all(np.abs(roots[:, None, :] - greens[None]).max(axis=2).min(axis=1) < 1e-4)
+
+
+def test_the_far_canopy_is_yellower_where_more_buttercups_grow(runtime, tmp_path):
+    """Seen from 30 m straight down, where every blade is far grass (the canopy), the render's
+    colour follows the species mix patch by patch: over 3.2 m squares, the more of the blades
+    rooted there carry a yellow flower, the redder (yellower) the canopy's green (rank correlation
+    at least 0.6), and the quarter of the squares with most flowers is yellower than the quarter
+    with fewest. The flowers' share is counted on the field's own blades (its layout)."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, stage
+    from windgrass.grass_addon.layout import build_layout
+
+    rows = [{"name": "grass", "weight": 0.7, "length": 0.35, "length_variation": 0.05, "width": 0.006,
+             "color": (0.08, 0.28, 0.05)},
+            {"name": "buttercup", "weight": 0.3, "length": 0.4, "length_variation": 0.05, "width": 0.004,
+             "color": (0.1, 0.28, 0.05), "heads": 1.0, "head_color": (0.85, 0.6, 0.02), "head_size": 8.0,
+             "head_shape": "flower"}]
+    params = schema.defaults().replace({
+        "field.blocks_x": 16, "field.blocks_y": 16, "field.patchiness": 1.0, "field.patch_size": 6.0,
+        "blade.species": rows, "wind.type": "calm", "wind.gust_waves": 0.0, "lod.blade_near": 0.1,
+        "lod.blade_far": 0.2, "lod.card_near": 0.3, "lod.card_far": 0.5, "camera.mode": "fixed",
+        "render.engine": "cycles", "render.samples": 8, "render.resolution_x": 64, "render.resolution_y": 64})
+    scene = bpy.context.scene
+    stage.setup_stage(scene, params)
+    cam = scene.camera
+    cam.animation_data_clear()
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 25.6
+    cam.location, cam.rotation_euler = (0.0, 0.0, 30.0), (0.0, 0.0, 0.0)
+    item = properties.add_field(scene, params)
+    runtime.build_field(scene, item)
+    scene.frame_set(1)
+    scene.render.filepath = str(tmp_path / "canopy.png")
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath)
+    pixels = np.array(image.pixels[:], np.float32).reshape(64, 64, 4)[..., :3]  # row 0 at y = -12.8 m
+    bpy.data.images.remove(image)
+    redness = (pixels[..., 0] / np.maximum(pixels[..., 1], 1e-6)).reshape(8, 8, 8, 8).mean(axis=(1, 3))
+
+    layout = build_layout(params)
+    root = layout.blade_root[:, :2]
+    square = np.clip(((root + 12.8) // 3.2).astype(int), 0, 7)
+    flowers = np.zeros((8, 8))
+    blades = np.zeros((8, 8))
+    np.add.at(flowers, (square[:, 1], square[:, 0]), layout.blade_flower > 0)
+    np.add.at(blades, (square[:, 1], square[:, 0]), 1.0)
+    share = (flowers / blades).ravel()
+    red = redness.ravel()
+    ranks = [np.argsort(np.argsort(v)) for v in (share, red)]
+    assert share.max() > 2.0 * share.min()  # the patches do change the mix
+    assert np.corrcoef(*ranks)[0, 1] >= 0.6, (share.round(2), red.round(3))
+    most, fewest = share >= np.percentile(share, 75), share <= np.percentile(share, 25)
+    assert red[most].mean() > 1.05 * red[fewest].mean(), (red[most].mean(), red[fewest].mean())

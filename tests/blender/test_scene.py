@@ -619,8 +619,8 @@ def test_remove_leaves_no_orphans_and_undo_restores(bridge):
     before = _counts()
     scene, item = _add_field()
     added = _counts()
-    # its images: the card atlas, the gust waves and the far canopy's trails
-    assert added["objects"] > before["objects"] and added["images"] == before["images"] + 3
+    # its images: the card atlas, the gust waves, the far canopy's trails and the meadow's patches
+    assert added["objects"] > before["objects"] and added["images"] == before["images"] + 4
     bpy.ops.ed.undo_push(message="field added")
     assert bpy.ops.windgrass.field_remove("EXEC_DEFAULT") == {"FINISHED"}
     assert _counts() == before

@@ -40,6 +40,7 @@ class ReferenceCell:
         self.inertia = [b.density * ((n - j) * self.seg) ** 3 for j in range(n)]  # M_grass of eq 29
         self.gamma, self.twist_ratio = b.response_torque, b.twist_stiffness
         self.alpha, self.beta = b.damping_mass, b.damping_stiffness  # eq 31
+        self.air_damping = b.air_damping  # the share of the drag's damping taken
         self.boundary_k, self.boundary_lambda = b.boundary_k, b.boundary_lambda  # eq 28
         ratio = max(1.0, self.twist_ratio)
         self.omega2 = [(mu + self.k * self.stiffen_limit) / inertia * ratio
@@ -135,7 +136,7 @@ class ReferenceCell:
                 # eqs 29-32 about the equilibrium, symplectic Euler, with aerodynamic damping
                 # taken implicitly: I theta'' = -K y-ish terms, C = alpha I + beta K (eq 31)
                 stiffness_per_inertia = mu[i] / self.inertia[i]
-                aero = 2.0 * self.aero_q(force, cos_tilt, i) / speed / self.inertia[i]
+                aero = 2.0 * self.air_damping * self.aero_q(force, cos_tilt, i) / speed / self.inertia[i]
                 rc = 1.0 / (1.0 + h * aero)
                 q = h * stiffness_per_inertia * rc
                 p = rc * (1.0 - h * self.alpha) - self.beta * q

@@ -126,11 +126,13 @@ def test_epoch_hand_overs_do_not_pop():
     assert np.percentile(acc[handover], 90) <= 1.5 * np.percentile(steady, 90)
 
 
-# Documented in README "Where the paper is vague": the cells' summed bend (where their tips point)
-# against one trajectory run from 60 s before the first frame, over 14 s of each wind type.
-FULL_HISTORY_MAX_RAD = 0.45
+# Documented in docs/method.md (time in epochs): the cells' summed bend (where their tips point)
+# against one trajectory run from 60 s before the first frame, over 14 s of each wind type. (A blade
+# swaying at its natural frequency, blade.air_damping 0.3, keeps its phase longer than one that only
+# followed the gusts: the median went from 0.013 to 0.021 rad, the single worst cell from 0.37 to 0.53.)
+FULL_HISTORY_MAX_RAD = 0.6
 FULL_HISTORY_P99_RAD = 0.2
-FULL_HISTORY_MEDIAN_RAD = 0.02
+FULL_HISTORY_MEDIAN_RAD = 0.025
 
 
 @pytest.mark.slow

@@ -211,6 +211,8 @@ def segment_colours(joints: np.ndarray, flower: np.ndarray) -> np.ndarray:
     ``flower_segments``, is its colour from bottom to top (not a fade from the green stem)."""
     joints = np.asarray(joints, dtype=np.float32)
     out = np.stack([joints[..., :-1, :], joints[..., 1:, :]], axis=-2)
+    if out.shape[-3] < 2:  # a one-segment stem is all stem, its flower at the tip only
+        return out
     first = out.shape[-3] - flower_segments(out.shape[-3])
     opened = (np.asarray(flower) > 0.0)[..., None]
     out[..., first, 0, :] = np.where(opened, out[..., first, 1, :], out[..., first, 0, :])

@@ -233,11 +233,21 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
         return np.ones((pixels, pixels, 3), np.float32)
     grid = FieldGrid.of(params)
     size, origin = np.asarray(grid.size), grid.origin
-    k = PATCH_SAMPLES
-    t = (np.arange(pixels * k) + 0.5) / (pixels * k)
+    # samples a side: PATCH_SAMPLES a pixel, or 8 a patch where that is fewer (a small field costs little)
+    m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))
+    t = (np.arange(m) + 0.5) / m
     xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
     weights = meadow.species_weights(np.column_stack([xs.ravel(), ys.ravel()]), params, species.p)
     colours, areas = species_looks(params)
     shown = weights * areas[None, :]
-    look = ((shown @ colours) / shown.sum(axis=1, keepdims=True)).reshape(pixels, k, pixels, k, 3).mean(axis=(1, 3))
+    look = ((shown @ colours) / shown.sum(axis=1, keepdims=True)).reshape(m, m, 3)
+    if m == pixels * PATCH_SAMPLES:
+        look = look.reshape(pixels, PATCH_SAMPLES, pixels, PATCH_SAMPLES, 3).mean(axis=(1, 3))
+    else:  # fewer samples than pixels: bilinear between them at the pixels' centres
+        at = np.clip((np.arange(pixels) + 0.5) / pixels * m - 0.5, 0.0, m - 1.0)
+        lo = np.minimum(at.astype(int), m - 2)
+        f = (at - lo)[:, None, None]
+        rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m, 3)
+        f = f.reshape(1, -1, 1)
+        look = rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
     return (look / look.mean(axis=(0, 1))).astype(np.float32)

@@ -310,6 +310,51 @@ class FrameWriteError(RuntimeError):
     """A frame could not be written completely (disk full, folder gone)."""
 
 
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"  # a compressed .blend's first bytes
+ZSTD_SEEKABLE_FOOTER = b"\xb1\xea\x92\x8f"  # ... and its last: Blender writes the seek table last
+
+
+def blend_is_whole(path: Path) -> bool:
+    """Whether the .blend at ``path`` was written to its end (a full disk leaves it cut short
+    and Blender says nothing): a compressed one ends with zstd's seekable-format footer, a plain
+    one with its ENDB block."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(7)
+            f.seek(0, os.SEEK_END)
+            size = f.tell()
+            f.seek(max(0, size - 32))
+            tail = f.read()
+    except OSError:
+        return False
+    if head[:4] == ZSTD_MAGIC:
+        return tail.endswith(ZSTD_SEEKABLE_FOOTER)
+    return head == b"BLENDER" and b"ENDB" in tail
+
+
+def save_blend(blend: Path, copy: bool) -> None:
+    """Save the open scene as ``blend`` (compressed), whole or not at all: a copy goes through a
+    hidden partial name and takes ``blend``'s name once whole; the file itself (``copy`` False: a
+    bake's cache is found beside it) is removed when cut short. FrameWriteError says which."""
+    import bpy
+
+    target = blend.with_name(f".{blend.stem}.partial.blend") if copy else blend
+    _clear_the_way(blend, target)
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(target), copy=copy, compress=True)
+        if not blend_is_whole(target):
+            raise FrameWriteError(f"{blend} could not be written whole (disk full?): nothing is left under its name")
+        if copy:
+            os.replace(target, blend)
+    except RuntimeError as exc:
+        if not isinstance(exc, FrameWriteError):
+            exc = FrameWriteError(f"{blend} could not be written: {exc}")
+        for path in {target, blend}:
+            if path.is_file() or path.is_symlink():
+                path.unlink()
+        raise exc from None
+
+
 class FieldError(RuntimeError):
     """A grass field could not be simulated: its frame would be rendered without it."""
 
@@ -478,8 +523,6 @@ def encode_video(frames: list[Path], fps: int, target: Path) -> Path | None:
 
 def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = None) -> dict:
     """Build one scene, render its frames (and optional .blend and video) into ``out``."""
-    import bpy
-
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     scene = build_scene(params)
@@ -492,18 +535,18 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
     if args.bake:
         runtime = addon_module("grass_addon.bridge.runtime")
         blend = out / "scene.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)  # the cache goes beside it
+        save_blend(blend, copy=False)  # the cache goes beside it
         t_bake = time.perf_counter()
         # (the bake holds every frame from the first to the last asked: a list's gaps too)
         cache = runtime.bake_field(scene, scene.windgrass.fields[0], frames[0], frames[-1], fmt=args.bake_format)
-        bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
+        save_blend(blend, copy=False)
         blend.with_suffix(".blend1").unlink(missing_ok=True)  # Blender's backup of the first save
         per_frame = addon_module("grass_addon.bridge.bake").cache_size(cache) / (frames[-1] - frames[0] + 1)
         print(f"baked {cache}/ in {time.perf_counter() - t_bake:.1f} s ({per_frame / 1e6:.2f} MB per frame); "
               f"saved {blend}", flush=True)
     elif args.save_blend:
         blend = out / "scene.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
+        save_blend(blend, copy=True)
         print(f"saved {blend}", flush=True)
     t1 = time.perf_counter()
     written = render_frames(scene, params, frames, out, stop, resume=getattr(args, "resume", False))

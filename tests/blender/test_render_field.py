@@ -413,6 +413,26 @@ def test_a_frame_that_cannot_be_written_fails_and_leaves_nothing(env, tiny_confi
     assert frames_in(tmp_path) == [] and not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("flag", ["--save-blend", "--bake"])
+def test_a_blend_file_that_cannot_be_written_whole_fails_and_is_not_left(env, tiny_config, tmp_path, flag):
+    """Issue #37 item 10: on a full disk (writes past 100 KB fail; the tiny scene's .blend is about
+    240 KB) scene.blend was left cut short ("Missing DNA block" on open) and the job said "saved"
+    and exited 0. Now it fails with status 1 naming scene.blend, and no scene.blend (nor a partial
+    one) is left; with room to write, the file is whole: it opens in Blender."""
+    proc = subprocess.run([sys.executable, str(SCRIPT), "--config", str(tiny_config), "--frames", "1", "--out",
+                           str(tmp_path / "full"), flag], env=env, cwd=REPO, capture_output=True, text=True,
+                          timeout=300, preexec_fn=_files_of_at_most(100_000))
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "scene.blend" in proc.stderr and "saved" not in proc.stdout
+    assert not [p.name for p in (tmp_path / "full").iterdir() if p.suffix == ".blend"]
+    whole = render(env, "--config", tiny_config, "--frames", "1", "--out", tmp_path / "room", "--save-blend")
+    assert whole.returncode == 0, whole.stdout[-2000:] + whole.stderr[-2000:]
+    check = subprocess.run([sys.executable, "-c", "import bpy, sys; bpy.ops.wm.open_mainfile(filepath=sys.argv[1]); "
+                            "print('SCENES', len(bpy.data.scenes))", str(tmp_path / "room" / "scene.blend")],
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert "SCENES 1" in check.stdout, check.stdout[-1000:] + check.stderr[-1000:]
+
+
 @pytest.mark.parametrize("planted", ["link", "folder"])
 def test_what_lies_under_a_frames_names_is_never_written_through(env, tiny_config, tmp_path, planted):
     """Issue #36: a link planted under a frame's temporary name made the render write through it,

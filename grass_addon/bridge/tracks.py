@@ -373,6 +373,9 @@ def _decoded(raw) -> tuple:
             cached = _decode(raw)
         except DamagedTrackError as exc:
             cached = ([], None, str(exc))
+        except (TypeError, ValueError, KeyError, AttributeError, IndexError) as exc:
+            # a value of a shape no check above foresaw (the file was edited by hand): damage too
+            cached = ([], None, f"unreadable: {type(exc).__name__}: {exc}")
         REGISTRY.tracks[digest] = cached
     return cached
 
@@ -399,11 +402,18 @@ def _decode(raw) -> tuple:
     """(colliders, effectors, '') of a stored track, every list checked against the others
     (lengths, finite numbers, radii within MAX_RADIUS, known effector settings)."""
     times = _numbers(raw, "times")
-    if len(times) and np.any(np.diff(times) < 0):
+    if len(times) and np.any(np.diff(times) <= 0):
         raise DamagedTrackError("'times' is not ascending")
     colliders = []
-    if int(raw.get("colliders", 0) or 0):
-        offsets = _numbers(raw, "offsets", len(times) + 1, np.int64)
+    try:
+        count = int(raw.get("colliders", 0) or 0)
+    except (TypeError, ValueError):
+        raise DamagedTrackError("'colliders' is not a count") from None
+    if count:
+        offsets = _numbers(raw, "offsets", len(times) + 1)
+        if np.any(offsets != np.round(offsets)):
+            raise DamagedTrackError("'offsets' are not whole counts")
+        offsets = offsets.astype(np.int64)
         if offsets[0] != 0 or np.any(np.diff(offsets) < 0):
             raise DamagedTrackError("'offsets' is not a running count")
         spheres = int(offsets[-1])
@@ -417,7 +427,11 @@ def _decode(raw) -> tuple:
     if text:
         try:
             rows = json.loads(str(text))
+            if not isinstance(rows, list):
+                raise DamagedTrackError("the force fields' samples are not a list")
             samples = [[_stored_effector(e) for e in sample] for sample in rows]
+        except DamagedTrackError:
+            raise
         except (TypeError, ValueError, AttributeError) as exc:
             raise DamagedTrackError(f"the force fields' samples: {exc}") from None
         if len(samples) != len(times):

@@ -12,7 +12,8 @@ segments above keep their directions. So
   times over, and a joint still inside one after that takes the nearest of fixed directions
   (``DIRECTIONS``) that is clear of all of them;
 * a blade rooted inside a collider (under a ball sunk in the ground) is collapsed onto its root,
-  so nothing of it is drawn.
+  so nothing of it is drawn; so is a blade with a joint that no direction takes out of the spheres
+  and the ground (deep in a pile of hundreds of overlapping colliders: it reached 3 cm into one).
 
 A joint keeps its strip's half width from a sphere's surface, so the strip's vertices, not only
 its middle line, stay out (within half the tolerance). ``clear_blades`` works on the strips of the
@@ -140,8 +141,9 @@ class _Joint:
         floor = self.ground(q[:, :2])
         return gap, floor, q
 
-    def bend(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(u clear of every sphere and the ground, bent (k,) bool)."""
+    def bend(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(u clear of every sphere and the ground, bent (k,) bool, still inside a sphere (k,) bool:
+        no direction clears it)."""
         count = len(u)
         bent = np.zeros(count, bool)
         for _ in range(ITERATIONS):
@@ -150,7 +152,7 @@ class _Joint:
             inside = best < -self.slack
             low = q[:, 2] < floor - GROUND_SLACK
             if not inside.any() and not low.any():
-                return u, bent
+                return u, bent, np.zeros(count, bool)
             if inside.any():
                 i = np.flatnonzero(inside)
                 pair = at[i]
@@ -168,10 +170,15 @@ class _Joint:
         gap, floor, q = self.gaps(u)
         best, _ = _deepest(gap, self.pb, count)
         stuck = np.flatnonzero((best < -self.slack) | (q[:, 2] < floor - GROUND_SLACK))
+        trapped = np.zeros(count, bool)
         if len(stuck):
             u[stuck] = self._search(stuck, u[stuck])
             bent[stuck] = True
-        return u, bent
+            gap, floor, q = self.gaps(u)
+            best, _ = _deepest(gap, self.pb, count)
+            # deeper in a sphere than the tolerance, or below the ground
+            trapped[stuck] = (best[stuck] < -2.0 * self.slack) | (q[stuck, 2] < floor[stuck] - GROUND_SLACK)
+        return u, bent, trapped
 
     def _search(self, stuck: np.ndarray, u: np.ndarray) -> np.ndarray:
         """For the joints ``stuck`` inside a sphere or the ground after the turns: the direction of
@@ -220,17 +227,21 @@ def clear_blades(strips: np.ndarray, centres: np.ndarray, radii: np.ndarray, tol
     out = joints[blades].copy()
     seg, length, half = seg[blades], length[blades], half[blades]
     bent = np.zeros(len(blades), bool)
+    trapped = np.zeros(len(blades), bool)
     slack = 0.5 * tolerance
     for j in range(1, seg.shape[1] + 1):
         prev = out[:, j - 1]
         span = np.maximum(length[:, j - 1], 1e-12)
         joint = _Joint(prev, span, radii[ps] + half[pb, j], pb, ps, centres, ground, slack)
-        u, turned = joint.bend(seg[:, j - 1] / span[:, None])
+        u, turned, stuck = joint.bend(seg[:, j - 1] / span[:, None])
         bent |= turned
+        trapped |= stuck
         out[:, j] = np.where(turned[:, None], prev + span[:, None] * u, prev + seg[:, j - 1])
-    moved = np.flatnonzero(bent)
+    moved = np.flatnonzero(bent & ~trapped)
     if len(moved):
         b = blades[moved]
         offset = strips[b].astype(np.float64) - joints[b][:, :, None, :]
         strips[b] = (out[moved][:, :, None, :] + offset).astype(np.float32)
-    return len(moved) + len(buried)
+    hidden = blades[trapped]  # a joint no direction clears: nothing of the blade is drawn
+    strips[hidden] = joints[hidden, 0][:, None, None, :].astype(np.float32)
+    return len(moved) + len(hidden) + len(buried)

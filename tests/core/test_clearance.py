@@ -47,8 +47,9 @@ def _segments(strips):
     return joints, np.linalg.norm(np.diff(joints, axis=1), axis=-1)
 
 
-def _check(before, after, centres, radii):
-    """The physicist's list; returns the mask of the blades collapsed (rooted inside a ball)."""
+def _check(before, after, centres, radii, trapped_share=0.0):
+    """The physicist's list; returns the mask of the blades collapsed: those rooted inside a
+    ball, and at most ``trapped_share`` of the others (a joint no turn takes out of the balls)."""
     j0, len0 = _segments(before)
     j1, len1 = _segments(after)
     assert np.array_equal(j1[:, 0], j0[:, 0]) or np.allclose(j1[:, 0], j0[:, 0], atol=1e-6), "roots moved"
@@ -67,7 +68,8 @@ def _check(before, after, centres, radii):
     inside = np.zeros(len(before), bool)
     for c, r in zip(centres, radii):
         inside |= (np.linalg.norm(before[:, 0].astype(np.float64) - c, axis=-1) < r - TOL).any(axis=1)
-    assert np.array_equal(collapsed, inside)
+    assert np.all(collapsed[inside])
+    assert collapsed[~inside].sum() <= trapped_share * len(before), collapsed[~inside].sum()
     return collapsed
 
 
@@ -106,6 +108,19 @@ def test_fifty_overlapping_balls_clear_every_blade_at_once():
     moved = clearance.clear_blades(after, centres, radii, TOL, _flat)
     collapsed = _check(before, after, centres, radii)
     assert moved > 300 and 0 < collapsed.sum() < moved
+
+
+def test_five_hundred_overlapping_balls_leave_no_vertex_inside_one():
+    """Issue #37 item 12: 500 balls piled over a 2 m meadow left tips up to 3 cm inside one (no
+    direction took a joint out of all of them). No vertex of a drawn blade is inside a ball beyond
+    the tolerance; the blades with nowhere to go are not drawn (a few per cent of the meadow)."""
+    rng = np.random.default_rng(3)
+    centres = np.column_stack([rng.uniform(-0.7, 0.7, (500, 2)), rng.uniform(0.05, 0.5, 500)])
+    radii = rng.uniform(0.05, 0.25, 500)
+    before = _meadow()
+    after = before.copy()
+    clearance.clear_blades(after, centres, radii, TOL, _flat)
+    _check(before, after, centres, radii, trapped_share=0.05)
 
 
 def test_a_ball_half_sunk_in_the_ground_leaves_the_roots_where_they_grew():

@@ -13,7 +13,7 @@ function of N, so any sub-range (--frames 10-20) renders exactly the images of t
 split a long animation across machines freely.
 
 Exit codes: 0 done, 2 bad input (the message names the option), 1 a failure inside Blender (or a
-frame that could not be written: nothing incomplete is left under a frame's name), 130 stopped by
+frame or scene.blend that could not be written whole: nothing incomplete is left under its name), 130 stopped by
 Ctrl-C after the frame in progress (the finished frames are kept).
 """
 

@@ -268,7 +268,7 @@ PARAMS: tuple[Param, ...] = (
     _p("blade", "air_damping", "float", 0.3, "How strongly the wind's drag damps a swaying blade, as a share of "
        "the quasi-steady drag's 2 F / v (1: all of it, a blade that follows the gusts without a sway of its own; "
        "0: the paper's eq 31 alone). Measured grasses sway at their natural frequency (0.8-2.5 Hz) in wind",
-       minimum=0.0, maximum=2.0, advanced=True, label="Drag Damping"),
+       minimum=0.0, maximum=2.0, advanced=True, label="Drag Damp."),
     _p("blade", "damping_stiffness", "float", 0.004, "Damping by the blade's own material, growing with its "
        "stiffness (beta of eq 31)", unit="s", minimum=0.0, maximum=1.0, soft_max=0.05,
        advanced=True, label="Inner Damp."),

@@ -415,4 +415,6 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     hidden = _axis_contrast(run.shots / "near.png", material)
     shown = _axis_contrast(run.shots / "artist_on.png", artist)
     print(f"Y axis over the grass: {hidden:.1f} (floor off) / {shown:.1f} (the artist's floor on) of 255 in green")
-    assert shown > 20.0 and abs(hidden) < 5.0
+    # (the axis is a green line, brighter than the grass: with the floor off no column stands out so;
+    # one a little darker than the meadow's pale flowers beside it, -5 of 255, is no axis)
+    assert shown > 20.0 and hidden < 5.0

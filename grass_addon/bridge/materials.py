@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import gusts, sward
 from ..grid import FieldGrid
+from . import textures
 
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
@@ -98,7 +99,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 9
+MATERIALS_VERSION = 10
 
 
 def _socket(sockets, *names: str):
@@ -264,9 +265,12 @@ class _Tree:
         tex = self.add("ShaderNodeTexImage", x - 200, y - 250, name=NODE_PATCH_IMAGE, image=patch_image,
                        interpolation="Linear", extension="EXTEND")
         self.link(mapping, "Vector", tex, "Vector")
+        tint = self.add("ShaderNodeVectorMath", x - 100, y - 250, operation="SCALE")  # (the bytes hold tint / 3)
+        self.link(tex, "Color", tint, 0)
+        tint.inputs["Scale"].default_value = textures.PATCH_RANGE
         out = self.mix_rgb(x, y, blend="MULTIPLY")
         self.link(colour_node, colour_out, out, "A_Color")
-        self.link(tex, "Color", out, "B_Color")
+        self.link(tint, "Vector", out, "B_Color")
         return out, "Result_Color"
 
     def foliage(self, colour_node, colour_out: str, x: float, y: float, specular: float = 0.35,

@@ -111,23 +111,39 @@ def paint_gust_image(image, params) -> None:
 
 
 PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from
+PATCH_RANGE = 3.0  # the patch image's bytes hold tint / PATCH_RANGE (the material scales them back)
 
 
 def ensure_patch_image(name: str):
-    """The packed float image of how the meadow's patches tint the far grass over the field
-    (``sward.patch_tint``), linear values."""
-    return _grey_image(name, sward.PATCH_PIXELS)
+    """The packed byte image (Non-Color) of how the meadow's patches tint the far grass over the
+    field (``sward.patch_tint`` / PATCH_RANGE: a byte a channel, 1 % steps of the tint, a quarter of
+    a float image's size in the saved file)."""
+    import bpy
+
+    image = bpy.data.images.get(name)
+    if image is not None and not image.is_float and image.packed_file is not None:
+        return image
+    if image is not None:
+        bpy.data.images.remove(image)
+    image = bpy.data.images.new(name, width=1, height=1, alpha=False, float_buffer=False)
+    image.colorspace_settings.name = "Non-Color"
+    image.pack()
+    return image
 
 
 def paint_patch_image(image, params) -> None:
     """Write the patches' tint of the field's settings (its field and blade sections: what decides
-    the species mix) into ``image`` unless it already holds it."""
+    the species mix) into ``image`` unless it already holds it; one pixel without patches."""
     settings = params.to_dict()
     key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"]],
                                   sort_keys=True).encode()).hexdigest()
     if image.get(PATCH_KEY) == key:
         return
-    _write_grey(image, sward.patch_tint(params))
+    tint = sward.patch_tint(params)
+    n = sward.PATCH_PIXELS if np.any(tint != 1.0) else 1  # no patches: one pixel (a lawn's file stays small)
+    if tuple(image.size) != (n, n):
+        image.scale(n, n)
+    _write_grey(image, np.clip(tint[:n, :n] / PATCH_RANGE, 0.0, 1.0))
     image[PATCH_KEY] = key
 
 

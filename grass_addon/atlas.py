@@ -89,7 +89,7 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     kind = block.blade_species
     joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
                                   block.blade_head, block.blade_flower)  # (B, n + 1, 3), heads and dry tips
-    ends = meadow.segment_colours(joints, block.blade_flower)  # (B, n, bottom/top, 3): a flower's cup whole
+    ends = meadow.segment_colours(joints, block.blade_flower)  # (B, n, bottom/top, 3): a flower's head wholly
     v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
     segs = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
         n, block.blade_length, block.blade_width, block.blade_flower)

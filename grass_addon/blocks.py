@@ -184,7 +184,7 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     # paper III.B: card height = reference height + stochastic modifier; random orientation. The
     # card stands for its cell's blades, so its height is that of the cell's tallest blade at rest
     # (the blades' own lengths are the stochastic part), times lod.card_height.
-    shares = meadow.segment_shares(n, length, width, flower)  # a flower's top segment is its cup
+    shares = meadow.segment_shares(n, length, width, flower)  # a flower's head: its short top segments
     tallest = _tallest(P, num, length, rest_tilt, shares, alive, cell_length, cell_rest_tilt)
     cell_density = None
     if alive is not None:

@@ -53,7 +53,7 @@ def block_distance(layout, lod, views) -> np.ndarray:
 
 def blade_tints(layout, local: np.ndarray) -> dict:
     """Per corner of every blade quad of the positions ``local`` (FREE: zero): the colour at the
-    corner's end of its segment (``meadow.segment_colours``: a joint's, a flower's cup wholly in its
+    corner's end of its segment (``meadow.segment_colours``: a joint's, a flower's head wholly in its
     colour) as (r, g), (b, shade); quad j's corners are (left_j, right_j, right_j+1, left_j+1)."""
     n = layout.segments
     bpb = layout.blades_per_block

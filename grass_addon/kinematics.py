@@ -117,7 +117,7 @@ class _Constants:
         d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
         # rest tilt vector blade_rest_tilt * d_b, (nb, bpb, n) complex
         self.rest = (layout.blade_rest_tilt.astype(np.float64) * d_b).astype(np.complex64).reshape(nb, bpb, n)
-        # l/n, but a flower's top segment is its cup (meadow.segment_shares)
+        # l/n, but a flower's head is its short top segments (meadow.segment_shares)
         shares = meadow.segment_shares(n, layout.blade_length, layout.blade_width, layout.blade_flower)
         seg = (layout.blade_length.astype(np.float64)[:, None] * shares).astype(np.float32)
         self.seg = np.ascontiguousarray(seg.reshape(nb, bpb, n))

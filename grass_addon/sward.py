@@ -99,7 +99,7 @@ def _segment_spans(params: Params, block):
     each (blades, segments): what a horizontal ray sees of a segment lies between the two."""
     n = int(params.blade.segments)
     seg = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
-        n, block.blade_length, block.blade_width, block.blade_flower)  # a flower's top segment is its cup
+        n, block.blade_length, block.blade_width, block.blade_flower)  # a flower's head is short
     rise = seg * np.cos(block.blade_rest_tilt.astype(np.float64))
     joint = np.concatenate([np.zeros((rise.shape[0], 1)), np.cumsum(rise, axis=1)], axis=1)
     widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower)
@@ -149,7 +149,7 @@ def _segment_colours(params: Params, block, at) -> np.ndarray:
     joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
                                   block.blade_head, block.blade_flower).astype(np.float64)  # heads, dry tips
     at = np.broadcast_to(np.asarray(at, np.float64), (len(kind), n))
-    ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # a flower's cup whole
+    ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # a flower's head wholly
     tip = ends[:, :, 0] + (ends[:, :, 1] - ends[:, :, 0]) * at[..., None]
     shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
     return colour_ramp(tip, (np.arange(n) + at) / n) * shade[:, None, None]
@@ -163,14 +163,21 @@ def fringe_colour(params: Params) -> tuple[float, float, float]:
     if block.blade_length.size == 0:
         species = Species(params)
         return tuple(float(c) for c in species.p @ species.color)
+    weight, colour = _fringe(params, block)
+    return tuple(float(c) for c in (colour * weight[..., None]).sum(axis=(0, 1)) / weight.sum())
+
+
+def _fringe(params: Params, block) -> tuple[np.ndarray, np.ndarray]:
+    """(weight (blades, segments), colour (blades, segments, 3)) of the sample blades' parts above
+    the canopy plane: the area a horizontal ray sees of each (all of it where nothing stands above
+    the plane), and its colour at the middle height of that part."""
     low, high, seen = _segment_spans(params, block)
     above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
     weight = seen * above
     if weight.sum() <= 0.0:
         weight = seen  # nothing above the plane: the blades' mean
     # the upper part of each segment (above the plane) at its middle height along the blade
-    colour = _segment_colours(params, block, 1.0 - 0.5 * above)
-    return tuple(float(c) for c in (colour * weight[..., None]).sum(axis=(0, 1)) / weight.sum())
+    return weight, _segment_colours(params, block, 1.0 - 0.5 * above)
 
 
 def sward_profile(params: Params, points: int = PROFILE_POINTS) -> tuple[np.ndarray, np.ndarray]:
@@ -205,12 +212,7 @@ def species_looks(params: Params) -> tuple[np.ndarray, np.ndarray]:
     areas = np.zeros(len(species.p))
     if block.blade_length.size == 0:
         return colours, np.ones(len(species.p))
-    low, high, seen = _segment_spans(params, block)
-    above = np.clip((high - canopy_height(params)) / np.maximum(high - low, 1e-9), 0.0, 1.0)
-    weight = seen * above
-    if weight.sum() <= 0.0:
-        weight = seen
-    colour = _segment_colours(params, block, 1.0 - 0.5 * above)
+    weight, colour = _fringe(params, block)
     kind = block.blade_species.astype(np.int64)
     for k in range(len(species.p)):
         mine = kind == k

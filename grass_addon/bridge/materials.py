@@ -233,16 +233,22 @@ class _Tree:
         self.link(glow, "Emission", mix, mix.inputs[2])
         return mix
 
+    def field_image(self, image, mapping_name: str, image_name: str, extension: str, x: float, y: float):
+        """The Image Texture node of ``image`` read at the place (object coordinates: the field's
+        frame) through the Mapping node ``mapping_name`` (its scale and offset set elsewhere)."""
+        coord = self.add("ShaderNodeTexCoord", x - 400, y)
+        mapping = self.add("ShaderNodeMapping", x - 200, y, name=mapping_name)
+        self.link(coord, "Object", mapping, "Vector")
+        tex = self.add("ShaderNodeTexImage", x, y, name=image_name, image=image, interpolation="Linear",
+                       extension=extension)
+        self.link(mapping, "Vector", tex, "Vector")
+        return tex
+
     def gusted(self, colour_node, colour_out: str, gust_image, x: float, y: float):
         """The colour brightened and darkened by the gust waves where they pass:
         colour * (1 + amount (2 g - 1)), g the pattern at the place (object coordinates: the
         field's frame) moved back by the mean wind's displacement (NODE_GUST_MAPPING)."""
-        coord = self.add("ShaderNodeTexCoord", x - 800, y - 200)
-        mapping = self.add("ShaderNodeMapping", x - 600, y - 200, name=NODE_GUST_MAPPING)
-        self.link(coord, "Object", mapping, "Vector")
-        tex = self.add("ShaderNodeTexImage", x - 400, y - 200, name=NODE_GUST_IMAGE, image=gust_image,
-                       interpolation="Linear", extension="REPEAT")
-        self.link(mapping, "Vector", tex, "Vector")
+        tex = self.field_image(gust_image, NODE_GUST_MAPPING, NODE_GUST_IMAGE, "REPEAT", x - 400, y - 200)
         amount = self.add("ShaderNodeValue", x - 400, y - 450, name=NODE_GUST_AMOUNT)
         amount.outputs[0].default_value = 0.0
         swing = self.math("MULTIPLY_ADD", (tex, "Color"), 2.0, x - 200, y - 200)
@@ -259,12 +265,7 @@ class _Tree:
         frame, mapped onto the image by NODE_PATCH_MAPPING); no tint without an image."""
         if patch_image is None:
             return colour_node, colour_out
-        coord = self.add("ShaderNodeTexCoord", x - 600, y - 250)
-        mapping = self.add("ShaderNodeMapping", x - 400, y - 250, name=NODE_PATCH_MAPPING)
-        self.link(coord, "Object", mapping, "Vector")
-        tex = self.add("ShaderNodeTexImage", x - 200, y - 250, name=NODE_PATCH_IMAGE, image=patch_image,
-                       interpolation="Linear", extension="EXTEND")
-        self.link(mapping, "Vector", tex, "Vector")
+        tex = self.field_image(patch_image, NODE_PATCH_MAPPING, NODE_PATCH_IMAGE, "EXTEND", x - 200, y - 250)
         tint = self.add("ShaderNodeVectorMath", x - 100, y - 250, operation="SCALE")  # (the bytes hold tint / 3)
         self.link(tex, "Color", tint, 0)
         tint.inputs["Scale"].default_value = textures.PATCH_RANGE

@@ -75,17 +75,18 @@ def ensure_gust_image(name: str):
     return _grey_image(name, gusts.TILE_PIXELS)
 
 
-def _grey_image(name: str, n: int):
-    """The packed n x n float image ``name`` (Non-Color: linear values), made again when missing,
-    of another size or unpacked."""
+def _grey_image(name: str, n: int | None, float_buffer: bool = True):
+    """The packed n x n image ``name`` (Non-Color: linear values; float, or bytes), made again when
+    missing, of another size (``n`` None: any; made 1 x 1) or kind, or unpacked."""
     import bpy
 
     image = bpy.data.images.get(name)
-    if image is not None and tuple(image.size) == (n, n) and image.packed_file is not None:
+    if (image is not None and (n is None or tuple(image.size) == (n, n)) and image.is_float == float_buffer
+            and image.packed_file is not None):
         return image
     if image is not None:
         bpy.data.images.remove(image)
-    image = bpy.data.images.new(name, width=n, height=n, alpha=False, float_buffer=True)
+    image = bpy.data.images.new(name, width=n or 1, height=n or 1, alpha=False, float_buffer=float_buffer)
     image.colorspace_settings.name = "Non-Color"
     image.pack()
     return image
@@ -117,18 +118,8 @@ PATCH_RANGE = 3.0  # the patch image's bytes hold tint / PATCH_RANGE (the materi
 def ensure_patch_image(name: str):
     """The packed byte image (Non-Color) of how the meadow's patches tint the far grass over the
     field (``sward.patch_tint`` / PATCH_RANGE: a byte a channel, 1 % steps of the tint, a quarter of
-    a float image's size in the saved file)."""
-    import bpy
-
-    image = bpy.data.images.get(name)
-    if image is not None and not image.is_float and image.packed_file is not None:
-        return image
-    if image is not None:
-        bpy.data.images.remove(image)
-    image = bpy.data.images.new(name, width=1, height=1, alpha=False, float_buffer=False)
-    image.colorspace_settings.name = "Non-Color"
-    image.pack()
-    return image
+    a float image's size in the saved file; its size is ``paint_patch_image``'s)."""
+    return _grey_image(name, None, float_buffer=False)
 
 
 def paint_patch_image(image, params) -> None:

@@ -263,7 +263,7 @@ class GrassField:
         through the frames' poses is piecewise linear: between frames the vertices move at the
         slope of their segment; at a whole frame the velocity is the central difference
         (P(N + 1) - P(N - 1)) fps / 2. Frames are computed in ascending order (cheap seeks)."""
-        frame, fps = int(frame), self.clock.fps
+        frame, fps = int(frame), self.clock.rate
         wanted = (frame - 1, frame, frame + 1) if subframe == 0.0 else (frame, frame + 1)
         cells = [self.cells_at(f) for f in wanted]
         if subframe == 0.0:

@@ -166,7 +166,7 @@ def check_work(colliders, params, top: float) -> None:
     """Refuse, before anything is computed, colliders whose remembered contacts a frame alone
     would take too long to weigh: spheres at an instant times the recovery's frames (``top``: the
     grass's height, m)."""
-    fps = Clock.of(params).fps
+    fps = Clock.of(params).rate
     recovery = float(params.interaction.recovery)
     window = int(math.ceil(recovery * fps))
     reach = 1.5 * max(float(top), 1e-3) + float(params.interaction.tolerance) + 1.0
@@ -435,7 +435,7 @@ class Interaction:
         self.ground = ground
         self.top = max(float(top), 1e-3)
         self.clock = Clock.of(params)
-        self.fps = self.clock.fps
+        self.fps = self.clock.rate
         self.window = int(math.ceil(self.recovery * self.fps))
         self.chunk = max(1, self.window // CHUNKS_PER_WINDOW)
         check_work(self.colliders, params, self.top)

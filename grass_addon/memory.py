@@ -23,6 +23,7 @@ import os
 from dataclasses import dataclass
 
 from . import images, paint, slots
+from .clock import Clock
 from .errors import ParameterError
 from .grid import FieldGrid
 from .lod import block_reach
@@ -78,7 +79,7 @@ def estimate(params, grid: FieldGrid | None = None, resolve=str) -> Estimate:
         window = grid.n_blocks
     cells = window * grid.cells_per_block_total
     state = cells * grid.segments * STATE_FLOATS_PER_JOINT * 4
-    every = max(CHECKPOINT_FRAMES, int(params.render.fps))
+    every = max(CHECKPOINT_FRAMES, round(Clock.of(params).rate))
     checkpoints = min(MAX_CHECKPOINT_BYTES, state * (seek_cost_bound(params) // every + 1))
     blocks = window * (grid.blades_per_block * (BLOCK_BYTES_PER_BLADE + 4 * grid.segments)
                        + grid.cells_per_block_total * 4 * (16 + grid.segments))

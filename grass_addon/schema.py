@@ -383,6 +383,8 @@ PARAMS: tuple[Param, ...] = (
        label="Height"),
     _p("render", "fps", "int", 24, "Frames per second of the animation and of the simulation", minimum=1, maximum=240,
        label="Frame Rate"),
+    _p("render", "fps_base", "float", 1.0, "Frame rate base: the frame rate is fps / fps_base (1.001 gives "
+       "29.97 fps from 30), as Blender's", minimum=0.5, maximum=2.0, label="Base"),
     _p("render", "frame_start", "int", 1, "First frame", minimum=0, maximum=1_000_000, label="Frame Start"),
     _p("render", "frame_end", "int", 48, "Last frame", minimum=0, maximum=1_000_000, label="Frame End"),
     _p("render", "motion_blur", "bool", False, "Blur the grass (and the camera) along its simulated motion; in "
@@ -836,6 +838,9 @@ def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
         raise ParameterError("simulation.epoch", f"{sim['epoch']:g} s must be >= simulation.preroll "
                              f"({sim['preroll']:g} s)")
     r = v["render"]
+    if not 1.0 <= r["fps"] / r["fps_base"] <= 240.0:
+        raise ParameterError("render.fps_base", f"{r['fps']} / {r['fps_base']:g} is {r['fps'] / r['fps_base']:.4g} "
+                             "fps (valid: a frame rate of 1 to 240 fps)")
     if r["frame_end"] < r["frame_start"]:
         raise ParameterError("render.frame_end",
                              f"{r['frame_end']} is before render.frame_start ({r['frame_start']})")

@@ -1,6 +1,6 @@
 """Deterministic time with bounded history: the state at any frame from a bounded number of steps.
 
-* ``t(frame) = (frame - render.frame_start) / render.fps`` (``clock.Clock``).
+* ``t(frame) = (frame - render.frame_start) * render.fps_base / render.fps`` (``clock.Clock``).
 * Time is cut into epochs of ``E = simulation.epoch * fps`` frames from ``frame_start``. Each
   epoch ``k`` has its own trajectory: the solver started from rest at frame
   ``s_k = frame_start + k E - W`` (``W = simulation.preroll * fps``, the warm-up) and stepped one
@@ -47,9 +47,9 @@ class Trajectory:
 
 def epoch_frames(params) -> tuple[int, int, int]:
     """(E, W, F): epoch length, warm-up and cross-fade in frames."""
-    fps = int(params.render.fps)
-    warmup = max(1, int(round(params.simulation.preroll * fps)))
-    epoch = max(warmup, int(round(params.simulation.epoch * fps)))
+    clock = Clock.of(params)
+    warmup = max(1, clock.frames(params.simulation.preroll))
+    epoch = max(warmup, clock.frames(params.simulation.epoch))
     return epoch, warmup, max(1, warmup // 2)
 
 
@@ -71,7 +71,7 @@ class Simulation:
         self.params = params
         self.wind = wind
         self.clock = Clock.of(params)
-        self.fps, self.frame_start = self.clock.fps, self.clock.frame_start
+        self.fps, self.frame_start = self.clock.rate, self.clock.frame_start
         self.frame_dt = self.clock.dt
         self.epoch, self.warmup, self.fade = epoch_frames(params)
         self.layout = layout
@@ -234,7 +234,7 @@ class Simulation:
         self.solver.step(wind, self.frame_dt, self.substeps)
         traj.pos += 1
         self.steps += self.layout.n_cells
-        if (traj.pos - traj.start) % max(CHECKPOINT_FRAMES, self.fps) == 0 and traj.pos not in traj.checkpoints:
+        if (traj.pos - traj.start) % max(CHECKPOINT_FRAMES, round(self.fps)) == 0 and traj.pos not in traj.checkpoints:
             if (len(traj.checkpoints) + 1) * traj.state.nbytes <= MAX_CHECKPOINT_BYTES:
                 traj.checkpoints[traj.pos] = traj.state.copy()
 
@@ -252,11 +252,11 @@ class Simulation:
 def seek_note(params) -> str | None:
     """What a jump to any frame costs at a high frame rate (None at 60 fps and below): the warm-up
     and the epoch are seconds, so their frames grow with the frame rate."""
-    fps = int(params.render.fps)
+    fps = Clock.of(params).rate
     if fps <= 60:
         return None
     frames = seek_cost_bound(params)
-    return (f"at {fps} fps a jump to any frame simulates up to {frames:,} frames ({frames / fps:.0f} s of "
+    return (f"at {fps:g} fps a jump to any frame simulates up to {frames:,} frames ({frames / fps:.0f} s of "
             f"wind), {fps / 24:.0f} times the work at 24 fps; shorter simulation.preroll and simulation.epoch "
             "make jumps cheaper")
 

@@ -141,12 +141,9 @@ def draw_section(layout, context, item, section: str) -> None:
             wrapped(layout, context, f"A stroke takes {seconds:.1f} s to show on this field: the grass follows "
                     "when you leave paint mode (or change frame)", icon="TIME")
     if section == "simulation":
-        render = context.scene.render
-        fps = render.fps / render.fps_base
-        text = f"Steps at the scene's {render.fps} fps from frame {context.scene.frame_start}"
-        if render.fps_base != 1.0:
-            text += f" (the scene's {fps:.3g} fps is simulated as {render.fps} fps)"
-        wrapped(layout, context, text, icon="INFO")
+        clock = runtime.scene_clock(context.scene)
+        wrapped(layout, context, f"Steps at the scene's {clock.rate:.4g} fps from frame {clock.frame_start}",
+                icon="INFO")
         try:
             note = seek_note(properties.params_from_settings(item, context.scene))
         except WindgrassError:

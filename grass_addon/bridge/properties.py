@@ -21,6 +21,7 @@ import bpy
 import numpy as np
 
 from .. import schema
+from ..clock import Clock
 from ..errors import ParameterError
 from .registry import REGISTRY
 
@@ -347,14 +348,14 @@ CLASSES: tuple[type, ...] = (*ROW_CLASSES.values(), *SECTION_CLASSES.values(), W
 
 # The scene's clock: inside Blender these come from the scene, not from the field's settings
 # (which headless renders use to set up their scene).
-SCENE_CLOCK = ("render.fps", "render.frame_start", "render.frame_end")
+SCENE_CLOCK = ("render.fps", "render.fps_base", "render.frame_start", "render.frame_end")
 
 
 def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
     """Validated Params of a field item; a bad value raises ParameterError naming its key.
 
-    With ``scene`` the clock is the scene's: its frame rate (``render.fps``; a fractional
-    ``fps_base`` such as 29.97 fps is not followed) and frame range."""
+    With ``scene`` the clock is the scene's (``Clock.of_scene``: its frame rate, 29.97 fps as
+    30 / 1.001, and first frame) and so is the frame range."""
     data = {s: {p.key: from_blender(p, getattr(group(item, s), p.key)) for p in schema.blender_params(s)}
             for s in schema.SECTIONS}
     for name, value in json.loads(item.get(SCENE_FILE_KEY, "{}") or "{}").items():
@@ -362,7 +363,8 @@ def params_from_settings(item: Any, scene: Any = None) -> schema.Params:
         data[section][key] = value
     if scene is not None:
         last = schema.BY_NAME["render.frame_end"].maximum
-        data["render"].update(fps=int(scene.render.fps), frame_start=int(scene.frame_start),
+        clock = Clock.of_scene(scene)
+        data["render"].update(fps=clock.fps, fps_base=clock.fps_base, frame_start=clock.frame_start,
                               frame_end=int(min(max(scene.frame_end, scene.frame_start), last)))
         try:
             return schema.from_dict(data)

@@ -18,6 +18,7 @@ import bpy
 
 from .. import forces, interaction, schema
 from .. import paint as paint_core
+from ..clock import Clock
 from ..field import GrassField
 from . import animation, maps, owned, paint_look, pools, properties, tracks
 from . import scene as field_scene
@@ -31,7 +32,7 @@ class FieldRuntime:
     key: Key
     params: schema.Params  # validated, with the scene's clock
     digest: str  # of the parameters, the animated wind and the terrain samples
-    clock: tuple[int, int, int]  # the scene's fps, frame_start, frame_end it was resolved with
+    clock: tuple[Clock, int]  # the scene's clock and frame_end it was resolved with
     wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
     wind_keys: tuple | None
     terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)
@@ -65,8 +66,8 @@ def field_error(scene, item) -> str | None:
     return None if state is None else state.error
 
 
-def _clock(scene) -> tuple[int, int, int]:
-    return int(scene.render.fps), int(scene.frame_start), int(scene.frame_end)
+def _clock(scene) -> tuple[Clock, int]:
+    return Clock.of_scene(scene), int(scene.frame_end)
 
 
 def _wind_curves(scene, item, params) -> tuple[dict, str]:

@@ -14,38 +14,45 @@ Operators, panels, scripts and tests call these; each lives in the one module of
 
 from __future__ import annotations
 
+from ..clock import Clock
 from . import tracks  # noqa: F401  (scripts and tests reach the stored motion through here)
 from .bake import plays_cache
 from .edits import (
-                    EDIT_SETTLE_S,
-                    PAINT_MODE_POLL_S,
-                    STROKE_GOAL_S,
-                    flush_pending,
-                    mark_dirty,
-                    refresh_later,
-                    stroke_seconds,
-                    update_track,
+    EDIT_SETTLE_S,
+    PAINT_MODE_POLL_S,
+    STROKE_GOAL_S,
+    flush_pending,
+    mark_dirty,
+    refresh_later,
+    stroke_seconds,
+    update_track,
 )
 from .frame_pass import update_field, update_scene
 from .handlers import register, unregister
 from .lifecycle import (
-                    apply_settings,
-                    bake_field,
-                    bake_status,
-                    build_field,
-                    free_bake,
-                    params_digest,
-                    remove_field,
-                    reset_field,
-                    start_bake,
-                    write_read_me,
+    apply_settings,
+    bake_field,
+    bake_status,
+    build_field,
+    free_bake,
+    params_digest,
+    remove_field,
+    reset_field,
+    start_bake,
+    write_read_me,
 )
 from .registry import REGISTRY, key_of
 from .resolve import FieldRuntime, field_error, get_runtime, resolve, terrain_of, topology_of
 
+
+def scene_clock(scene) -> Clock:
+    """The scene's clock (frame rate with its ``fps_base``, first frame), as every field reads it."""
+    return Clock.of_scene(scene)
+
+
 __all__ = ["apply_settings", "bake_field", "bake_status", "build_field", "EDIT_SETTLE_S", "field_error",
            "FieldRuntime", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty",
            "PAINT_MODE_POLL_S", "params_digest", "plays_cache", "refresh_later", "register", "REGISTRY",
-           "remove_field", "reset_field", "resolve", "start_bake", "STROKE_GOAL_S", "stroke_seconds",
+           "remove_field", "reset_field", "resolve", "scene_clock", "start_bake", "STROKE_GOAL_S", "stroke_seconds",
            "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track",
            "write_read_me"]

@@ -192,7 +192,7 @@ def setup_render(scene, params) -> None:
     render.resolution_percentage = 100
     render.pixel_aspect_x = render.pixel_aspect_y = 1.0
     render.fps = r.fps
-    render.fps_base = 1.0
+    render.fps_base = r.fps_base
     scene.frame_start = r.frame_start
     scene.frame_end = r.frame_end
     render.use_motion_blur = r.motion_blur  # the frame handler answers every sub-frame step

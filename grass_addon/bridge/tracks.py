@@ -94,7 +94,7 @@ def notes(item) -> list[str]:
 
 def frame_range(scene, params) -> range:
     """The frames sampled: the recovery (or the simulation's warm-up) before the start, to the end."""
-    fps = int(params.render.fps)
+    fps = Clock.of(params).rate
     before = max(math.ceil(params.interaction.recovery * fps), math.ceil(params.simulation.preroll * fps))
     return range(int(scene.frame_start) - before, int(scene.frame_end) + 1)
 
@@ -155,7 +155,8 @@ def fingerprint(scene, item, params) -> str:
         return ""
     frames = frame_range(scene, params)
     seen: set = set()
-    data = [frames.start, frames.stop, int(params.render.fps), _top(params), params.field.cell_size,
+    rate = int(params.render.fps) if params.render.fps_base == 1.0 else Clock.of(params).rate
+    data = [frames.start, frames.stop, rate, _top(params), params.field.cell_size,
             maps.terrain_key(scene, item, params),
             [_animation(o, seen) for o in colliders],
             [[_animation(o, seen), _field_settings(o)] for o in effectors]]
@@ -297,7 +298,7 @@ def sampling(scene, item, params):
     sampler = _Sampler(colliders, to_field, ground_top + _top(params))
     frames = frame_range(scene, params)
     clock = Clock.of_scene(scene)
-    fps = float(clock.fps)
+    fps = clock.rate
     frame, subframe = scene.frame_current, scene.frame_subframe
     per_object: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[] for _ in colliders]
     fields: list[list[dict]] = []
@@ -493,4 +494,4 @@ def status(scene, item, params) -> str | None:
         long = f" (about {seconds:.0f} s; Esc stops it)" if seconds > AUTO_SAMPLE_S else ""
         return f"Motion of the colliders and force fields not sampled yet: press Update Motion{long}"
     frames = len(item.collection[TRACK_KEY]["times"])
-    return f"Motion sampled over {frames} frames ({frames / params.render.fps:.1f} s)"
+    return f"Motion sampled over {frames} frames ({frames / Clock.of(params).rate:.1f} s)"

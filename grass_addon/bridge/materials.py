@@ -411,6 +411,45 @@ def ground_material(name: str, uid: str):
     return mat
 
 
+def land_material(name: str, colour, haze_distance: float, haze_colour):
+    """The meadow past a field's edge, to the horizon (headless scenes): ``colour`` (linear RGB,
+    the grass seen from the side) in patches of 10-60 m that are lusher or drier, matte, seen
+    through ``haze_distance`` m of haze (``hazed``)."""
+    mat = _new_material(name, "land")
+    t = _Tree(mat)
+    coord = t.add("ShaderNodeTexCoord", -1300, 0)
+    patches = t.add("ShaderNodeTexNoise", -1100, 100)
+    _set(patches, 1.0 / 8.0, "Scale")  # object coordinates are metres
+    _set(patches, 7.0, "Detail")
+    _set(patches, 0.62, "Roughness")  # tufts of a few decimetres in the patches
+    t.link(coord, "Object", patches, "Vector")
+    dry = t.add("ShaderNodeTexNoise", -1100, -150)
+    _set(dry, 1.0 / 30.0, "Scale")
+    _set(dry, 2.0, "Detail")
+    t.link(coord, "Object", dry, "Vector")
+    green = tuple(float(c) for c in colour)
+    hay = tuple(0.55 * c + 0.45 * h for c, h in zip(green, sward.THATCH_COLOUR))
+    tint = t.mix_rgb(-850, -100, a=(*green, 1.0), b=(*hay, 1.0))
+    ramp = t.math("MULTIPLY_ADD", (dry, "Fac"), 3.0, -950, -300, clamp=True)
+    ramp.inputs[2].default_value = -1.35  # the drier patches: where the slow noise is above 0.45
+    t.link(ramp, "Value", tint, "Factor_Float")
+    shade = t.math("MULTIPLY_ADD", (patches, "Fac"), 1.6, -850, 150)
+    shade.inputs[2].default_value = 0.2  # lusher and thinner patches: about 0.7 to 1.3 times the colour
+    lit = t.mix_rgb(-650, 0, blend="MULTIPLY")
+    t.link(tint, "Result_Color", lit, "A_Color")
+    t.link(shade, "Value", lit, "B_Color")
+    bsdf = t.add("ShaderNodeBsdfPrincipled", -400, 0)
+    _set(bsdf, 1.0, "Roughness")
+    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+    t.link(lit, "Result_Color", bsdf, "Base Color")
+    shader = t.hazed(bsdf, "BSDF", -100, 0)
+    out = t.add("ShaderNodeOutputMaterial", 150, 0)
+    t.link(shader, "Shader", out, "Surface")
+    mat.node_tree.nodes[NODE_HAZE_DISTANCE].outputs[0].default_value = -1.0 / haze_distance
+    mat.node_tree.nodes[NODE_HAZE_COLOUR].outputs[0].default_value = (*haze_colour, 1.0)
+    return mat
+
+
 def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patch_image=None):
     """Far grass (paper III.C): the sward seen from afar, on a plane at the canopy height
     (``sward.canopy_height``). Its colour is what a ray with the slope of the camera's ray sees

@@ -23,6 +23,7 @@ from mathutils import Euler, Vector
 from ..clock import Clock
 from ..errors import ParameterError
 from ..grid import FieldGrid
+from .. import sward
 from . import animation, materials
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here
@@ -42,6 +43,18 @@ SUN_STRENGTH = 4.0  # W/m^2: a clear day under AgX/Filmic without clipping the g
 SUN_ANGLE_DEG = 1.5  # angular diameter of the sun light (soft shadow edges of the blades)
 SKY_STRENGTH = 0.1  # scale of the physical sky texture so that it matches SUN_STRENGTH
 GROUND_HAZE = (0.1, 0.14, 0.08)  # linear RGB of the distant land below the horizon
+# Hills on the horizon (setup_world): two ridges whose tops rise and fall with the bearing, in
+# radians above the horizon per unit of noise over 0.3 (the far ridge) and 0.4 (the near one),
+# seen through the sky's haze (their colour mixes this much of the land's into the sky's).
+HILLS_FAR = (0.04, 0.3, 0.45)  # (height per unit noise, noise over which it stands, land's share)
+HILLS_NEAR = (0.025, 0.4, 0.65)
+HILLS_NOISE = (3.0, 8.0)  # noise scale over the unit circle of bearings: broad far hills, finer near
+LAND_HAZE_M = 2500.0  # the land's haze where the scene sets none (render.haze_distance 0)
+LAND_DROP_M = 0.05  # the land lies this far below the field's ground
+# The land is a flat plane lit by the sun where the grass is blades in each other's shade: its
+# colour is the blades' times this (trample.toml at 960x540: the field's last metres and the land
+# beyond them come out within 10 % in sRGB).
+LAND_LIGHT = 0.4
 
 
 # --------------------------------------------------------------------------------------------
@@ -328,6 +341,9 @@ def setup_world(scene, params) -> bpy.types.World:
         ramp.color_ramp.elements[1].color = (0.18, 0.35, 0.75, 1.0)
         sky_colour = ramp.outputs["Color"]
         strength = 1.0
+    land = tuple(LAND_LIGHT * c / strength for c in sward.fringe_colour(params))
+    for i, (ridge, scale) in enumerate(zip((HILLS_FAR, HILLS_NEAR), HILLS_NOISE)):
+        sky_colour = _hills(tree, split, sky_colour, ridge, scale, land, params.field.seed * 2 + i)
     # Below the horizon: the land colour from 0.25 deg down (direction Z < 0), so the strip
     # between the field edge and the horizon reads as distant land, not as dark sky.
     below = nodes.new("ShaderNodeMapRange")
@@ -345,6 +361,70 @@ def setup_world(scene, params) -> bpy.types.World:
     links.new(mix.outputs["Result"], background.inputs["Color"])
     background.inputs["Strength"].default_value = strength
     return world
+
+
+def _hills(tree, split, behind, ridge, scale: float, land, seed: int):
+    """The colour ``behind`` (a socket) with a ridge of hills in front of it on the horizon: its
+    top at ``ridge[0] * (noise - ridge[1])`` radians over the bearing, its colour the sky's with
+    ``ridge[2]`` of ``land``'s (distant hills are hazed); the ridge moves with ``seed``."""
+    nodes, links = tree.nodes, tree.links
+    flat = nodes.new("ShaderNodeCombineXYZ")
+    links.new(split.outputs["X"], flat.inputs["X"])
+    links.new(split.outputs["Y"], flat.inputs["Y"])
+    bearing = nodes.new("ShaderNodeVectorMath")
+    bearing.operation = "NORMALIZE"
+    links.new(flat.outputs["Vector"], bearing.inputs[0])
+    noise = nodes.new("ShaderNodeTexNoise")
+    noise.noise_dimensions = "4D"
+    noise.inputs["W"].default_value = (seed % 997) * 0.731
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = 4.0
+    links.new(bearing.outputs["Vector"], noise.inputs["Vector"])
+    top = nodes.new("ShaderNodeMath")
+    top.operation = "MULTIPLY_ADD"
+    links.new(noise.outputs["Fac"], top.inputs[0])
+    top.inputs[1].default_value = ridge[0]
+    top.inputs[2].default_value = -ridge[0] * ridge[1]
+    edge = nodes.new("ShaderNodeMath")  # half a minute of arc of soft edge
+    edge.operation = "SUBTRACT"
+    links.new(top.outputs["Value"], edge.inputs[0])
+    edge.inputs[1].default_value = 0.00015
+    inside = nodes.new("ShaderNodeMapRange")
+    inside.clamp = True
+    links.new(split.outputs["Z"], inside.inputs["Value"])
+    links.new(top.outputs["Value"], inside.inputs["From Min"])
+    links.new(edge.outputs["Value"], inside.inputs["From Max"])
+    colour = nodes.new("ShaderNodeMix")
+    colour.data_type = "RGBA"
+    colour.inputs["Factor"].default_value = ridge[2]
+    links.new(behind, colour.inputs["A"])
+    colour.inputs["B"].default_value = (*land, 1.0)
+    mix = nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    links.new(inside.outputs["Result"], mix.inputs["Factor"])
+    links.new(behind, mix.inputs["A"])
+    links.new(colour.outputs["Result"], mix.inputs["B"])
+    return mix.outputs["Result"]
+
+
+def setup_land(scene, params) -> bpy.types.Object:
+    """The meadow past the field's edge: a plane to the camera's far clip around the field,
+    ``LAND_DROP_M`` below its lowest ground, in the colour of its grass seen from the side, hazed with
+    distance (``materials.land_material``), so a field smaller than the view does not end on bare
+    ground and a hill-less world."""
+    ex, ey = field_extent(params)
+    reach = max(1000.0, 4.0 * math.hypot(ex, ey))  # the camera's clip_end (setup_camera)
+    mesh = _tagged(bpy.data.meshes.new("Windgrass Land"))
+    mesh.from_pydata([(-reach, -reach, 0.0), (reach, -reach, 0.0), (reach, reach, 0.0), (-reach, reach, 0.0)],
+                     [], [(0, 1, 2, 3)])
+    r = params.render
+    haze = r.haze_distance if r.haze_distance > 0.0 else LAND_HAZE_M
+    colour = [LAND_LIGHT * c for c in sward.fringe_colour(params)]
+    mesh.materials.append(_tagged(materials.land_material("Windgrass Land", colour, haze, r.haze_color)))
+    obj = _tagged(bpy.data.objects.new("Windgrass Land", mesh))
+    obj.location = (0.0, 0.0, -LAND_DROP_M)  # a heightmap's black is the ground's 0
+    scene.collection.objects.link(obj)
+    return obj
 
 
 def setup_camera(scene, params) -> bpy.types.Object:
@@ -402,6 +482,7 @@ def setup_stage(scene, params) -> bpy.types.Object:
     setup_render(scene, params)
     setup_sun(scene, params)
     setup_world(scene, params)
+    setup_land(scene, params)
     setup_colliders(scene, params)
     return setup_camera(scene, params)
 

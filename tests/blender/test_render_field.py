@@ -593,6 +593,27 @@ def test_sun_and_sky_follow_the_render_parameters(stage, tiny_params, scene):
     assert scene.cycles.device == "CPU" and not scene.cycles.use_animated_seed
 
 
+def test_past_a_small_field_lies_meadow_to_hills_not_a_ruler_line(env, tiny_config, tmp_path):
+    """A 3.2 m field seen from 1.5 m up, looking 30 m out over its edge: below the horizon the
+    land beyond it is grass-coloured (green well above red and blue, where the old world's land
+    was olive-grey: G/R 1.16, G/B 1.33), and the skyline above it rises and falls over the
+    bearing by some pixels as hills do (a bare world's horizon is one row)."""
+    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", tmp_path, "--resolution", "480x270",
+                  "--samples", "4", "--camera-mode", "fixed", "--camera-position", "0", "-1.4", "1.5",
+                  "--camera-target", "0", "30", "0")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    image = np.array(pixels(tmp_path / "frame_0001.png"), np.float64).reshape(270, 480, 3)
+    degree = 270 / (2 * math.degrees(math.atan(math.tan(math.radians(27.5)) * 9 / 16)))  # rows per degree
+    horizon = int(round(135 - math.degrees(math.atan2(1.5, 31.4)) * degree))
+    land = image[horizon + int(3 * degree):horizon + int(8 * degree)].reshape(-1, 3).mean(axis=0)
+    assert land[1] > 1.3 * land[0] and land[1] > 1.5 * land[2], f"the land past the field is {land.round()}"
+    light = image.mean(axis=2)
+    drops = light[1:horizon + 4] < 0.96 * light[:horizon + 3]  # a row darker than the one above it
+    skyline = np.array([np.flatnonzero(column).min() if column.any() else horizon for column in drops.T])
+    assert skyline.max() - skyline.min() >= 4, f"the skyline spans rows {skyline.min()}-{skyline.max()}"
+    assert np.all(skyline <= horizon + 2), "the sky reaches below the horizon"
+
+
 def test_example_scenes_are_valid_and_the_default_is_small(addon):
     """Every scenes/*.toml loads; the default (README's first command) stays a short, light job."""
     from importlib import import_module

@@ -20,10 +20,10 @@ import bpy
 import numpy as np
 from mathutils import Euler, Vector
 
+from .. import sward
 from ..clock import Clock
 from ..errors import ParameterError
 from ..grid import FieldGrid
-from .. import sward
 from . import animation, materials
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here

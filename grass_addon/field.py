@@ -19,7 +19,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import atlas, clearance, forces, interaction, kinematics, slots
+from . import clearance, forces, interaction, kinematics, slots
 from .blocks import BlockCache
 from .celldata import CellData
 from .clock import Clock
@@ -424,15 +424,3 @@ class GrassField:
         """Card vertices of ``blocks`` at the current frame (paper III.B, eq 34), bare cells collapsed."""
         cells = self._current()
         return self._fill(CARDS, self._cells_frame, cells, blocks, None, out)
-
-    def blade_faces(self) -> np.ndarray:
-        return kinematics.blade_faces(self.layout)
-
-    def blade_uvs(self) -> np.ndarray:
-        return kinematics.blade_uvs(self.layout)
-
-    def card_faces(self) -> np.ndarray:
-        return kinematics.card_faces(self.layout)
-
-    def card_uvs(self) -> np.ndarray:
-        return atlas.card_uvs(self.layout)

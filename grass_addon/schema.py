@@ -289,8 +289,10 @@ PARAMS: tuple[Param, ...] = (
        minimum=-3600.0, maximum=3600.0, soft_min=-180.0, soft_max=360.0, label="Direction"),
     _p("wind", "turbulence", "float", 1.2, "How gusty the wind is: the spread of the turbulent wind around its mean "
        "(standard deviation of v', eq 12)", unit="m/s", minimum=0.0, maximum=30.0, soft_max=8.0, label="Gustiness"),
-    _p("wind", "turbulence_scale", "float", 0.8, "Size of a gust patch (edge a of a turbulence unit, eq 13; the "
-       "paper uses one cell)", unit="m", minimum=0.01, maximum=100.0, soft_max=10.0, advanced=True, label="Gust Size"),
+    _p("wind", "turbulence_scale", "float", 0.4, "Size of a gust patch (edge a of a turbulence unit, eq 13; the "
+       "paper uses one cell): 0.4 m gives eddies a few metres long, which pass the grass in a light breeze at "
+       "about its own sway frequency", unit="m", minimum=0.01, maximum=100.0, soft_max=10.0, advanced=True,
+       label="Gust Size"),
     _p("wind", "turbulence_period", "float", 1.5, "Seconds between independent gust patterns", unit="s", minimum=0.05,
        maximum=600.0, soft_max=10.0, advanced=True, label="Gust Period"),
     _p("wind", "gust_speed", "float", 9.0, "Blast: extra speed at the centre of a gust front", unit="m/s", minimum=0.0,

@@ -42,7 +42,7 @@ def write_frame(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> No
         materials.set_gust_offset(shown.gust[0], shown.gust[1], rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
-    rt.frame, rt.subframe, rt.lod = shown.frame, shown.subframe, shown.lod
+    rt.frame, rt.subframe = shown.frame, shown.subframe
     rt.camera_signature = field_camera.signature(views)
 
 

@@ -46,7 +46,6 @@ class FieldRuntime:
     dirty: bool = False  # the settings were edited since: resolve again
     frame: int | None = None  # the frame last written
     subframe: float = 0.0  # and its sub-frame (motion-blur steps)
-    lod: object = None  # its LOD weights
     camera_signature: tuple | None = None
     trail: object = False  # the trail map the far canopy shows (None: none; False: not yet set)
 

@@ -58,7 +58,7 @@ def test_no_blade_tip_is_inside_the_rolling_ball(ball):
 def test_the_trail_is_flattened_along_the_roll_then_rises_back_within_the_recovery(ball):
     """Frame 25 (the ball passed x = -1 m half a second ago, it is 1 m further on): the trail's
     blades around x = -1 m lie low and point along +x (the ball's travel); 3 s after the ball
-    passed (the recovery), every tip is within 10 % of its blade's length of the wind-only field's."""
+    left the trail (the recovery), every tip is within 10 % of its blade's length of the wind-only field's."""
     params, field, plain = ball
     layout = field.layout
     roots = layout.blade_root
@@ -68,8 +68,9 @@ def test_the_trail_is_flattened_along_the_roll_then_rises_back_within_the_recove
     assert np.median(height) < 0.5 * np.median(free_height), (np.median(height), np.median(free_height))
     lean = tips[trail, :2] - roots[trail, :2]
     assert np.median(lean[:, 0]) > 0.1 and np.median(lean[:, 0]) > 3 * np.median(np.abs(lean[:, 1]))
-    # the ball left x = -1 m at t = 0.5 s (frame 13): 3 s later, t = 3.5 s + a frame
-    later = 13 + int(math.ceil(params.interaction.recovery * 24)) + 1
+    # the ball's back (0.3 m behind its centre) left the trail's last blades (x = -0.7 m) at
+    # t = (-0.7 + 0.3 + 2) / 2 = 0.8 s: 3 s later, t = 3.8 s, and a frame
+    later = 1 + int(math.ceil((0.8 + params.interaction.recovery) * 24)) + 1
     tips, free = _tips(field, later), _tips(plain, later)
     length = layout.blade_length[trail]
     assert np.max(np.linalg.norm(tips[trail] - free[trail], axis=1) / length) < 0.1

@@ -101,6 +101,9 @@ class WINDGRASS_OT_field_bake(bpy.types.Operator):
         size = bake.cache_size(folder)
         self.report({"INFO"}, f"Baked '{item.name}' frames {self.frame_start}-{self.frame_end} into {folder.name}/ "
                               f"({bake.FORMATS[self.format][2]}, {size / frames / 1e6:.2f} MB per frame)")
+        if not item[bake.RECORD].get("seen", True):
+            self.report({"WARNING"}, f"The scene camera sees none of '{item.name}' in frames {self.frame_start}-"
+                                     f"{self.frame_end}: the bake holds no grass (aim the camera at the field)")
 
     @reported
     def execute(self, context):

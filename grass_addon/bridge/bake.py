@@ -33,7 +33,8 @@ import numpy as np
 
 from ..errors import WindgrassError
 from ..folders import ensure_writable
-from . import animation, owned
+from . import animation, owned, usd_finish
+from .registry import REGISTRY, key_of
 
 RECORD = "wg_bake"
 MODIFIER = "Windgrass bake"
@@ -258,6 +259,9 @@ class Baker:
             result = self._export(partial, group)
             if "FINISHED" not in result or not partial.is_file() or partial.stat().st_size == 0:
                 raise BakeError(f"bake: Blender did not write the cache {path} ({result})")
+            if self.fmt == "usd" and usd_finish.available():
+                usd_finish.finish(partial, {object_path("usd", o): tuple(o.active_material.diffuse_color)[:3]
+                                            for o in self.groups[index] if o.active_material is not None})
             os.replace(partial, path)
         except BaseException:
             self.cancel()
@@ -317,6 +321,7 @@ class Baker:
         """Play the field from the written files (after the last ``step``); returns the folder."""
         while not self.step():
             pass
+        seen = self._sees_grass()
         self._restore()
         caches = []
         for path, objects in zip(self.done, self.groups):
@@ -332,9 +337,19 @@ class Baker:
                 modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
         self.item[RECORD] = {"folder": bpy.path.relpath(str(self.folder)), "first": self.first, "last": self.last,
                              "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches,
-                             "tag": self.tag, "format": self.fmt}
+                             "tag": self.tag, "format": self.fmt, "seen": seen}
         self.scene.frame_set(self.frame)
         return self.folder
+
+    def _sees_grass(self) -> bool:
+        """Whether the camera saw any of the field's grass (blades or cards) at the range's first,
+        middle or last frame: a bake of none holds a still, empty field."""
+        for frame in sorted({self.first, (self.first + self.last) // 2, self.last}):
+            self.scene.frame_set(frame)
+            rt = REGISTRY.runtime(key_of(self.scene, self.item))
+            if rt is not None and (len(rt.blades.blocks) or len(rt.cards.blocks)):
+                return True
+        return False
 
 
 def bake_field(scene, item, first: int, last: int, digest: str, fmt: str = "alembic") -> Path:

@@ -3,6 +3,7 @@ Cache modifiers; the saved file renders the same grass in a Blender without Wind
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -124,6 +125,21 @@ def test_bake_reports_what_prevents_it(bridge, tmp_path, fmt):
         bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format=fmt)
     assert runtime.bake_status(scene, item) is None  # still live, nothing half-made
     assert not list(tmp_path.rglob("*.usdc")) and not list(tmp_path.rglob("*.abc"))
+
+
+def test_a_bake_whose_camera_sees_no_grass_says_so(bridge, tmp_path, capfd):
+    """The camera turned to the sky: the bake is written (nothing refused it) and the artist is
+    told it holds no grass, where a seen field's bake says nothing of the kind."""
+    scene, item = _scene(bridge)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "f.blend"))
+    capfd.readouterr()
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=2) == {"FINISHED"}
+    assert "sees none of" not in capfd.readouterr().out
+    assert bpy.ops.windgrass.field_bake_free() == {"FINISHED"}
+    scene.camera.animation_data_clear()
+    scene.camera.location, scene.camera.rotation_euler = (0.0, 0.0, 5.0), (math.pi, 0.0, 0.0)  # up, at the sky
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=2) == {"FINISHED"}
+    assert f"The scene camera sees none of '{item.name}' in frames 1-2" in capfd.readouterr().out
 
 
 def test_an_edit_makes_the_bake_stale_and_free_bake_goes_live(bridge, tmp_path):
@@ -338,10 +354,17 @@ def test_usd_bake_has_a_sample_at_every_frame_with_velocities_and_extents(bridge
         assert list(mesh.GetExtentAttr().GetTimeSamples()) == frames
         names = {p.GetPrimvarName() for p in UsdGeom.PrimvarsAPI(mesh).GetPrimvars()}
         assert "UVMap" in names and names & {"wg_tint_rg", "wg_fade"}  # what the materials read
-        assert "displayColor" in names  # the materials' colour, for any renderer
+        shown = np.array(UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor").ComputeFlattened(1), np.float64)
+        shown = shown[shown.sum(axis=1) > 0]  # (a slot's unused blades have no colour)
+        red, green, blue = np.median(shown, axis=0)  # the colour any renderer shows: grass green
+        assert green > 1.5 * red and green > 1.5 * blue, (mesh.GetPrim().GetName(), shown.shape, red, green, blue)
         material = UsdShade.MaterialBindingAPI(mesh.GetPrim()).ComputeBoundMaterial()[0]
         shaders = [UsdShade.Shader(p) for p in Usd.PrimRange(material.GetPrim()) if p.IsA(UsdShade.Shader)]
         assert any(s.GetIdAttr().Get() == "UsdPreviewSurface" for s in shaders)
+        for reader in (s for s in shaders if s.GetIdAttr().Get().startswith("UsdPrimvarReader_")):
+            primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar(reader.GetInput("varname").Get())
+            width = {"float2": 2, "float3": 3}[reader.GetIdAttr().Get().split("_")[-1]]
+            assert primvar and primvar.GetTypeName().scalarType.type.pythonClass.dimension == width, reader.GetPath()
         for frame in frames:
             points = np.array(mesh.GetPointsAttr().Get(frame), dtype=np.float64)
             velocities = np.array(mesh.GetVelocitiesAttr().Get(frame), dtype=np.float64)

@@ -30,8 +30,8 @@ def register() -> None:
             if hasattr(module, "register"):
                 module.register()
                 done.append(module)
-    except Exception:
-        for module in reversed(done):  # leave Blender as it was
+    except Exception:  # whatever failed, leave Blender as it was before raising it
+        for module in reversed(done):
             module.unregister()
         raise
     _registered = True

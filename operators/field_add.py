@@ -74,7 +74,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
             item.terrain = terrain
         try:
             collection = runtime.build_field(scene, item)
-        except Exception:
+        except Exception:  # whatever stopped the build, the half-added field goes before it is raised
             _undo_add(scene, item)
             raise
         if collection is not None and item.collection is None:

@@ -34,7 +34,7 @@ def check_saved() -> Path:
         raise ParameterError("file", "the file is not saved: save it first (a farm renders the .blend on disk)")
     try:
         bpy.context.view_layer.update()  # (pending edits reach the handlers, which tell the grass's own apart)
-    except RuntimeError:  # no depsgraph may be evaluated here (mid-render): the flags stand as they are
+    except (RuntimeError, AttributeError):  # no depsgraph here (mid-render, a restricted context)
         pass
     # REGISTRY.unchanged: no edit of the artist's since the file was loaded or saved (the grass's own
     # mesh writes make Blender call the file modified). Without a window Blender does not keep

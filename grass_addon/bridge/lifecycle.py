@@ -40,7 +40,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     if force and getattr(item, "terrain", None) is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()
-        except RuntimeError:  # no depsgraph may be evaluated here (mid-render): the last evaluated
+        except (RuntimeError, AttributeError):  # no depsgraph here (mid-render, a restricted context)
             pass
     heightfield, centre, _ = terrain_of(scene, item, params, force=force)
     field_scene.separate_copy(item)

@@ -67,13 +67,13 @@ def _owned(collection, uid: str, role: str | None = None) -> list:
 
 TOPOLOGY = "wg_topology"  # the collection's custom property: slots.topology_key it was built for
 
-REGISTRY = "wg_objects"  # the field item's custom property: {key: ID pointer} of what it made
+MADE_KEY = "wg_objects"  # the field item's custom property: {key: ID pointer} of what it made
 
 
 def registered(item) -> dict:
     """{key: datablock} recorded on the field's settings item (keys ``ground``, ``blades 003``,
     ``cards 000``, ``blade_material``, ...); datablocks deleted since are left out."""
-    group = item.get(REGISTRY)
+    group = item.get(MADE_KEY)
     if group is None or not hasattr(group, "items"):
         return _tagged(item)
     return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
@@ -81,7 +81,7 @@ def registered(item) -> dict:
 
 def was_built(item) -> bool:
     """Whether objects were ever made for the field (a field being added has none yet)."""
-    return item.get(REGISTRY) is not None or item.collection is not None
+    return item.get(MADE_KEY) is not None or item.collection is not None
 
 
 def _tagged(item) -> dict:
@@ -101,9 +101,9 @@ def _tagged(item) -> dict:
 
 
 def record(item, key: str, idblock) -> None:
-    if item.get(REGISTRY) is None or not hasattr(item[REGISTRY], "items"):
-        item[REGISTRY] = _tagged(item)
-    item[REGISTRY][key] = idblock
+    if item.get(MADE_KEY) is None or not hasattr(item[MADE_KEY], "items"):
+        item[MADE_KEY] = _tagged(item)
+    item[MADE_KEY][key] = idblock
 
 
 def slot_key(role: str, index: int) -> str:

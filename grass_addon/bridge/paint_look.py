@@ -11,7 +11,7 @@ from .. import terrain as terrain_core
 from ..grid import FieldGrid
 from . import materials
 from .meshes import edge_ring
-from .owned import REGISTRY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
+from .owned import MADE_KEY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
 
 # The ground of a painted field on flat ground is a grid of this many cells along its longer side,
 # so the canopy can follow a length map (a mown patch stands lower).
@@ -121,7 +121,7 @@ def paint_map(item, uid: str, base: str, grid, canopy) -> None:
     image = registered(item).get(ROLE_PAINT_MAP)
     if grid is None:
         if isinstance(image, bpy.types.Image):
-            del item[REGISTRY][ROLE_PAINT_MAP]
+            del item[MADE_KEY][ROLE_PAINT_MAP]
             if image.users == 0:
                 bpy.data.images.remove(image)
         materials.set_paint_map(canopy, None)

@@ -162,7 +162,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key, data in list(owned.registered(item).items()):
         if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground:
-            del item[owned.REGISTRY][key]
+            del item[owned.MADE_KEY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, sward.canopy_height(params),
@@ -329,8 +329,8 @@ def remove_datablocks(item) -> None:
     _remove_objects(owned.field_objects(item))
     for tag in tags - {None}:
         _purge_orphan_meshes(tag)  # (they use the materials)
-    if item.get(owned.REGISTRY) is not None:
-        del item[owned.REGISTRY]  # its pointers count as users of the materials and the image
+    if item.get(owned.MADE_KEY) is not None:
+        del item[owned.MADE_KEY]  # its pointers count as users of the materials and the image
     data = [d for d in reg.values() if isinstance(d, (bpy.types.Material, bpy.types.Image))]
     data.sort(key=lambda d: isinstance(d, bpy.types.Image))  # the materials use the image
     for block in data:  # shared with a copied scene's field: kept while that one uses it

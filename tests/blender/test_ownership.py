@@ -129,7 +129,7 @@ def test_a_field_without_a_record_is_found_by_its_tags(bridge):
     inside its own collection, and Remove leaves nothing behind."""
     owned, runtime = bridge
     scene, item = _add_field()
-    del item[owned.REGISTRY]
+    del item[owned.MADE_KEY]
     scene.frame_set(4)
     assert owned.ground_object(item) is not None
     assert owned.slot_objects(item, owned.ROLE_BLADES)

@@ -397,7 +397,7 @@ def files_present(item) -> bool:
 
 def referenced_files() -> set[Path]:
     """Every cache file a bake of this file refers to."""
-    return {f for s in bpy.data.scenes if hasattr(s, "windgrass") for item in s.windgrass.fields
+    return {f for s in bpy.data.scenes for item in owned.scene_fields(s)
             for f in record_files(item)}
 
 

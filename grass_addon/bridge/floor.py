@@ -36,7 +36,7 @@ def _eevee(space, scene) -> bool:
 def _shows_grass(scene, view_layer, space) -> bool:
     """Whether a field of ``scene`` is visible in ``view_layer`` and the 3D view ``space`` (its local
     view and collections): its ground, the field's parent, is."""
-    for item in scene.windgrass.fields if hasattr(scene, "windgrass") else ():
+    for item in owned.scene_fields(scene):
         ground = owned.ground_object(item) if item.collection is not None else None
         if ground is not None and ground.name in view_layer.objects and \
                 ground.visible_get(view_layer=view_layer, viewport=space):

@@ -87,7 +87,7 @@ def show_while_painting(scene) -> None:
     """A field whose terrain is in Weight, Vertex or Texture Paint (or Sculpt) mode is hidden in
     the viewport, so the artist sees what they paint, and shown again when they leave the mode
     (renders never hide it: this is the viewport's eye only)."""
-    for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+    for item in owned.scene_fields(scene):
         if item.collection is None:
             continue
         state = REGISTRY.state(key_of(scene, item))
@@ -158,7 +158,7 @@ def _note_motion(scene, depsgraph) -> None:
     actions = any(isinstance(u.id, bpy.types.Action) for u in depsgraph.updates)
     if not updated and not actions and not collections:
         return
-    for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+    for item in owned.scene_fields(scene):
         colls = [c for c in (getattr(item, "collider_collection", None), getattr(item, "effector_collection", None))
                  if c is not None]
         if colls and (actions or any(c.name in collections for c in colls)
@@ -209,7 +209,7 @@ def _at_exit() -> None:
 
 def _fields():
     for scene in bpy.data.scenes:
-        for item in getattr(scene, "windgrass", None).fields if hasattr(scene, "windgrass") else ():
+        for item in owned.scene_fields(scene):
             yield scene, item
 
 

@@ -144,7 +144,7 @@ def write_read_me() -> None:
     """A text block that says, in a Blender without Windgrass, what the grass needs."""
     live, baked = [], []
     for s in bpy.data.scenes:
-        for item in getattr(s, "windgrass", None).fields if hasattr(s, "windgrass") else ():
+        for item in owned.scene_fields(s):
             (baked if bake.is_baked(item) else live).append(f"{s.name} / {item.name}")
     text = bpy.data.texts.get(READ_ME) or bpy.data.texts.new(READ_ME)
     lines = ["This file has grass fields of the Windgrass extension for Blender.", ""]

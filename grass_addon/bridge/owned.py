@@ -135,13 +135,20 @@ def ground_object(item):
     return None
 
 
+def scene_fields(scene) -> tuple:
+    """The field items of ``scene``; none where the add-on's scene property is gone (a handler
+    that runs while the add-on unregisters, or a scene Blender made before it registered)."""
+    root = getattr(scene, "windgrass", None)
+    return tuple(root.fields) if root is not None else ()
+
+
 def orphans(scene) -> list:
     """Objects of ``scene`` tagged as a grass field's that no field records: Shift+D copies of a
     field's ground or slots, or a field's collection appended from another file without its scene
     (they are meshes that never move; they are not fields)."""
     recorded = set()
     for s in bpy.data.scenes:
-        for item in getattr(getattr(s, "windgrass", None), "fields", ()):
+        for item in scene_fields(s):
             recorded |= {o.as_pointer() for o in registered(item).values() if isinstance(o, bpy.types.Object)}
     return [obj for obj in scene.objects if obj.get("wg_role") in (ROLE_GROUND, ROLE_BLADES, ROLE_CARDS)
             and obj.as_pointer() not in recorded]

@@ -140,8 +140,7 @@ def resolve(scene, item) -> FieldRuntime:
     key = key_of(scene, item)
     previous = REGISTRY.runtime(key)
     if previous is None:
-        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes if hasattr(s, "windgrass")
-                                 for f in s.windgrass.fields})
+        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, _, t_key = terrain_of(scene, item, params)
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)

@@ -146,7 +146,7 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
 
     params = params.replace({"lod.enabled": lod})
     scene = bpy.context.scene
-    stage.setup_stage(scene, params)
+    stage.setup_stage(scene, params, surroundings=False)  # the grass against the grass, as measured before
     if light == "overcast":
         for obj in scene.objects:
             if obj.type == "LIGHT":

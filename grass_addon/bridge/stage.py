@@ -312,7 +312,7 @@ def _sky_node(nodes, params):
     return sky
 
 
-def setup_world(scene, params) -> bpy.types.World:
+def setup_world(scene, params, hills: bool = True) -> bpy.types.World:
     """Sky world for both engines: a physical sky above the horizon blended into a hazy land
     colour below it (the field ends; the world beyond it reads as distant land)."""
     world = _tagged(bpy.data.worlds.new("Windgrass Sky"))
@@ -342,7 +342,7 @@ def setup_world(scene, params) -> bpy.types.World:
         sky_colour = ramp.outputs["Color"]
         strength = 1.0
     land = tuple(LAND_LIGHT * c / strength for c in sward.fringe_colour(params))
-    for i, (ridge, scale) in enumerate(zip((HILLS_FAR, HILLS_NEAR), HILLS_NOISE)):
+    for i, (ridge, scale) in enumerate(zip((HILLS_FAR, HILLS_NEAR), HILLS_NOISE) if hills else ()):
         sky_colour = _hills(tree, split, sky_colour, ridge, scale, land, params.field.seed * 2 + i)
     # Below the horizon: the land colour from 0.25 deg down (direction Z < 0), so the strip
     # between the field edge and the horizon reads as distant land, not as dark sky.
@@ -476,13 +476,15 @@ def pose_camera(scene, params, frame: int) -> None:
     view_layer.update()
 
 
-def setup_stage(scene, params) -> bpy.types.Object:
+def setup_stage(scene, params, surroundings: bool = True) -> bpy.types.Object:
     """Render settings, sun, sky world, the scene file's colliders and camera for ``params``;
-    returns the camera object."""
+    returns the camera object. ``surroundings``: the hills and the land past the field (off for
+    comparisons of the grass alone: ``lod_compare.py``)."""
     setup_render(scene, params)
     setup_sun(scene, params)
-    setup_world(scene, params)
-    setup_land(scene, params)
+    setup_world(scene, params, hills=surroundings)
+    if surroundings:
+        setup_land(scene, params)
     setup_colliders(scene, params)
     return setup_camera(scene, params)
 

@@ -233,6 +233,16 @@ class _Tree:
         self.link(glow, "Emission", mix, mix.inputs[2])
         return mix
 
+    def matte(self, colour_node, colour_out: str) -> None:
+        """The material's output: a matte, non-specular surface of the colour, hazed (``hazed``)."""
+        bsdf = self.add("ShaderNodeBsdfPrincipled", -400, 0)
+        _set(bsdf, 1.0, "Roughness")
+        _set(bsdf, 0.0, "Specular IOR Level", "Specular")
+        self.link(colour_node, colour_out, bsdf, "Base Color")
+        shader = self.hazed(bsdf, "BSDF", -100, 0)
+        out = self.add("ShaderNodeOutputMaterial", 150, 0)
+        self.link(shader, "Shader", out, "Surface")
+
     def field_image(self, image, mapping_name: str, image_name: str, extension: str, x: float, y: float):
         """The Image Texture node of ``image`` read at the place (object coordinates: the field's
         frame) through the Mapping node ``mapping_name`` (its scale and offset set elsewhere)."""
@@ -401,19 +411,13 @@ def ground_material(name: str, uid: str):
     t.link(coord, "Object", noise, "Vector")
     floor = t.mix_rgb(-650, 0, a=THATCH_COLOUR, b=LITTER_COLOUR)
     t.link(noise, "Fac", floor, "Factor_Float")
-    bsdf = t.add("ShaderNodeBsdfPrincipled", -400, 0)
-    _set(bsdf, 1.0, "Roughness")
-    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
-    t.link(floor, "Result_Color", bsdf, "Base Color")
-    shader = t.hazed(bsdf, "BSDF", -100, 0)
-    out = t.add("ShaderNodeOutputMaterial", 150, 0)
-    t.link(shader, "Shader", out, "Surface")
+    t.matte(floor, "Result_Color")
     return mat
 
 
 def land_material(name: str, colour, haze_distance: float, haze_colour):
     """The meadow past a field's edge, to the horizon (headless scenes): ``colour`` (linear RGB,
-    the grass seen from the side) in patches of 10-60 m that are lusher or drier, matte, seen
+    the grass seen from the side) in patches of 5-30 m that are lusher or drier, matte, seen
     through ``haze_distance`` m of haze (``hazed``)."""
     mat = _new_material(name, "land")
     t = _Tree(mat)
@@ -438,15 +442,8 @@ def land_material(name: str, colour, haze_distance: float, haze_colour):
     lit = t.mix_rgb(-650, 0, blend="MULTIPLY")
     t.link(tint, "Result_Color", lit, "A_Color")
     t.link(shade, "Value", lit, "B_Color")
-    bsdf = t.add("ShaderNodeBsdfPrincipled", -400, 0)
-    _set(bsdf, 1.0, "Roughness")
-    _set(bsdf, 0.0, "Specular IOR Level", "Specular")
-    t.link(lit, "Result_Color", bsdf, "Base Color")
-    shader = t.hazed(bsdf, "BSDF", -100, 0)
-    out = t.add("ShaderNodeOutputMaterial", 150, 0)
-    t.link(shader, "Shader", out, "Surface")
-    mat.node_tree.nodes[NODE_HAZE_DISTANCE].outputs[0].default_value = -1.0 / haze_distance
-    mat.node_tree.nodes[NODE_HAZE_COLOUR].outputs[0].default_value = (*haze_colour, 1.0)
+    t.matte(lit, "Result_Color")
+    _write_haze(mat, haze_distance, haze_colour)
     return mat
 
 
@@ -709,17 +706,19 @@ def set_card_depth(cards, transparent_bounces: int) -> None:
 
 def update_haze(params, *mats) -> None:
     """Write render.haze_distance / haze_color into every material's aerial perspective."""
-    distance = float(params.render.haze_distance)
-    inverse = -1.0 / distance if distance > 0.0 else 0.0
     for mat in mats:
-        if mat is None or mat.node_tree is None:
-            continue
-        node = mat.node_tree.nodes.get(NODE_HAZE_DISTANCE)
-        if node is not None:
-            node.outputs[0].default_value = inverse
-        node = mat.node_tree.nodes.get(NODE_HAZE_COLOUR)
-        if node is not None:
-            node.outputs[0].default_value = (*params.render.haze_color, 1.0)
+        if mat is not None and mat.node_tree is not None:
+            _write_haze(mat, float(params.render.haze_distance), params.render.haze_color)
+
+
+def _write_haze(mat, distance: float, colour) -> None:
+    """The aerial perspective of ``mat`` (``_Tree.hazed``): ``distance`` m to 63 % haze (0: none)."""
+    node = mat.node_tree.nodes.get(NODE_HAZE_DISTANCE)
+    if node is not None:
+        node.outputs[0].default_value = -1.0 / distance if distance > 0.0 else 0.0
+    node = mat.node_tree.nodes.get(NODE_HAZE_COLOUR)
+    if node is not None:
+        node.outputs[0].default_value = (*colour, 1.0)
 
 
 def set_paint_map(canopy, image, field_extent=None, map_extent=None) -> None:

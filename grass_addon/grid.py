@@ -8,6 +8,7 @@ describe. Block ``b = by * blocks_x + bx``; cell ``(cx, cy)`` of the field lies 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +25,17 @@ class FieldGrid:
     cell_size: float
     blades_per_cell: int = 0
     segments: int = 5
+
+    @staticmethod
+    def blocks_covering(extent: tuple[float, float], block_edge: float, most: int) -> tuple[int, int]:
+        """(blocks_x, blocks_y) whose blocks of edge ``block_edge`` cover ``extent`` (x, y metres) as
+        nearly as whole blocks can: at least one each way, at most ``most`` in all (both counts
+        shrunk alike, the shape kept)."""
+        bx, by = (max(1, round(e / block_edge)) for e in extent)
+        if bx * by > most:
+            shrink = math.sqrt(most / (bx * by))
+            bx, by = max(1, int(bx * shrink)), max(1, int(by * shrink))
+        return bx, by
 
     @classmethod
     def of(cls, params) -> FieldGrid:

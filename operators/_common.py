@@ -4,8 +4,8 @@ import functools
 from collections.abc import Callable
 from typing import Any
 
-from ..grass_addon.bridge import properties, runtime
-from ..grass_addon.errors import WindgrassError
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import WindgrassError, properties
 
 
 def reported(execute: Callable) -> Callable:

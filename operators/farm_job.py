@@ -5,7 +5,7 @@ from pathlib import Path
 
 import bpy
 
-from ..grass_addon.bridge import farm_job
+from ..grass_addon.bridge.runtime import farm_job
 from ._common import reported
 
 

@@ -1,15 +1,10 @@
 """windgrass.field_add: add a grass field (Add menu: "Grass Field", and "Grass Field on Selected
 Mesh", which roots it on the selected mesh; the panel's + button adds one on flat ground)."""
 
-import math
-
 import bpy
-from mathutils import Vector
 
-from ..grass_addon import presets, schema
-from ..grass_addon.bridge import properties, runtime
-from ..grass_addon.errors import WindgrassError
-from ..grass_addon.grid import FieldGrid
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import FieldGrid, WindgrassError, maps, presets, properties, schema
 from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
@@ -119,14 +114,8 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         given = ("blocks_x", "blocks_y", "size_x", "size_y")
         if any(self.properties.is_property_set(key) for key in given):
             return {}
-        corners = [terrain.matrix_world @ Vector(c) for c in terrain.bound_box]
-        extent = (max(c.x for c in corners) - min(c.x for c in corners),
-                  max(c.y for c in corners) - min(c.y for c in corners))
         edge = values["cells_per_block"] * values["cell_size"]
-        bx, by = (max(1, round(e / edge)) for e in extent)
-        if bx * by > FIT_MAX_BLOCKS:
-            shrink = math.sqrt(FIT_MAX_BLOCKS / (bx * by))
-            bx, by = max(1, int(bx * shrink)), max(1, int(by * shrink))
+        bx, by = FieldGrid.blocks_covering(maps.extent_xy(terrain), edge, FIT_MAX_BLOCKS)
         return {"blocks_x": bx, "blocks_y": by}
 
 

@@ -3,8 +3,8 @@ plays and renders in any Blender; USD also in other renderers and pipelines)."""
 
 import bpy
 
-from ..grass_addon.bridge import bake, properties, runtime
-from ..grass_addon.errors import WindgrassError
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import WindgrassError, bake, properties
 from ._common import has_active_field, reported
 
 # Steps of a bake in the panel: each exports a part of the field's objects (progress and Esc

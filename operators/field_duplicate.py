@@ -3,7 +3,8 @@ cannot give: a copied object is no field)."""
 
 import bpy
 
-from ..grass_addon.bridge import owned, properties, runtime
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import owned, properties
 from ._common import has_active_field, refresh, reported
 
 

@@ -2,7 +2,8 @@
 
 import bpy
 
-from ..grass_addon.bridge import properties, runtime
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import properties
 from ._common import has_active_field, reported
 
 

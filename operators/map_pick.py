@@ -3,7 +3,7 @@ terrain, an image of the file), from a searchable list of what there is."""
 
 import bpy
 
-from ..grass_addon.bridge import maps, properties
+from ..grass_addon.bridge.runtime import maps, properties
 from ._common import has_active_field, reported
 
 NONE = "NONE"

@@ -2,8 +2,7 @@
 
 import bpy
 
-from ..grass_addon import schema
-from ..grass_addon.bridge import properties
+from ..grass_addon.bridge.runtime import properties, schema
 from ._common import has_active_field, reported
 
 # Rows of a table with a "time" column must have strictly increasing times (schema relation);

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..grass_addon.bridge import properties
+from ..grass_addon.bridge.runtime import properties
 from ._common import has_active_field, reported
 
 

@@ -2,8 +2,7 @@
 
 import bpy
 
-from ..grass_addon import presets
-from ..grass_addon.bridge import properties
+from ..grass_addon.bridge.runtime import presets, properties
 from ._common import has_active_field, reported
 
 

@@ -9,8 +9,8 @@ import time
 
 import bpy
 
-from ..grass_addon.bridge import properties, runtime, tracks
-from ..grass_addon.errors import WindgrassError
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import WindgrassError, properties, tracks
 from ._common import has_active_field, refresh, reported
 
 STEP_S = 0.1  # seconds of sampling per timer tick: the window stays responsive to Esc

@@ -3,8 +3,7 @@ mean speed, turbulence)."""
 
 import bpy
 
-from ..grass_addon import schema
-from ..grass_addon.bridge import animation, properties
+from ..grass_addon.bridge.runtime import animation, properties, schema
 from ._common import has_active_field, reported
 
 

@@ -4,8 +4,8 @@ import textwrap
 
 import bpy
 
-from ..grass_addon.bridge import owned, properties, runtime
-from ..grass_addon.grid import FieldGrid
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import FieldGrid, owned, properties
 
 CATEGORY = "Grass"
 CHAR_PX = 7.0  # width of an average character of the interface font at scale 1 (pixels)

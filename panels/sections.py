@@ -3,10 +3,8 @@ parameter shows up without touching this file."""
 
 import bpy
 
-from ..grass_addon import schema
-from ..grass_addon.bridge import maps, properties, runtime, tracks
-from ..grass_addon.errors import WindgrassError
-from ..grass_addon.simulation import seek_note
+from ..grass_addon.bridge import runtime
+from ..grass_addon.bridge.runtime import WindgrassError, maps, properties, schema, seek_note, tracks
 from .main import CATEGORY, WINDGRASS_PT_main, wrapped
 
 LABELS = {

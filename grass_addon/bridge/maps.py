@@ -22,6 +22,7 @@ import os
 
 import bpy
 import numpy as np
+from mathutils import Vector
 
 from .. import images
 from .. import paint as paint_core
@@ -313,6 +314,13 @@ def depends_on(scene, item, params) -> set:
         names |= {("OBJECT", o.name) for o in coll.all_objects}
         names.add(("COLLECTION", coll.name))
     return names
+
+
+def extent_xy(obj) -> tuple[float, float]:
+    """The x and y extent (metres) of ``obj``'s world bounding box."""
+    corners = np.array([tuple(obj.matrix_world @ Vector(c)) for c in obj.bound_box])
+    size = corners.max(axis=0) - corners.min(axis=0)
+    return float(size[0]), float(size[1])
 
 
 def terrain_object(scene, item):

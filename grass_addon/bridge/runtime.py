@@ -10,12 +10,22 @@ Operators, panels, scripts and tests call these; each lives in the one module of
 * ``edits.py``: property edits, strokes and collider edits applied once they settle;
 * ``handlers.py``: Blender's handlers and timers, ``register`` and ``unregister``;
 * ``registry.py``: the one module-level state, a record per field.
+
+It is also the UI's one door: ``operators/`` and ``panels/`` import from here alone (the structure
+test holds them to it), so what they may touch is the list under "The UI's vocabulary" below: the
+settings (``properties``), the stored motion, maps, bakes and farm bundles the panels show and the
+operators start, and the engine's schema, presets and errors that the settings are made from.
 """
 
 from __future__ import annotations
 
+# The UI's vocabulary: what operators and panels use, besides the functions below.
+from .. import presets, schema
 from ..clock import Clock
-from . import tracks  # noqa: F401  (scripts and tests reach the stored motion through here)
+from ..errors import WindgrassError
+from ..grid import FieldGrid
+from ..simulation import seek_note
+from . import animation, bake, farm_job, maps, owned, properties, tracks
 from .bake import plays_cache
 from .edits import (
     EDIT_SETTLE_S,
@@ -50,7 +60,9 @@ def scene_clock(scene) -> Clock:
     return Clock.of_scene(scene)
 
 
-__all__ = ["apply_settings", "bake_field", "bake_status", "build_field", "EDIT_SETTLE_S", "field_error",
+__all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
+           "seek_note", "tracks", "WindgrassError",
+           "apply_settings", "bake_field", "bake_status", "build_field", "EDIT_SETTLE_S", "field_error",
            "FieldRuntime", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty",
            "PAINT_MODE_POLL_S", "params_digest", "plays_cache", "refresh_later", "register", "REGISTRY",
            "remove_field", "reset_field", "resolve", "scene_clock", "start_bake", "STROKE_GOAL_S", "stroke_seconds",

@@ -108,3 +108,35 @@ def test_the_engine_never_imports_blender():
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
                 [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
             assert not any(n.split(".")[0] in ("bpy", "mathutils", "bmesh") for n in names), path
+
+
+def _door_breaches(path: Path) -> list[str]:
+    """The imports of a UI module (operators/, panels/) that reach the add-on's engine or bridge
+    other than through ``grass_addon.bridge.runtime``."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.ImportFrom) or node.level < 2:  # (level 1: its own folder)
+            continue
+        module, names = node.module or "", sorted(a.name for a in node.names)
+        if module == "grass_addon.bridge.runtime" or (module == "grass_addon.bridge" and names == ["runtime"]):
+            continue
+        out.append(f"{path.name}:{node.lineno} from {'.' * node.level}{module} import {', '.join(names)}")
+    return out
+
+
+def test_the_ui_reaches_the_add_on_only_through_the_runtime():
+    """runtime.py is the operators' and panels' one door: every name they use from the bridge and
+    the engine is on its list."""
+    ui = [p for folder in ("operators", "panels") for p in (REPO / folder).glob("*.py")]
+    assert len(ui) > 15
+    assert [b for p in ui for b in _door_breaches(p)] == []
+
+
+def test_a_breach_of_the_door_is_seen(tmp_path):
+    """An import of a bridge module beside the runtime, or of the engine, is named."""
+    ui = tmp_path / "probe.py"
+    ui.write_text("from ..grass_addon.bridge import properties, runtime\nfrom ..grass_addon import schema\n"
+                  "from ._common import reported\nfrom ..grass_addon.bridge.runtime import schema as s\n")
+    breaches = _door_breaches(ui)
+    assert [b.split(" ", 1)[1] for b in breaches] == ["from ..grass_addon.bridge import properties, runtime",
+                                                      "from ..grass_addon import schema"]

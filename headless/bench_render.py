@@ -38,7 +38,7 @@ def run(sizes, frames: int) -> dict:
     import bpy
 
     schema = render_field.addon_module("grass_addon.schema")
-    stage = render_field.addon_module("grass_addon.bridge.stage")
+    import stage
     out: dict = {}
     for w, h in sizes:
         params = schema.load_toml(render_field.DEFAULT_CONFIG).replace(

@@ -142,7 +142,8 @@ def render(params, lod: bool, light: str, frames, out: Path, tag: str):
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     common.load(addon=True)
-    from windgrass.grass_addon.bridge import properties, runtime, stage
+    import stage
+    from windgrass.grass_addon.bridge import properties, runtime
 
     params = params.replace({"lod.enabled": lod})
     scene = bpy.context.scene

@@ -63,7 +63,7 @@ _PACKAGE = common.load(addon=True, register=False)
 
 
 def addon_module(name: str):
-    """A module of the loaded add-on package: ``addon_module("grass_addon.bridge.stage")``."""
+    """A module of the loaded add-on package: ``addon_module("grass_addon.bridge.materials")``."""
     return importlib.import_module(f"{_PACKAGE.__name__}.{name}")
 
 
@@ -290,7 +290,7 @@ def fresh_scene():
 def build_scene(params):
     """Stage (render settings, sun, sky, camera) and the grass field of ``params``."""
     properties = addon_module("grass_addon.bridge.properties")
-    stage = addon_module("grass_addon.bridge.stage")
+    import stage
     runtime = addon_module("grass_addon.bridge.runtime")
     scene = fresh_scene()
     stage.setup_stage(scene, params)
@@ -426,8 +426,7 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopA
     checked to be a whole PNG, then renamed into place; with ``stop`` requested the loop ends after
     the frame in progress; with ``resume`` a frame already whole on disk is kept (and listed)."""
     import bpy
-
-    stage = addon_module("grass_addon.bridge.stage")
+    import stage
     total = len(frames)
     r = scene.render
     size = (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)

@@ -20,8 +20,9 @@ W, H = 80, 45
 
 @pytest.fixture
 def bridge(with_bridge):
+    import stage
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import properties, runtime, stage
+    from windgrass.grass_addon.bridge import properties, runtime
 
     return schema, properties, runtime, stage
 

@@ -138,8 +138,9 @@ def test_the_far_canopy_is_yellower_where_more_buttercups_grow(runtime, tmp_path
     rooted there carry a yellow flower, the redder (yellower) the canopy's green (rank correlation
     at least 0.6), and the quarter of the squares with most flowers is yellower than the quarter
     with fewest. The flowers' share is counted on the field's own blades (its layout)."""
+    import stage
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import properties, stage
+    from windgrass.grass_addon.bridge import properties
     from windgrass.grass_addon.layout import build_layout
 
     rows = [{"name": "grass", "weight": 0.7, "length": 0.35, "length_variation": 0.05, "width": 0.006,

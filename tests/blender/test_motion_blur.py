@@ -18,8 +18,9 @@ W, H = 128, 72
 
 @pytest.fixture
 def bridge(with_bridge):
+    import stage
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import owned, properties, runtime, stage
+    from windgrass.grass_addon.bridge import owned, properties, runtime
 
     return schema, properties, runtime, stage, owned
 

@@ -519,9 +519,9 @@ def test_help_documents_every_option(env):
 
 @pytest.fixture
 def stage(addon):
-    from importlib import import_module
+    import stage
 
-    return import_module(f"{addon.__name__}.grass_addon.bridge.stage")
+    return stage
 
 
 @pytest.fixture
@@ -734,7 +734,8 @@ MEMORY_PROBE = textwrap.dedent("""
     import bpy, addon_loader
     addon_loader.load_addon()
     from windgrass.grass_addon import memory, schema
-    from windgrass.grass_addon.bridge import properties, runtime, stage
+    import stage
+    from windgrass.grass_addon.bridge import properties, runtime
     params = schema.load_toml(sys.argv[-1]).replace({"lod.card_far": 40.0, "render.resolution_x": 160,
         "render.resolution_y": 90, "render.samples": 1})
     scene = bpy.context.scene

@@ -473,8 +473,9 @@ def _meadow_from_inside(bridge, tmp_path, name, setup):
     out to the card band) in 8 bands left to right, RGB 0..1."""
     from pathlib import Path
 
+    import stage
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import properties, stage
+    from windgrass.grass_addon.bridge import properties
 
     _, runtime = bridge
     repo = Path(__file__).resolve().parents[2]
@@ -658,8 +659,9 @@ def test_deleting_a_slot_by_hand_does_not_break_frame_changes(bridge, capsys):
 def _far_field_frames(bridge, tmp_path, gust_waves: float, frames=(1, 13)):
     """A 51 m field seen from 6 m up, the cards ending 3 m out so the far canopy fills the image's
     lower half; rendered at 96x54 (Cycles, 4 samples) at ``frames``: their rows 55-95 % down."""
+    import stage
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import properties, stage
+    from windgrass.grass_addon.bridge import properties
 
     _, runtime = bridge
     params = schema.defaults().replace({

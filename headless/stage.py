@@ -1,5 +1,8 @@
 """Stage for batch renders (paper VI): render settings, sun, sky world and the camera.
 
+It serves the batch scripts (``render_field.py``, ``lod_compare.py``, the benchmarks) and the
+tests, not the extension: an artist's scene has its own camera, sun and world.
+
 ``setup_stage(scene, params)`` turns the ``[render]`` and ``[camera]`` sections of the schema
 into a complete Blender stage around a grass field and returns the camera object.
 
@@ -16,15 +19,17 @@ from __future__ import annotations
 
 import math
 
+import addon_loader
 import bpy
 import numpy as np
 from mathutils import Euler, Vector
 
-from .. import sward
-from ..clock import Clock
-from ..errors import ParameterError
-from ..grid import FieldGrid
-from . import animation, materials
+addon_loader.load_package()  # the add-on as ``windgrass`` (once), so its modules are imported by that name
+from windgrass.grass_addon import sward  # noqa: E402
+from windgrass.grass_addon.bridge import animation, materials  # noqa: E402
+from windgrass.grass_addon.clock import Clock  # noqa: E402
+from windgrass.grass_addon.errors import ParameterError  # noqa: E402
+from windgrass.grass_addon.grid import FieldGrid  # noqa: E402
 
 STAGE_TAG = "wg_stage"  # custom property on the objects and data made here
 

@@ -16,6 +16,7 @@ only writes. ``blade_vertices`` and ``card_vertices`` give any blocks' vertices 
 from __future__ import annotations
 
 from collections import OrderedDict
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,6 +39,19 @@ WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the 
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 
+@dataclass(eq=False)
+class _RoleBuffers:
+    """One role's frame arrays, kept between frames: float32 (positions x verts_per_block, 3), zero
+    beyond the rows filled; ``velocity`` and ``ahead`` (the later pose) made when motion blur first
+    asks."""
+
+    vertices: np.ndarray
+    velocity: np.ndarray | None = None
+    ahead: np.ndarray | None = None
+    rows: int = 0  # rows of ``vertices`` filled last frame
+    velocity_rows: int = 0  # and of ``velocity``
+
+
 class GrassField:
     """``GrassField(params, wind_keys=None, terrain=None, paint=None, colliders=None,
     effectors=None)``; wind_keys: None (params.wind) or (time_s, speed, deg) rows; terrain: a
@@ -51,7 +65,7 @@ class GrassField:
         self.clock = Clock.of(params)
         self.grid = FieldGrid.of(params)
         self.shapes = dict(zip((BLADES, CARDS), slots.pool_shapes(self.grid, params)))
-        self._buffers: dict[str, list] = {}  # role -> [vertices, velocity, ahead] (frame's arrays)
+        self._buffers: dict[str, _RoleBuffers] = {}  # role -> its frame arrays
         self._cells_frame: int | None = None  # the frame ``cells`` holds
         self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
         self._check_budget()
@@ -315,7 +329,7 @@ class GrassField:
         local = np.full(shown.shape, slots.FREE, dtype=np.int64)
         local[:count] = np.searchsorted(layout.block_ids, shown[:count])
         buffers = self._role_buffers(role, motion)
-        vertices, velocity, ahead = buffers[:3]
+        vertices, velocity, ahead = buffers.vertices, buffers.velocity, buffers.ahead
         rows = count * shape.verts_per_block
         blocks = local[:count]
 
@@ -326,23 +340,22 @@ class GrassField:
             fill(frame, self.cells, vertices[:rows])
         elif count:
             self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
-        vertices[rows:buffers[3]] = 0.0  # FREE positions are zero (those beyond were zero already)
+        vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
+        buffers.rows = rows
         if motion:
-            velocity[rows:buffers[4]] = 0.0
-        buffers[3], buffers[4] = rows, (rows if motion else buffers[4])
+            velocity[rows:buffers.velocity_rows] = 0.0
+            buffers.velocity_rows = rows
         return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity if motion else None)
 
-    def _role_buffers(self, role: str, motion: bool) -> list:
-        """[vertices, velocity, ahead, rows filled in vertices, rows filled in velocity] of ``role``:
-        float32 (positions x verts_per_block, 3), zero beyond the rows filled; the velocity and the
-        later pose made when motion blur first asks."""
+    def _role_buffers(self, role: str, motion: bool) -> _RoleBuffers:
+        """``role``'s frame arrays (made at first use; the velocity's when ``motion`` first asks)."""
         buffers = self._buffers.get(role)
         if buffers is None:
             shape = self.shapes[role]
-            buffers = self._buffers[role] = [np.zeros((shape.positions * shape.verts_per_block, 3), np.float32),
-                                             None, None, 0, 0]
-        if motion and buffers[1] is None:
-            buffers[1], buffers[2] = np.zeros_like(buffers[0]), np.empty_like(buffers[0])
+            buffers = self._buffers[role] = _RoleBuffers(np.zeros((shape.positions * shape.verts_per_block, 3),
+                                                                  np.float32))
+        if motion and buffers.velocity is None:
+            buffers.velocity, buffers.ahead = np.zeros_like(buffers.vertices), np.empty_like(buffers.vertices)
         return buffers
 
     def _trail(self, frame: int, cameras):

@@ -29,7 +29,7 @@ from windgrass.grass_addon import farm, schema  # noqa: E402
 from windgrass.grass_addon.errors import ParameterError  # noqa: E402
 from windgrass.grass_addon.folders import ensure_writable  # noqa: E402
 
-SCRIPTS = ("render_field.py", "addon_loader.py", "common.py")
+SCRIPTS = ("render_field.py", "stage.py", "addon_loader.py", "common.py")
 OWNED = ".written-by-windgrass-farm"  # in the bundle's windgrass/: farm.py may replace that folder
 
 

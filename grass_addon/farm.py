@@ -160,16 +160,42 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
             "parameterDefinitions": params, "steps": [_chunked_step("Render", args, [install])]}
 
 
-def write_bundle(folder: Path, template: dict, values: dict) -> Path:
+def write_bundle(folder: Path, template: dict, values: dict, elsewhere: list[str] = (),
+                 carried: list[Path] = ()) -> Path:
     """``template.yaml`` and ``parameter_values.yaml`` (Deadline Cloud's job bundle layout; JSON is
     YAML) in ``folder``, and the same values as ``openjd run`` reads them (``job_params.yaml``);
-    ``values``: {parameter: value}, paths as absolute strings."""
+    ``values``: {parameter: value}, paths as absolute strings.
+
+    Deadline Cloud's client submits with ``--yes`` only paths it knows: those inside the bundle.
+    So its parameter values leave the paths out: the template's defaults name every input by its
+    path inside the bundle (the writer put them there; the client joins a default with the bundle's
+    folder) and the output as the bundle's ``output/`` (``deadline job download-output`` brings the
+    frames there); ``openjd run`` reads the absolute paths, the output folder given included.
+    ``asset_references.yaml`` names the rest of the inputs: ``carried``, folders inside the bundle
+    that no parameter names (a .blend's images beside its copy), and ``elsewhere``, input files
+    outside the bundle (Deadline Cloud attaches them after asking, or without where a storage
+    profile knows their folder)."""
     folder.mkdir(parents=True, exist_ok=True)
+    for param in template["parameterDefinitions"]:
+        if param["type"] == "PATH" and param.get("dataFlow") == "IN":
+            param["default"] = _inside(folder, values[param["name"]], param["name"])
+    paths = {p["name"] for p in template["parameterDefinitions"] if p["type"] == "PATH"}
     (folder / "template.yaml").write_text(json.dumps(template, indent=2) + "\n")
-    rows = [{"name": k, "value": v} for k, v in values.items()]
+    rows = [{"name": k, "value": v} for k, v in values.items() if k not in paths]
     (folder / "parameter_values.yaml").write_text(json.dumps({"parameterValues": rows}, indent=2) + "\n")
     (folder / "job_params.yaml").write_text(json.dumps({k: str(v) for k, v in values.items()}, indent=2) + "\n")
+    references = folder / "asset_references.yaml"
+    inputs = {"filenames": sorted(elsewhere), "directories": [str(Path(d).resolve()) for d in carried]}
+    references.write_text(json.dumps({"assetReferences": {"inputs": inputs}}, indent=2) + "\n")
     return folder
+
+
+def _inside(folder: Path, value, name: str) -> str:
+    """``value``'s path inside ``folder``, relative to it (ParameterError when it lies outside)."""
+    path, top = Path(value).resolve(), folder.resolve()
+    if not path.is_relative_to(top):
+        raise ParameterError(name, f"{path} lies outside the bundle {folder}: the bundle carries its inputs")
+    return path.relative_to(top).as_posix()
 
 
 def flamenco_job_type() -> str:

@@ -927,6 +927,12 @@ def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", fo
 
 def _resolve_paths(data: Any, folder: Path) -> None:
     """File paths of a scene file (``Param.path``) made absolute from ``folder``, in place."""
+    _map_paths(data, lambda value, name: _file_path(folder, value, name))
+
+
+def _map_paths(data: Any, change) -> None:
+    """Every file path setting of a scene's sections (``data``, as a TOML file or ``to_dict``
+    holds them) replaced by ``change(value, setting's name)``, in place; empty values are kept."""
     if not isinstance(data, Mapping):
         return
     for p in PARAMS:
@@ -934,12 +940,21 @@ def _resolve_paths(data: Any, folder: Path) -> None:
         if not isinstance(section, dict) or p.key not in section:
             continue
         if p.path and isinstance(section[p.key], str) and section[p.key]:
-            section[p.key] = _file_path(folder, section[p.key], p.name)
+            section[p.key] = change(section[p.key], p.name)
         if p.kind == "table_list" and isinstance(section[p.key], list):
             for i, row in enumerate(section[p.key]):
                 for f in p.fields:
                     if f.path and isinstance(row, dict) and isinstance(row.get(f.key), str) and row[f.key]:
-                        row[f.key] = _file_path(folder, row[f.key], f"{p.name}[{i}].{f.key}")
+                        row[f.key] = change(row[f.key], f"{p.name}[{i}].{f.key}")
+
+
+def with_files(params: Params, change) -> Params:
+    """``params`` with each file it names (maps, heightmap; not Blender's sources such as
+    ``vertex_group:NAME``) replaced by ``change(path, setting's name)``: a scene moved with its
+    files (a farm bundle carries them)."""
+    data = params.to_dict()
+    _map_paths(data, lambda value, name: value if value.startswith(BLENDER_SOURCES) else change(value, name))
+    return from_dict(data)
 
 
 # Map values that name a source inside Blender, not a file (bridge/maps.py): "vertex_group:NAME",

@@ -64,11 +64,35 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path, blende
     mark.write_text("Written by Windgrass's farm.py, which replaces this folder when it writes the bundle again.\n")
     (bundle / "flamenco").mkdir(exist_ok=True)
     (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
+    scene = carry_scene(params, config, runtime / "scene")
     span = farm.frames_text(chosen)
     template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}", blender)
     return farm.write_bundle(bundle, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()),
-        "WindgrassDir": str(runtime.resolve()), "SceneFile": str(config.resolve()), "BlenderVersion": blender})
+        "WindgrassDir": str(runtime.resolve()), "SceneFile": str(scene.resolve()), "BlenderVersion": blender})
+
+
+def carry_scene(params, config: Path, folder: Path) -> Path:
+    """The scene file written into ``folder`` with copies of the files it names (paint maps, the
+    terrain's heightmap) in ``folder/maps/``, its paths pointing at them: the bundle carries every
+    input (Deadline Cloud attaches what lies inside it without asking)."""
+    maps = folder / "maps"
+    maps.mkdir(parents=True)
+    copied: dict[str, str] = {}
+
+    def carry(path: str, setting: str) -> str:
+        if path not in copied:
+            source = Path(path)
+            if not source.is_file():
+                raise ParameterError(setting, f"{source} is not a file: the bundle carries the files the scene names")
+            name = f"{len(copied)}_{source.name}"
+            shutil.copy2(source, maps / name)
+            copied[path] = f"maps/{name}"
+        return copied[path]
+
+    scene = folder / config.name
+    scene.write_text(schema.dumps_toml(schema.with_files(params, carry)))
+    return scene
 
 
 def main(argv=None) -> int:
@@ -94,7 +118,8 @@ def main(argv=None) -> int:
         print(f"farm.py: error: {exc}", file=sys.stderr)
         return 2
     print(f"job bundle: {bundle} (openjd run {bundle / 'template.yaml'} --job-param "
-          f"file://{bundle / 'job_params.yaml'} --step Render; or deadline bundle submit {bundle})")
+          f"file://{bundle / 'job_params.yaml'} --step Render; or deadline bundle submit {bundle} --yes, "
+          f"the frames coming back into {bundle / 'output'})")
     return 0
 
 

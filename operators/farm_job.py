@@ -45,9 +45,15 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
             # the file browser falls back to the .blend's folder when the suggested one does not exist
             # yet: the bundle (a dozen files and folders) goes into a folder of its own there
             folder = folder / (Path(bpy.data.filepath).stem + "_farm_job")
-        folder = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size)
+        folder, elsewhere = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size)
         self.report({"INFO"}, f"Farm job written to {folder}: openjd run {folder / 'template.yaml'} --job-param "
-                              f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit {folder}")
+                              f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit "
+                              f"{folder} --yes (the frames come back into its output/)")
+        if elsewhere:
+            more = " ..." if len(elsewhere) > 3 else ""
+            self.report({"WARNING"}, f"The file uses {len(elsewhere)} file(s) from outside its folder, not carried in "
+                                     f"the bundle (Deadline Cloud asks before attaching them; a farm's shared storage "
+                                     f"must hold them): {', '.join(elsewhere[:3])}{more}")
         return {"FINISHED"}
 
 

@@ -3,8 +3,10 @@
 The bundle carries what a worker whose Blender has never seen Windgrass needs: the extension zip
 (made from the running add-on, so its version is this one's), ``farm_render.py`` and the job's
 template and parameter values (frames, chunk size and output folder from the scene), and
-Flamenco's job type. The .blend itself is named by its path (a job attachment on Deadline Cloud;
-shared storage on Flamenco).
+Flamenco's job type, and a copy of the .blend with the files it uses from its own folder (images,
+paint maps, baked caches: at the same places beside it, so its relative paths find them). Deadline
+Cloud's client attaches what lies in the bundle without asking (``deadline bundle submit --yes``);
+files the .blend uses from elsewhere are named in ``asset_references.yaml`` and said to the artist.
 """
 
 from __future__ import annotations
@@ -45,8 +47,32 @@ def check_saved() -> Path:
     return Path(bpy.data.filepath)
 
 
-def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None) -> Path:
-    """The job bundle of the saved .blend's scene frames in chunks of ``chunk`` into ``folder``."""
+def carry_blend(blend: Path, folder: Path) -> tuple[Path, list[str]]:
+    """Copy the saved ``blend`` into ``folder/scene/`` with the files it uses beneath its own folder
+    (the same layout beside the copy); return the copy and the files it uses from elsewhere."""
+    scene_dir = folder.resolve() / "scene"
+    if scene_dir.exists():
+        shutil.rmtree(scene_dir)  # (the bundle's own: a file dropped from the .blend since must go)
+    scene_dir.mkdir(parents=True)
+    copy = Path(shutil.copy2(blend, scene_dir / blend.name))
+    home, elsewhere = blend.resolve().parent, []
+    blenders = Path(bpy.utils.system_resource("DATAFILES")).resolve()  # (its brushes: every Blender has them)
+    for name in sorted(set(bpy.utils.blend_paths(absolute=True, packed=False, local=True))):
+        path = Path(name).resolve()
+        if not path.is_file() or path == blend.resolve() or {folder.resolve(), blenders} & set(path.parents):
+            continue  # (a missing file or a numbered sequence: Blender's own report names it)
+        if home not in path.parents:
+            elsewhere.append(str(path))
+            continue
+        target = scene_dir / path.relative_to(home)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(path, target)
+    return copy, elsewhere
+
+
+def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None) -> tuple[Path, list[str]]:
+    """The job bundle of the saved .blend's scene frames in chunks of ``chunk`` into ``folder``, and
+    the files the .blend uses that the bundle does not carry (they lie outside its folder)."""
     blend = check_saved()
     farm.check_chunk(chunk)
     out = output_folder(scene) if out is None else out
@@ -58,12 +84,14 @@ def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None)
     version = farm.extension_version(ADDON_ROOT)
     extension = farm.zip_extension(ADDON_ROOT, folder / f"windgrass-{version}.zip")
     script = shutil.copy2(Path(__file__).with_name("farm_render.py"), folder / "farm_render.py")
+    copy, elsewhere = carry_blend(blend, folder)
     (folder / "flamenco").mkdir(exist_ok=True)
     (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     span = f"{scene.frame_start}-{scene.frame_end}"
     blender = f"{bpy.app.version[0]}.{bpy.app.version[1]}"  # (the line this file's frames are made with)
     template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender)
-    return farm.write_bundle(folder, template, {
-        "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(blend),
+    farm.write_bundle(folder, template, {
+        "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(copy),
         "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),
-        "WindgrassVersion": version, "BlenderVersion": blender})
+        "WindgrassVersion": version, "BlenderVersion": blender}, elsewhere, [copy.parent])
+    return folder, elsewhere

@@ -118,13 +118,19 @@ def on_depsgraph_update_post(scene, depsgraph=None):
 
 def _edited(depsgraph) -> bool:
     """An update of a datablock other than the grass's own and the scene holding it: the artist
-    edited the file (``REGISTRY.unchanged``)."""
-    for update in depsgraph.updates:
-        original = getattr(update.id, "original", None) or update.id
-        if isinstance(original, bpy.types.Scene) or original.is_embedded_data:
+    edited the file (``REGISTRY.unchanged``). When the grass's own shading changed (its ground's
+    material taking a paint image), Blender updates every object's shading with it: an object
+    whose only update is its shading is then no edit."""
+    updates = [(u, getattr(u.id, "original", None) or u.id) for u in depsgraph.updates]
+    own = {id(o) for _, o in updates if getattr(o, "get", lambda key: None)("wg_uid") is not None}
+    own_shading = any(u.is_updated_shading for u, o in updates if id(o) in own)
+    for update, original in updates:
+        if isinstance(original, bpy.types.Scene) or original.is_embedded_data or id(original) in own:
             continue  # (a material's node tree: its material is among the updates too)
-        if getattr(original, "get", lambda key: None)("wg_uid") is None:
-            return True
+        if own_shading and isinstance(original, bpy.types.Object) and update.is_updated_shading \
+                and not (update.is_updated_geometry or update.is_updated_transform):
+            continue
+        return True
     return False
 
 

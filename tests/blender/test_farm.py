@@ -328,3 +328,72 @@ def test_the_wrong_extension_version_is_a_sentence(tmp_path, stand_in, with_brid
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(tmp_path),
                           timeout=300)
     assert proc.returncode == 1 and "the job was made with 9.9.9" in proc.stderr, proc.stderr[-2000:]
+
+
+DEADLINE_OFFLINE = Path(__file__).with_name("deadline_offline.py")
+FARM_ID, QUEUE_ID = "farm-" + "0" * 32, "queue-" + "1" * 32
+
+
+def _deadline_submit(bundle: Path, tmp_path: Path) -> tuple[subprocess.CompletedProcess, dict, list[str]]:
+    """``deadline bundle submit BUNDLE --yes`` by Deadline Cloud's own client (its AWS calls
+    answered offline, ``deadline_offline.py``), saved as a debug snapshot: the run, the parameters
+    it would create the job with and the files its job attachments would upload (bundle-relative)."""
+    import json
+
+    snapshot = tmp_path / f"snapshot-{bundle.name}"
+    env = dict(_env(tmp_path), DEADLINE_CLOUD_TELEMETRY_OPT_OUT="true")
+    run = subprocess.run([sys.executable, str(DEADLINE_OFFLINE), "bundle", "submit", str(bundle), "--yes",
+                          "--farm-id", FARM_ID, "--queue-id", QUEUE_ID, "--save-debug-snapshot", str(snapshot)],
+                         capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    if run.returncode != 0:
+        return run, {}, []
+    parameters = json.loads((snapshot / "parameters_param.json").read_text())
+    files = [p["path"] for manifest in (snapshot / "Manifests").rglob("*_input")
+             for p in json.loads(manifest.read_text())["paths"]]
+    return run, parameters, files
+
+
+def test_deadline_clouds_client_submits_both_bundles_with_yes_and_attaches_their_inputs(tmp_path, with_bridge):
+    """Issue #36 item 3: ``deadline bundle submit BUNDLE --yes`` was cancelled ("there were unknown
+    paths": the scene file, the .blend and the output folder lay outside the bundle) and a paint map
+    beside the scene file was not attached. Both bundles now carry their inputs: the client accepts
+    them without asking, and its attachments hold the scene with its paint map (the same bytes), and
+    the .blend with the image it paints with, at the place the .blend's relative path names."""
+    from PIL import Image
+
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    Image.fromarray(np.tile(np.linspace(0, 255, 32, dtype=np.uint8), (32, 1))).save(maps / "paths.png")
+    config = tmp_path / "tiny.toml"
+    config.write_text(TINY + '[paint]\ndensity = "maps/paths.png"\n')
+    scene_bundle = tmp_path / "scene-bundle"
+    made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(config), "--out",
+                           str(tmp_path / "frames"), "--chunk", "2", str(scene_bundle)],
+                          capture_output=True, text=True, env=_env(tmp_path), timeout=300)
+    assert made.returncode == 0, made.stderr
+    run, parameters, files = _deadline_submit(scene_bundle, tmp_path)
+    assert run.returncode == 0 and "canceled" not in run.stdout.lower(), run.stdout[-3000:] + run.stderr[-2000:]
+    scene = Path(parameters["SceneFile"]["path"])
+    assert scene.parent.parent == scene_bundle / "windgrass" and scene.is_file()
+    carried = [f for f in files if f.startswith("windgrass/scene/maps/")]
+    assert len(carried) == 1 and f"windgrass/scene/{scene.name}" in files
+    assert (scene_bundle / carried[0]).read_bytes() == (maps / "paths.png").read_bytes()
+    assert f'density = "{carried[0].removeprefix("windgrass/scene/")}"' in scene.read_text()
+    assert parameters["OutputDir"]["path"] == str(scene_bundle / "output")
+
+    _live_blend(tmp_path, with_bridge)
+    image = bpy.data.images.load(str(maps / "paths.png"))
+    image.filepath, image.use_fake_user = "//maps/paths.png", True
+    from windgrass.grass_addon.bridge import properties
+
+    item = bpy.context.scene.windgrass.fields[-1]
+    with properties.batch(item):  # (applied at once, as the Farm Job's saved-file check wants)
+        item.paint.density = f"image:{image.name}"
+    bpy.ops.wm.save_mainfile()  # (the ground's material takes the image as the save's refill writes it: no edit)
+    blend_bundle = tmp_path / "blend-bundle"
+    assert bpy.ops.windgrass.farm_job(directory=str(blend_bundle) + "/", chunk_size=2) == {"FINISHED"}
+    run, parameters, files = _deadline_submit(blend_bundle, tmp_path)
+    assert run.returncode == 0 and "canceled" not in run.stdout.lower(), run.stdout[-3000:] + run.stderr[-2000:]
+    assert Path(parameters["BlendFile"]["path"]) == blend_bundle / "scene" / "live.blend"
+    assert {"scene/live.blend", "scene/maps/paths.png", "farm_render.py"} <= set(files)
+    assert any(f.startswith("windgrass-") and f.endswith(".zip") for f in files)

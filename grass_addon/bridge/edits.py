@@ -43,8 +43,8 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
         rt.dirty = True
     guarded(apply_settings, scene, item)
     state = REGISTRY.state(key_of(scene, item))
-    if getattr(item, "collider_collection", None) is not None or getattr(item, "effector_collection", None) \
-            is not None or tracks.TRACK_KEY in item.collection:
+    if item.collider_collection is not None or item.effector_collection is not None \
+            or tracks.TRACK_KEY in item.collection:
         state.motion = True
     if not (defer if defer is not None else not bpy.app.background):
         if state.motion:

@@ -165,8 +165,7 @@ def _note_motion(scene, depsgraph) -> None:
     if not updated and not actions and not collections:
         return
     for item in owned.scene_fields(scene):
-        colls = [c for c in (getattr(item, "collider_collection", None), getattr(item, "effector_collection", None))
-                 if c is not None]
+        colls = [c for c in (item.collider_collection, item.effector_collection) if c is not None]
         if colls and (actions or any(c.name in collections for c in colls)
                       or any(o.name in updated for c in colls for o in c.all_objects)):
             key = key_of(scene, item)

@@ -37,7 +37,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     params = properties.params_from_settings(item, scene)
     maps.hold_images(item, params)  # (image maps kept with the file, and through renames)
     memory.check(params, bpy.path.abspath)  # before anything is built: a card range or a map too large
-    if force and getattr(item, "terrain", None) is not None:
+    if force and item.terrain is not None:
         try:  # the terrain's matrix and modifiers as they are now
             bpy.context.view_layer.update()
         except (RuntimeError, AttributeError):  # no depsgraph here (mid-render, a restricted context)

@@ -228,7 +228,7 @@ def keep_out_triangles(item, to_field, notes: list | None = None) -> np.ndarray:
     """(T, 3, 2) ground outlines of the objects of the field's keep-out collection. An object with
     no surface (an empty, a light) or no faces (a curve without a bevel) keeps nothing out; it is
     left out, and ``notes`` (a list) gets a sentence saying so."""
-    coll = getattr(item, "keep_out_collection", None)
+    coll = item.keep_out_collection
     if coll is None:
         return np.zeros((0, 3, 2))
     parts = []
@@ -254,7 +254,7 @@ def keep_out_triangles(item, to_field, notes: list | None = None) -> np.ndarray:
 def keep_out_notes(item) -> list[str]:
     """What the panel says of the objects of the keep-out collection that keep nothing out (from
     their types and data alone: cheap enough for every redraw)."""
-    coll = getattr(item, "keep_out_collection", None)
+    coll = item.keep_out_collection
     notes: list[str] = []
     for obj in coll.all_objects if coll is not None else ():
         if obj.type not in SURFACE_TYPES:
@@ -309,7 +309,7 @@ def depends_on(scene, item, params) -> set:
             names.add(("IMAGE", image.name if image is not None else name))
             if terrain is not None:
                 names.add(("OBJECT", terrain.name))
-    coll = getattr(item, "keep_out_collection", None)
+    coll = item.keep_out_collection
     if coll is not None:
         names |= {("OBJECT", o.name) for o in coll.all_objects}
         names.add(("COLLECTION", coll.name))
@@ -325,7 +325,7 @@ def extent_xy(obj) -> tuple[float, float]:
 
 def terrain_object(scene, item):
     """``item.terrain`` when it is a mesh object of ``scene``, else None."""
-    obj = getattr(item, "terrain", None)
+    obj = item.terrain
     if obj is None or obj.type != "MESH" or scene.objects.get(obj.name) is not obj:
         return None
     return obj
@@ -384,10 +384,10 @@ def sample_terrain(scene, item, params):
     """
     obj = terrain_object(scene, item)
     coll = item.collection
-    if obj is None and params.terrain.heightmap and getattr(item, "terrain", None) is None:
+    if obj is None and params.terrain.heightmap and item.terrain is None:
         return terrain_core.from_params(params, read_file), None  # a scene file's heightmap
     if obj is None:
-        lost = getattr(item, "terrain", None) is not None or (coll is not None and coll.get("wg_terrain"))
+        lost = item.terrain is not None or (coll is not None and coll.get("wg_terrain"))
         if lost:
             name = coll.get("wg_terrain") if coll is not None and coll.get("wg_terrain") else item.terrain.name
             warn_once(f"terrain '{name}' of field '{item.name}' is gone or not a mesh in this scene; "

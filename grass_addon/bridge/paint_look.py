@@ -23,7 +23,7 @@ PAINT_MAP_PIXELS = 1024  # the paint map image's longer side (the canopy's share
 def painted_settings(params, item) -> bool:
     """Whether the field's settings paint it (maps, keep-out shapes or a keep-out collection):
     its ground is then a grid and its canopy reads a paint map (part of the slot topology)."""
-    return bool(paint_core.map_settings(params) or params.keep_out.shapes or getattr(item, "keep_out_collection", None))
+    return bool(paint_core.map_settings(params) or params.keep_out.shapes or item.keep_out_collection)
 
 
 def paint_ground(params, heightfield):

@@ -108,11 +108,11 @@ def paint_of(scene, item, params):
     keep-out collection, or one of the datablocks it reads changed since (the record's ``strokes``,
     counted by ``handlers.on_depsgraph_update_post``)."""
     state = REGISTRY.state(key_of(scene, item))
-    coll = getattr(item, "keep_out_collection", None)
+    coll = item.keep_out_collection
     outline = [] if coll is None else sorted((o.name, [round(v, 6) for row in o.matrix_world for v in row])
                                              for o in coll.all_objects)
     signature = (tuple(paint_core.map_settings(params)), tuple(params.paint.extent), params.to_dict()["keep_out"],
-                 maps.terrain_key(scene, item, params), getattr(coll, "name", ""), outline,
+                 maps.terrain_key(scene, item, params), "" if coll is None else coll.name, outline,
                  state.strokes, _ground_matrix(item))
     kept = state.paint
     if kept is not None and kept[0] == signature:

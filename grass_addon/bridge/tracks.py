@@ -47,7 +47,7 @@ CLUSTER = 0.8  # m: a collider's part near the ground is cut into pieces at most
 def collider_objects(item) -> list:
     """The objects of the field's Colliders collection that have geometry, never the field's own;
     none when it holds none (an emptied collection means no colliders: ``notes`` says so)."""
-    coll = getattr(item, "collider_collection", None)
+    coll = item.collider_collection
     if coll is None:
         return []
     own = {o.name for o in owned.field_objects(item)}
@@ -61,7 +61,7 @@ def _field_type(obj) -> str:
 def effector_objects(item) -> list:
     """The force fields of the field's Force Fields collection that the grass feels (Wind, Force,
     Vortex, Turbulence); others and objects with no field are left out (``notes`` says so)."""
-    coll = getattr(item, "effector_collection", None)
+    coll = item.effector_collection
     if coll is None:
         return []
     return [obj for obj in coll.all_objects if _field_type(obj) in BLENDER_TYPES]
@@ -71,7 +71,7 @@ def notes(item) -> list[str]:
     """Sentences for the panel about what the field's collections give it: an emptied Colliders
     collection, the field's own collection picked, force fields the grass does not feel."""
     out = []
-    coll = getattr(item, "collider_collection", None)
+    coll = item.collider_collection
     if coll is not None and not collider_objects(item):
         if item.collection is not None and coll.name == item.collection.name:
             out.append(f"'{coll.name}' is this field's own collection: it has no colliders (pick the collection "
@@ -80,7 +80,7 @@ def notes(item) -> list[str]:
             kinds = ", ".join(sorted({o.type.lower() for o in coll.all_objects})) or "nothing"
             out.append(f"The Colliders collection '{coll.name}' holds {kinds}: no colliders (colliders are objects "
                        "with geometry: a mesh, a curve, text, metaballs)")
-    coll = getattr(item, "effector_collection", None)
+    coll = item.effector_collection
     if coll is not None:
         felt = ", ".join(t.title() for t in BLENDER_TYPES)
         for obj in coll.all_objects:

@@ -8,6 +8,10 @@ far canopy): the LOD render against the same frame with every blade as geometry
 narrow camera 1.1 m and 6 m up looking along a field 102 m long, so each band is seen from grazing
 to steep slopes (the far canopy from 0.01 to 0.18), where a flat far texture came out up to twice
 as bright as the grass and the cards 15 % dark.
+
+Each comparison is two renders by one Blender of the engine's LOD, which is the same on every line:
+``dev.py test`` runs this module on Blender 5.2 LTS only (a quarter of the Blender tests' time on
+4.5 LTS; ``dev.py test tests/blender/test_lod_fidelity.py`` runs it on both).
 """
 
 import json

@@ -60,7 +60,8 @@ class GrassField:
     (None: the scene file's ``[[colliders]]``); effectors: an object with ``at(t) -> [forces.Effector]``
     (None: the scene file's ``[[effectors]]``)."""
 
-    def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None):
+    def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None,
+                 progress=None):
         self.params = params
         self.clock = Clock.of(params)
         self.grid = FieldGrid.of(params)
@@ -83,7 +84,8 @@ class GrassField:
         self.wind = WindField(layout, params, keys=wind_keys)
         self.interaction: interaction.Interaction | None = None
         self.effectors = None
-        self.sim = Simulation(layout, params, self.wind)
+        self._progress = progress  # (done, total) of a long seek, or None
+        self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
         self.set_interaction(interaction.colliders_from_params(params) if colliders is None else colliders,
@@ -228,9 +230,21 @@ class GrassField:
             forces.check_count(effectors)
             self.effectors = effectors
             wind = forces.ForcedWind(self.wind, effectors) if effectors is not None else self.wind
-            self.sim = Simulation(self.layout, self.params, wind)
+            self.sim = self._simulation(wind)
         self.cells = None
         self._recent.clear()
+
+    def update_colliders(self, colliders, effectors) -> None:
+        """The colliders' motion was sampled again: the force fields stay as they are (their
+        settings are part of what made this field) unless they appeared or went (a damaged
+        stored motion sampled again)."""
+        kept = self.effectors
+        self.set_interaction(colliders, kept if (kept is None) == (effectors is None) else effectors)
+
+    def _simulation(self, wind) -> Simulation:
+        sim = Simulation(self.layout, self.params, wind)
+        sim.progress = self._progress
+        return sim
 
     def _cell_data(self, frame: int, state, wind: np.ndarray) -> CellData:
         """The cell data of ``state`` at ``frame`` (``celldata.cell_data``'s, views, no copy), with

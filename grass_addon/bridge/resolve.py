@@ -1,11 +1,12 @@
-"""A field resolved from its settings into what a frame needs (``FieldRuntime``), numpy only.
+"""A field resolved from its settings into what a frame needs (``FieldRuntime``).
 
-``resolve`` reads the field's parameters with the scene's clock, its animated wind (F-curves
-sampled into keys, ``animation.py``), its terrain (sampled once and kept while the terrain object
-and the grid hold), its paint, its stored collider and force-field motion (``tracks.py``), and
-makes the engine (``GrassField``) and its two slot pools; the registered runtime is kept while
-its digest holds. Never touches a datablock (``lifecycle.apply_settings`` does); raises
-WindgrassError on bad settings.
+``resolve`` first reads every input (``read_inputs``): the field's parameters with the scene's
+clock, its animated wind (F-curves sampled into keys, ``animation.py``), its terrain (sampled once
+and kept while the terrain object and the grid hold), its paint, its stored collider and
+force-field motion (``tracks.py``); then it keeps the registered runtime while its digest holds
+(its engine told of new collider motion or paint) or makes the engine (``GrassField``) and its two
+slot pools. Never touches a datablock (``lifecycle.apply_settings`` does); raises WindgrassError
+on bad settings.
 """
 
 from __future__ import annotations
@@ -133,14 +134,30 @@ def topology_of(params, heightfield, item) -> str:
     return field_scene.topology(params, heightfield, paint_look.painted_settings(params, item))
 
 
-def resolve(scene, item) -> FieldRuntime:
-    """The field's runtime for its settings now: the registered one when nothing it depends on
-    changed, else a new one (the engine is rebuilt). Numpy only: never touches a datablock
-    (``apply_settings`` does); raises WindgrassError on bad settings."""
-    key = key_of(scene, item)
-    previous = REGISTRY.runtime(key)
-    if previous is None:
-        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
+@dataclass(frozen=True, eq=False)
+class Inputs:
+    """Everything a field's engine is made from, read from Blender in one place (``read_inputs``)
+    before anything is decided."""
+
+    params: schema.Params  # without the animated wind's values (the keys carry them)
+    wind_keys: tuple | None
+    wind_fingerprint: str
+    heightfield: object  # terrain.Heightfield | None
+    terrain_key: str
+    topology: str
+    colliders: list
+    effectors: object  # forces effectors | None
+    track: str  # tracks.fingerprint of the stored collider motion
+    paint: object  # paint.Paint | None
+    painted: str  # paint.fingerprint of it
+    clock: tuple[Clock, int]
+    frame: int  # the scene's current frame (a stroke's blocks are made again for it)
+    digest: str  # what makes a new engine: parameters, animated wind, topology, force fields, terrain
+
+
+def read_inputs(scene, item, previous: FieldRuntime | None) -> Inputs:
+    """The field's inputs now: its settings with the scene's clock, animated wind, terrain, paint
+    and stored motion (``previous``: the runtime whose sampled wind keys may be kept)."""
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, _, t_key = terrain_of(scene, item, params)
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
@@ -150,30 +167,53 @@ def resolve(scene, item) -> FieldRuntime:
     digest = hashlib.sha1((params.digest() + fingerprint + topology + tracks.effector_digest(item)
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
     paint = paint_of(scene, item, params)
-    painted = paint_core.fingerprint(paint)
-    if previous is not None and previous.digest == digest:
-        if previous.track != track:  # the colliders moved: the wind's simulation stays (the digest
-            # holds the force fields), unless they were left out (a damaged track sampled again)
-            kept = previous.field.effectors
-            previous.field.set_interaction(colliders, kept if (kept is None) == (effectors is None) else effectors)
-            previous.track, previous.frame = track, None
-        if previous.paint != painted:  # a stroke: make again only the blocks it touched
-            started = time.perf_counter()
-            made = previous.field.repaint(paint, frame=scene.frame_current)
-            previous.paint, previous.frame = painted, None
-            REGISTRY.last_repaint = (time.perf_counter() - started, made)
-        previous.dirty = False
-        previous.clock = _clock(scene)
+    return Inputs(params, wind_keys, fingerprint, heightfield, t_key, topology, colliders, effectors, track, paint,
+                  paint_core.fingerprint(paint), _clock(scene), scene.frame_current, digest)
+
+
+def resolve(scene, item) -> FieldRuntime:
+    """The field's runtime for its settings now: the registered one when nothing it depends on
+    changed (its engine told of new collider motion or paint), else a new one (the engine is
+    rebuilt). Reads Blender's data, never touches a datablock (``apply_settings`` does); raises
+    WindgrassError on bad settings."""
+    key = key_of(scene, item)
+    previous = REGISTRY.runtime(key)
+    if previous is None:
+        REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
+    inputs = read_inputs(scene, item, previous)
+    if previous is not None and previous.digest == inputs.digest:
+        _update(previous, inputs)
         return previous
-    field = GrassField(params, wind_keys=wind_keys, terrain=heightfield, paint=paint, colliders=colliders,
-                       effectors=effectors)
-    field.sim.progress = _seek_progress(item.name)
-    rt = FieldRuntime(key=key, params=params, digest=digest, clock=_clock(scene), wind_fingerprint=fingerprint,
-                      wind_keys=wind_keys, terrain_key=t_key, field=field, topology=topology, paint=painted,
-                      track=track, blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
-                      cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+    rt = _build(key, inputs, item.name)
     REGISTRY.state(key).runtime = rt
     return rt
+
+
+def _update(rt: FieldRuntime, inputs: Inputs) -> None:
+    """Tell the kept engine what changed that needs no new one: the colliders' motion (the wind's
+    simulation stays: the digest holds the force fields) and the paint (only the blocks a stroke
+    touched are made again)."""
+    if rt.track != inputs.track:
+        rt.field.update_colliders(inputs.colliders, inputs.effectors)
+        rt.track, rt.frame = inputs.track, None
+    if rt.paint != inputs.painted:
+        started = time.perf_counter()
+        made = rt.field.repaint(inputs.paint, frame=inputs.frame)
+        rt.paint, rt.frame = inputs.painted, None
+        REGISTRY.last_repaint = (time.perf_counter() - started, made)
+    rt.dirty = False
+    rt.clock = inputs.clock
+
+
+def _build(key: Key, inputs: Inputs, name: str) -> FieldRuntime:
+    """A new engine and its runtime for ``inputs``."""
+    field = GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
+                       colliders=inputs.colliders, effectors=inputs.effectors, progress=_seek_progress(name))
+    return FieldRuntime(key=key, params=inputs.params, digest=inputs.digest, clock=inputs.clock,
+                        wind_fingerprint=inputs.wind_fingerprint, wind_keys=inputs.wind_keys,
+                        terrain_key=inputs.terrain_key, field=field, topology=inputs.topology, paint=inputs.painted,
+                        track=inputs.track, blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
+                        cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
 
 
 def _seek_progress(name: str):

@@ -47,8 +47,9 @@ def _cases(names):
     return [pytest.param(n, marks=MEADOW_OPEN) if n == "meadow_overcast" else n for n in names]
 
 
-STRIP_CASES = _cases([f"strip{h}m_{preset}_{light}" for h in ("1.1", "6") for preset in ("even", "meadow")
-                      for light in ("sun", "overcast")])
+# (in sun only: the square view holds the overcast sky, and the strips' renders of a 102 m field with
+# every blade as geometry are the suite's longest)
+STRIP_CASES = _cases([f"strip{h}m_{preset}_sun" for h in ("1.1", "6") for preset in ("even", "meadow")])
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +84,7 @@ def test_the_lod_render_matches_the_all_geometry_render(comparison, case):
 def strips(tmp_path_factory):
     out = tmp_path_factory.mktemp("lod_strip")
     args = lod_compare.parse_args(["--resolution", "96x54", "--samples", "6", "--views", "strip",
-                                   "--heights", "1.1", "6", "--presets", "even", "meadow",
+                                   "--heights", "1.1", "6", "--presets", "even", "meadow", "--lights", "sun",
                                    "--flythrough-frames", "0", "--out", str(out)])
     return lod_compare.compare(args), out
 

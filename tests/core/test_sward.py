@@ -38,20 +38,33 @@ def _silhouette_area(points, quads, size: float) -> float:
 
 def _blade_quads(block, blades, n, tip_width):
     """Each segment of the blades at rest as a 3-D quad (4, 3): the strip from blocks.make_block's
-    numbers alone (root, facing, length, width, rest tilt), built here from scratch."""
+    numbers alone (root, facing, length, width, rest tilt, head, flower), built here from scratch as
+    ``_trace`` builds them (a seed head as wide as head times the root width at joint n - 1; a
+    flower's two top segments its head, 0.7 times its width tall, as wide as the flower at joint
+    n - 1 and 0.6 of it at the tip)."""
     quads = []
     for b in blades:
         f = float(block.blade_facing[b])
         lean = np.array([np.cos(f), np.sin(f), 0.0])
         side = np.array([-np.sin(f), np.cos(f), 0.0])
-        seg = float(block.blade_length[b]) / n
+        length, width = float(block.blade_length[b]), float(block.blade_width[b])
+        flower, head = float(block.blade_flower[b]), float(block.blade_head[b])
+        steps = np.full(n, length / n)
+        if flower > 0:
+            top = min(0.7 * flower * width, 2 * length / n)
+            steps[n - 2:], steps[:n - 2] = top / 2, (length - top) / (n - 2)
+        half = 0.5 * width * (1 - (1 - tip_width) * np.arange(n + 1) / n)
+        if head > 0:
+            half[n - 1] = 0.5 * width * max(1 - (1 - tip_width) * (n - 1) / n, head)
+        if flower > 0:
+            half[n - 1] = 0.5 * width * max(1 - (1 - tip_width) * (n - 1) / n, flower)
+            half[n] = 0.5 * width * max(tip_width, 0.6 * flower)
         joint = np.array([*block.blade_root[b, :2].astype(float), 0.0])
         for j in range(n):
             tilt = float(block.blade_rest_tilt[b, j])
-            top = joint + seg * (np.sin(tilt) * lean + np.array([0.0, 0.0, np.cos(tilt)]))
-            w0 = 0.5 * float(block.blade_width[b]) * (1 - (1 - tip_width) * j / n)
-            w1 = 0.5 * float(block.blade_width[b]) * (1 - (1 - tip_width) * (j + 1) / n)
-            quads.append(np.array([joint - w0 * side, joint + w0 * side, top + w1 * side, top - w1 * side]))
+            top = joint + steps[j] * (np.sin(tilt) * lean + np.array([0.0, 0.0, np.cos(tilt)]))
+            quads.append(np.array([joint - half[j] * side, joint + half[j] * side, top + half[j + 1] * side,
+                                   top - half[j + 1] * side]))
             joint = top
     return np.array(quads)
 
@@ -62,7 +75,9 @@ def test_cards_cover_what_their_blades_cover(params):
     light a card stops (its area times |cos| of the view to its normal times its mean opacity) is
     the light its cell's blades stop (their silhouette, measured here by projecting the blade
     strips of the sample block, at rest, onto the plane across each view: a Monte-Carlo of the
-    real geometry, independent of how the atlas is drawn)."""
+    real geometry, independent of how the atlas is drawn). The strips carry their seed heads and
+    flowers, which the atlas draws too (without them the meadow's cards stopped 7 % more, and in
+    other blocks' cells up to 60 % more, than this measure's blades: issue #34's open coverage)."""
     block = sward.sample_blades(params)
     num, n = int(params.field.blades_per_cell), int(params.blade.segments)
     image = atlas.card_atlas(params)
@@ -82,7 +97,7 @@ def test_cards_cover_what_their_blades_cover(params):
         normal = float(block.card_facing[cell]) + 0.5 * np.pi
         cards_stop += card_w * card_h * alpha * np.abs(np.cos(views - normal)).sum()
     assert blades_stop > 0.0
-    assert cards_stop == pytest.approx(blades_stop, rel=0.15)  # measured: 1.06 (default), 1.07 (meadow)
+    assert cards_stop == pytest.approx(blades_stop, rel=0.15)  # measured: 1.06 (default), 1.05 (meadow)
 
 
 def _palette(params) -> np.ndarray:

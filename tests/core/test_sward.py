@@ -77,7 +77,7 @@ def test_cards_cover_what_their_blades_cover(params):
     strips of the sample block, at rest, onto the plane across each view: a Monte-Carlo of the
     real geometry, independent of how the atlas is drawn). The strips carry their seed heads and
     flowers, which the atlas draws too (without them the meadow's cards stopped 7 % more, and in
-    other blocks' cells up to 60 % more, than this measure's blades: issue #34's open coverage)."""
+    other blocks' cells up to 74 % more, than this measure's blades: issue #34's open coverage)."""
     block = sward.sample_blades(params)
     num, n = int(params.field.blades_per_cell), int(params.blade.segments)
     image = atlas.card_atlas(params)

@@ -156,16 +156,16 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     root[:, :2] = np.clip(pulled, grid.origin, np.asarray(grid.origin) + grid.size)
     root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
     facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
-    painted = paint is not None and not paint.empty
-    local = _local_shares(params, species, paint if painted else None, root[:, :2])
+    painted = paint if paint is not None and not paint.empty else None
+    local = _local_shares(params, species, painted, root[:, :2])
     kind, length, width, stiffness, inclination, *barren = _sample_blades(rng, n_blades, params, species, local)
     shade = rng.random(n_blades).astype(np.float32)
     alive = None
-    if painted:
+    if painted is not None:
         grow_number = rng.random(n_blades)  # each blade's own: it grows where it is below the density
-        scale = paint.length_at(root[:, :2])
+        scale = painted.length_at(root[:, :2])
         length = np.maximum(length * scale, MIN_BLADE_LENGTH)
-        alive = (grow_number < paint.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
+        alive = (grow_number < painted.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
         if barren:
             alive &= ~barren[0]
     if f.patchiness > 0.0:
@@ -187,9 +187,9 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     shares = meadow.segment_shares(n, length, width, flower)  # a flower's head: its short top segments
     tallest = _tallest(P, num, length, rest_tilt, shares, alive, cell_length, cell_rest_tilt)
     cell_density = None
-    if alive is not None:
+    if painted is not None and alive is not None:
         cell_density = alive.reshape(P, num).mean(axis=1).astype(np.float32) if num > 0 \
-            else paint.density_at(centre64).astype(np.float32)
+            else painted.density_at(centre64).astype(np.float32)
     card_height = params.lod.card_height * tallest
     card_facing = cell_rng.random(P) * np.pi
     card_shade = cell_rng.random(P)

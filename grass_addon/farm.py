@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 from .errors import ParameterError
@@ -160,8 +161,8 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
             "parameterDefinitions": params, "steps": [_chunked_step("Render", args, [install])]}
 
 
-def write_bundle(folder: Path, template: dict, values: dict, elsewhere: list[str] = (),
-                 carried: list[Path] = ()) -> Path:
+def write_bundle(folder: Path, template: dict, values: dict, elsewhere: Sequence[str] = (),
+                 carried: Sequence[Path] = ()) -> Path:
     """``template.yaml`` and ``parameter_values.yaml`` (Deadline Cloud's job bundle layout; JSON is
     YAML) in ``folder``, and the same values as ``openjd run`` reads them (``job_params.yaml``);
     ``values``: {parameter: value}, paths as absolute strings.

@@ -51,6 +51,12 @@ class _RoleBuffers:
     rows: int = 0  # rows of ``vertices`` filled last frame
     velocity_rows: int = 0  # and of ``velocity``
 
+    def motion(self) -> tuple[np.ndarray, np.ndarray]:
+        """(velocity, ahead), made at first use."""
+        if self.velocity is None or self.ahead is None:
+            self.velocity, self.ahead = np.zeros_like(self.vertices), np.empty_like(self.vertices)
+        return self.velocity, self.ahead
+
 
 class GrassField:
     """``GrassField(params, wind_keys=None, terrain=None, paint=None, colliders=None,
@@ -292,7 +298,7 @@ class GrassField:
         slope of their segment; at a whole frame the velocity is the central difference
         (P(N + 1) - P(N - 1)) fps / 2. Frames are computed in ascending order (cheap seeks)."""
         frame, fps = int(frame), self.clock.rate
-        wanted = (frame - 1, frame, frame + 1) if subframe == 0.0 else (frame, frame + 1)
+        wanted: tuple[int, ...] = (frame - 1, frame, frame + 1) if subframe == 0.0 else (frame, frame + 1)
         cells = [self.cells_at(f) for f in wanted]
         if subframe == 0.0:
             vertices(wanted[0], cells[0], velocity)  # P(N - 1)
@@ -307,11 +313,12 @@ class GrassField:
             out += velocity * np.float32(subframe)
             velocity *= np.float32(fps)
 
-    def _current(self) -> CellData:
-        if self.cells is None:
+    def _current(self) -> tuple[int, CellData]:
+        """(frame, cell data) of the current frame (computed when not yet)."""
+        if self.cells is None or self._cells_frame is None:
             self.cells = self._cell_data(self.sim.frame, self.sim.state, self.sim.cell_wind)
             self._cells_frame = self.sim.frame
-        return self.cells
+        return self._cells_frame, self.cells
 
     # ------------------------------------------------------------------ one frame
 
@@ -342,34 +349,33 @@ class GrassField:
         count = len(chosen)
         local = np.full(shown.shape, slots.FREE, dtype=np.int64)
         local[:count] = np.searchsorted(layout.block_ids, shown[:count])
-        buffers = self._role_buffers(role, motion)
-        vertices, velocity, ahead = buffers.vertices, buffers.velocity, buffers.ahead
+        buffers = self._role_buffers(role)
+        vertices, velocity = buffers.vertices, None
         rows = count * shape.verts_per_block
         blocks = local[:count]
 
         def fill(f, cells, out):
             self._fill(role, f, cells, blocks, lod, out)
 
-        if count and not motion:
-            fill(frame, self.cells, vertices[:rows])
-        elif count:
-            self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
-        vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
-        buffers.rows = rows
         if motion:
+            velocity, ahead = buffers.motion()
+            if count:
+                self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
             velocity[rows:buffers.velocity_rows] = 0.0
             buffers.velocity_rows = rows
-        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity if motion else None)
+        elif count:
+            fill(frame, self.cells, vertices[:rows])
+        vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
+        buffers.rows = rows
+        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity)
 
-    def _role_buffers(self, role: str, motion: bool) -> _RoleBuffers:
-        """``role``'s frame arrays (made at first use; the velocity's when ``motion`` first asks)."""
+    def _role_buffers(self, role: str) -> _RoleBuffers:
+        """``role``'s frame arrays (made at first use)."""
         buffers = self._buffers.get(role)
         if buffers is None:
             shape = self.shapes[role]
             buffers = self._buffers[role] = _RoleBuffers(np.zeros((shape.positions * shape.verts_per_block, 3),
                                                                   np.float32))
-        if motion and buffers.velocity is None:
-            buffers.velocity, buffers.ahead = np.zeros_like(buffers.vertices), np.empty_like(buffers.vertices)
         return buffers
 
     def _trail(self, frame: int, cameras):
@@ -391,14 +397,6 @@ class GrassField:
         """Every block of the window, as local ids 0 .. n_blocks-1."""
         return np.arange(self.layout.n_blocks, dtype=np.int64)
 
-    def blade_blocks(self, lod: LodWeights | None) -> np.ndarray:
-        """Visible blocks that show blades (some cell with N > 0, something grows); all when lod is None."""
-        return np.flatnonzero(needs(BLADES, self.layout, lod))
-
-    def card_blocks(self, lod: LodWeights | None) -> np.ndarray:
-        """Visible blocks with some card opacity > 0 where something grows; none when lod is None."""
-        return np.flatnonzero(needs(CARDS, self.layout, lod))
-
     # ------------------------------------------------------------------ geometry
 
     def _fill(self, role: str, frame: int, cells: CellData, blocks, lod, out):
@@ -408,7 +406,7 @@ class GrassField:
         if role == BLADES:
             out = kinematics.blade_vertices(self.layout, cells, blocks, None if lod is None else lod.blade_count, out)
             if self.interaction is not None:
-                self._clear_colliders(frame, blocks, out)
+                self._clear_colliders(self.interaction, frame, blocks, out)
             return out
         out = kinematics.card_vertices(self.layout, cells, blocks, out)
         density = self.layout.cell_density
@@ -420,14 +418,15 @@ class GrassField:
             quads[bare] = quads[bare][:, :1]
         return out
 
-    def _clear_colliders(self, frame: int, blocks: np.ndarray, vertices: np.ndarray) -> None:
+    def _clear_colliders(self, touch: interaction.Interaction, frame: int, blocks: np.ndarray,
+                         vertices: np.ndarray) -> None:
         """Blades of ``blocks`` still reaching into a collider at ``frame`` are bent out of every
         sphere at once (``clearance.clear_blades``: roots fixed, lengths kept, above the ground).
         Only the blocks within a sphere's reach are looked at."""
-        spheres = self.interaction.spheres(self.clock.seconds(frame))
+        spheres = touch.spheres(self.clock.seconds(frame))
         if not len(spheres) or not len(blocks):
             return
-        reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5 + self.interaction.tolerance
+        reach = float(np.max(self.layout.cell_length, initial=0.0)) * 1.5 + touch.tolerance
         b = self.grid.block_bounds(self.layout.block_ids[blocks])[:, None, :]
         c, r = spheres.centres[None], spheres.radii[None] + reach
         near = ((b[..., 0] <= c[..., 0] + r) & (b[..., 2] >= c[..., 0] - r)
@@ -438,16 +437,15 @@ class GrassField:
         n, bpb = self.layout.segments, self.layout.blades_per_block
         view = vertices.reshape(len(blocks), bpb, n + 1, 2, 3)
         strips = view[rows].reshape(len(rows) * bpb, n + 1, 2, 3)
-        if clearance.clear_blades(strips, spheres.centres, spheres.radii, self.interaction.tolerance,
-                                  self.interaction.ground):
+        if clearance.clear_blades(strips, spheres.centres, spheres.radii, touch.tolerance, touch.ground):
             view[rows] = strips.reshape(len(rows), bpb, n + 1, 2, 3)
 
     def blade_vertices(self, blocks, lod: LodWeights | None = None, out: np.ndarray | None = None) -> np.ndarray:
         """Blade strip vertices of ``blocks`` at the current frame as drawn (``_fill``)."""
-        cells = self._current()
-        return self._fill(BLADES, self._cells_frame, cells, blocks, lod, out)
+        frame, cells = self._current()
+        return self._fill(BLADES, frame, cells, blocks, lod, out)
 
     def card_vertices(self, blocks, out: np.ndarray | None = None) -> np.ndarray:
         """Card vertices of ``blocks`` at the current frame (paper III.B, eq 34), bare cells collapsed."""
-        cells = self._current()
-        return self._fill(CARDS, self._cells_frame, cells, blocks, None, out)
+        frame, cells = self._current()
+        return self._fill(CARDS, frame, cells, blocks, None, out)

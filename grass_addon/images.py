@@ -130,7 +130,7 @@ def decode_png(data: bytes) -> np.ndarray:
     else:
         values = rows.astype(np.float32) / 255.0
     values = values.reshape(height, width, channels)
-    if colour == 3:
+    if colour == 3 and palette is not None:  # (checked above: a palette image has one)
         index = rows.reshape(height, width)
         values = palette[np.minimum(index, len(palette) - 1)].astype(np.float32) / 255.0
     return values

@@ -100,7 +100,7 @@ def _spheres_per_instant(collider, reach: float = math.inf) -> float:
     ground at z = 0 (on average, for sampled tracks)."""
     if isinstance(collider, PathCollider):
         low = float(collider.positions[:, 2].min()) + collider.offsets[:, 2] - collider.radius
-        return float(max(1, np.count_nonzero(low < reach)))
+        return float(max(1, int(np.count_nonzero(low < reach))))
     offsets = getattr(collider, "offsets", None)
     if offsets is not None and len(offsets) > 1:
         return float(offsets[-1] - offsets[0]) / (len(offsets) - 1)
@@ -311,8 +311,8 @@ def _cells_around(grid, spheres: Spheres, reach: np.ndarray):
     if (2 * k + 1) ** 2 * len(spheres) > WIDE_CELLS:
         return _cells_under_wide(grid, spheres, reach)
     offsets = np.arange(-k, k + 1)
-    ox, oy = np.meshgrid(offsets, offsets)
-    ox, oy = ox.ravel(), oy.ravel()
+    grid_x, grid_y = np.meshgrid(offsets, offsets)
+    ox, oy = grid_x.ravel(), grid_y.ravel()
     ix0 = np.floor((spheres.centres[:, 0] - origin[0]) / cs).astype(np.int64)
     iy0 = np.floor((spheres.centres[:, 1] - origin[1]) / cs).astype(np.int64)
     ix = ix0[:, None] + ox[None, :]

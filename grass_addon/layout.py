@@ -190,7 +190,7 @@ def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
     blades = (local[:, None] * bpb + np.arange(bpb)).ravel()
     arrays = {name: getattr(layout, name)[blades] for name in _BLADE_ARRAYS}
     arrays.update({name: getattr(layout, name)[cells] for name in _CELL_ARRAYS})
-    if layout.blade_alive is not None:
+    if layout.blade_alive is not None and layout.cell_density is not None:  # (painted: both, or neither)
         arrays["blade_alive"], arrays["cell_density"] = layout.blade_alive[blades], layout.cell_density[cells]
     slope = layout.blade_ground_slope
     block_cells = np.arange(local.size * P, dtype=np.int32).reshape(local.size, P)

@@ -46,7 +46,7 @@ def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray
     """A uniform number in [0, 1) for each integer lattice point (i, j), a pure function of
     (seed, channel, i, j) (SplitMix64's finaliser, ``wind.mix64``, over the packed key)."""
     with np.errstate(over="ignore"):
-        x = (np.uint64(seed & 0xFFFFFFFF) * wind.GOLDEN ^ np.uint64(channel) * wind.MIX1)
+        x: np.ndarray = np.asarray(np.uint64(seed & 0xFFFFFFFF) * wind.GOLDEN ^ np.uint64(channel) * wind.MIX1)
         x = x + i.astype(np.int64).astype(np.uint64) * wind.MIX2
         x = wind.mix64(x ^ (j.astype(np.int64).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)))
     return (x >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))

@@ -126,13 +126,14 @@ def check(params, resolve=str) -> Estimate:
     if need.total <= limit:
         return need
     if need.total - need.maps <= limit:  # the field fits: a map is too large for what is left
-        _, setting = maps_bytes(params, resolve)
-        raise ParameterError(setting, f"decoding this map takes about {_mb(need.maps)}, and with the field's "
+        _, setting = maps_bytes(params, resolve)  # (need.maps > 0: some map is the largest)
+        raise ParameterError(setting or "paint", f"decoding this map takes about {_mb(need.maps)}, and with the "
+                             f"field's "
                              f"{_mb(need.total - need.maps)} that is more than {_mb(limit)}; valid: a map of "
                              "fewer pixels (8-bit grey is enough for a map), or more simulation.memory_mb")
     card_far = max(float(params.lod.card_near), math.floor(longest_card_far(params, limit)))  # a value that fits
-    where = (f"simulation.memory_mb allows {_mb(allowed)}" if limit == allowed
-             else f"this machine has {_mb(machine)}")
+    where = (f"this machine has {_mb(machine)}" if machine is not None and limit != allowed
+             else f"simulation.memory_mb allows {_mb(allowed)}")
     more = ""
     if machine is not None and need.total <= 0.8 * machine:
         more = f", or raise simulation.memory_mb to at least {need.total / 2**20:,.0f}"

@@ -237,8 +237,8 @@ class Paint:
         h = hashlib.sha1(b"paint")
         for name, m in (("density", self.density), ("length", self.length)):
             h.update(f"{name}:{m.fingerprint() if m is not None else '-'}".encode())
-        for k, m in enumerate(self.species):
-            h.update(f"species{k}:{m.fingerprint() if m is not None else '-'}".encode())
+        for i, m in enumerate(self.species):
+            h.update(f"species{i}:{m.fingerprint() if m is not None else '-'}".encode())
         if self.keep_out is not None:
             k = self.keep_out
             h.update(k.triangles.tobytes() + np.array([k.margin, k.falloff], np.float64).tobytes())
@@ -263,7 +263,8 @@ def map_extent(params, extent, name: str) -> tuple[float, float, float, float]:
     if not any(float(c) for c in extent):
         return field_extent(params)
     check_extent(name, extent)
-    return tuple(float(c) for c in extent)
+    x0, y0, x1, y1 = (float(c) for c in extent)
+    return x0, y0, x1, y1
 
 
 def keep_out_shapes(params) -> np.ndarray:

@@ -72,7 +72,7 @@ class Param:
     size: int = 0  # for kind == "vec"
     fields: tuple[Param, ...] = ()  # for kind == "table_list": the columns of each row
     label: str = ""
-    applies_when: tuple[str, str] = ()  # (enum key of the section, choice): only matters then
+    applies_when: tuple[str, ...] = ()  # (enum key of the section, choice): only matters then
     path: bool = False  # a "str" that names a file: relative paths in a scene file are from its folder
     blender: bool = True  # False: scene files only (in Blender the field's collections give it)
     advanced: bool = False  # in Blender: in the section's collapsed Advanced panel
@@ -445,6 +445,7 @@ def _block_metres(f: Mapping[str, Any]) -> float:
 def _size_view(axis: str) -> View:
     key = f"blocks_{axis}"
     top = BY_NAME[f"field.{key}"].maximum
+    assert top is not None  # (a field's blocks are bounded)
     return View(
         _p("field", f"size_{axis}", "float", 0.0, f"Size of the field along {axis.upper()}: whole blocks of cells per "
            "block x cell size (Advanced), the nearest to the size asked", unit="m", minimum=0.01,
@@ -757,13 +758,14 @@ def _apply_view(view: View, entries: Mapping[str, Any], values: Mapping[str, Any
     asked = _check_value(p, entries[p.key])
     out = view.write(values, asked)
     whole = BY_NAME[f"{p.section}.{view.uses[0]}"]
-    if whole.kind == "int":
+    if whole.kind == "int" and whole.minimum is not None and whole.maximum is not None:
         lo, hi = (view.read({**values, view.uses[0]: n}) for n in (whole.minimum, whole.maximum))
         step = view.read({**values, view.uses[0]: whole.minimum + 1}) - lo
         if not lo - step / 2 <= asked <= hi + step / 2 or (asked > 0 and view.read({**values, **out}) == 0):
             unit = f" {p.unit}" if p.unit else ""
             reads = ", ".join(f"{p.section}.{k} = {_fmt(values[k])}" for k in view.uses[1:])
-            valid = f"{_fmt(max(lo, step))} to {_fmt(min(hi, p.maximum))}{unit}{' (or 0)' if lo == 0 else ''}"
+            top = hi if p.maximum is None else min(hi, p.maximum)
+            valid = f"{_fmt(max(lo, step))} to {_fmt(top)}{unit}{' (or 0)' if lo == 0 else ''}"
             raise ParameterError(p.name, f"{_fmt(asked)}{unit} cannot be made of whole {whole.key.split('_')[0]} "
                                  f"({whole.name}) with {reads}: valid {valid}")
     return out

@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,11 +83,11 @@ class Simulation:
         self.frame = self.frame_start
         self.state: SolverState = self._shown
         self.cell_wind = self._sample(self.frame)
-        self._wind_frame = self.frame
+        self._wind_frame: int | None = self.frame
         self.steps = 0  # cell-frames stepped so far (a measure of work)
         # progress(done, total) of a long seek: at most every PROGRESS_INTERVAL_S seconds, and
         # (total, total) at its end when it reported at all
-        self.progress = None
+        self.progress: Callable[[int, int], None] | None = None
 
     # ---------------------------------------------------------------------------- public API
 
@@ -226,7 +227,7 @@ class Simulation:
             if self.progress is not None and time.monotonic() - last_report >= PROGRESS_INTERVAL_S:
                 last_report, reported = time.monotonic(), True
                 self.progress(done, total)
-        if reported:
+        if reported and self.progress is not None:
             self.progress(total, total)
 
     def _step(self, traj: Trajectory, wind: np.ndarray) -> None:

@@ -352,6 +352,7 @@ class BladeSolver:
         self._allowed_cache: dict[tuple[float, float], np.ndarray] = {}
         self._allowed_rows: dict[int, int] = {}  # chunk start -> j1 for the cached allowed
         self._quasi_cache: tuple[float | None, np.ndarray | None] = (None, None)
+        self._quasi_static = np.zeros((0, 0), F32)  # (each step's, for its dt)
         # Stiffest joint: eq 22-23 with the nonlinear part at its bound (the bend is clamped).
         k_max = self._mu_base + F32(self.k * self.stiffen_limit)
         ratio = max(1.0, self.twist_ratio)  # twist uses ratio * K with the same inertia
@@ -425,11 +426,12 @@ class BladeSolver:
         substeps = max(1, int(substeps))
         h = dt / substeps
         allowed = self._oscillator_allowed(dt, h)
-        self._quasi_static = self._quasi_cache[1] if self._quasi_cache[0] == dt else None
-        if self._quasi_static is None:
+        kept_dt, quasi = self._quasi_cache
+        if quasi is None or kept_dt != dt:
             fast = self._omega2 > self._visible_omega2(dt)
-            self._quasi_static = np.where(fast, F32(QUASI_RATE), F32(0.0)).astype(F32)
-            self._quasi_cache = (dt, self._quasi_static)
+            quasi = np.where(fast, F32(QUASI_RATE), F32(0.0)).astype(F32)
+            self._quasi_cache = (dt, quasi)
+        self._quasi_static = quasi
         def run(lane: int) -> None:
             for a, b in self._lanes[lane]:
                 self._step_chunk(a, b, wind, dt, substeps, allowed, self._scratch[lane])
@@ -642,6 +644,7 @@ class BladeSolver:
         twist_eq += forcing.twist_torque  # > 0: mu >= mu_base > 0, M_t >= 0
         np.divide(forcing.twist_torque, twist_eq, out=twist_eq)  # s_i
         left = S.get("twist_left", (m,))
+        assert forcing.delta0 is not None  # (the equilibrium's forcing is computed with the twist)
         np.copyto(left, forcing.delta0)
         for i in range(n):
             twist_eq[i] *= left
@@ -764,7 +767,7 @@ class BladeSolver:
         rate = S.get("smooth_rate", (n, m))  # -mu dt / (gamma dt_ref): x = -log(1 - f) / gap
         np.multiply(eqm.mu, F32(-dt / (self.gamma * REFERENCE_DT)), out=rate)
         rate -= self._quasi_static[:, a:b]
-        if split.swinging is not None:
+        if split.steady is not None:
             rate[split.j0:split.j1] *= split.steady
         x = S.get("smooth_fraction", (n, m))
         np.maximum(eqm.gap_size, floor, out=x)
@@ -842,6 +845,7 @@ class BladeSolver:
         (``_step_once``); with several the two are blended (``_substeps``).
         """
         j0, j1 = split.j0, split.j1
+        assert split.swinging is not None and split.steady is not None  # (called when some joints swing)
         st, js = self.state, slice(j0, j1)
         rows = _Rows(bend=st.bend_t[js, :, a:b], vel=st.bend_vel_t[js, :, a:b], twist=st.twist_t[js, a:b],
                      twist_vel=st.twist_vel_t[js, a:b], eq=st.bend_eq_t[js, :, a:b], gap=eqm.gap[js],

@@ -162,9 +162,11 @@ def fringe_colour(params: Params) -> tuple[float, float, float]:
     block = sample_blades(params)
     if block.blade_length.size == 0:
         species = Species(params)
-        return tuple(float(c) for c in species.p @ species.color)
+        r, g, b = (float(c) for c in species.p @ species.color)
+        return r, g, b
     weight, colour = _fringe(params, block)
-    return tuple(float(c) for c in (colour * weight[..., None]).sum(axis=(0, 1)) / weight.sum())
+    r, g, b = (float(c) for c in (colour * weight[..., None]).sum(axis=(0, 1)) / weight.sum())
+    return r, g, b
 
 
 def _fringe(params: Params, block) -> tuple[np.ndarray, np.ndarray]:

@@ -47,8 +47,9 @@ MIX1, MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
 GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
-def mix64(x: np.ndarray) -> np.ndarray:
-    """splitmix64's finaliser: a bijective scramble of uint64 values (wrapping arithmetic)."""
+def mix64(x: Any) -> Any:
+    """splitmix64's finaliser: a bijective scramble of uint64 values, a scalar or an array
+    (wrapping arithmetic)."""
     x = (x ^ (x >> np.uint64(30))) * MIX1
     x = (x ^ (x >> np.uint64(27))) * MIX2
     return x ^ (x >> np.uint64(31))
@@ -114,6 +115,11 @@ def _wrap_angle(a: float) -> float:
     return math.remainder(a, 2.0 * math.pi)
 
 
+def _triple(row) -> tuple[float, float, float]:
+    a, b, c = (float(x) for x in row)
+    return a, b, c
+
+
 def _parse_keys(keys: Sequence[Any] | None, params) -> np.ndarray:
     """(m, 3) float64 rows time, speed, direction (degrees, unwrapped along the shorter arc).
 
@@ -126,7 +132,7 @@ def _parse_keys(keys: Sequence[Any] | None, params) -> np.ndarray:
     else:
         try:
             rows = [(row["time"], row["speed"], row["direction"]) if isinstance(row, Mapping)
-                    else tuple(float(x) for x in row) for row in keys]
+                    else _triple(row) for row in keys]
         except (TypeError, ValueError, KeyError):
             raise ParameterError("wind.keys", f"{keys!r} is not a sequence of (time_s, speed_m_s, "
                                  "direction_deg) rows") from None
@@ -294,7 +300,7 @@ class WindField:
         k = math.floor(u)
         weights = _catmull_rom(u - k)
         weights *= self.turbulence_std / (KERNEL_STD * math.sqrt(float(np.sum(weights * weights))))
-        lattice = None
+        lattice: np.ndarray | None = None
         for i, wt in enumerate(weights):
             if wt == 0.0:
                 continue
@@ -303,6 +309,7 @@ class WindField:
                 lattice = term * np.float32(wt)
             else:
                 lattice += term * np.float32(wt)
+        assert lattice is not None  # (Catmull-Rom's four weights are never all zero)
         return lattice
 
     def _lattice_frame(self, t: float, xs: np.ndarray, ys: np.ndarray):

@@ -88,10 +88,7 @@ class WINDGRASS_OT_track_update(bpy.types.Operator):
                 self._finish(context)
                 if item is None:
                     return {"CANCELLED"}
-                tracks.store(item, finished.value, self._wanted)
-                rt = runtime.get_runtime(context.scene, item)
-                if rt is not None:
-                    rt.dirty = True
+                runtime.store_track(context.scene, item, finished.value, self._wanted)
                 refresh(context.scene)
                 return self._done(item, True, self._frames)
             context.window_manager.progress_update(done)

@@ -346,7 +346,7 @@ class Baker:
         middle or last frame: a bake of none holds a still, empty field."""
         for frame in sorted({self.first, (self.first + self.last) // 2, self.last}):
             self.scene.frame_set(frame)
-            rt = REGISTRY.runtime(key_of(self.scene, self.item))
+            rt = REGISTRY.built(key_of(self.scene, self.item))
             if rt is not None and (len(rt.blades.blocks) or len(rt.cards.blocks)):
                 return True
         return False

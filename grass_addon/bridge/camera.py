@@ -29,8 +29,8 @@ def _basis(matrix) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rot = np.array(matrix.to_3x3(), dtype=np.float64)
     position = np.array(matrix.translation, dtype=np.float64)
     forward, up = -rot[:, 2], rot[:, 1]
-    forward /= max(np.linalg.norm(forward), 1e-12)
-    up /= max(np.linalg.norm(up), 1e-12)
+    forward /= max(float(np.linalg.norm(forward)), 1e-12)
+    up /= max(float(np.linalg.norm(up)), 1e-12)
     return position, forward, up
 
 

@@ -19,7 +19,7 @@ from . import bake, maps, properties, tracks
 from .frame_pass import guarded, update_field
 from .lifecycle import apply_settings
 from .registry import REGISTRY, key_of
-from .resolve import get_runtime, terrain_of
+from .resolve import terrain_of
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
 # for this long, so dragging a slider on a large field does not re-simulate at every step.
@@ -38,17 +38,15 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
     REGISTRY.unchanged = False  # (a setting edited: the file is not as saved)
     if item.collection is None or bake.is_baked(item):
         return
-    rt = get_runtime(scene, item)
-    if rt is not None:
-        rt.dirty = True
+    live = REGISTRY.live(key_of(scene, item))
+    live.edited()
     guarded(apply_settings, scene, item)
-    state = REGISTRY.state(key_of(scene, item))
     if item.collider_collection is not None or item.effector_collection is not None \
             or tracks.TRACK_KEY in item.collection:
-        state.motion = True
+        live.motion_edited()
     if not (defer if defer is not None else not bpy.app.background):
-        if state.motion:
-            state.motion = False
+        if live.moved:
+            live.moved = False
             guarded(update_track, scene, item)
         guarded(update_field, scene, item)
         return
@@ -60,7 +58,7 @@ def refresh_later(keys) -> None:
     only, no datablock is added or removed there)."""
     now = time.monotonic()
     for key in keys:
-        REGISTRY.state(key).pending = now
+        REGISTRY.live(key).pending = now
     if not bpy.app.timers.is_registered(flush_pending):
         bpy.app.timers.register(flush_pending, first_interval=EDIT_SETTLE_S)
 
@@ -70,7 +68,7 @@ def flush_pending() -> float | None:
     dragging. A field whose strokes take longer than STROKE_GOAL_S to show (a large field) waits
     while its terrain is in a paint mode: it follows when the artist leaves it."""
     pending = {key: s for key, s in REGISTRY.states.items() if s.pending is not None}
-    latest = max((s.pending for s in pending.values()), default=0.0)
+    latest = max((s.pending for s in pending.values() if s.pending is not None), default=0.0)
     wait = latest + EDIT_SETTLE_S - time.monotonic()
     if wait > 0:
         return wait
@@ -85,11 +83,11 @@ def flush_pending() -> float | None:
         if state.stroke_s > STROKE_GOAL_S and painting(scene, item):
             waiting = True
             continue
-        if state.motion:
+        if state.moved:
             if _playing():
                 waiting = True  # sampled when the playback stops (it steps the scene's frames)
                 continue
-            state.motion = False
+            state.moved = False
             if _quick_to_sample(scene, item):  # (a long sampling waits for Update Motion: no freeze)
                 guarded(_update_motion, scene, item)
         state.pending = None
@@ -153,16 +151,18 @@ def update_track(scene, item, progress=None) -> bool:
     if not wanted:
         if have is not None:
             tracks.clear(item)
-            rt = get_runtime(scene, item)
-            if rt is not None:
-                rt.dirty = True
+            REGISTRY.live(key_of(scene, item)).edited()
             return True
         return False
     if have == wanted:
         return False
     terrain_of(scene, item, params)  # (the ground's height bounds the colliders' spheres)
-    tracks.store(item, tracks.sample(scene, item, params, progress=progress), wanted)
-    rt = get_runtime(scene, item)
-    if rt is not None:
-        rt.dirty = True
+    store_track(scene, item, tracks.sample(scene, item, params, progress=progress), wanted)
     return True
+
+
+def store_track(scene, item, track, wanted: str) -> None:
+    """Keep the sampled motion ``track`` (of fingerprint ``wanted``) with the file; the field
+    takes it at its next update."""
+    tracks.store(item, track, wanted)
+    REGISTRY.live(key_of(scene, item)).edited()

@@ -110,7 +110,7 @@ def frames(text: str) -> list[int]:
     """The frames of 'A-B', 'N' or a list of them ('9,10,20-21', as Flamenco's chunker gives a
     task), in order, each once. (This script runs where the extension may be missing: it keeps
     its own copy of ``grass_addon.farm.parse_frames``'s reading, without the scene's range.)"""
-    out = set()
+    out: set[int] = set()
     for part in text.split(","):
         a, sep, b = part.strip().partition("-") if not part.strip().startswith("-") else ("", "", "")
         if not a.strip().isdigit() or (sep and not b.strip().isdigit()):
@@ -137,8 +137,8 @@ def render(args) -> int:
             print(f"Skipped: '{final}' (already rendered)", flush=True)
             continue
         scene.frame_set(frame)
-        for item in getattr(getattr(scene, "windgrass", None), "fields", ()) if runtime else ():
-            error = runtime.field_error(scene, item)
+        for item in getattr(getattr(scene, "windgrass", None), "fields", ()) if runtime is not None else ():
+            error = runtime.field_error(scene, item) if runtime is not None else None
             if error:
                 raise RuntimeError(f"grass field '{item.name}' cannot be simulated: {error}")
         partial = out / ("." + final.stem + ".partial.png")

@@ -18,11 +18,11 @@ import numpy as np
 from ..errors import WindgrassError
 from . import bake, materials, owned, paint_look, pools, textures
 from . import camera as field_camera
-from .registry import REGISTRY, key_of, warn_once
-from .resolve import FieldRuntime, current, get_runtime
+from .registry import REGISTRY, LiveField, key_of, warn_once
+from .resolve import current, get_runtime
 
 
-def write_frame(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> None:
+def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     """The frame as the engine computes it (``GrassField.frame``: wind, solver, cell data, LOD
     from the views, each role's blocks and vertices, gust offset, trail map), written: the views
     are ``camera.field_views`` (the scene camera in renders, the 3D views in the viewport).
@@ -46,23 +46,24 @@ def write_frame(scene, item, rt: FieldRuntime, depsgraph=None, views=None) -> No
     rt.camera_signature = field_camera.signature(views)
 
 
-def _write_trails(item, rt: FieldRuntime, trail) -> None:
+def _write_trails(item, rt: LiveField, trail) -> None:
     """The far canopy's trampled trails (``interaction.trail_map``, or None): its image and
     mapping, written when they changed."""
-    if trail is None and rt.trail is None:
+    if rt.trail_written and trail is None and rt.trail is None:
         return
     reg = owned.registered(item)
     image = reg.get(owned.ROLE_TRAIL_IMAGE)
     if trail is not None and isinstance(image, bpy.types.Image):
-        if not rt.trail or rt.trail.extent != trail.extent or not np.array_equal(rt.trail.flat, trail.flat):
+        kept = rt.trail if rt.trail_written else None
+        if kept is None or kept.extent != trail.extent or not np.array_equal(kept.flat, trail.flat):
             textures.write_trail_image(image, trail.flat)
     materials.set_trail(reg.get(owned.ROLE_CANOPY_MATERIAL), trail)
-    rt.trail = trail
+    rt.trail, rt.trail_written = trail, True
 
 
-def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> FieldRuntime | None:
+def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> LiveField | None:
     """Write the field ``item`` of ``scene`` for ``scene.frame_current`` (a frame handler's work).
-    Returns its runtime, or None when the field has no objects (not built, or deleted by hand).
+    Returns its live record, or None when the field has no objects (not built, or deleted by hand).
 
     ``camera_moved_only``: skip the write when this frame was written with the same camera
     (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
@@ -87,9 +88,9 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         # gets here, and a frame handler must not add or delete datablocks.
         raise WindgrassError(f"the objects of field '{item.name}' were not built for its settings "
                              "(changed outside Windgrass); press Rebuild")
-    if rt.paint_shown != rt.paint:
+    if rt.paint_shown != rt.painted:
         paint_look.update_paint_look(item, rt.params, rt.field.cache.paint)
-        rt.paint_shown = rt.paint
+        rt.paint_shown = rt.painted
     write_frame(scene, item, rt, depsgraph, views)
     return rt
 
@@ -117,14 +118,13 @@ def guarded(work, scene, item, *args, camera_moved_only: bool = False) -> None:
         message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, WindgrassError):  # a fault of Windgrass, not a setting: its trace for a report
             traceback.print_exc()
-        state = REGISTRY.state(key)
-        state.error = message
+        live = REGISTRY.live(key)
         warn_once(f"field '{item.name}' cannot be simulated, its grass is hidden: {message}")
         try:
             hide(scene, item)
         except Exception as hide_exc:  # pragma: no cover (objects gone mid-render)
             warn_once(f"field '{item.name}' could not be hidden: {hide_exc}")
-        state.runtime = None  # resolved again (and checked again) at the next update
+        live.drop(error=message)  # resolved again (and checked again) at the next update
     else:
         if not camera_moved_only and key in REGISTRY.states:  # (that pass skips fields not written now)
             REGISTRY.states[key].error = None

@@ -90,7 +90,7 @@ def show_while_painting(scene) -> None:
     for item in owned.scene_fields(scene):
         if item.collection is None:
             continue
-        state = REGISTRY.state(key_of(scene, item))
+        state = REGISTRY.live(key_of(scene, item))
         hide = painting(scene, item)
         if hide == state.hidden_for_paint:
             continue
@@ -145,11 +145,7 @@ def _note_strokes(depsgraph) -> None:
             changed.add((original.data.id_type, original.data.name))
     touched = [key for key, state in REGISTRY.states.items() if state.paint_deps & changed]
     for key in touched:
-        state = REGISTRY.states[key]
-        state.strokes += 1
-        state.stroked = True
-        if state.runtime is not None:
-            state.runtime.dirty = True
+        REGISTRY.states[key].stroke()
     if touched and not bpy.app.background:
         refresh_later(touched)
 
@@ -169,7 +165,7 @@ def _note_motion(scene, depsgraph) -> None:
         if colls and (actions or any(c.name in collections for c in colls)
                       or any(o.name in updated for c in colls for o in c.all_objects)):
             key = key_of(scene, item)
-            REGISTRY.state(key).motion = True
+            REGISTRY.live(key).motion_edited()
             refresh_later([key])
 
 
@@ -268,10 +264,9 @@ def on_undo_redo_post(*_args):
     that waits for a timer, outside Blender's undo code; in scripts it happens at once. No
     datablock is added or removed here. A field's error stays until that refresh finds it again or
     not (cleared here, a hidden field's panel said nothing for up to 20 s in a loaded window)."""
-    for rt in REGISTRY.fields.values():
-        rt.dirty = True
-        rt.blades.state.forget()
-        rt.cards.state.forget()
+    for live in REGISTRY.fields.values():
+        live.edited()
+        live.slots_changed()
     fields = list(_live_fields())
     if bpy.app.background:
         for scene, item in fields:

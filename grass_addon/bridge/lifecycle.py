@@ -19,7 +19,7 @@ from . import bake, maps, owned, properties
 from . import scene as field_scene
 from .frame_pass import guarded, update_field
 from .registry import REGISTRY, key_of
-from .resolve import get_runtime, resolve, terrain_of, topology_of
+from .resolve import resolve, terrain_of, topology_of
 
 
 def apply_settings(scene, item, force: bool = False) -> None:
@@ -47,7 +47,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     coll = item.collection
     if force or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
         field_scene.build_slots(scene, item, params, heightfield, centre)
-        forget_slots(scene, item, dirty=True)
+        forget_slots(scene, item, rebuilt=True)
     else:
         if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
             forget_slots(scene, item)
@@ -62,18 +62,16 @@ def refill_ground(scene, item, params) -> None:
     """Make the painted ground grid a save emptied again (``scene.fill_ground``); the paint's look
     on it is then written at the next update."""
     if field_scene.fill_ground(item, params):
-        rt = get_runtime(scene, item)
-        if rt is not None:
-            rt.paint_shown = None
+        REGISTRY.live(key_of(scene, item)).paint_shown = None
 
 
-def forget_slots(scene, item, dirty: bool = False) -> None:
-    """The field's slot meshes hold something else now: its pools write every slot next time."""
-    rt = get_runtime(scene, item)
-    if rt is not None:
-        rt.dirty = rt.dirty or dirty
-        rt.blades.state.forget()
-        rt.cards.state.forget()
+def forget_slots(scene, item, rebuilt: bool = False) -> None:
+    """The field's slot meshes hold something else now (``rebuilt``: new objects for new
+    settings): its pools write every slot next time."""
+    live = REGISTRY.live(key_of(scene, item))
+    if rebuilt:
+        live.edited()
+    live.slots_changed()
 
 
 def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
@@ -103,7 +101,9 @@ def start_bake(scene, item, first: int, last: int, groups: int = 1, fmt: str = "
     rt = resolve(scene, item)
     if item.collection is None or item.collection.get(owned.TOPOLOGY) != rt.topology:
         build_field(scene, item)
-    return bake.Baker(scene, item, first, last, params_digest(scene, item), groups, fmt)
+    digest = params_digest(scene, item)
+    assert digest is not None  # (the settings were read above)
+    return bake.Baker(scene, item, first, last, digest, groups, fmt)
 
 
 def bake_field(scene, item, first: int, last: int, fmt: str = "alembic"):
@@ -142,7 +142,8 @@ READ_ME = "Windgrass - read me"
 
 def write_read_me() -> None:
     """A text block that says, in a Blender without Windgrass, what the grass needs."""
-    live, baked = [], []
+    live: list[str] = []
+    baked: list[str] = []
     for s in bpy.data.scenes:
         for item in owned.scene_fields(s):
             (baked if bake.is_baked(item) else live).append(f"{s.name} / {item.name}")
@@ -171,4 +172,4 @@ def reset_field(scene, item) -> None:
     """Forget the runtime of ``item``: the next update resolves it from its settings again."""
     state = REGISTRY.states.get(key_of(scene, item))
     if state is not None:
-        state.runtime = state.error = None
+        state.drop()

@@ -797,7 +797,7 @@ def set_gust_offset(displacement, speed: float, params, *mats) -> None:
     for mat in mats:
         nodes = mat.node_tree.nodes if mat is not None and mat.node_tree else None
         node = nodes.get(NODE_GUST_MAPPING) if nodes is not None else None
-        if node is not None:
+        if nodes is not None and node is not None:
             socket = _socket(node.inputs, "Location")
             if tuple(socket.default_value) != location:
                 socket.default_value = location

@@ -90,7 +90,7 @@ def _tagged(item) -> dict:
     uid = coll.get("wg_uid") if coll is not None else None
     if not uid:
         return {}
-    found = {}
+    found: dict = {}
     for obj in coll.objects:
         if obj.get("wg_uid") == uid and obj.get("wg_role"):
             role = obj["wg_role"]
@@ -119,7 +119,7 @@ def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
     """{slot index: object} of the field's slots that still exist in its collection (the user may
     delete some; copies of them are not slots)."""
     coll = item.collection
-    out = {}
+    out: dict = {}
     if coll is None:
         return out
     for obj in field_objects(item):

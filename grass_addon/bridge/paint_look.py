@@ -89,7 +89,7 @@ def update_paint_look(item, params, paint) -> None:
     mesh = ground.data
     n, canopy, top, nx, ny = (float(v) for v in mesh["wg_layers"])
     n, nx, ny = int(n), int(nx), int(ny)
-    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    co: np.ndarray = np.empty(len(mesh.vertices) * 3, np.float32)
     mesh.attributes["position"].data.foreach_get("vector", co)
     co = co.reshape(-1, 3)
     floor_z = co[:n, 2]
@@ -106,7 +106,7 @@ def update_paint_look(item, params, paint) -> None:
     first.co = first.co  # (positions changed: bounds)
     corners = np.empty(len(mesh.loops), np.int32)
     mesh.loops.foreach_get("vertex_index", corners)
-    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    uv: np.ndarray = np.empty(len(mesh.loops) * 2, np.float32)
     layer = mesh.uv_layers[materials.UV_SWARD_Z]
     layer.data.foreach_get("uv", uv)
     uv = uv.reshape(-1, 2)

@@ -14,7 +14,7 @@ import contextlib
 import json
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import bpy
@@ -138,7 +138,7 @@ def description(p: schema.Param) -> str:
 
 # Called with (scene, item) when a field's settings change; the runtime sets it (runtime.mark_dirty)
 # when the add-on registers, so this module needs no import of the runtime.
-on_edit = None
+on_edit: Callable[..., None] | None = None
 
 
 def notify(item: Any) -> None:

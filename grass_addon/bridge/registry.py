@@ -1,16 +1,22 @@
-"""The one piece of module-level state of the add-on: a record per field, by key, and a few flags.
+"""The one piece of module-level state of the add-on: one live record per field, by key, and a few flags.
 
 A key is ``(scene.session_uid, field uid)``: Blender keeps a scene's session uid through renames
 and undo and gives a copied scene a new one. Nothing in the .blend refers to a record: the
 registry is emptied on file load and each field is resolved again from its stored settings (the
 state at frame N is a function of the parameters, the seed and N). A field's record goes as one
-(``forget``, ``forget_missing``), so nothing of a deleted field is left behind.
+(``forget_missing``), so nothing of a deleted field is left behind.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..clock import Clock
+    from ..field import GrassField
+    from ..schema import Params
+    from .pools import SlotPool
 
 Key = tuple[int, str]
 
@@ -19,30 +25,139 @@ def key_of(scene, item) -> Key:
     return scene.session_uid, str(item.uid)
 
 
-@dataclass(eq=False)
-class FieldState:
-    """What the add-on keeps of one field between frames and edits."""
+@dataclass(frozen=True, eq=False)
+class Engine:
+    """A field's engine (``GrassField``), its two slot pools and what it was built from (one
+    ``resolve._build``): a new one replaces it whole."""
 
-    runtime: Any = None  # resolve.FieldRuntime, or None until resolved (again)
-    error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
-    pending: float | None = None  # time.monotonic() of an edit waiting to settle (UI), else None
+    field: GrassField
+    params: Params  # validated, with the scene's clock (without the animated wind's values)
+    digest: str  # of the parameters, the animated wind, the topology, the force fields, the terrain
+    wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
+    wind_keys: tuple | None
+    terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)
+    topology: str  # slots.topology_key: what the slot objects must be built for
+    blades: SlotPool
+    cards: SlotPool
+
+
+@dataclass(eq=False)
+class LiveField:
+    """Everything the add-on keeps of one field between frames and edits.
+
+    Its engine (``resolve.resolve`` makes it; ``built`` until ``drop``) with the paint and motion it
+    was told of since; what its objects show now; the inputs sampled from Blender and kept
+    (terrain, paint); and what waits: an edit to settle (``pending``), settings to resolve again
+    (``stale``), a stroke or collider motion to apply. The methods say what happened; the frame
+    pass and the timers read what it means. ``field``, ``params``, ``blades``, ... are the
+    engine's (a field used before it is resolved is a fault of the add-on: LookupError)."""
+
+    key: Key
+    engine: Engine | None = None
+    clock: tuple[Clock, int] | None = None  # the scene's clock and frame_end it was resolved with
+    painted: str = ""  # paint.fingerprint of the paint the engine grows
+    track: str = ""  # tracks.fingerprint of the stored collider motion the engine uses
+    last_repaint: tuple = ()  # (seconds, blocks made again) of the last stroke applied
+    # what its objects show now (frame_pass)
+    frame: int | None = None  # the frame last written (None: write it again)
+    subframe: float = 0.0  # and its sub-frame (motion-blur steps)
+    camera_signature: tuple | None = None
+    paint_shown: str | None = None  # paint.fingerprint of the paint the ground and paint map show
+    trail: Any = None  # the trail map the far canopy shows (interaction.TrailMap | None)
+    trail_written: bool = False  # the canopy's trail image and mapping were written for ``trail``
+    # inputs sampled from Blender and kept
     terrain: tuple | None = None  # (terrain key, heightfield, centre) as sampled
     paint: tuple | None = None  # (what it was read from, paint.Paint | None)
     paint_deps: frozenset = frozenset()  # (ID type, name) of the datablocks its paint reads
     strokes: int = 0  # edits of those datablocks so far (painting)
-    stroke_s: float = 0.0  # seconds its last stroke took to show
+    # what waits, and the UI's
+    error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
+    stale: bool = False  # its settings were edited since it was resolved: resolve again
+    pending: float | None = None  # time.monotonic() of an edit waiting to settle (UI), else None
     stroked: bool = False  # a stroke waits to be shown
-    motion: bool = False  # its colliders or force fields were edited: look at their stored motion
+    stroke_s: float = 0.0  # seconds its last stroke took to show
+    moved: bool = False  # its colliders or force fields were edited: look at their stored motion
     hidden_for_paint: bool | None = None  # hidden in the viewport while its terrain is painted (None: not yet set)
+
+    @property
+    def built(self) -> bool:
+        """Its engine is resolved (and not dropped since)."""
+        return self.engine is not None
+
+    @property
+    def resolved(self) -> Engine:
+        if self.engine is None:
+            raise LookupError(f"the field {self.key} is used before it is resolved")
+        return self.engine
+
+    @property
+    def field(self) -> GrassField:
+        return self.resolved.field
+
+    @property
+    def params(self) -> Params:
+        return self.resolved.params
+
+    @property
+    def digest(self) -> str:
+        return self.resolved.digest
+
+    @property
+    def topology(self) -> str:
+        return self.resolved.topology
+
+    @property
+    def wind_keys(self) -> tuple | None:
+        return self.resolved.wind_keys
+
+    @property
+    def blades(self) -> SlotPool:
+        return self.resolved.blades
+
+    @property
+    def cards(self) -> SlotPool:
+        return self.resolved.cards
+
+    @property
+    def heightfield(self):
+        """The terrain the engine grows on (``terrain.Heightfield``), None on flat ground."""
+        return self.field.cache.terrain
+
+    def edited(self) -> None:
+        """Its settings (or what its engine is built from) changed: resolve it again before the next write."""
+        self.stale = True
+
+    def stroke(self) -> None:
+        """A datablock its paint reads was edited (a stroke): read the paint again and show it."""
+        self.strokes += 1
+        self.stroked = True
+        self.stale = True
+
+    def motion_edited(self) -> None:
+        """Its colliders or force fields were edited: their stored motion is looked at again."""
+        self.moved = True
+
+    def slots_changed(self) -> None:
+        """Its slot meshes hold something else now (rebuilt, undo): the pools write every slot."""
+        if self.engine is not None:
+            self.engine.blades.state.forget()
+            self.engine.cards.state.forget()
+        self.frame = None
+
+    def drop(self, error: str | None = None) -> None:
+        """Forget its engine (resolved again from the settings at the next update) and say why
+        it cannot be simulated (``error``), or that nothing is known against it (None)."""
+        self.engine = None
+        self.frame = None
+        self.error = error
 
 
 @dataclass
 class Registry:
-    states: dict[Key, FieldState] = field(default_factory=dict)
+    states: dict[Key, LiveField] = field(default_factory=dict)
     warned: set[str] = field(default_factory=set)  # console messages already printed
     saved_bakes: set = field(default_factory=set)  # cache files the .blend on disk refers to
     bake_root: str | None = None  # <blend>_windgrass of the open file
-    last_repaint: tuple = ()  # (seconds, blocks made again) of the last stroke applied
     tracks: dict[str, tuple] = field(default_factory=dict)  # stored motion decoded: fingerprint -> (colliders, fields)
     sampling: bool = False  # tracks.sample is stepping the scene's frames: the handlers stay out
     rendering: bool = False  # between render_pre and render_post/render_cancel: the scene camera rules
@@ -53,22 +168,22 @@ class Registry:
     # the 3D views drawing a field with EEVEE now: the overlays turned off in each (floor.py)
     floors: dict[int, tuple] = field(default_factory=dict)
 
-    def state(self, key: Key) -> FieldState:
+    def live(self, key: Key) -> LiveField:
         """The record of the field ``key`` (made when there is none)."""
         found = self.states.get(key)
         if found is None:
-            found = self.states[key] = FieldState()
+            found = self.states[key] = LiveField(key)
         return found
 
-    def runtime(self, key: Key):
-        """The field's runtime, or None."""
+    def built(self, key: Key) -> LiveField | None:
+        """The field's record when its engine is resolved, else None."""
         found = self.states.get(key)
-        return None if found is None else found.runtime
+        return found if found is not None and found.built else None
 
     @property
-    def fields(self) -> dict:
-        """{key: runtime} of the fields resolved now."""
-        return {key: s.runtime for key, s in self.states.items() if s.runtime is not None}
+    def fields(self) -> dict[Key, LiveField]:
+        """{key: record} of the fields resolved now."""
+        return {key: s for key, s in self.states.items() if s.built}
 
     def clear(self) -> None:
         self.states.clear()

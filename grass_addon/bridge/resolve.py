@@ -1,10 +1,10 @@
-"""A field resolved from its settings into what a frame needs (``FieldRuntime``).
+"""A field resolved from its settings into what a frame needs (its ``registry.LiveField``).
 
 ``resolve`` first reads every input (``read_inputs``): the field's parameters with the scene's
 clock, its animated wind (F-curves sampled into keys, ``animation.py``), its terrain (sampled once
 and kept while the terrain object and the grid hold), its paint, its stored collider and
-force-field motion (``tracks.py``); then it keeps the registered runtime while its digest holds
-(its engine told of new collider motion or paint) or makes the engine (``GrassField``) and its two
+force-field motion (``tracks.py``); then it keeps the field's engine while its digest holds
+(telling it of new collider motion or paint) or makes the engine (``GrassField``) and its two
 slot pools. Never touches a datablock (``lifecycle.apply_settings`` does); raises WindgrassError
 on bad settings.
 """
@@ -23,41 +23,12 @@ from ..clock import Clock
 from ..field import GrassField
 from . import animation, maps, owned, paint_look, pools, properties, tracks
 from . import scene as field_scene
-from .registry import REGISTRY, Key, key_of, warn_once
+from .registry import REGISTRY, Engine, LiveField, key_of, warn_once
 
 
-@dataclass(eq=False)
-class FieldRuntime:
-    """One field resolved from its settings: everything a frame needs, nothing read again."""
-
-    key: Key
-    params: schema.Params  # validated, with the scene's clock
-    digest: str  # of the parameters, the animated wind and the terrain samples
-    clock: tuple[Clock, int]  # the scene's clock and frame_end it was resolved with
-    wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
-    wind_keys: tuple | None
-    terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)
-    field: GrassField
-    blades: pools.SlotPool
-    cards: pools.SlotPool
-    topology: str  # slots.topology_key: what the slot objects must be built for
-    paint: str = ""  # paint.fingerprint of the paint the engine grows
-    paint_shown: str | None = None  # and of the one the ground and paint map show (update_paint_look)
-    track: str = ""  # tracks.fingerprint of the stored collider motion the engine uses
-    dirty: bool = False  # the settings were edited since: resolve again
-    frame: int | None = None  # the frame last written
-    subframe: float = 0.0  # and its sub-frame (motion-blur steps)
-    camera_signature: tuple | None = None
-    trail: object = False  # the trail map the far canopy shows (None: none; False: not yet set)
-
-    @property
-    def heightfield(self):
-        """The terrain the engine grows on (``terrain.Heightfield``), None on flat ground."""
-        return self.field.cache.terrain
-
-
-def get_runtime(scene, item) -> FieldRuntime | None:
-    return REGISTRY.runtime(key_of(scene, item))
+def get_runtime(scene, item) -> LiveField | None:
+    """The field's live record when its engine is resolved, else None."""
+    return REGISTRY.built(key_of(scene, item))
 
 
 def field_error(scene, item) -> str | None:
@@ -78,7 +49,7 @@ def _wind_curves(scene, item, params) -> tuple[dict, str]:
     return fcurves, animation.fingerprint(fcurves, animation.sample_range(scene, params))
 
 
-def _wind(scene, item, params, previous: FieldRuntime | None):
+def _wind(scene, item, params, previous: Engine | None):
     """(params without the animated values, wind keys, fingerprint) of the field's wind now."""
     fcurves, fingerprint = _wind_curves(scene, item, params)
     if not fcurves:
@@ -94,7 +65,7 @@ def _wind(scene, item, params, previous: FieldRuntime | None):
 def terrain_of(scene, item, params, force: bool = False) -> tuple:
     """(heightfield, centre, key) of the field's terrain: sampled once and kept while the terrain
     object and the grid hold (the field's record); ``force`` (Rebuild) samples it again."""
-    state = REGISTRY.state(key_of(scene, item))
+    state = REGISTRY.live(key_of(scene, item))
     t_key = maps.terrain_key(scene, item, params)
     kept = state.terrain
     if not force and kept is not None and kept[0] == t_key:
@@ -108,7 +79,7 @@ def paint_of(scene, item, params):
     """The field's paint (``maps.paint_of``), read again only when its settings, its terrain or
     keep-out collection, or one of the datablocks it reads changed since (the record's ``strokes``,
     counted by ``handlers.on_depsgraph_update_post``)."""
-    state = REGISTRY.state(key_of(scene, item))
+    state = REGISTRY.live(key_of(scene, item))
     coll = item.keep_out_collection
     outline = [] if coll is None else sorted((o.name, [round(v, 6) for row in o.matrix_world for v in row])
                                              for o in coll.all_objects)
@@ -155,9 +126,9 @@ class Inputs:
     digest: str  # what makes a new engine: parameters, animated wind, topology, force fields, terrain
 
 
-def read_inputs(scene, item, previous: FieldRuntime | None) -> Inputs:
+def read_inputs(scene, item, previous: Engine | None) -> Inputs:
     """The field's inputs now: its settings with the scene's clock, animated wind, terrain, paint
-    and stored motion (``previous``: the runtime whose sampled wind keys may be kept)."""
+    and stored motion (``previous``: the engine whose sampled wind keys may be kept)."""
     params, wind_keys, fingerprint = _wind(scene, item, properties.params_from_settings(item, scene), previous)
     heightfield, _, t_key = terrain_of(scene, item, params)
     topology = topology_of(params, heightfield, item)  # (a keep-out collection is not a setting)
@@ -171,49 +142,51 @@ def read_inputs(scene, item, previous: FieldRuntime | None) -> Inputs:
                   paint_core.fingerprint(paint), _clock(scene), scene.frame_current, digest)
 
 
-def resolve(scene, item) -> FieldRuntime:
-    """The field's runtime for its settings now: the registered one when nothing it depends on
-    changed (its engine told of new collider motion or paint), else a new one (the engine is
-    rebuilt). Reads Blender's data, never touches a datablock (``apply_settings`` does); raises
-    WindgrassError on bad settings."""
+def resolve(scene, item) -> LiveField:
+    """The field's record with its engine for its settings now: the engine kept when nothing it
+    depends on changed (told of new collider motion or paint), else a new one. Reads Blender's
+    data, never touches a datablock (``apply_settings`` does); raises WindgrassError on bad
+    settings."""
     key = key_of(scene, item)
-    previous = REGISTRY.runtime(key)
-    if previous is None:
+    live = REGISTRY.live(key)
+    if live.engine is None:
         REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
-    inputs = read_inputs(scene, item, previous)
-    if previous is not None and previous.digest == inputs.digest:
-        _update(previous, inputs)
-        return previous
-    rt = _build(key, inputs, item.name)
-    REGISTRY.state(key).runtime = rt
-    return rt
+        live = REGISTRY.live(key)
+    inputs = read_inputs(scene, item, live.engine)
+    if live.engine is not None and live.engine.digest == inputs.digest:
+        _update(live, live.engine.field, inputs)
+    else:
+        _build(live, inputs, item.name)
+    live.stale = False
+    live.clock = inputs.clock
+    return live
 
 
-def _update(rt: FieldRuntime, inputs: Inputs) -> None:
+def _update(live: LiveField, field: GrassField, inputs: Inputs) -> None:
     """Tell the kept engine what changed that needs no new one: the colliders' motion (the wind's
     simulation stays: the digest holds the force fields) and the paint (only the blocks a stroke
     touched are made again)."""
-    if rt.track != inputs.track:
-        rt.field.update_colliders(inputs.colliders, inputs.effectors)
-        rt.track, rt.frame = inputs.track, None
-    if rt.paint != inputs.painted:
+    if live.track != inputs.track:
+        field.update_colliders(inputs.colliders, inputs.effectors)
+        live.track, live.frame = inputs.track, None
+    if live.painted != inputs.painted:
         started = time.perf_counter()
-        made = rt.field.repaint(inputs.paint, frame=inputs.frame)
-        rt.paint, rt.frame = inputs.painted, None
-        REGISTRY.last_repaint = (time.perf_counter() - started, made)
-    rt.dirty = False
-    rt.clock = inputs.clock
+        made = field.repaint(inputs.paint, frame=inputs.frame)
+        live.painted, live.frame = inputs.painted, None
+        live.last_repaint = (time.perf_counter() - started, made)
 
 
-def _build(key: Key, inputs: Inputs, name: str) -> FieldRuntime:
-    """A new engine and its runtime for ``inputs``."""
+def _build(live: LiveField, inputs: Inputs, name: str) -> None:
+    """A new engine and its slot pools for ``inputs``: its objects show nothing of it yet."""
     field = GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
                        colliders=inputs.colliders, effectors=inputs.effectors, progress=_seek_progress(name))
-    return FieldRuntime(key=key, params=inputs.params, digest=inputs.digest, clock=inputs.clock,
-                        wind_fingerprint=inputs.wind_fingerprint, wind_keys=inputs.wind_keys,
-                        terrain_key=inputs.terrain_key, field=field, topology=inputs.topology, paint=inputs.painted,
-                        track=inputs.track, blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
-                        cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+    live.engine = Engine(field, inputs.params, inputs.digest, inputs.wind_fingerprint, inputs.wind_keys,
+                         inputs.terrain_key, inputs.topology,
+                         blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
+                         cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+    live.painted, live.track = inputs.painted, inputs.track
+    live.frame, live.subframe, live.camera_signature, live.last_repaint = None, 0.0, None, ()
+    live.paint_shown, live.trail, live.trail_written = None, None, False
 
 
 def _seek_progress(name: str):
@@ -233,16 +206,17 @@ def _seek_progress(name: str):
     return report
 
 
-def current(scene, item) -> FieldRuntime:
-    """The runtime a frame handler uses: the registered one unless its settings may have changed
+def current(scene, item) -> LiveField:
+    """The record a frame handler writes from: as it is unless its settings may have changed
     (an edit, undo), the scene's clock or the animated wind changed under it (then resolved
-    again, numpy only), or there is none yet."""
-    rt = REGISTRY.runtime(key_of(scene, item))
-    if rt is None or rt.dirty:
+    again, numpy only), or it has no engine yet."""
+    live = REGISTRY.built(key_of(scene, item))
+    if live is None or live.engine is None or live.stale:
         return resolve(scene, item)
-    if rt.clock != _clock(scene) or _wind_curves(scene, item, rt.params)[1] != rt.wind_fingerprint:
+    engine = live.engine
+    if live.clock != _clock(scene) or _wind_curves(scene, item, engine.params)[1] != engine.wind_fingerprint:
         return resolve(scene, item)
-    if rt.terrain_key and maps.terrain_key(scene, item, rt.params) != rt.terrain_key:
+    if engine.terrain_key and maps.terrain_key(scene, item, engine.params) != engine.terrain_key:
         warn_once(f"the terrain of field '{item.name}' is gone or changed; the grass keeps the ground it "
                   "was built on until Rebuild (on flat ground without a terrain)")
-    return rt
+    return live

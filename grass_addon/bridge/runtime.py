@@ -2,14 +2,14 @@
 
 Operators, panels, scripts and tests call these; each lives in the one module of its job:
 
-* ``resolve.py``: a field's settings resolved into a ``FieldRuntime`` (parameters with the scene's
+* ``resolve.py``: a field's settings resolved into its live record (parameters with the scene's
   clock, the numpy engine ``GrassField``, its two slot pools), numpy only;
 * ``lifecycle.py``: the field's datablocks brought to its settings (build, rebuild, bake,
   remove), only inside operators, property edits and file load (Blender's undo needs it);
 * ``frame_pass.py``: one frame: views -> ``GrassField.frame`` -> writes;
 * ``edits.py``: property edits, strokes and collider edits applied once they settle;
 * ``handlers.py``: Blender's handlers and timers, ``register`` and ``unregister``;
-* ``registry.py``: the one module-level state, a record per field.
+* ``registry.py``: the one module-level state, one live record per field (``LiveField``).
 
 It is also the UI's one door: ``operators/`` and ``panels/`` import from here alone (the structure
 test holds them to it), so what they may touch is the list under "The UI's vocabulary" below: the
@@ -34,6 +34,7 @@ from .edits import (
     flush_pending,
     mark_dirty,
     refresh_later,
+    store_track,
     stroke_seconds,
     update_track,
 )
@@ -51,8 +52,8 @@ from .lifecycle import (
     start_bake,
     write_read_me,
 )
-from .registry import REGISTRY, key_of
-from .resolve import FieldRuntime, field_error, get_runtime, resolve, terrain_of, topology_of
+from .registry import REGISTRY, LiveField, key_of
+from .resolve import field_error, get_runtime, resolve, terrain_of, topology_of
 
 
 def scene_clock(scene) -> Clock:
@@ -63,8 +64,8 @@ def scene_clock(scene) -> Clock:
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
            "seek_note", "tracks", "WindgrassError",
            "apply_settings", "bake_field", "bake_status", "build_field", "EDIT_SETTLE_S", "field_error",
-           "FieldRuntime", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty",
+           "LiveField", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty",
            "PAINT_MODE_POLL_S", "params_digest", "plays_cache", "refresh_later", "register", "REGISTRY",
-           "remove_field", "reset_field", "resolve", "scene_clock", "start_bake", "STROKE_GOAL_S", "stroke_seconds",
-           "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track",
+           "remove_field", "reset_field", "resolve", "scene_clock", "start_bake", "store_track", "STROKE_GOAL_S",
+           "stroke_seconds", "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track",
            "write_read_me"]

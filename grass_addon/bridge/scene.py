@@ -222,7 +222,7 @@ class _SlotTopology:
         blade_shape, card_shape = slots.pool_shapes(grid, params)
         if role == owned.ROLE_BLADES:
             self.shape, faces, uvs = blade_shape, kin.blade_faces(grid), kin.blade_uvs(grid)
-            self.data_uvs = (materials.UV_TINT_RG, materials.UV_TINT_BS)
+            self.data_uvs: tuple[str, ...] = (materials.UV_TINT_RG, materials.UV_TINT_BS)
         else:
             self.shape, faces, uvs = card_shape, kin.card_faces(grid), atlas.card_uvs(grid)
             self.data_uvs = (materials.UV_FADE,)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from typing import Any
 
 import bpy
 import numpy as np
@@ -182,7 +183,7 @@ def _object_points(obj_eval, matrix: np.ndarray, islands_of: dict | None = None)
     mesh = obj_eval.to_mesh()
     try:
         n = len(mesh.vertices)
-        co = np.empty(n * 3, np.float32)
+        co: np.ndarray = np.empty(n * 3, np.float32)
         mesh.vertices.foreach_get("co", co)
         co = co.reshape(-1, 3).astype(np.float64)
         key = (obj_eval.name, n, len(mesh.edges), len(mesh.polygons))
@@ -194,7 +195,7 @@ def _object_points(obj_eval, matrix: np.ndarray, islands_of: dict | None = None)
             if islands_of is not None:
                 islands_of[key] = islands
         mesh.calc_loop_triangles()
-        tris = np.empty(len(mesh.loop_triangles) * 3, np.int64)
+        tris: np.ndarray = np.empty(len(mesh.loop_triangles) * 3, np.int64)
         mesh.loop_triangles.foreach_get("vertices", tris)
     finally:
         obj_eval.to_mesh_clear()
@@ -252,11 +253,11 @@ class _Sampler:
 
 def _effector(obj_eval, to_field: np.ndarray) -> forces.Effector:
     f = obj_eval.field
+    settings: dict[str, Any] = {key: kind(getattr(f, name, default)) for key, name, kind, default in FIELD_SETTINGS}
     return forces.Effector(
         kind=BLENDER_TYPES[f.type], matrix=to_field @ np.array(obj_eval.matrix_world, np.float64),
         shape="plane" if f.shape == "PLANE" else "point",
-        falloff_type={"TUBE": "tube", "CONE": "cone"}.get(f.falloff_type, "sphere"),
-        **{key: kind(getattr(f, name, default)) for key, name, kind, default in FIELD_SETTINGS})
+        falloff_type={"TUBE": "tube", "CONE": "cone"}.get(f.falloff_type, "sphere"), **settings)
 
 
 def _blender_perlin(p: np.ndarray) -> np.ndarray:

@@ -40,7 +40,7 @@ def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
     copy_item = copy.windgrass.fields[0]
     copy.frame_set(5)
     assert copy_item.collection is not item.collection
-    assert runtime.get_runtime(copy, copy_item) is not runtime.get_runtime(original, item)
+    assert runtime.get_runtime(copy, copy_item).field is not runtime.get_runtime(original, item).field
     # Rebuild and Remove in the copy leave the original's grass alone.
     assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}
     assert copy_item.collection["wg_uid"] != item.collection["wg_uid"]
@@ -88,11 +88,11 @@ def test_renaming_a_scene_keeps_one_runtime(bridge):
     owned, runtime = bridge
     scene, item = _add_field()
     scene.frame_set(2)
-    rt = runtime.get_runtime(scene, item)
+    engine = runtime.get_runtime(scene, item).field
     for i in range(4):
         scene.name = f"Meadow {i}"
         scene.frame_set(3 + i)
-    assert runtime.get_runtime(scene, item) is rt
+    assert runtime.get_runtime(scene, item).field is engine
     assert len(runtime.REGISTRY.fields) == 1
 
 

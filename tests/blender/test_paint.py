@@ -106,7 +106,7 @@ def test_a_stroke_is_applied_to_the_blocks_it_touches(bridge, drawn, capsys):
     bpy.context.view_layer.update()  # what a stroke's end sends
     scene.frame_set(scene.frame_current + 1)
     after = _grown_roots(drawn, runtime, scene, item)
-    seconds, made = runtime.REGISTRY.last_repaint
+    seconds, made = runtime.get_runtime(scene, item).last_repaint
     print(f"stroke on a 4 m field: {seconds * 1000:.0f} ms, {made} blocks made again")
     assert 0 < made < 25
     # (roots to 0.1 mm: a drawn root is the middle of its strip's two corners, which turn with the wind)
@@ -129,12 +129,12 @@ def test_a_slow_field_follows_strokes_when_weight_paint_is_left(bridge, drawn):
     scene, item = _field(bridge, terrain, density="vertex_group:meadow")
     before = len(_grown_roots(drawn, runtime, scene, item))
     key = runtime.key_of(scene, item)
-    runtime.REGISTRY.state(key).stroke_s = 1.0  # its last stroke took a second
+    runtime.REGISTRY.live(key).stroke_s = 1.0  # its last stroke took a second
     bpy.ops.object.mode_set(mode="WEIGHT_PAINT")
     group.add([v.index for v in terrain.data.vertices if v.co.x > 1.0 and v.co.y > 1.0], 1.0, "REPLACE")
     terrain.data.update()
     bpy.context.view_layer.update()  # the stroke's end
-    assert runtime.REGISTRY.state(key).stroked
+    assert runtime.REGISTRY.live(key).stroked
     runtime.refresh_later([key])  # (the UI's timer; background Blender applies at the next frame)
     time.sleep(runtime.EDIT_SETTLE_S)
     assert runtime.flush_pending() == runtime.PAINT_MODE_POLL_S  # still painting: looked at again
@@ -142,7 +142,7 @@ def test_a_slow_field_follows_strokes_when_weight_paint_is_left(bridge, drawn):
     bpy.ops.object.mode_set(mode="OBJECT")
     assert runtime.flush_pending() is None
     assert len(_grown_roots(drawn, runtime, scene, item, refresh=False)) > before + 250
-    assert runtime.REGISTRY.state(key).pending is None and 0.0 < runtime.stroke_seconds(scene, item) < 1.0
+    assert runtime.REGISTRY.live(key).pending is None and 0.0 < runtime.stroke_seconds(scene, item) < 1.0
 
 
 def test_an_attribute_and_an_image_paint_the_terrain(bridge, drawn):

@@ -225,6 +225,7 @@ def test_frame_change_sways_tips_and_keeps_roots(bridge):
     _, runtime = bridge
     scene, item = _add_field()
     rt = runtime.get_runtime(scene, item)
+    engine = rt.field
     n = rt.field.layout.segments
     scene.frame_set(1)
     before = _positions(_owned(item, "blades")[0]).reshape(-1, n + 1, 2, 3)
@@ -240,7 +241,7 @@ def test_frame_change_sways_tips_and_keeps_roots(bridge):
     # Tips stay within a blade length of their roots (rigid segments, nothing stretches).
     length = np.linalg.norm(after[:, -1].mean(axis=1) - after[:, 0].mean(axis=1), axis=-1)
     assert length.max() <= float(rt.field.layout.blade_length.max()) * 1.01
-    assert runtime.get_runtime(scene, item) is rt  # same params: the runtime is reused
+    assert runtime.get_runtime(scene, item).field is engine  # same params: the engine is kept
 
 
 def test_slot_object_shows_exactly_the_chosen_blocks(bridge):
@@ -305,6 +306,7 @@ def test_wind_fcurves_become_wind_keys(bridge):
     item.wind.keyframe_insert("speed", frame=25)
     scene.frame_set(10)
     rt = runtime.get_runtime(scene, item)
+    engine = rt.field
     assert rt.wind_keys is not None
     times = np.array([k[0] for k in rt.wind_keys])
     speeds = np.array([k[1] for k in rt.wind_keys])
@@ -313,8 +315,8 @@ def test_wind_fcurves_become_wind_keys(bridge):
     assert speeds[np.argmin(np.abs(times - (25 - 1) / fps))] == pytest.approx(12.0, abs=1e-4)
     assert speeds[np.argmin(np.abs(times))] == pytest.approx(0.0, abs=1e-4)
     scene.frame_set(11)
-    # The animated value changes every frame; the runtime (and its simulation) must not be rebuilt.
-    assert runtime.get_runtime(scene, item) is rt
+    # The animated value changes every frame; the engine (and its simulation) must not be rebuilt.
+    assert runtime.get_runtime(scene, item).field is engine
 
 
 def test_camera_moves_change_lod(bridge):
@@ -543,7 +545,7 @@ def test_save_and_reopen_gives_the_same_frame(bridge, tmp_path):
     scene, item = _add_field()
     scene.frame_set(12)
     expected = _all_positions(item)
-    before = runtime.get_runtime(scene, item)
+    before = runtime.get_runtime(scene, item).field
     path = tmp_path / "field.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
@@ -551,7 +553,7 @@ def test_save_and_reopen_gives_the_same_frame(bridge, tmp_path):
     # its saved frame written at once (the file shows grass before any frame change)
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
-    assert all(rt is not before for rt in runtime.REGISTRY.fields.values())
+    assert all(rt.field is not before for rt in runtime.REGISTRY.fields.values())
     assert runtime.get_runtime(scene, item).frame == 12
     for name, pos in expected.items():
         np.testing.assert_allclose(_all_positions(item)[name], pos, atol=1e-6, err_msg=name)

@@ -191,11 +191,11 @@ def test_rebuild_resamples_an_edited_terrain_and_reopen_resamples(bridge, tmp_pa
     assert np.abs(root[:, 2] + SLOPE * (root[:, 1] - OFFSET[1])).max() < 1e-3
     expected = _blade_joints_world(scene, item, runtime)
     # Save and reopen: the runtime is rebuilt from item.terrain and gives the same blades.
-    before = runtime.get_runtime(scene, item)
+    before = runtime.get_runtime(scene, item).field
     path = tmp_path / "terrain.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    assert all(rt is not before for rt in runtime.REGISTRY.fields.values())
+    assert all(rt.field is not before for rt in runtime.REGISTRY.fields.values())
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     scene.frame_set(2)

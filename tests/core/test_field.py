@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from windgrass.grass_addon import kinematics, schema
 from windgrass.grass_addon.field import GrassField
+from windgrass.grass_addon.frame import BLADES, CARDS, needs
 from windgrass.grass_addon.lod import Camera
 
 
@@ -89,13 +90,13 @@ def test_lod_drives_blade_count_and_blocks(field):
                  math.radians(60.0), 1.0)
     w = field.lod(far)
     assert np.all(w.blade_count == 0) and np.all(w.k_texture == 1.0)
-    assert len(field.blade_blocks(w)) == 0 and len(field.card_blocks(w)) == 0
+    assert not needs(BLADES, field.layout, w).any() and not needs(CARDS, field.layout, w).any()
     v = field.blade_vertices(field.all_blocks(), lod=w).reshape(lay.n_blades, -1, 3)
     np.testing.assert_array_equal(v, np.broadcast_to(lay.blade_root[:, None, :], v.shape))
     # no camera: all geometry, every block
     w = field.lod(None)
     assert np.all(w.blade_count == lay.blades_per_cell)
-    np.testing.assert_array_equal(field.blade_blocks(w), field.all_blocks())
+    np.testing.assert_array_equal(np.flatnonzero(needs(BLADES, field.layout, w)), field.all_blocks())
     # preallocated out is filled in place
     out = np.empty((kinematics.blade_vertex_count(lay, 2), 3), np.float32)
     res = field.blade_vertices([0, 1], lod=w, out=out)

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 from windgrass.grass_addon import schema
+from windgrass.grass_addon.frame import BLADES, CARDS, needs
 from windgrass.grass_addon.layout import build_layout
 from windgrass.grass_addon.lod import Camera, lod_weights
 
@@ -202,8 +203,8 @@ def test_a_camera_that_sees_no_block_simulates_nothing():
     cells = field.seek(5, sky)
     lod = field.lod(sky)
     assert field.layout.n_blocks == 0 and cells.bend.shape[0] == 0
-    assert field.blade_blocks(lod).size == 0 and field.card_blocks(lod).size == 0
-    assert field.blade_vertices(field.blade_blocks(lod), lod).shape == (0, 3)
+    assert not needs(BLADES, field.layout, lod).any() and not needs(CARDS, field.layout, lod).any()
+    assert field.blade_vertices(np.flatnonzero(needs(BLADES, field.layout, lod)), lod).shape == (0, 3)
     # turning to the grass fills the window again
     field.seek(6, Camera.look_at((0.0, 0.0, 1.6), (10.0, 0.0, 0.0), 1.0))
     assert field.layout.n_blocks > 0

@@ -31,8 +31,12 @@ def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     if name == "":
         package = []
     found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if not isinstance(node, ast.ImportFrom) or not node.level:
+    tree = ast.parse(path.read_text())
+    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+                   for stmt in block.body for n in ast.walk(stmt)}  # (annotations: never imported at run time)
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom) or not node.level or id(node) in typing_only:
             continue
         base = package[: len(package) - (node.level - 1)] if node.level > 1 else package
         target = ".".join(base + ([node.module] if node.module else []))
@@ -140,3 +144,58 @@ def test_a_breach_of_the_door_is_seen(tmp_path):
     breaches = _door_breaches(ui)
     assert [b.split(" ", 1)[1] for b in breaches] == ["from ..grass_addon.bridge import properties, runtime",
                                                       "from ..grass_addon import schema"]
+
+
+# What only a field's one live record holds: its error, the frame its objects show, its terrain and
+# paint as sampled (issue #38: two records held them, refreshed by five flags set in four modules)
+PER_FIELD = {"error", "frame", "terrain", "paint"}
+
+
+def _frozen(node: ast.ClassDef) -> bool:
+    return any(isinstance(d, ast.Call) and any(k.arg == "frozen" and getattr(k.value, "value", False)
+                                               for k in d.keywords) for d in node.decorator_list)
+
+
+def _records(folder: Path) -> dict[str, set[str]]:
+    """{module.Class: the PER_FIELD names it declares} of the mutable classes under ``folder`` that
+    declare any (a frozen dataclass is a value: ``resolve.Inputs``)."""
+    out = {}
+    for path in sorted(folder.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef) and not _frozen(node):
+                names = {s.target.id for s in node.body if isinstance(s, ast.AnnAssign)
+                         and isinstance(s.target, ast.Name)}
+                if names & PER_FIELD:
+                    out[f"{path.stem}.{node.name}"] = names & PER_FIELD
+    return out
+
+
+def _flags_set_outside(folder: Path, owner: str) -> list[str]:
+    """Lines outside ``owner`` that raise a record's wait flag (``x.stale = True``, ...) instead of
+    calling the record's method that says what happened."""
+    out = []
+    for path in sorted(folder.glob("*.py")):
+        if path.name == owner:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant) and node.value.value is True:
+                out += [f"{path.name}:{node.lineno} .{t.attr}" for t in node.targets
+                        if isinstance(t, ast.Attribute) and t.attr in {"stale", "moved", "stroked", "dirty", "motion"}]
+    return out
+
+
+def test_each_field_lives_in_one_record_changed_by_its_methods():
+    """The bridge keeps a field in one live record (``registry.LiveField``: its engine, what its
+    objects show, its samples, its error, what waits), and the handlers, edits and operators say
+    what happened through its methods (``edited``, ``stroke``, ``motion_edited``)."""
+    assert _records(REPO / "grass_addon" / "bridge") == {"registry.LiveField": PER_FIELD}
+    assert _flags_set_outside(REPO / "grass_addon" / "bridge", "registry.py") == []
+    assert _flags_set_outside(REPO / "operators", "") == []
+
+
+def test_a_second_record_and_a_raised_flag_are_seen(tmp_path):
+    (tmp_path / "state.py").write_text("class FieldState:\n    error: str\n    terrain: tuple\n\n\n"
+                                       "@dataclass(frozen=True)\nclass Inputs:\n    frame: int\n")
+    (tmp_path / "edit.py").write_text("def edit(rt):\n    rt.dirty = True\n    rt.frame = None\n")
+    assert _records(tmp_path) == {"state.FieldState": {"error", "terrain"}}
+    assert _flags_set_outside(tmp_path, "state.py") == ["edit.py:2 .dirty"]

@@ -98,7 +98,7 @@ def field_state(scene, item) -> dict:
     wanted = runtime.topology_of(params, heightfield, item)
     out["topology_matches"] = item.collection.get(owned.TOPOLOGY) == wanted
     rt = runtime.get_runtime(scene, item)
-    out["runtime_matches"] = rt is not None and not rt.dirty and rt.params.digest() == params.digest()
+    out["runtime_matches"] = rt is not None and not rt.stale and rt.params.digest() == params.digest()
     out["frame_written"] = None if rt is None else rt.frame
     shown = 0
     for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):

@@ -6,6 +6,10 @@ range (``view``), or, without a camera, the whole field when it is small enough
 (``WHOLE_FIELD_CELLS``) and else the blocks around its centre (``notice`` says so). Blocks come
 from a cache bounded by ``simulation.cache_mb``; nothing is made for the whole field.
 
+What the settings decide is made once (``FieldModel``: parameters, clock, grid of blocks, the slot
+pools' shapes, whether the field is simulated whole); the ``GrassField`` holds what changes (the
+window, the wind, the simulation, the colliders, the frame buffers).
+
 One frame is one call, ``frame(frame, subframe, views, blur)``: the window of blocks the views
 need, the state (wind, solver, cell data with the colliders' push and trample), LOD (eqs 7-11),
 which blocks each role shows, their vertices (colliders cleared: ``clearance.py``; bare cells
@@ -39,6 +43,24 @@ WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the 
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 
+@dataclass(frozen=True)
+class FieldModel:
+    """What a field's settings decide, derived once and never changed (the immutable half of a
+    ``GrassField``, like the constants of a Warp example's simulation object)."""
+
+    params: Params
+    clock: Clock  # the scene's frame rate and first frame: seconds of a frame
+    grid: FieldGrid  # blocks and cells
+    shapes: dict[str, slots.PoolShape]  # role -> the slot pool's shape (slots.pool_shapes)
+    whole: bool  # small enough (WHOLE_FIELD_CELLS) to simulate whole without a camera
+
+    @classmethod
+    def of(cls, params: Params) -> FieldModel:
+        grid = FieldGrid.of(params)
+        return cls(params, Clock.of(params), grid, dict(zip((BLADES, CARDS), slots.pool_shapes(grid, params))),
+                   grid.n_blocks * grid.cells_per_block ** 2 <= WHOLE_FIELD_CELLS)
+
+
 @dataclass(eq=False)
 class _RoleBuffers:
     """One role's frame arrays, kept between frames: float32 (positions x verts_per_block, 3), zero
@@ -68,18 +90,14 @@ class GrassField:
 
     def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None,
                  progress=None):
-        self.params = params
-        self.clock = Clock.of(params)
-        self.grid = FieldGrid.of(params)
-        self.shapes = dict(zip((BLADES, CARDS), slots.pool_shapes(self.grid, params)))
+        self.model = model = FieldModel.of(params)
         self._buffers: dict[str, _RoleBuffers] = {}  # role -> its frame arrays
         self._cells_frame: int | None = None  # the frame ``cells`` holds
         self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
         self._check_budget()
         self.notice: str | None = None
         cells = self.grid.n_blocks * self.grid.cells_per_block ** 2
-        self.whole = cells <= WHOLE_FIELD_CELLS
-        if self.whole:
+        if model.whole:
             layout = build_layout(params, terrain, cache=self.cache)
         else:  # blocks are made when the first view (a camera, or none: the centre) asks for them
             layout = window_layout(self.cache, [])
@@ -96,6 +114,28 @@ class GrassField:
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
         self.set_interaction(interaction.colliders_from_params(params) if colliders is None else colliders,
                              forces.effectors_from_params(params) if effectors is None else effectors)
+
+    # ------------------------------------------------------------------ what the settings decide (the model's)
+
+    @property
+    def params(self) -> Params:
+        return self.model.params
+
+    @property
+    def clock(self) -> Clock:
+        return self.model.clock
+
+    @property
+    def grid(self) -> FieldGrid:
+        return self.model.grid
+
+    @property
+    def shapes(self) -> dict[str, slots.PoolShape]:
+        return self.model.shapes
+
+    @property
+    def whole(self) -> bool:
+        return self.model.whole
 
     @classmethod
     def of_scene(cls, params: Params, wind_keys=None) -> GrassField:

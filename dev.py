@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import os
 import shutil
@@ -101,12 +102,32 @@ def main(argv: list[str]) -> int:
     if sys.version_info[:2] != (3, 11):
         sys.exit(f"dev.py runs on Python 3.11 (the 4.5 LTS bpy module is built for it); this is "
                  f"{sys.version.split()[0]}")
+    if argv[0] == "test" and needs_window(argv[1:]):
+        start_real_blender()  # (downloads beside the virtual environments' installs)
     python, is_latest = latest_or_oldest()
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if argv[0] == "test":
         return run_tests(python, argv[1:], env, also_oldest=is_latest)
     cmd = [str(python), *jobs[argv[0]], *argv[1:]]
     return subprocess.call(cmd, cwd=ROOT, env=env)
+
+
+_REAL_BLENDER: concurrent.futures.Future | None = None
+
+
+def needs_window(args: list[str]) -> bool:
+    """Whether ``dev.py test args`` runs the window tests: no test path given (and no ``--quick``),
+    or tests/ or tests/window."""
+    paths = [Path(a.split("::")[0]).parts[:2] for a in args if (ROOT / a.split("::")[0]).exists()]
+    if not paths:
+        return "--quick" not in args
+    return any(p in (("tests", "window"), ("tests",)) for p in paths)
+
+
+def start_real_blender() -> None:
+    """``ensure_real_blender`` started in a thread now (its result: ``with_window_root``)."""
+    global _REAL_BLENDER
+    _REAL_BLENDER = concurrent.futures.ThreadPoolExecutor(1).submit(ensure_real_blender)
 
 
 def ensure_real_blender() -> Path | None:
@@ -196,8 +217,9 @@ def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True
 
 
 def with_window_root(env: dict) -> dict:
-    """``env`` naming the real Blender's root for tests/window (made if needed), when there is one."""
-    root = ensure_real_blender()
+    """``env`` naming the real Blender's root for tests/window (made if needed, or waited for when
+    ``start_real_blender`` began it), when there is one."""
+    root = _REAL_BLENDER.result() if _REAL_BLENDER is not None else ensure_real_blender()
     return env if root is None else dict(env, WINDGRASS_WINDOW_ROOT=str(root))
 
 

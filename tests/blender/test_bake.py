@@ -387,6 +387,55 @@ def test_usd_bake_has_a_sample_at_every_frame_with_velocities_and_extents(bridge
     assert not errors, [e.GetErrorAsString() for e in errors]
 
 
+def _drawn_uvs(scene, objects, names) -> dict:
+    """{(object, UV map): (corners, 2)} of what Blender draws now (the evaluated meshes)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out = {}
+    for obj in objects:
+        mesh = obj.evaluated_get(depsgraph).data
+        for name in names:
+            layer = mesh.uv_layers.get(name)
+            if layer is not None:
+                uv = np.empty(len(layer.data) * 2, np.float32)
+                layer.data.foreach_get("uv", uv)
+                out[obj.name, name] = uv.reshape(-1, 2)
+    return out
+
+
+def test_a_usd_bake_samples_the_tints_and_fades_of_each_frame(bridge, tmp_path):
+    """Issue #36 item 6, every slot sampled every frame: as the camera moves back a slot's blades
+    show other blocks (other tints) and the cards fade; at every frame the USD's tints and fades,
+    as any USD reader computes them (values, indices, interpolation), are those Blender drew at it
+    (the bake's finishing pass, ``usd_finish``, rewrites the file: it must keep them)."""
+    if bpy.app.version < (5, 0, 0):
+        pytest.skip("USD bakes need Blender 5.0+")
+    Usd, UsdGeom, _, _ = _usd()
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    cam = scene.camera
+    cam.animation_data_clear()
+    for frame, y in ((1, -1.4), (6, -3.2)):  # (back over the field: blades become cards, cards fade)
+        cam.location = (0.0, y, 0.45 + 0.1 * (frame - 1))
+        cam.keyframe_insert("location", frame=frame)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "moving.blend"))
+    slots = [o for o in item.collection.objects if o.get("wg_role") in ("blades", "cards")]
+    names = ("wg_tint_rg", "wg_tint_bs", "wg_fade")
+    drawn = {}
+    for frame in range(1, 7):
+        scene.frame_set(frame)
+        drawn[frame] = _drawn_uvs(scene, slots, names)
+    changed = {key[1] for key in drawn[1] if not np.array_equal(drawn[1][key], drawn[6][key])}
+    assert {"wg_tint_rg", "wg_fade"} <= changed  # (what the bake must follow)
+    paths = {o.name: runtime.bake.object_path("usd", o) for o in slots}
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=6, format="usd") == {"FINISHED"}
+    stage = Usd.Stage.Open(str(next((tmp_path / "moving_windgrass").rglob("*.usdc"))))
+    for frame, uvs in drawn.items():
+        for (name, uv_name), expected in uvs.items():
+            primvar = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(paths[name])).GetPrimvar(uv_name)
+            got = np.array(primvar.ComputeFlattened(float(frame)), np.float32)
+            assert got.shape == expected.shape and np.allclose(got, expected, atol=1e-6), (frame, name, uv_name)
+
+
 def test_a_usd_baked_file_renders_the_live_grass_without_windgrass(bridge, tmp_path):
     """The saved file plays the USD through Blender's USD reader (Mesh Sequence Cache modifiers,
     as Blender's own USD import makes them): rendered by a Blender without Windgrass, the frame is

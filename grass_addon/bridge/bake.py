@@ -162,10 +162,11 @@ def check(scene, item, first: int, last: int, fmt: str = "alembic") -> Path:
 BYTES_PER_VERTEX, BYTES_PER_CORNER_MAP, OVERHEAD = 24, 8, 1.0
 
 
-def estimate_bytes(item, first: int, last: int) -> int:
-    """About how many bytes a bake of frames ``first``-``last`` writes (an upper estimate)."""
+def estimate_bytes(item, first: int, last: int, objects=None) -> int:
+    """About how many bytes a bake of frames ``first``-``last`` writes (an upper estimate); of
+    ``objects`` only (a group of the bake), else of every slot."""
     per_frame = 0
-    for obj in _slots(item):
+    for obj in _slots(item) if objects is None else objects:
         mesh = obj.data
         per_frame += len(mesh.vertices) * BYTES_PER_VERTEX
         per_frame += len(mesh.loops) * BYTES_PER_CORNER_MAP * len(mesh.uv_layers)
@@ -251,6 +252,7 @@ class Baker:
         extension = FORMATS[self.fmt][0]
         path = self.folder / f"group_{index:02d}_{self.tag}{extension}"
         partial = path.with_name(f".{path.stem}.partial{extension}")
+        self._check_space(index)
         group = bpy.data.collections.new(f".windgrass bake {index}")
         self.scene.collection.children.link(group)
         try:
@@ -272,6 +274,18 @@ class Baker:
                 partial.unlink()
         self.done.append(path)
         return len(self.done) == len(self.groups)
+
+    def _check_space(self, index: int) -> None:
+        """The disk still has room for group ``index`` (another writer may have filled it since the
+        bake began: Blender's Alembic writer aborts on a full disk); else BakeError, and nothing of
+        the bake is left."""
+        need = estimate_bytes(self.item, self.first, self.last, self.groups[index])
+        free = free_bytes(self.folder)
+        if free is not None and need > free:
+            self.cancel()
+            raise BakeError(f"bake: the disk of {self.folder.parent} filled while baking: the next part needs about "
+                            f"{need / 1e6:,.1f} MB and {free / 1e6:,.1f} MB are free; free some space and bake again "
+                            "(nothing of this bake was kept)")
 
     def _export(self, path: Path, group) -> set:
         if self.fmt == "alembic":

@@ -97,10 +97,7 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
 
 def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None:
     """Write every field of ``scene`` for its current frame; never raises into Blender."""
-    settings = getattr(scene, "windgrass", None)
-    if settings is None:
-        return
-    for item in settings.fields:
+    for item in owned.scene_fields(scene):
         guarded(update_field, scene, item, depsgraph, camera_moved_only=camera_moved_only)
 
 

@@ -23,6 +23,7 @@ import numpy as np
 from .. import schema
 from ..clock import Clock
 from ..errors import ParameterError
+from . import owned
 from .registry import REGISTRY
 
 # The runtime samples the F-curves of these parameters (WindField keys: time, speed, direction);
@@ -468,7 +469,7 @@ def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name:
         unique = f"{name}.{n:03d}"
     # The uid tags the field's objects and data-blocks, which live in bpy.data across scenes:
     # keep it unique in the whole file, not only in this scene.
-    used = {f.uid for s in bpy.data.scenes if hasattr(s, "windgrass") for f in s.windgrass.fields}
+    used = {f.uid for s in bpy.data.scenes for f in owned.scene_fields(s)}
     number = root.next_uid
     while f"field-{number}" in used:
         number += 1

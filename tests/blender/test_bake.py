@@ -222,6 +222,39 @@ def test_a_bake_that_would_fill_the_disk_is_refused_and_writes_nothing(bridge, t
         subprocess.run(["umount", str(small)], check=True)
 
 
+def test_a_disk_filled_by_another_writer_between_parts_of_a_bake_stops_it_with_a_sentence(bridge, tmp_path):
+    """Issue #37 item 10: a disk filled by another program mid-bake aborted Blender in the Alembic
+    writer. The bake looks again before each part it writes: once the disk is full it stops with a
+    sentence, keeps nothing and leaves the field live (the part in progress when another program
+    fills the disk is Blender's own writer's). The disk: a tmpfs with room for the bake at first."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs (a nearly full disk) needs root")
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    need = runtime.bake.estimate_bytes(item, 1, 8)
+    small = tmp_path / "small"
+    small.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={(need >> 10) + 8192}k", "tmpfs", str(small)], check=True)
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(small / "busy.blend"))
+        baker = runtime.start_bake(scene, item, 1, 8, groups=2)
+        assert baker.step() is False  # the first part is written
+        free = runtime.bake.free_bytes(small)
+        with open(small / "other program's file", "wb") as other:  # another writer takes the disk
+            other.write(b"\0" * (free - 50_000))
+        with pytest.raises(runtime.bake.BakeError, match=r"filled while baking: the next part needs about "
+                                                           r"[\d.,]+ MB and 0\.\d MB are free"):
+            baker.step()
+        assert sorted(p.name for p in small.rglob("*") if p.is_file()) == ["busy.blend", "other program's file"]
+        assert runtime.bake_status(scene, item) is None
+        assert not any(m.name == "Windgrass bake" for o in item.collection.objects for m in o.modifiers)
+        scene.frame_set(5)
+        assert runtime.get_runtime(scene, item).frame == 5  # live
+    finally:
+        bpy.ops.wm.read_factory_settings(use_empty=True)  # let go of the file before unmounting
+        subprocess.run(["umount", str(small)], check=True)
+
+
 def _abc(tmp_path, stem):
     return sorted(p.name for p in (tmp_path / f"{stem}_windgrass").rglob("*.abc"))
 

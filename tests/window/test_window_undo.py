@@ -6,6 +6,8 @@ the origin). Ctrl+Z and Ctrl+Shift+Z are typed over the 3D view, so Blender's ow
 its undo after the undo steps the window pushed for each operator and each edit.
 """
 
+import os
+
 from scenarios import fuzz_steps
 
 CHECK = [{"frame": 1}, {"check": "fields"}]
@@ -48,13 +50,15 @@ def test_undo_restores_the_grass_of_the_earlier_settings(real_blender):
 def test_undo_redo_fuzz_in_the_window(real_blender):
     """Random sequences of Add, presets, edits (paint sources that need a terrain included: the
     way to the crash after a failed Rebuild), Rebuild, Remove, Ctrl+Z and Ctrl+Shift+Z, with a frame
-    change and a check after each; fixed seeds, about three minutes in all."""
+    change and a check after each; fixed seeds, 110 steps (a longer run: WINDGRASS_FUZZ_STEPS)."""
     import time
 
     started = time.monotonic()
-    for seed, count in ((1, 30), (2, 30), (3, 100)):
+    longest = int(os.environ.get("WINDGRASS_FUZZ_STEPS", "50"))  # (issue #37 asked for 20 minutes of it once)
+    for seed, count in ((1, 30), (2, 30), (3, longest)):
         # (the limit is a safety net, not a measure: on a loaded machine the 100 steps took over 600 s)
-        run = real_blender.run(fuzz_steps(seed, count, keys=True, paint=seed == 3), timeout=1500, name=f"fuzz{seed}")
+        run = real_blender.run(fuzz_steps(seed, count, keys=True, paint=seed == 3), timeout=max(1500, 15 * count),
+                               name=f"fuzz{seed}")
         run.assert_clean()
         assert len(run.results("check")) == count
     print(f"fuzz: {time.monotonic() - started:.0f} s")

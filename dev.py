@@ -188,7 +188,7 @@ def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True
     options = [a for a in args if a not in paths]
     under = {p: Path(p.split("::")[0]).parts[:2] for p in paths}
     if paths:
-        if any(parts in (("tests", "window"), ("tests",)) for parts in under.values()):
+        if needs_window(args):
             env = with_window_root(env)
         latest = subprocess.call([str(python), "-m", "pytest", *args], cwd=ROOT, env=env)
         blender = [p for p, parts in under.items() if parts == ("tests", "blender")]

@@ -54,8 +54,7 @@ def _write_trails(item, rt: LiveField, trail) -> None:
     reg = owned.registered(item)
     image = reg.get(owned.ROLE_TRAIL_IMAGE)
     if trail is not None and isinstance(image, bpy.types.Image):
-        kept = rt.trail if rt.trail_written else None
-        if kept is None or kept.extent != trail.extent or not np.array_equal(kept.flat, trail.flat):
+        if rt.trail is None or rt.trail.extent != trail.extent or not np.array_equal(rt.trail.flat, trail.flat):
             textures.write_trail_image(image, trail.flat)
     materials.set_trail(reg.get(owned.ROLE_CANOPY_MATERIAL), trail)
     rt.trail, rt.trail_written = trail, True

@@ -227,9 +227,13 @@ def with_window_root(env: dict) -> dict:
 # blade as geometry) and measure the engine's LOD, which is the same on every line; they take a
 # quarter of the Blender tests' time, so the whole suite's run on the oldest line leaves them to the
 # current one (a single test named on the command line still runs there). So does the LOD
-# comparison script's own test (its figures, not Blender's: a minute of renders).
+# comparison script's own test (its figures, not Blender's: a minute of renders), and the farm tests whose
+# workers are the real Blender 5.2 binary (the bpy module only saves their .blend).
 SAME_ON_EVERY_LINE = ("tests/blender/test_lod_fidelity.py",
-                      "tests/blender/test_render_field.py::test_lod_comparison_script_measures_rows_images_and_flicker")
+                      "tests/blender/test_render_field.py::test_lod_comparison_script_measures_rows_images_and_flicker",
+                      *(f"tests/blender/test_farm.py::test_workers_on_real_blender_5_2_{name}" for name in (
+                          "render_a_scene_file_job_as_one_process_does",
+                          "without_windgrass_render_a_saved_blends_job")))
 
 
 def oldest_command(blender: list[str], options: list[str]) -> list[str]:

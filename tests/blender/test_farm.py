@@ -3,7 +3,9 @@ run``, what AWS Deadline Cloud's workers run), with the ``bpy`` module standing 
 workers' ``blender`` (a small executable that runs ``-b [FILE] -P SCRIPT -- ARGS`` and
 ``--command extension install-file`` with the module). Frames rendered in chunks equal the frames
 one process renders, pixel for pixel; a job run again after a chunk was killed renders only what
-is missing; a saved .blend with live grass renders on a Blender that has never seen Windgrass."""
+is missing; a saved .blend with live grass renders on a Blender that has never seen Windgrass.
+The last tests run the jobs with the real Blender 5.2 LTS binary as the workers' Blender (where
+this machine has the window tests' Debian root)."""
 
 from __future__ import annotations
 
@@ -397,3 +399,112 @@ def test_deadline_clouds_client_submits_both_bundles_with_yes_and_attaches_their
     assert Path(parameters["BlendFile"]["path"]) == blend_bundle / "scene" / "live.blend"
     assert {"scene/live.blend", "scene/maps/paths.png", "farm_render.py"} <= set(files)
     assert any(f.startswith("windgrass-") and f.endswith(".zip") for f in files)
+
+
+# -- the real Blender 5.2 LTS binary as the workers' Blender (issue #35 item 4) ------------------------
+# Debian's Blender 5.2.2 in the root the window tests use (tests/window/conftest.py; made by dev.py),
+# reached through chroot: the job's folders lie inside the root, and the worker's command passes their
+# paths as Blender there sees them. The runs beside compare it with are the same binary's.
+
+WORKER = '''#!{python}
+"""The workers' Blender: Debian's Blender 5.2 LTS in {root}, through chroot."""
+import os, subprocess, sys
+ROOT = {root!r}
+def inside(s):
+    return s.replace(ROOT + "/", "/")
+env = {{"PATH": "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8"}}
+env.update({{k: inside(os.environ[k]) for k in ("HOME", "BLENDER_USER_RESOURCES", "TMPDIR", "PYTHONUNBUFFERED")
+            if k in os.environ}})
+sys.exit(subprocess.run(["chroot", ROOT, "blender", *map(inside, sys.argv[1:])], env=env).returncode)
+'''
+
+
+@pytest.fixture
+def real_worker(tmp_path):
+    """(the worker's command, a folder inside the root for the job's files); skipped, saying why,
+    where this machine has no root with Blender (or is not root: chroot needs it)."""
+    import pwd
+    import shutil
+    import tempfile
+
+    default = Path(pwd.getpwuid(os.getuid()).pw_dir) / ".cache" / "windgrass" / "sid"
+    root = Path(os.environ.get("WINDGRASS_WINDOW_ROOT", default))
+    if os.geteuid() != 0 or not (root / "usr" / "bin" / "blender").exists():
+        pytest.skip(f"no Debian root with Blender 5.2 at {root} (python3.11 dev.py test makes one; chroot needs root)")
+    worker = tmp_path / "blender-5.2"
+    worker.write_text(WORKER.format(python=sys.executable, root=str(root)))
+    worker.chmod(0o755)
+    version = subprocess.run([str(worker), "--version"], capture_output=True, text=True, timeout=120).stdout
+    assert version.startswith("Blender 5.2."), version
+    work = Path(tempfile.mkdtemp(prefix="windgrass-farm-", dir=root / "tmp"))
+    (work / "home").mkdir()
+    (work / "tmp").mkdir()
+    try:
+        yield worker, work
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _worker_env(work: Path, user: Path | None = None) -> dict:
+    """The environment of ``openjd run`` and the worker: home, temp (openjd's session folders) and
+    Blender's user folder inside the root."""
+    return dict(_env(work, user), TMPDIR=str(work / "tmp"))
+
+
+def test_workers_on_real_blender_5_2_render_a_scene_file_job_as_one_process_does(real_worker):
+    """A scene file's job in chunks of 2 under ``openjd run`` with Blender 5.2.2 as the workers'
+    Blender: its frames equal, pixel for pixel, the frames that Blender renders in one process."""
+    worker, work = real_worker
+    scene = work / "tiny.toml"
+    scene.write_text(TINY)
+    bundle, out, one = work / "bundle", work / "farm", work / "one"
+    env = _worker_env(work)
+    made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), "--frames",
+                           "1-6", "--chunk", "2", "--blender-version", "5.2", "--out", str(out), str(bundle)],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert made.returncode == 0, made.stderr
+    run = _openjd(bundle, worker, env)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "Chunks run: 3" in run.stdout
+    single = subprocess.run([str(worker), "-b", "-P", str(bundle / "windgrass" / "headless" / "render_field.py"),
+                             "--", "--config", str(scene), "--frames", "1-6", "--out", str(one)],
+                            capture_output=True, text=True, env=env, timeout=600)
+    assert single.returncode == 0, single.stdout[-3000:] + single.stderr[-3000:]
+    farm_frames, one_frames = _pixels(out), _pixels(one)
+    assert list(farm_frames) == [f"frame_{i:04d}.png" for i in range(1, 7)] == list(one_frames)
+    for name in farm_frames:
+        assert np.array_equal(farm_frames[name], one_frames[name]), name
+    # grass in them: below the horizon the frames are green (their mean green a fifth over their red)
+    lower = np.stack(list(farm_frames.values()))[:, 14:, :, :3].reshape(-1, 3).mean(axis=0)
+    assert lower[1] > 1.2 * lower[0] and lower[1] > 1.2 * lower[2], lower
+
+
+def test_workers_on_real_blender_5_2_without_windgrass_render_a_saved_blends_job(real_worker, with_bridge):
+    """The .blend (saved by this Blender) on workers whose Blender has never seen Windgrass: the
+    session installs the bundle's extension, the chunks' frames equal one process's (the same
+    binary with the extension installed); without it the task refuses with a sentence."""
+    worker, work = real_worker
+    blend = _live_blend(work, with_bridge)
+    bundle = work / "bundle"
+    assert bpy.ops.windgrass.farm_job(directory=str(bundle) + "/", chunk_size=2) == {"FINISHED"}
+    run = _openjd(bundle, worker, _worker_env(work))
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-3000:]
+    assert "Entering Environment: Windgrass extension" in run.stdout
+    farm_frames = _pixels(work / "farm")
+    assert len(farm_frames) == 4
+    script, one = bundle / "farm_render.py", work / "one"
+    bare = subprocess.run([str(worker), "-b", str(blend), "-P", str(script), "--", "--frames", "1-2", "--out",
+                           str(one)], capture_output=True, text=True, env=_worker_env(work, work / "bare"), timeout=300)
+    assert bare.returncode == 1 and "has live grass fields but Blender has no Windgrass" in bare.stderr, \
+        bare.stdout[-2000:] + bare.stderr[-2000:]
+    assert not one.exists() or not list(one.glob("*.png"))
+    env = _worker_env(work, work / "user-one")
+    for command in (["--command", "extension", "install-file", "--repo", "user_default", "--enable",
+                     str(next(bundle.glob("windgrass-*.zip")))],
+                    ["-b", str(blend), "-P", str(script), "--", "--frames", "1-4", "--out", str(one)]):
+        proc = subprocess.run([str(worker), *command], capture_output=True, text=True, env=env, timeout=600)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    one_frames = _pixels(one)
+    assert list(one_frames) == list(farm_frames)
+    for name in one_frames:
+        assert np.array_equal(one_frames[name], farm_frames[name]), name

@@ -107,17 +107,31 @@ def _common_params(frames: str, chunk: int, out_dir: str, name: str, blender: st
     ]
 
 
-def _chunked_step(name: str, args: list[str], environments: list | None = None) -> dict:
-    step = {
+def _session_action(session: str, *args: str) -> dict:
+    return {"command": "{{Param.BlenderExecutable}}",
+            "args": ["-b", "--factory-startup", "-P", session, "--", *args, "--dir", "{{Session.WorkingDirectory}}",
+                     "--blender", "{{Param.BlenderExecutable}}"]}
+
+
+def _chunked_step(name: str, session: str, script: str, args: list[str], environments: tuple = ()) -> dict:
+    """The step whose tasks run ``script`` with ``args`` in the worker session's one Blender
+    (``bridge/farm_session.py``, started by the step's last environment and ended by it)."""
+    one_blender = {
+        "name": "Windgrass session",
+        "description": "One Blender renders this session's tasks: the scene is built once, not per task",
+        "script": {"actions": {"onEnter": _session_action(session, "start"),
+                               "onExit": _session_action(session, "stop")}},
+    }
+    run = _session_action(session, "run")
+    run["args"] += ["--script", script, "--", *args]
+    return {
         "name": name,
         "parameterSpace": {"taskParameterDefinitions": [{
             "name": "Frame", "type": "CHUNK[INT]", "range": "{{Param.Frames}}",
             "chunks": {"defaultTaskCount": "{{Param.ChunkSize}}", "rangeConstraint": "CONTIGUOUS"}}]},
-        "script": {"actions": {"onRun": {"command": "{{Param.BlenderExecutable}}", "args": args}}},
+        "script": {"actions": {"onRun": run}},
+        "stepEnvironments": [*environments, one_blender],
     }
-    if environments:
-        step["stepEnvironments"] = environments
-    return step
 
 
 def scene_template(frames: str, chunk: int, name: str, blender: str = "") -> dict:
@@ -128,11 +142,12 @@ def scene_template(frames: str, chunk: int, name: str, blender: str = "") -> dic
         _param("SceneFile", "PATH", "scene/scene.toml", "The scene file (TOML) with its maps beside it",
                objectType="FILE", dataFlow="IN"),
     ]
-    args = ["-b", "-P", "{{Param.WindgrassDir}}/headless/render_field.py", "--", "--config", "{{Param.SceneFile}}",
-            "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}", "--resume",
-            "--blender-version={{Param.BlenderVersion}}"]
+    args = ["--config", "{{Param.SceneFile}}", "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}",
+            "--resume", "--blender-version={{Param.BlenderVersion}}"]
+    step = _chunked_step("Render", "{{Param.WindgrassDir}}/grass_addon/bridge/farm_session.py",
+                         "{{Param.WindgrassDir}}/headless/render_field.py", args)
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
-            "parameterDefinitions": params, "steps": [_chunked_step("Render", args)]}
+            "parameterDefinitions": params, "steps": [step]}
 
 
 def blend_template(frames: str, chunk: int, name: str, version: str, blender: str = "") -> dict:
@@ -141,7 +156,9 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
         _param("BlendFile", "PATH", "scene/scene.blend", "The saved .blend", objectType="FILE", dataFlow="IN"),
         _param("ExtensionZip", "PATH", f"windgrass-{version}.zip", "The Windgrass extension the .blend was made "
                "with", objectType="FILE", dataFlow="IN"),
-        _param("FarmScript", "PATH", "farm_render.py", "Renders a chunk of frames of the open .blend",
+        _param("FarmScript", "PATH", "farm_render.py", "Renders a chunk of frames of the .blend",
+               objectType="FILE", dataFlow="IN"),
+        _param("SessionScript", "PATH", "farm_session.py", "Keeps one Blender per worker session",
                objectType="FILE", dataFlow="IN"),
         _param("WindgrassVersion", "STRING", version, "The version the extension zip must have"),
     ]
@@ -154,11 +171,11 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
             "args": ["--command", "extension", "install-file", "--repo", "user_default", "--enable",
                      "{{Param.ExtensionZip}}"]}}},
     }
-    args = ["-b", "{{Param.BlendFile}}", "-P", "{{Param.FarmScript}}", "--", "--frames", "{{Task.Param.Frame}}",
-            "--out", "{{Param.OutputDir}}", "--version", "{{Param.WindgrassVersion}}",
-            "--blender-version={{Param.BlenderVersion}}"]
+    args = ["--blend", "{{Param.BlendFile}}", "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}",
+            "--version", "{{Param.WindgrassVersion}}", "--blender-version={{Param.BlenderVersion}}"]
+    step = _chunked_step("Render", "{{Param.SessionScript}}", "{{Param.FarmScript}}", args, (install,))
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
-            "parameterDefinitions": params, "steps": [_chunked_step("Render", args, [install])]}
+            "parameterDefinitions": params, "steps": [step]}
 
 
 def write_bundle(folder: Path, template: dict, values: dict, elsewhere: Sequence[str] = (),

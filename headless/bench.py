@@ -4,6 +4,7 @@
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
     python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
     python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py)
+    python headless/bench.py --farm [--blender PATH] [--json]   (farm chunks against one process: bench_farm.py)
 
 Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks as give about
 N blades, laid out near-square (default 524,288 blades = 32 x 32 blocks). Each timed frame runs
@@ -232,7 +233,16 @@ def main(argv=None) -> int:
                         help="how much the default scene reads as a meadow: clumps, each species' sway peak, the "
                              "gust waves' speed; with --image PNG, a rendered frame's colours (bench_realism.py)")
     parser.add_argument("--image", help="with --realism: a rendered frame of scenes/default.toml")
+    parser.add_argument("--farm", action="store_true",
+                        help="a farm job in chunks of 4 and 1 under openjd against one process (bench_farm.py; "
+                             "--blender PATH: the workers' Blender); other flags ignored")
+    parser.add_argument("--blender", default="blender", help="with --farm: the workers' Blender")
     args = parser.parse_args(argv)
+    if args.farm:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_farm.py")), "--blender",
+                                args.blender] + (["--json"] if args.json else []))
     if args.realism:
         import subprocess
 

@@ -520,11 +520,58 @@ def encode_video(frames: list[Path], fps: int, target: Path) -> Path | None:
     return target
 
 
+# In a farm worker's session Blender (farm_session.py) the scene built for one task renders the
+# next task's frames too: {"key": the scene file's settings, "scene": the scene} of the last build.
+_SESSION: dict = {}
+
+
+def session_task(argv: list[str]) -> int:
+    """One farm task in the session's Blender (``grass_addon/bridge/farm_session.py``): ``main``,
+    keeping the scene that an earlier task of the session built from the same settings (a frame is
+    a function of its number alone: the frames equal those of a Blender of their own)."""
+    _SESSION.setdefault("key", None)
+    return main([__file__, *argv])
+
+
+def _scene_for(params):
+    """The scene of ``params``: built, or in a session the one built for the same settings."""
+    if not _SESSION:
+        return build_scene(params)
+    key = schema.dumps_toml(params)
+    scene = _SESSION.get("scene")
+    try:
+        if _SESSION["key"] == key and scene is not None and scene.name:
+            print("scene kept from the session's earlier task", flush=True)
+            return scene
+    except ReferenceError:  # (removed since)
+        pass
+    _SESSION.update(key=None, scene=None)
+    scene = build_scene(params)
+    _SESSION.update(key=key, scene=scene)
+    return scene
+
+
+def _all_kept(params, frames, out: Path, args) -> bool:
+    """With ``--resume`` every frame already whole on disk: listed as kept, nothing built (a
+    requeued job's finished chunks cost no build)."""
+    if not getattr(args, "resume", False) or args.bake or args.save_blend or args.video:
+        return False
+    size = (params.render.resolution_x, params.render.resolution_y)
+    if not all(_whole(out / FRAME_NAME.format(f), size) for f in frames):
+        return False
+    for i, frame in enumerate(frames, start=1):
+        print(f"frame {i}/{len(frames)} (#{frame}) already rendered: kept", flush=True)
+    return True
+
+
 def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = None) -> dict:
     """Build one scene, render its frames (and optional .blend and video) into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
+    if _all_kept(params, frames, out, args):
+        return {"out": out, "frames": [out / FRAME_NAME.format(f) for f in frames], "seconds": 0.0, "video": None,
+                "interrupted": False}
     t0 = time.perf_counter()
-    scene = build_scene(params)
+    scene = _scene_for(params)
     f = params.field
     blades = FieldGrid.of(params).n_blades
     print(f"scene ready in {time.perf_counter() - t0:.1f} s: {blades:,} blades, wind {params.wind.type} "

@@ -84,6 +84,7 @@ def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None)
     version = farm.extension_version(ADDON_ROOT)
     extension = farm.zip_extension(ADDON_ROOT, folder / f"windgrass-{version}.zip")
     script = shutil.copy2(Path(__file__).with_name("farm_render.py"), folder / "farm_render.py")
+    session = shutil.copy2(Path(__file__).with_name("farm_session.py"), folder / "farm_session.py")
     copy, elsewhere = carry_blend(blend, folder)
     (folder / "flamenco").mkdir(exist_ok=True)
     (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
@@ -93,5 +94,6 @@ def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None)
     farm.write_bundle(folder, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(copy),
         "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),
+        "SessionScript": str(Path(session).resolve()),
         "WindgrassVersion": version, "BlenderVersion": blender}, elsewhere, [copy.parent])
     return folder, elsewhere

@@ -2,6 +2,7 @@
 
     blender -b FILE.blend -P farm_render.py -- --frames A-B --out DIR [--version V] [--extension ZIP]
         [--blender-version X.Y]
+    blender -b -P farm_render.py -- --blend FILE.blend --frames A-B ...   (opened only when a frame is missing)
 
 Runs in any Blender 4.5+. A live grass field needs the Windgrass extension: the job's environment
 installs it (OpenJD), or ``--extension`` installs the zip here (Flamenco); ``--version`` refuses an
@@ -23,10 +24,11 @@ import bpy
 FRAME_NAME = "frame_{:04d}.png"
 
 
-def _args():
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]  # (blender -P, or python)
+def _args(argv):
     parser = argparse.ArgumentParser(prog="farm_render.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", required=True, help="A-B, N or a list of them (9,10,20-21)")
+    parser.add_argument("--blend", default="", help="the .blend to render, opened only when a frame is missing "
+                        "(default: the open one)")
     parser.add_argument("--out", required=True, help="folder of frame_NNNN.png")
     parser.add_argument("--version", default="", help="the Windgrass version the job was made with")
     parser.add_argument("--extension", default="", help="a Windgrass extension zip to install first")
@@ -160,12 +162,31 @@ def render(args) -> int:
     return 0
 
 
-def main() -> int:
+def opened(args) -> bool:
+    """``--blend`` open, unless every frame is already whole (listed as skipped: a requeued job's
+    finished chunks load nothing); False when there is nothing left to render."""
+    if not args.blend or Path(bpy.data.filepath or ".").resolve() == Path(args.blend).resolve():
+        return True
+    out = Path(args.out)
+    if all(whole_png(out / FRAME_NAME.format(f)) for f in frames(args.frames)):
+        for f in frames(args.frames):
+            print(f"Skipped: '{out / FRAME_NAME.format(f)}' (already rendered)", flush=True)
+        return False
+    bpy.ops.wm.open_mainfile(filepath=str(args.blend))
+    print(f"farm_render.py: opened {args.blend}", flush=True)
+    return True
+
+
+def main(argv: list[str]) -> int:
+    """The task of ``argv`` (after '--' when run by a Blender binary, else after the script)."""
+    argv = argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
     try:
-        args = _args()
+        args = _args(argv)
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
     try:
+        if not opened(args):
+            return 0
         prepare(args)
         return render(args)
     except (RuntimeError, ValueError, OSError) as exc:
@@ -173,8 +194,14 @@ def main() -> int:
         return 1
 
 
+def session_task(argv: list[str]) -> int:
+    """One task in a farm worker's session Blender (``farm_session.py``): the .blend opened by the
+    session's first task that renders stays open for the next."""
+    return main(["farm_render.py", *argv])
+
+
 if __name__ == "__main__":
-    code = main()
+    code = main(sys.argv)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)  # (blender -b -P would go on after the script: leave with its status)

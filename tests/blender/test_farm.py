@@ -63,13 +63,13 @@ if args[:3] == ["--command", "extension", "install-file"]:
     os._exit(0)
 blend = args[args.index("-b") + 1] if "-b" in args and not args[args.index("-b") + 1].startswith("-") else None
 script = args[args.index("-P") + 1] if "-P" in args else args[args.index("--python") + 1]
+user = os.environ.get("BLENDER_USER_RESOURCES")
+if user and "--factory-startup" not in args:  # (the module does not read the user's preferences: enable
+    import addon_utils                        # what is installed there)
+    folder = os.path.join(user, "extensions", "user_default")
+    for name in [n for n in os.listdir(folder) if not n.startswith(".")] if os.path.isdir(folder) else ():
+        addon_utils.enable("bl_ext.user_default." + name, default_set=True)
 if blend:
-    user = os.environ.get("BLENDER_USER_RESOURCES")
-    if user:  # (the module does not read the user's preferences: enable what is installed there)
-        import addon_utils
-        folder = os.path.join(user, "extensions", "user_default")
-        for name in [n for n in os.listdir(folder) if not n.startswith(".")] if os.path.isdir(folder) else ():
-            addon_utils.enable("bl_ext.user_default." + name, default_set=True)
     bpy.ops.wm.open_mainfile(filepath=blend)
 sys.argv = [script] + (args[args.index("--") + 1:] if "--" in args else [])
 runpy.run_path(script, run_name="__main__")
@@ -119,7 +119,11 @@ def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, s
     run = _openjd(bundle, stand_in, env)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     saved = [line for line in run.stdout.splitlines() if "Saved: '" in line and ".partial" not in line]
-    assert len(saved) == 6 and "Chunks run: 3" in run.stdout  # three chunks, a Blender each
+    assert len(saved) == 6 and "Chunks run: 3" in run.stdout
+    # one Blender for the session's three chunks: the scene built once (issue #36: 11-12 s a task)
+    assert run.stdout.count("Windgrass session: one Blender") == 1
+    assert run.stdout.count("scene ready in") == 3 and run.stdout.count("scene kept from the session's") == 2
+    _ended(run.stdout)
     one = tmp_path / "one"
     single = subprocess.run([sys.executable, str(REPO / "headless" / "render_field.py"), "--config", str(scene),
                              "--frames", "1-6", "--out", str(one)], capture_output=True, text=True, env=env,
@@ -146,11 +150,54 @@ def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, s
     again = _openjd(bundle, stand_in, env)
     assert again.returncode == 0, again.stderr[-3000:]
     assert again.stdout.count("already rendered: kept") == 2
+    # the finished chunk 1-2 built nothing; 3-4 built the scene, 5-6 kept it
+    assert again.stdout.count("scene ready in") == 2 and again.stdout.count("scene kept from the session's") == 1
     assert sorted(line.split("Saved: ")[1] for line in again.stdout.splitlines()
                   if "Saved: '" in line and ".partial" not in line) == [f"'{out / n}'" for n in redo]
     assert all((out / n).stat().st_mtime_ns == t for n, t in kept.items())
     rerun = _pixels(out)
     assert all(np.array_equal(rerun[n], one_frames[n]) for n in one_frames)
+
+
+def _ended(log: str) -> None:
+    """The session's Blender (its pid as the session's start printed it) has ended with the session."""
+    import re
+    import time
+
+    pid = int(re.search(r"Windgrass session: one Blender \(pid (\d+)\)", log).group(1))
+    for _ in range(100):
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"the session's Blender (pid {pid}) outlived its session")
+
+
+def test_a_task_whose_session_blender_is_gone_renders_in_a_blender_of_its_own(tmp_path, stand_in):
+    """The session's Blender may die (killed, out of memory): its address is still in the session
+    folder, nothing answers there. The task renders its frames in a Blender of its own."""
+    import json
+    import socket
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY)
+    session = tmp_path / "session"
+    session.mkdir()
+    with socket.socket() as closed:  # (a port nothing listens on any more)
+        closed.bind(("127.0.0.1", 0))
+        port = closed.getsockname()[1]
+    (session / "windgrass-session.json").write_text(json.dumps({"port": port, "token": "x", "pid": 0}))
+    out = tmp_path / "frames"
+    proc = subprocess.run([str(stand_in), "-b", "--factory-startup", "-P",
+                           str(REPO / "grass_addon" / "bridge" / "farm_session.py"), "--", "run", "--dir", str(session),
+                           "--blender", str(stand_in), "--script", str(REPO / "headless" / "render_field.py"), "--",
+                           "--config", str(scene), "--frames", "2-3", "--out", str(out), "--resume"],
+                          capture_output=True, text=True, env=_env(tmp_path), timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "the session's Blender is gone; this task starts its own" in proc.stdout
+    assert sorted(p.name for p in out.glob("frame_*.png")) == ["frame_0002.png", "frame_0003.png"]
+    assert not (session / "windgrass-session.json").exists()
 
 
 @pytest.mark.parametrize("args, words", [
@@ -258,7 +305,8 @@ def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tm
     run = _openjd(bundle, stand_in, _env(tmp_path))
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-3000:]
     assert "Entering Environment: Windgrass extension" in run.stdout and "Preferences saved" in run.stdout
-    assert run.stdout.count("Windgrass extension 0.") == 2  # each chunk's Blender has it (none before)
+    assert run.stdout.count("Windgrass extension 0.") == 2  # each chunk's task has it (none before)
+    assert run.stdout.count("farm_render.py: opened") == 1  # the session's one Blender opened the .blend once
     farm_frames = _pixels(tmp_path / "farm")
     assert len(farm_frames) == 4
     one = tmp_path / "one"
@@ -411,7 +459,7 @@ WORKER = '''#!{python}
 import os, subprocess, sys
 ROOT = {root!r}
 def inside(s):
-    return s.replace(ROOT + "/", "/")
+    return "blender" if s == sys.argv[0] else s.replace(ROOT + "/", "/")  # (the session starts this Blender)
 env = {{"PATH": "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8"}}
 env.update({{k: inside(os.environ[k]) for k in ("HOME", "BLENDER_USER_RESOURCES", "TMPDIR", "PYTHONUNBUFFERED")
             if k in os.environ}})
@@ -465,7 +513,7 @@ def test_workers_on_real_blender_5_2_render_a_scene_file_job_as_one_process_does
     assert made.returncode == 0, made.stderr
     run = _openjd(bundle, worker, env)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    assert "Chunks run: 3" in run.stdout
+    assert "Chunks run: 3" in run.stdout and run.stdout.count("scene kept from the session's") == 2
     single = subprocess.run([str(worker), "-b", "-P", str(bundle / "windgrass" / "headless" / "render_field.py"),
                              "--", "--config", str(scene), "--frames", "1-6", "--out", str(one)],
                             capture_output=True, text=True, env=env, timeout=600)
@@ -490,6 +538,7 @@ def test_workers_on_real_blender_5_2_without_windgrass_render_a_saved_blends_job
     run = _openjd(bundle, worker, _worker_env(work))
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-3000:]
     assert "Entering Environment: Windgrass extension" in run.stdout
+    assert run.stdout.count("farm_render.py: opened") == 1  # one Blender for the session
     farm_frames = _pixels(work / "farm")
     assert len(farm_frames) == 4
     script, one = bundle / "farm_render.py", work / "one"

@@ -11,6 +11,10 @@ any chunks and come out pixel for pixel as one process renders them. Two kinds o
   ``--command extension install-file``), and each task renders its frames with
   ``farm_render.py`` (carried too). A baked .blend needs no extension.
 
+A worker's session keeps one Blender (``bridge/farm_session.py``, started and ended by the step's
+"Windgrass session" environment): each task hands it its script and arguments, so the scene is
+built (or the .blend opened) once a session, not once a task; a task without it starts its own.
+
 Chunks use OpenJD's ``TASK_CHUNKING`` extension: a ``CHUNK[INT]`` task parameter over the frame
 range with contiguous chunks gives ``1-4``, ``5-8``: exactly ``--frames A-B``. The template and its
 parameter values are written as JSON, which is YAML too (``template.yaml``,

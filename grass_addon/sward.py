@@ -255,3 +255,41 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
         f = f.reshape(1, -1, 1)
         look = rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
     return (look / look.mean(axis=(0, 1))).astype(np.float32)
+
+
+GRAIN_SIDE = 16  # ``tussock_grain`` lays out a square of this many tussocks a side
+GRAIN_PURPOSE = 41  # np.random.default_rng([seed, 41]) lays it out
+GRAIN_MAX = 0.5  # the grain's contrast is at most this (a bound on odd settings)
+
+
+def tussock_grain(params: Params) -> tuple[float, float]:
+    """(size (m), contrast) of the grain that the field's tussocks give the far grass. A tussock
+    (the blades whose roots share a clump centre, ``meadow.clump_centres``; a cell of an even
+    field) shows the lit blade of its blades' parts above the canopy plane (the area a horizontal
+    ray sees times its brightness, ``_fringe``). Roots are laid out as the field lays them
+    (``field.blades_per_cell`` in each cell, pulled to their tussocks) over a square of GRAIN_SIDE
+    tussocks, each blade one of the sample block's: the contrast is the spread (standard
+    deviation over mean) of what the whole tussocks show: large and small, dense and sparse,
+    flowering and green. Blender's Voronoi cells of this size, each brightened by a random value
+    of this spread, give the far canopy the streaks a meadow has at tens of metres; pixels average
+    them away further off, as they do the field's (``materials.canopy_material``)."""
+    f = params.field
+    size = float(f.clump_size) if f.clumping > 0.0 else float(f.cell_size)
+    block = sample_blades(params)
+    if block.blade_length.size == 0:
+        return size, 0.0
+    weight, colour = _fringe(params, block)
+    light = (weight[..., None] * colour).sum(axis=1) @ np.array([0.2126, 0.7152, 0.0722])
+    rng = np.random.default_rng([int(f.seed), GRAIN_PURPOSE])
+    cell, per_cell = float(f.cell_size), int(f.blades_per_cell)
+    n = int(np.ceil(GRAIN_SIDE * size / cell))
+    corners = np.stack(np.meshgrid(np.arange(n), np.arange(n)), axis=-1).reshape(-1, 2) * cell
+    roots = np.repeat(corners, per_cell, axis=0) + rng.random((n * n * per_cell, 2)) * cell
+    centre = meadow.clump_centres(roots, int(f.seed), size) if f.clumping > 0.0 else \
+        (np.floor(roots / size) + 0.5) * size
+    inside = np.all((centre >= size) & (centre <= n * cell - size), axis=1)  # whole tussocks only
+    _, tussock = np.unique(np.round(centre[inside] / (1e-3 * size)).astype(np.int64), axis=0, return_inverse=True)
+    per = np.bincount(tussock.ravel(), weights=light[rng.integers(0, len(light), int(inside.sum()))])
+    if len(per) < 4 or per.mean() <= 0.0:
+        return size, 0.0
+    return size, float(min(GRAIN_MAX, per.std() / per.mean()))

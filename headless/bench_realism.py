@@ -15,7 +15,9 @@
   near grass (the image's lowest fifth): its hue's spread (the 5th to the 95th percentile, in
   degrees) and the share of its pixels that are not green (hue outside 60-170 degrees); the far
   band (the rows from the horizon down to a tenth of the image): how much its 8 x 8-pixel tiles
-  differ in brightness (their standard deviation over their mean).
+  differ in brightness (their standard deviation over their mean), over the whole band (the band's
+  darkening towards the camera included, as issue #34 measured it) and ``_across`` each row of
+  tiles (the field's own variety: patches, tussocks, gusts).
 """
 
 from __future__ import annotations
@@ -134,8 +136,11 @@ def image_figures(path: Path) -> dict:
     band = lum[horizon:horizon + max(8, h // 10)]
     tiles = band[: band.shape[0] // 8 * 8, : band.shape[1] // 8 * 8]
     tiles = tiles.reshape(tiles.shape[0] // 8, 8, tiles.shape[1] // 8, 8).mean(axis=(1, 3))
+    # across each row of tiles (the band darkens towards the camera: that is not the field's variety)
+    across = float(np.mean(tiles.std(axis=1) / tiles.mean(axis=1)))
     return {"near_hue_spread_deg": round(float(spread), 1), "near_not_green_share": round(float(1 - green.mean()), 4),
             "far_band_tile_contrast": round(float(tiles.std() / tiles.mean()), 4),
+            "far_band_tile_contrast_across": round(across, 4),
             "far_band_rows": [horizon, horizon + band.shape[0]]}
 
 

@@ -60,6 +60,10 @@ NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: 
 NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
 NODE_SWARD_LOOK = "wg_sward_look"  # RGB Curves: the canopy's colour over the ray's slope (sward.sward_look)
 NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (sward.fringe_colour)
+# The tussocks' grain (sward.tussock_grain): Voronoi cells of the tussocks' size (its Scale), each
+# brightened by 1 + c sqrt(3) (2 u - 1), u its random value (uniform: spread c), c the Value node.
+NODE_TUSSOCKS = "wg_tussocks"
+NODE_TUSSOCK_SPREAD = "wg_tussock_spread"
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
 NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
@@ -99,7 +103,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 10
+MATERIALS_VERSION = 11
 
 
 def _socket(sockets, *names: str):
@@ -519,7 +523,26 @@ def _canopy_colour(t, coord, view, view_z, slope, trail_image):
     for axis in "XYZ":
         t.link(ramp, "Result", bright, axis)
     t.link(bright, "Vector", grass, "B_Color")
-    return grass
+    return _tussocked(t, coord, grass, -2300, 800)
+
+
+def _tussocked(t: _Tree, coord, colour_node, x: float, y: float):
+    """The colour brightened tussock by tussock (NODE_TUSSOCKS, NODE_TUSSOCK_SPREAD): mean 1."""
+    cells = t.add("ShaderNodeTexVoronoi", x, y, name=NODE_TUSSOCKS)
+    t.link(coord, "Object", cells, "Vector")
+    spread = t.add("ShaderNodeValue", x, y - 250, name=NODE_TUSSOCK_SPREAD)
+    spread.outputs[0].default_value = 0.0
+    u = t.add("ShaderNodeSeparateXYZ", x + 200, y)
+    t.link(cells, "Color", u, "Vector")
+    swing = t.math("MULTIPLY_ADD", (u, "X"), 2.0, x + 350, y)
+    swing.inputs[2].default_value = -1.0
+    amount = t.math("MULTIPLY", (spread, "Value"), 3.0 ** 0.5, x + 350, y - 250)
+    gain = t.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x + 500, y)
+    gain.inputs[2].default_value = 1.0
+    out = t.mix_rgb(x + 650, y, blend="MULTIPLY")
+    t.link(colour_node, "Result_Color", out, "A_Color")
+    t.link(gain, "Value", out, "B_Color")
+    return out
 
 
 def _canopy_opacity(t, coord, kt, view, view_z, slope):
@@ -832,6 +855,10 @@ def update_materials(params, canopy=None) -> None:
         tips = canopy.node_tree.nodes.get(NODE_FRINGE_COLOUR)
         if tips is not None:
             tips.outputs[0].default_value = (*sward.fringe_colour(params), 1.0)
+        cells, spread = canopy.node_tree.nodes.get(NODE_TUSSOCKS), canopy.node_tree.nodes.get(NODE_TUSSOCK_SPREAD)
+        if cells is not None and spread is not None:
+            size, spread.outputs[0].default_value = sward.tussock_grain(params)
+            _set(cells, 1.0 / size, "Scale")
         update_sward_profile(params, canopy)
 
 

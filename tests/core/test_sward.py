@@ -311,3 +311,35 @@ def test_sward_look_is_what_rays_from_above_meet(params, slope):
     expected = sward.sward_look(params, [slope])[0]
     assert 0.3 < stopped.mean() < 0.95  # both blades and floor are seen
     np.testing.assert_allclose(seen.mean(axis=0), expected, rtol=0.1)
+
+
+@pytest.mark.parametrize("preset", ["meadow", "wild"])
+def test_the_far_grain_is_the_spread_of_the_fields_own_tussocks(preset):
+    """``sward.tussock_grain`` lays out roots and draws blades from one sample block; measured
+    directly on the field's own blocks (16 blocks of 3.2 m: every blade by the tussock its root was
+    pulled to, the tussocks that lie wholly inside a block), the lit blade each tussock shows
+    spreads as much."""
+    from windgrass.grass_addon.blocks import Species, make_block
+    from windgrass.grass_addon.grid import FieldGrid
+
+    # (without the patches, a variety of their own at metres: tussocks differ within one)
+    params = presets.apply_preset(schema.defaults(), preset).replace(
+        {"field.blocks_x": 4, "field.blocks_y": 4, "field.cells_per_block": 32, "field.patchiness": 0.0})
+    size, spread = sward.tussock_grain(params)
+    assert size == params.field.clump_size and 0.05 < spread < sward.GRAIN_MAX
+    grid, species, f = FieldGrid.of(params), Species(params), params.field
+    totals = []
+    for index in range(16):
+        block = make_block(params, grid, species, index)
+        weight, colour = sward._fringe(params, block)
+        light = (weight[..., None] * colour).sum(axis=1) @ np.array([0.2126, 0.7152, 0.0722])
+        # (a root pulled towards its nearest centre has that centre nearest still)
+        centre = meadow.clump_centres(block.blade_root[:, :2].astype(np.float64), int(f.seed), size)
+        low = block.cell_center.min(axis=0) - 0.5 * f.cell_size + size
+        high = block.cell_center.max(axis=0) + 0.5 * f.cell_size - size
+        inside = np.all((centre >= low) & (centre <= high), axis=1)
+        _, tussock = np.unique(np.round(centre[inside] * 1e4).astype(np.int64), axis=0, return_inverse=True)
+        totals.extend(np.bincount(tussock.ravel(), weights=light[inside]))
+    totals = np.asarray(totals)
+    assert len(totals) >= 40
+    assert spread == pytest.approx(totals.std() / totals.mean(), rel=0.3)

@@ -111,22 +111,36 @@ def _common_params(frames: str, chunk: int, out_dir: str, name: str, blender: st
     ]
 
 
-def _session_action(session: str, *args: str) -> dict:
-    return {"command": "{{Param.BlenderExecutable}}",
-            "args": ["-b", "--factory-startup", "-P", session, "--", *args, "--dir", "{{Session.WorkingDirectory}}",
-                     "--blender", "{{Param.BlenderExecutable}}"]}
+# What runs the session's actions (start, each task's hand-over, stop): a factory-startup Blender
+# (any worker; about a second a task) or the worker's python3 (Linux, macOS: a few milliseconds).
+HAND_OVERS = ("blender", "python3")
 
 
-def _chunked_step(name: str, session: str, script: str, args: list[str], environments: tuple = ()) -> dict:
+def check_hand_over(hand_over: str) -> str:
+    if hand_over not in HAND_OVERS:
+        raise ParameterError("hand_over", f"{hand_over!r} (valid: {', '.join(HAND_OVERS)})")
+    return hand_over
+
+
+def _session_action(session: str, hand_over: str, *args: str) -> dict:
+    tail = [*args, "--dir", "{{Session.WorkingDirectory}}", "--blender", "{{Param.BlenderExecutable}}"]
+    if check_hand_over(hand_over) == "python3":
+        return {"command": "python3", "args": [session, *tail]}
+    return {"command": "{{Param.BlenderExecutable}}", "args": ["-b", "--factory-startup", "-P", session, "--", *tail]}
+
+
+def _chunked_step(name: str, session: str, script: str, args: list[str], environments: tuple = (),
+                  hand_over: str = "blender") -> dict:
     """The step whose tasks run ``script`` with ``args`` in the worker session's one Blender
-    (``bridge/farm_session.py``, started by the step's last environment and ended by it)."""
+    (``bridge/farm_session.py``, started by the step's last environment and ended by it), handed
+    over by ``hand_over`` (HAND_OVERS)."""
     one_blender = {
         "name": "Windgrass session",
         "description": "One Blender renders this session's tasks: the scene is built once, not per task",
-        "script": {"actions": {"onEnter": _session_action(session, "start"),
-                               "onExit": _session_action(session, "stop")}},
+        "script": {"actions": {"onEnter": _session_action(session, hand_over, "start"),
+                               "onExit": _session_action(session, hand_over, "stop")}},
     }
-    run = _session_action(session, "run")
+    run = _session_action(session, hand_over, "run")
     run["args"] += ["--script", script, "--", *args]
     return {
         "name": name,
@@ -138,7 +152,7 @@ def _chunked_step(name: str, session: str, script: str, args: list[str], environ
     }
 
 
-def scene_template(frames: str, chunk: int, name: str, blender: str = "") -> dict:
+def scene_template(frames: str, chunk: int, name: str, blender: str = "", hand_over: str = "blender") -> dict:
     """The OpenJD template of a scene-file job (paths as the bundle's parameter values give them)."""
     params = _common_params(frames, chunk, "output", name, blender) + [
         _param("WindgrassDir", "PATH", "windgrass", "The Windgrass scripts and add-on carried in the bundle",
@@ -149,12 +163,13 @@ def scene_template(frames: str, chunk: int, name: str, blender: str = "") -> dic
     args = ["--config", "{{Param.SceneFile}}", "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}",
             "--resume", "--blender-version={{Param.BlenderVersion}}"]
     step = _chunked_step("Render", "{{Param.WindgrassDir}}/grass_addon/bridge/farm_session.py",
-                         "{{Param.WindgrassDir}}/headless/render_field.py", args)
+                         "{{Param.WindgrassDir}}/headless/render_field.py", args, hand_over=hand_over)
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
             "parameterDefinitions": params, "steps": [step]}
 
 
-def blend_template(frames: str, chunk: int, name: str, version: str, blender: str = "") -> dict:
+def blend_template(frames: str, chunk: int, name: str, version: str, blender: str = "",
+                   hand_over: str = "blender") -> dict:
     """The OpenJD template of a saved .blend with live grass: the extension installed per session."""
     params = _common_params(frames, chunk, "output", name, blender) + [
         _param("BlendFile", "PATH", "scene/scene.blend", "The saved .blend", objectType="FILE", dataFlow="IN"),
@@ -177,7 +192,7 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
     }
     args = ["--blend", "{{Param.BlendFile}}", "--frames", "{{Task.Param.Frame}}", "--out", "{{Param.OutputDir}}",
             "--version", "{{Param.WindgrassVersion}}", "--blender-version={{Param.BlenderVersion}}"]
-    step = _chunked_step("Render", "{{Param.SessionScript}}", "{{Param.FarmScript}}", args, (install,))
+    step = _chunked_step("Render", "{{Param.SessionScript}}", "{{Param.FarmScript}}", args, (install,), hand_over)
     return {"specificationVersion": SPECIFICATION, "extensions": ["TASK_CHUNKING"], "name": "{{Param.JobName}}",
             "parameterDefinitions": params, "steps": [step]}
 

@@ -3,14 +3,14 @@
 
     python3.11 dev.py bench --farm [--json] [--blender PATH] [--work DIR]
 
-12 frames of ``scenes/trample.toml`` at 320x180, 2 samples, rendered three ways by the same
-Blender (``--blender``: a binary, default ``blender`` on the PATH): in one process
-(``blender -b -P render_field.py``), and as a job bundle (``farm.py``) under the real Open Job
-Description runtime (``openjd run``, what Deadline Cloud's workers run) in chunks of 4 and of 1.
-The job's worker session keeps one Blender (``grass_addon/bridge/farm_session.py``); each task
-costs the start of a small Blender that hands it its frames. Prints the seconds of each and the
-ratios against one process (goals: 1.10 for chunks of 4, 1.3 for chunks of 1), and whether the
-three give the same pixels. ``--work``: the folder for the job's files (a Blender reached through
+12 frames of ``scenes/trample.toml`` at 320x180, 2 samples, rendered by the same Blender
+(``--blender``: a binary, default ``blender`` on the PATH) in one process (``blender -b -P
+render_field.py``), and as job bundles (``farm.py``) under the real Open Job Description runtime
+(``openjd run``, what Deadline Cloud's workers run) in chunks of 4 and of 1. The job's worker
+session keeps one Blender (``grass_addon/bridge/farm_session.py``); each task is handed to it by a
+small Blender (``--hand-over blender``) or by python3 (``--hand-over python3``). Prints the seconds
+of each and the ratios against one process (goals: 1.10 for chunks of 4, 1.3 for chunks of 1),
+and whether all give the same pixels. ``--work``: the folder for the job's files (a Blender reached through
 chroot needs them inside its root).
 """
 
@@ -32,6 +32,7 @@ from windgrass.grass_addon import images, schema  # noqa: E402
 
 OPENJD = Path(sys.executable).with_name("openjd")
 FRAMES = "1-12"
+HAND_OVERS = ("blender", "python3")
 
 
 def _timed(command: list[str], env: dict) -> float:
@@ -57,25 +58,30 @@ def run(blender: str, work: Path) -> dict:
         {"render.resolution_x": 320, "render.resolution_y": 180, "render.samples": 2})
     scene = work / "trample-320.toml"
     scene.write_text(schema.dumps_toml(params))
-    bundle = work / "bundle"
-    _timed([sys.executable, str(HERE / "farm.py"), "--config", str(scene), "--frames", FRAMES, "--chunk", "4",
-            "--out", str(work / "out"), str(bundle)], env)
-    script = bundle / "windgrass" / "headless" / "render_field.py"
-    seconds = {"one_process_s": _timed([blender, "-b", "-P", str(script), "--", "--config", str(scene), "--frames",
-                                        FRAMES, "--out", str(work / "one")], env)}
-    for chunk in (4, 1):
-        seconds[f"chunks_of_{chunk}_s"] = _timed([
-            str(OPENJD), "run", str(bundle / "template.yaml"), "--job-param", f"file://{bundle / 'job_params.yaml'}",
-            "--job-param", f"BlenderExecutable={blender}", "--job-param", f"ChunkSize={chunk}",
-            "--job-param", f"OutputDir={work / f'chunks-{chunk}'}", "--step", "Render"], env)
+    seconds, runs = {}, []
+    for hand_over in HAND_OVERS:
+        bundle = work / f"bundle-{hand_over}"
+        _timed([sys.executable, str(HERE / "farm.py"), "--config", str(scene), "--frames", FRAMES, "--chunk", "4",
+                "--hand-over", hand_over, "--out", str(work / "out"), str(bundle)], env)
+        if not seconds:
+            script = bundle / "windgrass" / "headless" / "render_field.py"
+            seconds["one_process_s"] = _timed([blender, "-b", "-P", str(script), "--", "--config", str(scene),
+                                               "--frames", FRAMES, "--out", str(work / "one")], env)
+        for chunk in (4, 1):
+            runs.append(f"{hand_over}_chunks_of_{chunk}")
+            seconds[f"{runs[-1]}_s"] = _timed([
+                str(OPENJD), "run", str(bundle / "template.yaml"), "--job-param",
+                f"file://{bundle / 'job_params.yaml'}", "--job-param", f"BlenderExecutable={blender}",
+                "--job-param", f"ChunkSize={chunk}", "--job-param", f"OutputDir={work / runs[-1]}", "--step",
+                "Render"], env)
     one = _pixels(work / "one")
-    same = all(len(_pixels(work / f"chunks-{c}")) == len(one) == 12 and all(
-        (a == b).all() for a, b in zip(_pixels(work / f"chunks-{c}"), one)) for c in (4, 1))
+    same = all(len(_pixels(work / r)) == len(one) == 12 and all(
+        (a == b).all() for a, b in zip(_pixels(work / r), one)) for r in runs)
     out = {k: round(v, 1) for k, v in seconds.items()}
-    for chunk, goal in ((4, 1.10), (1, 1.3)):
-        out[f"chunks_of_{chunk}_ratio"] = round(seconds[f"chunks_of_{chunk}_s"] / seconds["one_process_s"], 3)
-        out[f"chunks_of_{chunk}_goal"] = goal
-    out.update(frames=12, resolution="320x180", samples=2, same_pixels=bool(same))
+    for run in runs:
+        out[f"{run}_ratio"] = round(seconds[f"{run}_s"] / seconds["one_process_s"], 3)
+    out.update(goals={"chunks_of_4": 1.10, "chunks_of_1": 1.3}, frames=12, resolution="320x180", samples=2,
+               same_pixels=bool(same))
     return out
 
 

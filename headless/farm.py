@@ -33,13 +33,16 @@ SCRIPTS = ("render_field.py", "stage.py", "addon_loader.py", "common.py")
 OWNED = ".written-by-windgrass-farm"  # in the bundle's windgrass/: farm.py may replace that folder
 
 
-def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path, blender: str = "") -> Path:
+def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path, blender: str = "",
+          hand_over: str = "blender") -> Path:
     """The bundle for ``config``'s frames ``frames`` in chunks of ``chunk`` into ``out``; ``blender``:
-    the Blender line (X.Y) its frames are made with ('' any)."""
+    the Blender line (X.Y) its frames are made with ('' any); ``hand_over``: what hands the worker
+    session's Blender each task (farm.HAND_OVERS)."""
     if not config.is_file():
         raise ParameterError("config", f"{config} is not a scene file")
     params = schema.load_toml(config)
     farm.check_chunk(chunk)
+    farm.check_hand_over(hand_over)
     chosen = farm.parse_frames(frames, params.render.frame_start, params.render.frame_end)
     for folder, name in ((out, "out"), (bundle, "bundle")):
         try:
@@ -66,7 +69,7 @@ def write(config: Path, frames: str, chunk: int, out: Path, bundle: Path, blende
     (bundle / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     scene = carry_scene(params, config, runtime / "scene")
     span = farm.frames_text(chosen)
-    template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}", blender)
+    template = farm.scene_template(span, chunk, f"Windgrass {config.stem} {span}", blender, hand_over)
     return farm.write_bundle(bundle, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()),
         "WindgrassDir": str(runtime.resolve()), "SceneFile": str(scene.resolve()), "BlenderVersion": blender})
@@ -104,6 +107,10 @@ def main(argv=None) -> int:
     parser.add_argument("--blender-version", metavar="X.Y", default="",
                         help="the Blender line the frames are made with: a worker on another refuses (default: any; "
                              "two lines render a frame a little differently)")
+    parser.add_argument("--hand-over", choices=farm.HAND_OVERS, default="blender",
+                        help="what hands each task to the worker session's Blender: a small Blender (any worker, "
+                             "about a second a task) or python3 (Linux and macOS workers with Python 3.7+: "
+                             "milliseconds)")
     parser.add_argument("bundle", type=Path, help="the job bundle's folder (made)")
     args = parser.parse_args(argv)
     try:
@@ -113,7 +120,7 @@ def main(argv=None) -> int:
             frames = f"{params.render.frame_start}-{params.render.frame_end}" if params else "1"
         if args.blender_version and not re.fullmatch(r"\d+\.\d+", args.blender_version):
             raise ParameterError("blender-version", f"{args.blender_version!r} is not a Blender line such as 5.2")
-        bundle = write(args.config, frames, args.chunk, args.out, args.bundle, args.blender_version)
+        bundle = write(args.config, frames, args.chunk, args.out, args.bundle, args.blender_version, args.hand_over)
     except ParameterError as exc:
         print(f"farm.py: error: {exc}", file=sys.stderr)
         return 2

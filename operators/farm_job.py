@@ -22,7 +22,14 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
     directory: bpy.props.StringProperty(name="Bundle Folder", subtype="DIR_PATH",
                                         description="Where the job bundle is written")
     chunk_size: bpy.props.IntProperty(name="Frames per Task", default=4, min=1, soft_max=100,
-                                      description="How many frames one Blender renders on the farm")
+                                      description="How many frames a task renders on the farm")
+    hand_over: bpy.props.EnumProperty(
+        name="Hand-over", default="blender",
+        items=[("blender", "Blender", "A small Blender hands each task to the worker session's Blender: any worker, "
+                "about a second a task"),
+               ("python3", "Python 3", "The workers' python3 hands each task over: milliseconds a task (Linux and "
+                "macOS workers with Python 3.7+)")],
+        description="What hands each task's frames to the one Blender that a worker's session keeps")
 
     @classmethod
     def poll(cls, context):
@@ -45,7 +52,8 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
             # the file browser falls back to the .blend's folder when the suggested one does not exist
             # yet: the bundle (a dozen files and folders) goes into a folder of its own there
             folder = folder / (Path(bpy.data.filepath).stem + "_farm_job")
-        folder, elsewhere = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size)
+        folder, elsewhere = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size,
+                                                        hand_over=self.hand_over)
         self.report({"INFO"}, f"Farm job written to {folder}: openjd run {folder / 'template.yaml'} --job-param "
                               f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit "
                               f"{folder} --yes (the frames come back into its output/)")

@@ -70,11 +70,13 @@ def carry_blend(blend: Path, folder: Path) -> tuple[Path, list[str]]:
     return copy, elsewhere
 
 
-def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None) -> tuple[Path, list[str]]:
+def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None,
+                       hand_over: str = "blender") -> tuple[Path, list[str]]:
     """The job bundle of the saved .blend's scene frames in chunks of ``chunk`` into ``folder``, and
     the files the .blend uses that the bundle does not carry (they lie outside its folder)."""
     blend = check_saved()
     farm.check_chunk(chunk)
+    farm.check_hand_over(hand_over)
     out = output_folder(scene) if out is None else out
     for path, name in ((out, "output"), (folder, "bundle")):
         try:
@@ -90,7 +92,7 @@ def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None)
     (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
     span = f"{scene.frame_start}-{scene.frame_end}"
     blender = f"{bpy.app.version[0]}.{bpy.app.version[1]}"  # (the line this file's frames are made with)
-    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender)
+    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender, hand_over)
     farm.write_bundle(folder, template, {
         "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(copy),
         "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),

@@ -455,15 +455,15 @@ def test_deadline_clouds_client_submits_both_bundles_with_yes_and_attaches_their
 # paths as Blender there sees them. The runs beside compare it with are the same binary's.
 
 WORKER = '''#!{python}
-"""The workers' Blender: Debian's Blender 5.2 LTS in {root}, through chroot."""
+"""The workers' {program}: Debian's, in {root} (Blender 5.2 LTS), through chroot."""
 import os, subprocess, sys
-ROOT = {root!r}
+ROOT, BLENDER = {root!r}, {blender!r}
 def inside(s):
-    return "blender" if s == sys.argv[0] else s.replace(ROOT + "/", "/")  # (the session starts this Blender)
+    return "blender" if s == BLENDER else s.replace(ROOT + "/", "/")  # (the session starts the Blender)
 env = {{"PATH": "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin", "LANG": "C.UTF-8"}}
 env.update({{k: inside(os.environ[k]) for k in ("HOME", "BLENDER_USER_RESOURCES", "TMPDIR", "PYTHONUNBUFFERED")
             if k in os.environ}})
-sys.exit(subprocess.run(["chroot", ROOT, "blender", *map(inside, sys.argv[1:])], env=env).returncode)
+sys.exit(subprocess.run(["chroot", ROOT, {program!r}, *map(inside, sys.argv[1:])], env=env).returncode)
 '''
 
 
@@ -479,15 +479,16 @@ def real_worker(tmp_path):
     root = Path(os.environ.get("WINDGRASS_WINDOW_ROOT", default))
     if os.geteuid() != 0 or not (root / "usr" / "bin" / "blender").exists():
         pytest.skip(f"no Debian root with Blender 5.2 at {root} (python3.11 dev.py test makes one; chroot needs root)")
-    worker = tmp_path / "blender-5.2"
-    worker.write_text(WORKER.format(python=sys.executable, root=str(root)))
-    worker.chmod(0o755)
-    version = subprocess.run([str(worker), "--version"], capture_output=True, text=True, timeout=120).stdout
-    assert version.startswith("Blender 5.2."), version
     work = Path(tempfile.mkdtemp(prefix="windgrass-farm-", dir=root / "tmp"))
-    (work / "home").mkdir()
-    (work / "tmp").mkdir()
+    for name in ("home", "tmp", "bin"):
+        (work / name).mkdir()
+    worker = tmp_path / "blender-5.2"
+    for path, program in ((worker, "blender"), (work / "bin" / "python3", "python3")):  # (python3: a hand-over)
+        path.write_text(WORKER.format(python=sys.executable, root=str(root), blender=str(worker), program=program))
+        path.chmod(0o755)
     try:
+        version = subprocess.run([str(worker), "--version"], capture_output=True, text=True, timeout=120).stdout
+        assert version.startswith("Blender 5.2."), version
         yield worker, work
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -495,25 +496,29 @@ def real_worker(tmp_path):
 
 def _worker_env(work: Path, user: Path | None = None) -> dict:
     """The environment of ``openjd run`` and the worker: home, temp (openjd's session folders) and
-    Blender's user folder inside the root."""
-    return dict(_env(work, user), TMPDIR=str(work / "tmp"))
+    Blender's user folder inside the root; the root's python3 first on the PATH."""
+    env = dict(_env(work, user), TMPDIR=str(work / "tmp"))
+    return dict(env, PATH=os.pathsep.join([str(work / "bin"), env.get("PATH", "")]))
 
 
 def test_workers_on_real_blender_5_2_render_a_scene_file_job_as_one_process_does(real_worker):
     """A scene file's job in chunks of 2 under ``openjd run`` with Blender 5.2.2 as the workers'
-    Blender: its frames equal, pixel for pixel, the frames that Blender renders in one process."""
+    Blender, the tasks handed to the session's Blender by the worker's python3: its frames equal,
+    pixel for pixel, the frames that Blender renders in one process."""
     worker, work = real_worker
     scene = work / "tiny.toml"
     scene.write_text(TINY)
     bundle, out, one = work / "bundle", work / "farm", work / "one"
     env = _worker_env(work)
     made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), "--frames",
-                           "1-6", "--chunk", "2", "--blender-version", "5.2", "--out", str(out), str(bundle)],
-                          capture_output=True, text=True, env=env, timeout=300)
+                           "1-6", "--chunk", "2", "--blender-version", "5.2", "--hand-over", "python3", "--out",
+                           str(out), str(bundle)], capture_output=True, text=True, env=env, timeout=300)
     assert made.returncode == 0, made.stderr
     run = _openjd(bundle, worker, env)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert "Chunks run: 3" in run.stdout and run.stdout.count("scene kept from the session's") == 2
+    assert '"command": "python3"' in (bundle / "template.yaml").read_text()
+    _ended(run.stdout)
     single = subprocess.run([str(worker), "-b", "-P", str(bundle / "windgrass" / "headless" / "render_field.py"),
                              "--", "--config", str(scene), "--frames", "1-6", "--out", str(one)],
                             capture_output=True, text=True, env=env, timeout=600)

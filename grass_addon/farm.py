@@ -26,6 +26,7 @@ what is missing) and exits non-zero with its message when it fails.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from collections.abc import Sequence
@@ -81,6 +82,20 @@ def other_blender(wanted: str, version) -> str | None:
         return None
     return (f"this worker runs Blender {here}, the job's frames are made with Blender {wanted}: give the job that "
             f"Blender (BlenderExecutable), or set BlenderVersion to '' to let any Blender render them")
+
+
+FRAME_KEY = "WindgrassFrame"  # the PNG text chunk that says which job's frame a file is
+
+
+def frame_fingerprint(frame: int, settings: str, inputs: Sequence[bytes], blender: str, windgrass: str) -> str:
+    """What makes a frame this job's (issue #36: ``--resume`` kept the frames of an earlier, edited
+    submission): a hash of the frame's number, the scene's settings (TOML), the bytes of the files
+    it reads (maps, heightmap, the .blend), the Blender (its version) and Windgrass's version.
+    Written into each frame (``FRAME_KEY``); a rerun keeps only frames that carry its own."""
+    digest = hashlib.sha256()
+    for part in (str(int(frame)), settings, blender, windgrass, *[hashlib.sha256(b).hexdigest() for b in inputs]):
+        digest.update(part.encode("utf-8") + b"\0")
+    return digest.hexdigest()[:32]
 
 
 def check_chunk(chunk) -> int:

@@ -396,16 +396,31 @@ def check_fields(scene) -> None:
             raise FieldError(f"grass field '{item.name}' cannot be simulated: {error}")
 
 
-def _whole(path: Path, size: tuple[int, int]) -> bool:
-    """The file is a PNG that decodes completely to ``size`` (width, height) pixels: a frame
-    ``--resume`` may keep (signature and end were not enough: a PNG zeroed in its middle, or a
-    whole one of another size under the frame's name, were kept; issue #36)."""
+def _whole(path: Path, size: tuple[int, int], fingerprint: str) -> bool:
+    """The file is a PNG that decodes completely to ``size`` (width, height) pixels and carries
+    this job's ``fingerprint``: a frame ``--resume`` may keep (signature and end were not enough:
+    a PNG zeroed in its middle, a whole one of another size under the frame's name, and the frames
+    of an earlier, edited submission were kept; issue #36)."""
     try:
         check_png(path)
-        pixels = images.decode_png(path.read_bytes())
+        data = path.read_bytes()
+        pixels = images.decode_png(data)
     except (OSError, ValueError, zlib.error):
         return False
-    return pixels.shape[:2] == (size[1], size[0])
+    return pixels.shape[:2] == (size[1], size[0]) and images.png_text(data).get(farm.FRAME_KEY) == fingerprint
+
+
+def fingerprints(params):
+    """frame -> the fingerprint of that frame of this job (``farm.frame_fingerprint``: the
+    settings, the files they name, Blender's and Windgrass's versions)."""
+    import bpy
+
+    named: list[str] = []
+    schema.with_files(params, lambda path, name: named.append(path) or path)
+    inputs = [Path(p).read_bytes() for p in named if Path(p).is_file()]
+    settings, blender = schema.dumps_toml(params), bpy.app.version_string
+    windgrass = farm.extension_version(Path(__file__).resolve().parents[1])
+    return lambda frame: farm.frame_fingerprint(frame, settings, inputs, blender, windgrass)
 
 
 def _clear_the_way(final: Path, partial: Path) -> None:
@@ -420,23 +435,25 @@ def _clear_the_way(final: Path, partial: Path) -> None:
 
 
 def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopAfterFrame | None = None,
-                  resume: bool = False) -> list[Path]:
+                  resume: bool = False, fingerprint=None) -> list[Path]:
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame and Blender's
     ``Saved: '<path>'`` line (what farm managers read). Each frame is written under a temporary name,
     checked to be a whole PNG, then renamed into place; with ``stop`` requested the loop ends after
-    the frame in progress; with ``resume`` a frame already whole on disk is kept (and listed)."""
+    the frame in progress; with ``resume`` a frame already whole on disk is kept (and listed).
+    Each frame carries its ``fingerprint`` (``fingerprints``) in a PNG text chunk."""
     import bpy
     import stage
     total = len(frames)
     r = scene.render
     size = (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)
     written: list[Path] = []
+    fingerprint = fingerprint or fingerprints(params)
     scene.render.use_file_extension = False
     began = time.perf_counter()
     for i, frame in enumerate(frames, start=1):
         if stop is not None and stop.requested:
             break
-        if resume and _whole(out / FRAME_NAME.format(frame), size):
+        if resume and _whole(out / FRAME_NAME.format(frame), size, fingerprint(frame)):
             written.append(out / FRAME_NAME.format(frame))
             print(f"frame {i}/{total} (#{frame}) already rendered: kept", flush=True)
             continue
@@ -457,6 +474,7 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopA
             try:
                 check_png(partial)
                 strip_png_text(partial)
+                partial.write_bytes(images.with_png_text(partial.read_bytes(), farm.FRAME_KEY, fingerprint(frame)))
             except OSError as exc:
                 raise FrameWriteError(f"frame {frame} could not be written to {out}: {exc}") from None
             os.replace(partial, final)
@@ -556,8 +574,8 @@ def _all_kept(params, frames, out: Path, args) -> bool:
     requeued job's finished chunks cost no build)."""
     if not getattr(args, "resume", False) or args.bake or args.save_blend or args.video:
         return False
-    size = (params.render.resolution_x, params.render.resolution_y)
-    if not all(_whole(out / FRAME_NAME.format(f), size) for f in frames):
+    size, fingerprint = (params.render.resolution_x, params.render.resolution_y), fingerprints(params)
+    if not all(_whole(out / FRAME_NAME.format(f), size, fingerprint(f)) for f in frames):
         return False
     for i, frame in enumerate(frames, start=1):
         print(f"frame {i}/{len(frames)} (#{frame}) already rendered: kept", flush=True)

@@ -13,6 +13,7 @@ status: 0 done, 1 failed (with the reason on stderr), 2 bad arguments.
 """
 
 import argparse
+import hashlib
 import os
 import struct
 import sys
@@ -22,6 +23,7 @@ from pathlib import Path
 import bpy
 
 FRAME_NAME = "frame_{:04d}.png"
+FRAME_KEY = "WindgrassFrame"  # (as grass_addon.farm.FRAME_KEY: the PNG text chunk naming the frame's job)
 
 
 def _args(argv):
@@ -55,6 +57,37 @@ def whole_png(path: Path) -> bool:
             return True
         pos = end
     return False
+
+
+def fingerprint(blend: Path, version: str):
+    """frame -> what makes a frame this job's: a hash of its number, the .blend's bytes, Blender's
+    version and the job's Windgrass version (``grass_addon.farm.frame_fingerprint``'s reading, its
+    own copy: this script runs where the extension may be missing). A rerun keeps only frames
+    that carry it (issue #36: the frames of an earlier, edited submission were kept)."""
+    blend_hash = hashlib.sha256(blend.read_bytes()).hexdigest() if blend.is_file() else ""
+
+    def of(frame: int) -> str:
+        digest = hashlib.sha256()
+        for part in (str(int(frame)), "", bpy.app.version_string, version, blend_hash):
+            digest.update(part.encode("utf-8") + b"\0")
+        return digest.hexdigest()[:32]
+
+    return of
+
+
+def kept(path: Path, stamp: str) -> bool:
+    """The frame is whole and carries this job's fingerprint ``stamp``."""
+    if not whole_png(path):
+        return False
+    data = path.read_bytes()
+    return (b"tEXt" + FRAME_KEY.encode() + b"\0" + stamp.encode()) in data
+
+
+def stamped(data: bytes, stamp: str) -> bytes:
+    """The PNG with a tEXt chunk FRAME_KEY: ``stamp`` before its IEND."""
+    end = data.rindex(b"IEND") - 4
+    body = b"tEXt" + FRAME_KEY.encode() + b"\0" + stamp.encode()
+    return data[:end] + struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body)) + data[end:]
 
 
 def windgrass():
@@ -133,9 +166,10 @@ def render(args) -> int:
     runtime = None if module is None else sys.modules[f"{module.__name__}.grass_addon.bridge.runtime"]
     scene.render.use_file_extension = False
     scene.render.image_settings.file_format = "PNG"
+    stamp = fingerprint(Path(bpy.data.filepath), args.version)
     for frame in chosen:
         final = out / FRAME_NAME.format(frame)
-        if whole_png(final):
+        if kept(final, stamp(frame)):
             print(f"Skipped: '{final}' (already rendered)", flush=True)
             continue
         scene.frame_set(frame)
@@ -154,6 +188,7 @@ def render(args) -> int:
             bpy.ops.render.render(write_still=True)
             if not whole_png(partial):
                 raise RuntimeError(f"Blender did not write frame {frame} whole to {out}")
+            partial.write_bytes(stamped(partial.read_bytes(), stamp(frame)))
             os.replace(partial, final)
         finally:
             if partial.exists() or partial.is_symlink():
@@ -167,8 +202,8 @@ def opened(args) -> bool:
     finished chunks load nothing); False when there is nothing left to render."""
     if not args.blend or Path(bpy.data.filepath or ".").resolve() == Path(args.blend).resolve():
         return True
-    out = Path(args.out)
-    if all(whole_png(out / FRAME_NAME.format(f)) for f in frames(args.frames)):
+    out, stamp = Path(args.out), fingerprint(Path(args.blend), args.version)
+    if all(kept(out / FRAME_NAME.format(f), stamp(f)) for f in frames(args.frames)):
         for f in frames(args.frames):
             print(f"Skipped: '{out / FRAME_NAME.format(f)}' (already rendered)", flush=True)
         return False

@@ -157,6 +157,18 @@ def test_a_scene_file_job_renders_in_chunks_what_one_process_renders(tmp_path, s
     assert all((out / n).stat().st_mtime_ns == t for n, t in kept.items())
     rerun = _pixels(out)
     assert all(np.array_equal(rerun[n], one_frames[n]) for n in one_frames)
+    # the scene edited (another wind) and submitted again into the same folder: every frame is
+    # rendered again (issue #36: --resume kept the earlier submission's frames)
+    scene.write_text(TINY.replace("speed = 5.0", "speed = 7.0"))
+    made = subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene), "--frames",
+                           "1-6", "--chunk", "2", "--out", str(out), str(bundle)], capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert made.returncode == 0, made.stderr
+    edited = _openjd(bundle, stand_in, env)
+    assert edited.returncode == 0, edited.stderr[-3000:]
+    assert "already rendered" not in edited.stdout
+    assert len([line for line in edited.stdout.splitlines() if "Saved: '" in line and ".partial" not in line]) == 6
+    assert not np.array_equal(_pixels(out)["frame_0006.png"], one_frames["frame_0006.png"])
 
 
 def _ended(log: str) -> None:
@@ -323,6 +335,18 @@ def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tm
     assert list(one_frames) == list(farm_frames)
     for name in one_frames:
         assert np.array_equal(one_frames[name], farm_frames[name]), name
+    # run again: every frame kept; the .blend edited (the ball rolls the other way) and submitted
+    # again: every frame rendered again (issue #36: the earlier submission's frames were kept)
+    again = _openjd(bundle, stand_in, _env(tmp_path))
+    assert again.returncode == 0 and again.stdout.count("(already rendered)") == 4, again.stdout[-3000:]
+    ball = bpy.data.objects["Sphere"]
+    ball.animation_data.action = None
+    ball.location.x = 0.5
+    bpy.ops.wm.save_mainfile()
+    assert bpy.ops.windgrass.farm_job(directory=str(bundle) + "/", chunk_size=2) == {"FINISHED"}
+    edited = _openjd(bundle, stand_in, _env(tmp_path))
+    assert edited.returncode == 0 and "already rendered" not in edited.stdout, edited.stdout[-3000:]
+    assert edited.stdout.count("Saved: '") - edited.stdout.count(".partial") == 4
 
 
 def test_farm_job_into_the_blends_own_folder_writes_a_folder_of_its_own(tmp_path, with_bridge):

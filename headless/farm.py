@@ -109,7 +109,7 @@ def main(argv=None) -> int:
                              "two lines render a frame a little differently)")
     parser.add_argument("--hand-over", choices=farm.HAND_OVERS, default="blender",
                         help="what hands each task to the worker session's Blender: a small Blender (any worker, "
-                             "about a second a task) or python3 (Linux and macOS workers with Python 3.7+: "
+                             "about a second a task) or python3 (Linux and macOS workers with Python 3.8+: "
                              "milliseconds)")
     parser.add_argument("bundle", type=Path, help="the job bundle's folder (made)")
     args = parser.parse_args(argv)

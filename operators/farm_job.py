@@ -28,7 +28,7 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
         items=[("blender", "Blender", "A small Blender hands each task to the worker session's Blender: any worker, "
                 "about a second a task"),
                ("python3", "Python 3", "The workers' python3 hands each task over: milliseconds a task (Linux and "
-                "macOS workers with Python 3.7+)")],
+                "macOS workers with Python 3.8+)")],
         description="What hands each task's frames to the one Blender that a worker's session keeps")
 
     @classmethod

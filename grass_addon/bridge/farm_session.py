@@ -21,7 +21,7 @@ frame in progress is never renamed into place) and the next task starts without 
 are the same either way: a Windgrass frame is a function of its number alone.
 
 Runs in any Blender 4.5+ without the extension (standard library and ``bpy.app`` only); ``start``,
-``run`` and ``stop`` with ``--blender`` also in a plain Python 3.7+ (``python3 farm_session.py run
+``run`` and ``stop`` with ``--blender`` also in a plain Python 3.8+ (``python3 farm_session.py run
 ...``: a bundle made with ``--hand-over python3``), which costs a task milliseconds, not a second.
 """
 
@@ -110,7 +110,7 @@ def stop(folder: Path) -> int:
 
 def _kill(session: dict) -> None:
     try:
-        os.kill(int(session["pid"]), signal.SIGTERM if os.name != "nt" else signal.SIGABRT)
+        os.kill(int(session["pid"]), signal.SIGTERM)  # (on Windows: TerminateProcess)
     except (OSError, ValueError, KeyError):
         pass
 

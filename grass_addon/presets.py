@@ -66,14 +66,14 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
 
 PRESET_NAMES: tuple[str, ...] = tuple(SPECIES_PRESETS)
 
-# The look each preset gives besides its species (meadow.py): a lawn is even, a meadow grows in
-# tussocks and patches, with some dry tips; wild grass more so.
+# The look each preset gives besides its species (meadow.py): a lawn is even over its dense turf,
+# a meadow grows in tussocks and patches over thatch, with some dry tips; wild grass more so.
 LOOKS: dict[str, dict[str, Any]] = {
-    "lawn": {"field.clumping": 0.0, "field.patchiness": 0.0, "blade.dry_tips": 0.0},
+    "lawn": {"field.clumping": 0.0, "field.patchiness": 0.0, "blade.dry_tips": 0.0, "field.floor": "turf"},
     "meadow": {"field.clumping": 0.3, "field.clump_size": 0.45, "field.patchiness": 0.7, "field.patch_size": 8.0,
-               "blade.dry_tips": 0.12},
+               "blade.dry_tips": 0.12, "field.floor": "thatch"},
     "wild": {"field.clumping": 0.5, "field.clump_size": 0.7, "field.patchiness": 0.8, "field.patch_size": 12.0,
-             "blade.dry_tips": 0.3},
+             "blade.dry_tips": 0.3, "field.floor": "thatch"},
 }
 
 PRESET_HELP: dict[str, str] = {

@@ -25,6 +25,7 @@ from typing import Any
 from .errors import ParameterError
 
 WIND_TYPES = ("calm", "gentle_breeze", "moderate_breeze", "blast", "whirlwind")
+FLOORS = ("thatch", "turf")  # what shows between the blades (sward.floor_colours)
 
 # What choosing a wind type sets (paper IV's four types plus calm). Mean speeds follow the Beaufort
 # scale: calm < 0.5 m/s, gentle breeze 3.4-5.4, moderate breeze 5.5-7.9; the turbulence (std of v',
@@ -239,6 +240,9 @@ PARAMS: tuple[Param, ...] = (
        "changes (0: the same everywhere)", unit="fraction", minimum=0.0, maximum=1.0, label="Patches"),
     _p("field", "patch_size", "float", 8.0, "Size of a patch", unit="m", minimum=0.5, maximum=1000.0,
        soft_max=50.0, label="Patch Size"),
+    _p("field", "floor", "enum", "thatch", "What shows between the blades: a meadow's dry thatch and green litter, "
+       "or a lawn's dense living turf (its thousands of shoots a square metre, more than the blades drawn)",
+       choices=FLOORS, label="Floor"),
     # --- [blade] paper III.A, eqs 1-6 and V.A, eqs 14-32 ----------------------------------------
     _p("blade", "segments", "int", 5, "Rigid pieces per blade: more bend more smoothly and cost more (n)", minimum=1,
        maximum=12, advanced=True, label="Segments"),

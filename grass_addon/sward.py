@@ -37,6 +37,11 @@ BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (li
 # The meadow's floor under the blades (the ground material: dry thatch and green litter in noise).
 THATCH_COLOUR = (0.050, 0.042, 0.016)
 LITTER_COLOUR = (0.022, 0.040, 0.010)
+# A lawn's floor: the dense turf of living shoots under the blades drawn, shaded among themselves
+# (a leaf's green reflectance, about 0.12, times the light that reaches into the turf).
+TURF_SHADE = (0.034, 0.085, 0.019)
+TURF_LIT = (0.050, 0.118, 0.026)
+FLOOR_COLOURS = {"thatch": (THATCH_COLOUR, LITTER_COLOUR), "turf": (TURF_SHADE, TURF_LIT)}
 GRADIENT_END = 0.7  # the blade material darkens the lower 70 % of the blade towards the root
 CANOPY_SHARE = 0.75  # a grazing view sees the sward down to three quarters of the tips' mean height
 PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``sward_profile`` gives the depth
@@ -48,6 +53,12 @@ LIGHT_SLOPE = 1.0
 LOOK_LAYERS = 48  # height layers over which ``sward_look`` sums what a ray meets
 PATCH_PIXELS = 256  # side of the image of the meadow's patches over the whole field (``patch_tint``)
 PATCH_SAMPLES = 2  # ... each pixel the mean of 2 x 2 samples (patches a third of a pixel wide blur, not alias)
+
+
+def floor_colours(params: Params) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The two linear RGB colours of the floor between the blades (``field.floor``), which the
+    ground material mixes in noise."""
+    return FLOOR_COLOURS[str(params.field.floor)]
 
 
 def sample_blades(params: Params):
@@ -119,7 +130,7 @@ def sward_look(params: Params, slopes) -> np.ndarray:
     colours = _layer_colours(params, edges)
     meets = np.exp(-tau[1:][None] / slopes) - np.exp(-tau[:-1][None] / slopes)  # (slopes, layers)
     lit = np.exp(-0.5 * (tau[1:] + tau[:-1]) / LIGHT_SLOPE)
-    floor = 0.5 * (np.asarray(THATCH_COLOUR) + np.asarray(LITTER_COLOUR)) * np.exp(-tau[0] / LIGHT_SLOPE)
+    floor = np.mean(floor_colours(params), axis=0) * np.exp(-tau[0] / LIGHT_SLOPE)
     return meets @ (colours * lit[:, None]) + np.exp(-tau[0] / slopes) * floor
 
 

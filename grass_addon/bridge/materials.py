@@ -62,6 +62,7 @@ NODE_SWARD_LOOK = "wg_sward_look"  # RGB Curves: the canopy's colour over the ra
 NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (sward.fringe_colour)
 # The tussocks' grain (sward.tussock_grain): Voronoi cells of the tussocks' size (its Scale), each
 # brightened by 1 + c sqrt(3) (2 u - 1), u its random value (uniform: spread c), c the Value node.
+NODE_FLOOR = "wg_floor"  # the ground's two floor colours in noise (sward.floor_colours)
 NODE_TUSSOCKS = "wg_tussocks"
 NODE_TUSSOCK_SPREAD = "wg_tussock_spread"
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
@@ -413,7 +414,7 @@ def ground_material(name: str, uid: str):
     _set(noise, 9.0, "Scale")
     _set(noise, 6.0, "Detail")
     t.link(coord, "Object", noise, "Vector")
-    floor = t.mix_rgb(-650, 0, a=THATCH_COLOUR, b=LITTER_COLOUR)
+    floor = t.mix_rgb(-650, 0, a=THATCH_COLOUR, b=LITTER_COLOUR, name=NODE_FLOOR)  # (update_floor)
     t.link(noise, "Fac", floor, "Factor_Float")
     t.matte(floor, "Result_Color")
     return mat
@@ -770,12 +771,21 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
     weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
     tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
     far = SWARD_LIGHT * sward.sward_look(params, [VIEWPORT_SLOPE])[0]
-    for mat, rgb in ((blades, 0.85 * tips), (cards, far), (canopy, far), (ground, THATCH_COLOUR[:3])):
+    floor = sward.floor_colours(params)
+    for mat, rgb in ((blades, 0.85 * tips), (cards, far), (canopy, far), (ground, floor[0])):
         if mat is None:
             continue
         mat.diffuse_color = (*[float(c) for c in rgb], 1.0)
         mat.roughness = 0.9
         mat.metallic = 0.0
+
+
+def update_floor(params, ground) -> None:
+    """The ground's floor colours: a meadow's thatch and litter, or a lawn's turf (``field.floor``)."""
+    node = ground.node_tree.nodes.get(NODE_FLOOR) if ground is not None and ground.node_tree is not None else None
+    if node is not None:
+        for name, colour in zip(("A_Color", "B_Color"), sward.floor_colours(params)):
+            _set(node, (*colour, 1.0), name)
 
 
 def gust_swing(params, speed: float) -> float:

@@ -106,6 +106,7 @@ def update_field_materials(item, params, scene=None) -> None:
                                        owned.ROLE_CANOPY_MATERIAL)]
     materials.update_haze(params, *mats)
     materials.update_viewport_colours(params, *mats)
+    materials.update_floor(params, reg.get(owned.ROLE_GROUND_MATERIAL))
     if cycles is not None:
         materials.set_card_depth(reg.get(owned.ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
     image = reg.get(owned.ROLE_CARD_IMAGE)

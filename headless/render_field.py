@@ -434,8 +434,8 @@ def _clear_the_way(final: Path, partial: Path) -> None:
         partial.unlink()
 
 
-def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopAfterFrame | None = None,
-                  resume: bool = False, fingerprint=None) -> list[Path]:
+def render_frames(scene, params, frames: tuple[int, ...], out: Path, fingerprint, stop: StopAfterFrame | None = None,
+                  resume: bool = False) -> list[Path]:
     """Render ``frames`` to ``out/frame_NNNN.png``; one progress line per frame and Blender's
     ``Saved: '<path>'`` line (what farm managers read). Each frame is written under a temporary name,
     checked to be a whole PNG, then renamed into place; with ``stop`` requested the loop ends after
@@ -447,7 +447,6 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, stop: StopA
     r = scene.render
     size = (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)
     written: list[Path] = []
-    fingerprint = fingerprint or fingerprints(params)
     scene.render.use_file_extension = False
     began = time.perf_counter()
     for i, frame in enumerate(frames, start=1):
@@ -569,12 +568,12 @@ def _scene_for(params):
     return scene
 
 
-def _all_kept(params, frames, out: Path, args) -> bool:
-    """With ``--resume`` every frame already whole on disk: listed as kept, nothing built (a
-    requeued job's finished chunks cost no build)."""
+def _all_kept(params, frames, out: Path, args, fingerprint) -> bool:
+    """With ``--resume`` every frame already whole on disk (and this job's: ``fingerprint``):
+    listed as kept, nothing built (a requeued job's finished chunks cost no build)."""
     if not getattr(args, "resume", False) or args.bake or args.save_blend or args.video:
         return False
-    size, fingerprint = (params.render.resolution_x, params.render.resolution_y), fingerprints(params)
+    size = (params.render.resolution_x, params.render.resolution_y)
     if not all(_whole(out / FRAME_NAME.format(f), size, fingerprint(f)) for f in frames):
         return False
     for i, frame in enumerate(frames, start=1):
@@ -585,7 +584,8 @@ def _all_kept(params, frames, out: Path, args) -> bool:
 def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = None) -> dict:
     """Build one scene, render its frames (and optional .blend and video) into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    if _all_kept(params, frames, out, args):
+    fingerprint = fingerprints(params)  # (reads the files the settings name: once a variant)
+    if _all_kept(params, frames, out, args, fingerprint):
         return {"out": out, "frames": [out / FRAME_NAME.format(f) for f in frames], "seconds": 0.0, "video": None,
                 "interrupted": False}
     t0 = time.perf_counter()
@@ -613,7 +613,7 @@ def run_variant(params, frames, out: Path, args, stop: StopAfterFrame | None = N
         save_blend(blend, copy=True)
         print(f"saved {blend}", flush=True)
     t1 = time.perf_counter()
-    written = render_frames(scene, params, frames, out, stop, resume=getattr(args, "resume", False))
+    written = render_frames(scene, params, frames, out, fingerprint, stop, resume=getattr(args, "resume", False))
     seconds = time.perf_counter() - t1
     interrupted = stop is not None and stop.requested
     video = (encode_video(written, params.render.fps, out / "animation.mp4")

@@ -84,7 +84,8 @@ def kept(path: Path, stamp: str) -> bool:
 
 
 def stamped(data: bytes, stamp: str) -> bytes:
-    """The PNG with a tEXt chunk FRAME_KEY: ``stamp`` before its IEND."""
+    """The PNG with a tEXt chunk FRAME_KEY: ``stamp`` before its IEND (``grass_addon.images.
+    with_png_text``'s, its own copy: this script runs where the extension may be missing)."""
     end = data.rindex(b"IEND") - 4
     body = b"tEXt" + FRAME_KEY.encode() + b"\0" + stamp.encode()
     return data[:end] + struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body)) + data[end:]
@@ -157,7 +158,7 @@ def frames(text: str) -> list[int]:
     return sorted(out)
 
 
-def render(args) -> int:
+def render(args, stamp) -> int:
     scene = bpy.context.scene
     chosen = frames(args.frames)
     out = Path(args.out)
@@ -166,7 +167,6 @@ def render(args) -> int:
     runtime = None if module is None else sys.modules[f"{module.__name__}.grass_addon.bridge.runtime"]
     scene.render.use_file_extension = False
     scene.render.image_settings.file_format = "PNG"
-    stamp = fingerprint(Path(bpy.data.filepath), args.version)
     for frame in chosen:
         final = out / FRAME_NAME.format(frame)
         if kept(final, stamp(frame)):
@@ -197,12 +197,13 @@ def render(args) -> int:
     return 0
 
 
-def opened(args) -> bool:
-    """``--blend`` open, unless every frame is already whole (listed as skipped: a requeued job's
-    finished chunks load nothing); False when there is nothing left to render."""
+def opened(args, stamp) -> bool:
+    """``--blend`` open, unless every frame is already whole and this job's (``stamp``; listed as
+    skipped: a requeued job's finished chunks load nothing); False when there is nothing left to
+    render."""
     if not args.blend or Path(bpy.data.filepath or ".").resolve() == Path(args.blend).resolve():
         return True
-    out, stamp = Path(args.out), fingerprint(Path(args.blend), args.version)
+    out = Path(args.out)
     if all(kept(out / FRAME_NAME.format(f), stamp(f)) for f in frames(args.frames)):
         for f in frames(args.frames):
             print(f"Skipped: '{out / FRAME_NAME.format(f)}' (already rendered)", flush=True)
@@ -220,10 +221,12 @@ def main(argv: list[str]) -> int:
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else 2
     try:
-        if not opened(args):
+        # (the .blend's bytes hashed once a task: --blend, or the one Blender opened)
+        stamp = fingerprint(Path(args.blend or bpy.data.filepath), args.version)
+        if not opened(args, stamp):
             return 0
         prepare(args)
-        return render(args)
+        return render(args, stamp)
     except (RuntimeError, ValueError, OSError) as exc:
         print(f"farm_render.py: failed: {exc}", file=sys.stderr, flush=True)
         return 1

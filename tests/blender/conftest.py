@@ -56,3 +56,29 @@ def drawn():
         return np.concatenate(parts) if parts else np.zeros((0, 3))
 
     return read
+
+
+@pytest.fixture
+def rendered(with_bridge):
+    """``rendered(params, frame, path)`` -> (height, width, 3) float32: the pixels Blender renders
+    (row 0 at the bottom) of a factory scene staged as the batch renderer stages it, with a field
+    of ``params`` and the camera posed at ``frame``, written to ``path`` and read back."""
+    import stage
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    def render(params, frame: int, path) -> np.ndarray:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        stage.setup_stage(scene, params)
+        runtime.build_field(scene, properties.add_field(scene, params))
+        stage.pose_camera(scene, params, frame)
+        scene.frame_set(frame)
+        scene.render.filepath = str(path)
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(str(path))
+        h, w = params.render.resolution_y, params.render.resolution_x
+        pixels = np.array(image.pixels[:], dtype=np.float32).reshape(h, w, 4)[..., :3]
+        bpy.data.images.remove(image)
+        return pixels
+
+    return render

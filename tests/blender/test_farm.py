@@ -321,20 +321,9 @@ def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tm
     assert run.stdout.count("farm_render.py: opened") == 1  # the session's one Blender opened the .blend once
     farm_frames = _pixels(tmp_path / "farm")
     assert len(farm_frames) == 4
-    one = tmp_path / "one"
-    script = bundle / "farm_render.py"
-    user = tmp_path / "user-one"
-    env = _env(tmp_path, user)
-    for command in (["--command", "extension", "install-file", "--repo", "user_default", "--enable",
-                     str(next(bundle.glob("windgrass-*.zip")))],
-                    # (one process, its frames written as Flamenco's chunker writes a list: issue #36)
-                    ["-b", str(blend), "-P", str(script), "--", "--frames", "1,2,3-4", "--out", str(one)]):
-        proc = subprocess.run([str(stand_in), *command], capture_output=True, text=True, env=env, timeout=900)
-        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    one_frames = _pixels(one)
-    assert list(one_frames) == list(farm_frames)
-    for name in one_frames:
-        assert np.array_equal(one_frames[name], farm_frames[name]), name
+    # (one process, its frames written as Flamenco's chunker writes a list: issue #36)
+    _one_process_renders(stand_in, bundle, blend, "1,2,3-4", tmp_path / "one", _env(tmp_path, tmp_path / "user-one"),
+                         farm_frames)
     # run again: every frame kept; the .blend edited (the ball rolls the other way) and submitted
     # again: every frame rendered again (issue #36: the earlier submission's frames were kept)
     again = _openjd(bundle, stand_in, _env(tmp_path))
@@ -347,6 +336,22 @@ def test_a_saved_blend_with_live_grass_renders_on_a_blender_without_windgrass(tm
     edited = _openjd(bundle, stand_in, _env(tmp_path))
     assert edited.returncode == 0 and "already rendered" not in edited.stdout, edited.stdout[-3000:]
     assert edited.stdout.count("Saved: '") - edited.stdout.count(".partial") == 4
+
+
+def _one_process_renders(blender: Path, bundle: Path, blend: Path, frames: str, one: Path, env: dict,
+                         farm_frames: dict) -> None:
+    """``blender`` with the bundle's extension installed (in ``env``'s user folder) renders the
+    .blend's ``frames`` in one process: the same pixels as ``farm_frames``."""
+    for command in (["--command", "extension", "install-file", "--repo", "user_default", "--enable",
+                     str(next(bundle.glob("windgrass-*.zip")))],
+                    ["-b", str(blend), "-P", str(bundle / "farm_render.py"), "--", "--frames", frames, "--out",
+                     str(one)]):
+        proc = subprocess.run([str(blender), *command], capture_output=True, text=True, env=env, timeout=900)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    one_frames = _pixels(one)
+    assert list(one_frames) == list(farm_frames)
+    for name in one_frames:
+        assert np.array_equal(one_frames[name], farm_frames[name]), name
 
 
 def test_farm_job_into_the_blends_own_folder_writes_a_folder_of_its_own(tmp_path, with_bridge):
@@ -576,13 +581,4 @@ def test_workers_on_real_blender_5_2_without_windgrass_render_a_saved_blends_job
     assert bare.returncode == 1 and "has live grass fields but Blender has no Windgrass" in bare.stderr, \
         bare.stdout[-2000:] + bare.stderr[-2000:]
     assert not one.exists() or not list(one.glob("*.png"))
-    env = _worker_env(work, work / "user-one")
-    for command in (["--command", "extension", "install-file", "--repo", "user_default", "--enable",
-                     str(next(bundle.glob("windgrass-*.zip")))],
-                    ["-b", str(blend), "-P", str(script), "--", "--frames", "1-4", "--out", str(one)]):
-        proc = subprocess.run([str(worker), *command], capture_output=True, text=True, env=env, timeout=600)
-        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    one_frames = _pixels(one)
-    assert list(one_frames) == list(farm_frames)
-    for name in one_frames:
-        assert np.array_equal(one_frames[name], farm_frames[name]), name
+    _one_process_renders(worker, bundle, blend, "1-4", one, _worker_env(work, work / "user-one"), farm_frames)

@@ -186,15 +186,13 @@ def test_the_far_canopy_is_yellower_where_more_buttercups_grow(runtime, tmp_path
     assert red[most].mean() > 1.05 * red[fewest].mean(), (red[most].mean(), red[fewest].mean())
 
 
-def test_a_lawn_reads_as_green_turf_not_bare_ground(runtime, tmp_path):
+def test_a_lawn_reads_as_green_turf_not_bare_ground(rendered, tmp_path):
     """Issue #34: the Lawn preset drew its few hundred blades a square metre over the meadow's brown
     thatch, and from 1.1 m the lawn came out dark olive (display colour 46, 55, 33: green only 1.18
     times red). A lawn's floor is its dense living turf (``field.floor = "turf"``): the render below
     the horizon is green (green at least 1.4 times red, as display values), far greener than the
     same blades over thatch."""
-    import stage
     from windgrass.grass_addon import presets, schema
-    from windgrass.grass_addon.bridge import properties
 
     def render(floor: str) -> np.ndarray:
         params = presets.apply_preset(schema.defaults(), "lawn").replace({
@@ -202,18 +200,7 @@ def test_a_lawn_reads_as_green_turf_not_bare_ground(runtime, tmp_path):
             "camera.mode": "fixed", "camera.position": (0.0, -4.0, 1.1), "camera.target": (0.0, 3.0, 0.0),
             "render.engine": "cycles", "render.samples": 8, "render.resolution_x": 64,
             "render.resolution_y": 36})
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = bpy.context.scene
-        stage.setup_stage(scene, params)
-        item = properties.add_field(scene, params)
-        runtime.build_field(scene, item)
-        stage.pose_camera(scene, params, 1)
-        scene.frame_set(1)
-        scene.render.filepath = str(tmp_path / f"{floor}.png")
-        bpy.ops.render.render(write_still=True)
-        image = bpy.data.images.load(scene.render.filepath)
-        pixels = np.array(image.pixels[:], np.float32).reshape(36, 64, 4)[..., :3]  # row 0 at the bottom
-        bpy.data.images.remove(image)
+        pixels = rendered(params, 1, tmp_path / f"{floor}.png")  # row 0 at the bottom
         return pixels[:12].reshape(-1, 3).mean(axis=0)  # the lowest third: the lawn near the camera
 
     turf, thatch = render("turf"), render("thatch")

@@ -56,25 +56,16 @@ def test_velocity_is_the_motion_between_neighbouring_frames(bridge):
     np.testing.assert_allclose(_attribute(blades, "velocity"), (positions[31] - positions[30]) * fps, atol=1e-4)
 
 
-def _render(bridge, wind: dict, blur: bool, path: Path, engine: str = "cycles") -> np.ndarray:
-    schema, properties, runtime, stage, _ = bridge
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+def _render(rendered, wind: dict, blur: bool, path: Path, engine: str = "cycles") -> np.ndarray:
+    from windgrass.grass_addon import schema
+
     params = schema.defaults().replace({
         "field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 8, "field.blades_per_cell": 4, **wind,
         "camera.mode": "fixed", "camera.position": (0.0, -1.0, 0.3), "camera.target": (0.0, 0.0, 0.12),
         "render.engine": engine, "render.samples": 16 if engine == "cycles" else 4,
         "render.resolution_x": W, "render.resolution_y": H,
         "render.motion_blur": blur, "render.shutter": 2.0})
-    scene = bpy.context.scene
-    stage.setup_stage(scene, params)
-    item = properties.add_field(scene, params)
-    runtime.build_field(scene, item)
-    stage.pose_camera(scene, params, 40)
-    scene.frame_set(40)
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    return np.array(image.pixels[:], dtype=np.float32).reshape(H, W, 4)[..., :3]
+    return rendered(params, 40, path)
 
 
 def _detail(image: np.ndarray) -> float:
@@ -86,21 +77,21 @@ STRONG = {"wind.type": "whirlwind", "wind.speed": 6.0, "wind.vortex_speed": 20.0
 CALM = {"wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0}
 
 
-def test_eevee_blurs_by_the_sub_frame_poses(bridge, tmp_path, addon):
+def test_eevee_blurs_by_the_sub_frame_poses(rendered, tmp_path, addon):
     """EEVEE renders motion blur from the scene evaluated at sub-frames: the handler's poses of
     those instants. A strong vortex loses fine detail; calm grass does not change."""
-    images = {(name, blur): _render(bridge, wind, blur, tmp_path / f"{name}_{blur}.png", "eevee")
+    images = {(name, blur): _render(rendered, wind, blur, tmp_path / f"{name}_{blur}.png", "eevee")
               for name, wind in (("calm", CALM), ("strong", STRONG)) for blur in (False, True)}
     assert np.abs(images["calm", True] - images["calm", False]).mean() < 0.001
     assert np.abs(images["strong", True] - images["strong", False]).mean() > 0.01
     assert _detail(images["strong", True]) < 0.85 * _detail(images["strong", False])
 
 
-def test_blur_smears_moving_grass_and_leaves_still_grass_alone(bridge, tmp_path, addon):
+def test_blur_smears_moving_grass_and_leaves_still_grass_alone(rendered, tmp_path, addon):
     """Cycles, a close-up: in a strong vortex, blur on changes the image and takes away fine detail
     along the motion; in calm air it changes nothing beyond sampling noise."""
     strong, calm = STRONG, CALM
-    images = {(name, blur): _render(bridge, wind, blur, tmp_path / f"{name}_{blur}.png")
+    images = {(name, blur): _render(rendered, wind, blur, tmp_path / f"{name}_{blur}.png")
               for name, wind in (("calm", calm), ("strong", strong)) for blur in (False, True)}
     calm_change = np.abs(images["calm", True] - images["calm", False]).mean()
     strong_change = np.abs(images["strong", True] - images["strong", False]).mean()

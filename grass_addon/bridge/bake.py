@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import WindgrassError
 from ..folders import ensure_writable
 from . import animation, owned, usd_finish
+from . import scene as field_scene
 from .registry import REGISTRY, key_of
 
 RECORD = "wg_bake"
@@ -349,6 +350,7 @@ class Baker:
                 modifier.cache_file = cache
                 modifier.object_path = object_path(self.fmt, obj)
                 modifier.use_vertex_interpolation = True  # motion-blur steps between the baked frames
+            field_scene.leave_out_of_files([*objects, *(obj.data for obj in objects)], out=False)  # (saved now)
         self.item[RECORD] = {"folder": bpy.path.relpath(str(self.folder)), "first": self.first, "last": self.last,
                              "digest": self.digest, "camera": camera_fingerprint(self.scene), "caches": caches,
                              "tag": self.tag, "format": self.fmt, "seen": seen}
@@ -382,6 +384,7 @@ def free_bake(scene, item) -> bool:
         modifier = obj.modifiers.get(MODIFIER)
         if modifier is not None:
             obj.modifiers.remove(modifier)
+        field_scene.leave_out_of_files((obj, obj.data))  # (live again: made again on load)
     caches = [bpy.data.cache_files.get(name) for name in record.get("caches", ())]
     caches = [c for c in caches if c is not None]
     if caches:

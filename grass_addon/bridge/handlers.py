@@ -5,7 +5,7 @@
   ``depsgraph_update_post``  the same when the camera is moved without a frame change; count
                              paint strokes and collider edits;
   ``load_post``              empty the registry, bring outdated objects up to date;
-  ``save_pre``/``save_post``  a live field is saved without its slot geometry (made again after);
+  ``save_pre``/``save_post``  a painted ground grid is saved empty (made again after);
   ``undo_post``/``redo_post`` the settings may be others now: resolve again, rewrite every slot;
   ``render_pre``/``_post``   a render follows the scene camera, the viewport the 3D views after.
 Which position shows which block is a function of the frame and camera alone (canonical order),
@@ -25,7 +25,7 @@ from . import camera as field_camera
 from . import scene as field_scene
 from .edits import flush_pending, mark_dirty, painting, refresh_later
 from .frame_pass import guarded, update_field, update_scene
-from .lifecycle import apply_settings, forget_slots, refill_ground
+from .lifecycle import apply_settings, refill_ground
 from .registry import REGISTRY, key_of, warn_once
 
 VIEW_POLL_S = 0.1  # how often the viewport's views are looked at (orbiting changes no data, so no handler runs)
@@ -223,36 +223,36 @@ def _live_fields():
 
 @persistent
 def on_save_pre(*_args):
-    """A live field is saved as its settings, ground and materials: its slot meshes are emptied
-    for the write (a 12.8 m field's slots are tens of MB) and filled again after it (on_save_post,
-    and on load in a reopened file). A bake keeps its meshes: they carry the cache. The 3D views'
-    floor grids are saved as the artist set them."""
+    """A live field is saved as its settings, ground and materials: its slot objects are runtime
+    data that no file holds (``scene.leave_out_of_files``: saves, autosaves and quit.blend alike).
+    A painted field's ground grid on flat ground is emptied for the write and made again after it
+    (on_save_post, and on load). The 3D views' floor grids are saved as the artist set them."""
     floor.give_back(keep=True)
+    REGISTRY.emptied = []
     for scene, item in _live_fields():
         try:
-            field_scene.clear_slots(item)
-            field_scene.clear_ground(scene, item, properties.params_from_settings(item, scene))
-            forget_slots(scene, item)
+            if field_scene.clear_ground(scene, item, properties.params_from_settings(item, scene)):
+                REGISTRY.emptied.append(key_of(scene, item))
         except Exception as exc:  # pragma: no cover (a save must never fail because of the grass)
-            warn_once(f"field '{item.name}': its slots are saved as they are ({type(exc).__name__}: {exc})")
+            warn_once(f"field '{item.name}': its ground is saved as it is ({type(exc).__name__}: {exc})")
 
 
 @persistent
 def on_save_post(*_args):
-    """After a save: the slot meshes get their quads and the current frame back; bake files the
-    saved file does not refer to are deleted (an undone bake, a freed one)."""
+    """After a save: emptied ground grids get their cells back; bake files the saved file does not
+    refer to are deleted (an undone bake, a freed one)."""
     floor.take_again()
     for scene, item in _live_fields():
-        guarded(_refill, scene, item)
+        if key_of(scene, item) in REGISTRY.emptied:
+            guarded(_refill, scene, item)
+    REGISTRY.emptied = []
     REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
     _collect_bakes(REGISTRY.saved_bakes)
     REGISTRY.unchanged = True  # (the refill above is the grass, not an edit)
 
 
 def _refill(scene, item) -> None:
-    params = properties.params_from_settings(item, scene)
-    field_scene.fill_slots(item, params)
-    refill_ground(scene, item, params)
+    refill_ground(scene, item, properties.params_from_settings(item, scene))
     update_field(scene, item)
 
 

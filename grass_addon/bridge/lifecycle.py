@@ -45,12 +45,14 @@ def apply_settings(scene, item, force: bool = False) -> None:
     heightfield, centre, _ = terrain_of(scene, item, params, force=force)
     field_scene.separate_copy(item)
     coll = item.collection
-    if force or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
+    if (force or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item)
+            or field_scene.slots_missing(item, params)):  # (an opened file: its slots were never saved)
         field_scene.build_slots(scene, item, params, heightfield, centre)
         forget_slots(scene, item, rebuilt=True)
     else:
-        if field_scene.fill_slots(item, params):  # a file saved with empty slots (on_save_pre)
+        if field_scene.fill_slots(item, params):  # a file of an earlier version: its slots saved empty
             forget_slots(scene, item)
+        field_scene.leave_out_of_files(field_scene.slot_blocks(item))  # (and so are copies of them)
         refill_ground(scene, item, params)  # and its painted ground grid emptied
         field_scene.update_field_materials(item, params, scene)
     # The frame handler edits meshes while a render runs: keep the interface locked then.

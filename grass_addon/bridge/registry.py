@@ -167,6 +167,7 @@ class Registry:
     unchanged: bool = False
     # the 3D views drawing a field with EEVEE now: the overlays turned off in each (floor.py)
     floors: dict[int, tuple] = field(default_factory=dict)
+    emptied: list[Key] = field(default_factory=list)  # fields whose ground grid a save is writing empty
 
     def live(self, key: Key) -> LiveField:
         """The record of the field ``key`` (made when there is none)."""

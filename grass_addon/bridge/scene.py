@@ -202,6 +202,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
             obj.visible_shadow = True
             owned.tag(obj, uid, role, i)
             owned.tag(mesh, uid, role, i)
+            leave_out_of_files((obj, mesh))
             _link(coll, obj, ground)
             owned.record(item, owned.slot_key(role, i), obj)
     coll[owned.TOPOLOGY] = topology(params, heightfield, painted)
@@ -231,30 +232,47 @@ class _SlotTopology:
         self.attributes = {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}
 
 
-def clear_slots(item) -> None:
-    """Empty the slot meshes of a live field (before a save: the file keeps its settings, ground
-    and materials, not megabytes of slot geometry that ``fill_slots`` makes again)."""
-    for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
-        for obj in owned.slot_objects(item, role).values():
-            if len(obj.data.vertices):
-                obj.data.clear_geometry()
+def leave_out_of_files(blocks, out: bool = True) -> None:
+    """Mark slot objects and meshes as runtime data (``out``): Blender writes them into no file it
+    writes, saves, autosaves and quit.blend alike (tens of MB of geometry that ``build_slots`` makes
+    again from the settings when the file is opened), while its undo steps keep them. A bake's
+    slots carry its cache: they are saved (``out`` False)."""
+    for block in blocks:
+        if block is not None and block.is_runtime_data != out:
+            block.is_runtime_data = out
+
+
+def slot_blocks(item) -> list:
+    """The field's slot objects and their meshes."""
+    objects = [obj for role in (owned.ROLE_BLADES, owned.ROLE_CARDS) for obj in owned.slot_objects(item, role).values()]
+    return objects + [obj.data for obj in objects]
+
+
+def slots_missing(item, params) -> bool:
+    """Whether the field lacks a slot object its settings give: an opened file has none (they are
+    never saved, ``leave_out_of_files``), or the artist deleted one."""
+    blade_shape, card_shape = slots.pool_shapes(FieldGrid.of(params), params)
+    return (len(owned.slot_objects(item, owned.ROLE_BLADES)) < blade_shape.objects
+            or len(owned.slot_objects(item, owned.ROLE_CARDS)) < card_shape.objects)
 
 
 GROUND_REFILL = "wg_refill"  # the ground mesh's custom property: its grid was emptied for a save
 
 
-def clear_ground(scene, item, params) -> None:
+def clear_ground(scene, item, params) -> bool:
     """Empty the ground grid of a painted field on flat ground before a save (133,000 vertices at
     the default 256 cells a side: the file would grow 13 times); ``fill_ground`` makes it again
-    from the settings. A terrain's ground (it follows the terrain mesh) is kept as it is."""
+    from the settings. A terrain's ground (it follows the terrain mesh) is kept as it is. Returns
+    whether it emptied it."""
     ground = owned.ground_object(item)
     layers = ground.data.get("wg_layers") if ground is not None else None
     if layers is None or not int(layers[3]) or not len(ground.data.vertices):
-        return
+        return False
     if maps.terrain_object(scene, item) is not None or params.terrain.heightmap:
-        return
+        return False
     ground.data.clear_geometry()
     ground.data[GROUND_REFILL] = True
+    return True
 
 
 def fill_ground(item, params) -> bool:
@@ -270,8 +288,9 @@ def fill_ground(item, params) -> bool:
 
 
 def fill_slots(item, params) -> bool:
-    """Give every empty slot mesh of the field its quads again (after a save, in a reopened file);
-    returns whether any was filled (its positions are then to be written)."""
+    """Give every empty slot mesh of the field its quads again (a file saved by Windgrass before
+    slots were left out of files held them empty); returns whether any was filled (its positions
+    are then to be written)."""
     grid, filled = FieldGrid.of(params), False
     for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
         objects = owned.slot_objects(item, role)

@@ -591,6 +591,38 @@ def test_a_live_field_saves_its_settings_not_its_slot_meshes(bridge, tmp_path):
         np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
 
 
+def test_a_file_saved_with_empty_slot_objects_opens_with_its_grass_and_saves_small(bridge, tmp_path):
+    """Files of 0.9 and earlier hold a live field's slot objects with empty meshes (emptied for the
+    save). Opened, they show the saved frame's grass; saved again, the slots are left out (they
+    are runtime data now: Blender's autosave and quit.blend, which run no save handler, held every
+    slot mesh, issue #37)."""
+    owned, _ = bridge
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(9)
+    expected = _all_positions(item)
+    for obj in _owned(item, "blades") + _owned(item, "cards"):  # as the earlier versions saved them
+        obj.is_runtime_data = obj.data.is_runtime_data = False
+        obj.data.clear_geometry()
+    old = tmp_path / "old.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(old), compress=True)
+    bpy.ops.wm.open_mainfile(filepath=str(old))
+    item = bpy.context.scene.windgrass.fields[0]
+    got = _all_positions(item)
+    assert got.keys() == expected.keys()
+    for name, pos in expected.items():
+        np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
+    again = tmp_path / "again.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(again), compress=True)
+    assert again.stat().st_size < 1_000_000
+    assert {o.name for o in owned.slot_objects(item, "blades").values()} <= {o.name for o in bpy.data.objects}
+    bpy.ops.wm.open_mainfile(filepath=str(again))
+    item = bpy.context.scene.windgrass.fields[0]
+    assert bpy.context.scene.frame_current == 9
+    assert _all_positions(item).keys() == expected.keys()
+
+
 def test_a_field_saved_with_older_materials_gets_new_ones(bridge, tmp_path):
     """Materials built by an older version's node trees (here: a canopy without the sward's
     profile) are replaced when the reopened field is rebuilt; current ones are kept."""

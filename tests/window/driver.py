@@ -22,8 +22,8 @@ A step is a dict; its one action key says what it does:
                                                    a guess;
   ``{"check": "fields"}``                          every field matches its settings and shows grass;
   ``{"view": {...}}``, ``{"shading": "SOLID"}``, ``{"shot": "name"}``, ``{"save": path}``,
-  ``{"open": path}``, ``{"probe": "name"}``, ``{"sidebar": "Grass"}``: see ``Driver``'s methods of
-  those names.
+  ``{"open": path}``, ``{"probe": "name"}``, ``{"sidebar": "Grass"}``, ``{"quit": true}``: see
+  ``Driver``'s methods of those names.
 ``"optional": true`` on a step: an operator whose poll fails, or an edit of a field that is not
 there (random sequences), is recorded as skipped instead of failing.
 Every step's outcome (and any Python error) goes to the report; a crash of Blender shows as the
@@ -100,15 +100,17 @@ def field_state(scene, item) -> dict:
     rt = runtime.get_runtime(scene, item)
     out["runtime_matches"] = rt is not None and not rt.stale and rt.params.digest() == params.digest()
     out["frame_written"] = None if rt is None else rt.frame
-    shown = 0
+    shown, saved = 0, 0
     for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
         for obj in owned.slot_objects(item, role).values():
+            saved += int(not obj.is_runtime_data) + int(not obj.data.is_runtime_data)  # what a file would hold
             n = len(obj.data.vertices)
             if n:
                 co = np.empty(n * 3, np.float32)
                 obj.data.attributes["position"].data.foreach_get("vector", co)
                 shown += int(np.count_nonzero(np.abs(co.reshape(-1, 3)).max(axis=1) > 0))
     out["vertices_shown"] = shown
+    out["slots_saved"] = saved
     out["blade_objects"] = len(owned.slot_objects(item, owned.ROLE_BLADES))
     return out
 
@@ -135,6 +137,9 @@ def fields_ok(states: list[dict]) -> list[str]:
             problems.append(f"{s['name']}: error {s['error']}")
         if not s.get("vertices_shown"):
             problems.append(f"{s['name']}: no grass shown")
+        if s.get("slots_saved"):
+            problems.append(f"{s['name']}: {s['slots_saved']} slot objects or meshes would be written into files "
+                            "(saves, autosaves, quit.blend)")
     return problems
 
 
@@ -388,9 +393,21 @@ class Driver:
         return path
 
     def do_save(self, path: str, step: dict):
+        """File > Save As (``args``: the operator's options, e.g. ``{"compress": true}``); the
+        result: the operator's and the file's size."""
         with bpy.context.temp_override(**self._context()):
-            result = bpy.ops.wm.save_as_mainfile(filepath=path)
+            result = bpy.ops.wm.save_as_mainfile(filepath=path, **step.get("args", {}))
         return [sorted(result), os.path.getsize(path)]
+
+    def do_quit(self, _value, step: dict):
+        """File > Quit (no save prompt): the report is finished now, Blender then exits its own way,
+        writing quit.blend into its temporary folder (window only; the last step)."""
+        bpy.context.preferences.view.use_save_prompt = False
+        self.report["finished"] = True
+        self.index = len(self.steps) + 1  # (no _finish: Blender's exit ends the session)
+        with bpy.context.temp_override(**self._context()):
+            bpy.ops.wm.quit_blender()
+        return "quitting", 60.0
 
     def do_open(self, path: str, step: dict):
         with bpy.context.temp_override(**self._context()):

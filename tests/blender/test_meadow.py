@@ -206,3 +206,46 @@ def test_a_lawn_reads_as_green_turf_not_bare_ground(rendered, tmp_path):
     turf, thatch = render("turf"), render("thatch")
     assert turf[1] >= 1.4 * turf[0] and turf[1] > turf[2], turf
     assert turf[1] / turf[0] >= 1.2 * thatch[1] / thatch[0], (turf, thatch)
+
+
+def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, drawn, tmp_path):
+    """Issue #34 item 4: grass flattened by a collider looked like bare ground. A ball 0.7 m wide
+    rolls along x through the default meadow (calm air), seen a second later from 1.6 m: the blades
+    rooted on its track lie down along it (tips at most half as high as the untouched meadow's,
+    pointing the way it rolled), and the pressed band renders as green as the untouched meadow in
+    the same rows (green over red, as display values, at least 0.95 of its ratio and 1.1; the thatch
+    floor that bare ground would show is 0.92), not as the floor."""
+    from pathlib import Path
+
+    from windgrass.grass_addon import schema, sward
+
+    scene_file = Path(__file__).resolve().parents[2] / "scenes" / "default.toml"
+    rolled = schema.load_toml(scene_file).replace({
+        "field.blocks_x": 6, "field.blocks_y": 6, "wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0,
+        "interaction.recovery": 10.0, "camera.mode": "fixed", "camera.position": (0.0, -2.0, 1.6),
+        "camera.target": (0.0, 1.0, 0.0), "camera.fov": 50.0, "render.engine": "cycles", "render.samples": 8,
+        "render.resolution_x": 96, "render.resolution_y": 54, "render.motion_blur": False,
+        "interaction.colliders": [{"shape": "sphere", "radius": 0.35,
+                                   "path": [{"time": 0.0, "position": [-5.0, 0.5, 0.35]},
+                                            {"time": 4.0, "position": [5.0, 0.5, 0.35]}]}]})
+    plain = rendered(rolled.replace({"interaction.colliders": []}), 72, tmp_path / "plain.png")
+    pressed = rendered(rolled, 72, tmp_path / "pressed.png")  # 3 s: the ball is 2.5 m past x = 0
+    item = bpy.context.scene.windgrass.fields[0]
+    strips = _strips(drawn, item)
+    roots, tips = strips[:, 0].mean(axis=1), strips[:, -1].mean(axis=1)
+    lean = tips - roots
+    track = (np.abs(roots[:, 1] - 0.5) < 0.15) & (np.abs(roots[:, 0]) < 1.5)
+    aside = (np.abs(roots[:, 1] - 2.0) < 0.5) & (np.abs(roots[:, 0]) < 1.5)
+    assert track.sum() > 50 and aside.sum() > 50
+    assert np.median(lean[track, 2]) < 0.5 * np.median(lean[aside, 2]), (np.median(lean[track, 2]),
+                                                                           np.median(lean[aside, 2]))
+    assert np.median(lean[track, 0]) > 2.0 * np.median(np.abs(lean[track, 1])) > 0.0  # along +x, the ball's way
+    # the pressed band: the rows the ball changed most (display values, the middle half of the columns)
+    change = np.abs(pressed - plain)[:, 24:72].mean(axis=(1, 2))
+    band = change > 0.5 * change.max()
+    colour = pressed[band][:, 24:72].reshape(-1, 3).mean(axis=0)
+    untouched = plain[band][:, 24:72].reshape(-1, 3).mean(axis=0)
+    thatch = np.array(sward.THATCH_COLOUR) ** (1 / 2.2)  # what bare ground would show, as a display colour
+    assert colour[1] / colour[0] >= max(1.1, 1.1 * thatch[1] / thatch[0], 0.95 * untouched[1] / untouched[0]), \
+        (colour, untouched)
+    assert colour[1] > colour[2]

@@ -67,6 +67,8 @@ class SlotPool:
                           "drawn (rebuild the field to restore it)")
                 continue
             mesh = obj.data
+            if not obj.is_runtime_data:  # a copy of a slot (a Full Copy of the scene): kept out of files too
+                obj.is_runtime_data = mesh.is_runtime_data = True
             rows = part.object_rows(index)
             write_positions(mesh, part.vertices[rows])
             if part.velocity is not None:

@@ -40,6 +40,9 @@ def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
     copy_item = copy.windgrass.fields[0]
     copy.frame_set(5)
     assert copy_item.collection is not item.collection
+    # Blender's copies of the slots are kept out of files as the originals are (autosaves stay small)
+    copies = [o for o in copy_item.collection.objects if o.get("wg_role") in (owned.ROLE_BLADES, owned.ROLE_CARDS)]
+    assert copies and all(o.is_runtime_data and o.data.is_runtime_data for o in copies)
     assert runtime.get_runtime(copy, copy_item).field is not runtime.get_runtime(original, item).field
     # Rebuild and Remove in the copy leave the original's grass alone.
     assert bpy.ops.windgrass.field_rebuild() == {"FINISHED"}

@@ -268,6 +268,70 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     return (look / look.mean(axis=(0, 1))).astype(np.float32)
 
 
+def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
+    """(pixels, pixels) float32 over the whole field (rows as ``patch_tint``'s): how tall the grass
+    stands there over the field's mean, the patches' length scale (``meadow.length_scale``) times
+    the local mix's mean rest tip height over the field's; ones without patches. The far canopy's
+    edge reads its sward profile at heights scaled by it (``materials._sward_edge_opacity``): a
+    field's short stands let more sky through than its tall ones."""
+    if params.field.patchiness <= 0.0:
+        return np.ones((pixels, pixels), np.float32)
+    grid = FieldGrid.of(params)
+    size, origin = np.asarray(grid.size), grid.origin
+    m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))
+    t = (np.arange(m) + 0.5) / m
+    xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
+    xy = np.column_stack([xs.ravel(), ys.ravel()])
+    height = meadow.length_scale(xy, params)
+    species = Species(params)
+    weights = meadow.species_weights(xy, params, species.p)
+    block = sample_blades(params)
+    if weights is not None and block.blade_length.size:
+        tips, kind = tip_heights(params), block.blade_species.astype(np.int64)
+        mean = np.array([tips[kind == k].mean() if np.any(kind == k) else tips.mean() for k in range(len(species.p))])
+        height = height * (weights @ mean) / weights.sum(axis=1)
+    look = height.reshape(m, m)
+    if m == pixels * PATCH_SAMPLES:
+        look = look.reshape(pixels, PATCH_SAMPLES, pixels, PATCH_SAMPLES).mean(axis=(1, 3))
+    else:  # fewer samples than pixels: bilinear between them at the pixels' centres
+        at = np.clip((np.arange(pixels) + 0.5) / pixels * m - 0.5, 0.0, m - 1.0)
+        lo = np.minimum(at.astype(int), m - 2)
+        f = (at - lo)[:, None]
+        rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m)
+        look = rows[:, lo] * (1.0 - f.T) + rows[:, lo + 1] * f.T
+    look = look / look.mean()
+    return (1.0 + _height_response(params, look) * (look - 1.0)).astype(np.float32)
+
+
+def _height_response(params: Params, look: np.ndarray) -> float:
+    """How much of the map's height changes the blades' rest tips follow, measured on
+    HEIGHT_BLOCKS x HEIGHT_BLOCKS of the field's own blocks spread over it (the mean tip height of
+    each over their mean against the map at its centre: the slope of the fit, 0 to 1.5; about 0.5
+    for the meadow: tilt and the species' own lengths take up part of the patches' scale)."""
+    grid, species = FieldGrid.of(params), Species(params)
+    nx, ny = grid.blocks_x, grid.blocks_y
+    picks = np.linspace(0, 1, HEIGHT_BLOCKS)
+    ids = sorted({int(round(j * (ny - 1))) * nx + int(round(i * (nx - 1))) for i in picks for j in picks})
+    if len(ids) < 4:
+        return 1.0
+    heights, at = [], []
+    size, origin = np.asarray(grid.size), np.asarray(grid.origin)
+    for block_id in ids:
+        block = make_block(params, grid, species, block_id)
+        if not block.blade_length.size:
+            continue
+        shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
+                                       block.blade_flower)
+        heights.append(blade.tip_height(block.blade_length, block.blade_rest_tilt, shares).mean())
+        where = ((block.cell_center.mean(axis=0)[:2] - origin) / size * len(look)).astype(int)
+        at.append(look[min(where[1], len(look) - 1), min(where[0], len(look) - 1)])
+    if len(heights) < 4 or np.ptp(at) < 1e-3:
+        return 1.0
+    slope = np.polyfit(np.asarray(at), np.asarray(heights) / np.mean(heights), 1)[0]
+    return float(np.clip(slope, 0.0, 1.5))
+
+
+HEIGHT_BLOCKS = 6  # ``patch_heights`` measures its response on 6 x 6 of the field's blocks
 GRAIN_SIDE = 16  # ``tussock_grain`` lays out a square of this many tussocks a side
 GRAIN_PURPOSE = 41  # np.random.default_rng([seed, 41]) lays it out
 GRAIN_MAX = 0.5  # the grain's contrast is at most this (a bound on odd settings)

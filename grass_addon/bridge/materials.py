@@ -68,6 +68,10 @@ NODE_TUSSOCK_SPREAD = "wg_tussock_spread"
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
 NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
+NODE_STAND_TOP = "wg_stand_top"  # Value: sward.sward_top (the edge's crossed stand, ``_crossed_stand``)
+NODE_STAND_MAPPING = "wg_stand_mapping"  # Mapping: the field's frame onto the patch image, as NODE_PATCH_MAPPING
+NODE_STAND_IMAGE = "wg_stand_image"  # Image Texture: the patch image read there
+STAND_REACH = 10.0  # m: how far back along a ray the crossed stand is read at most
 NODE_FIELD_HALF = "wg_field_half"  # Combine XYZ: half the field's extent along X and Y (m)
 NODE_PAINT_MAP = "wg_paint_map"  # Image Texture: the paint map (R: share of blades that grow) over the ground's UVs
 NODE_PAINTED = "wg_painted"  # Value: 1 when the field has a paint map, else 0
@@ -104,7 +108,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 11
+MATERIALS_VERSION = 12
 
 
 def _socket(sockets, *names: str):
@@ -478,7 +482,7 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
     t.link(camera, "View Distance", kt, "Value")
     _set(kt, 0.0, "To Min")
     _set(kt, 1.0, "To Max")
-    opacity = _canopy_opacity(t, coord, kt, view, view_z, slope)
+    opacity = _canopy_opacity(t, coord, kt, view, view_z, slope, patch_image)
     clear = t.add("ShaderNodeBsdfTransparent", -200, 250)
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
@@ -546,7 +550,7 @@ def _tussocked(t: _Tree, coord, colour_node, x: float, y: float):
     return out
 
 
-def _canopy_opacity(t, coord, kt, view, view_z, slope):
+def _canopy_opacity(t, coord, kt, view, view_z, slope, patch_image=None):
     """How much of the ray the canopy stops: 1 - (1 - K_t)^2, see-through at the field's edge as
     its blades would be, times the share of blades that grow (paint), for camera rays only."""
     # The canopy is the floor of the fading cards (K'_b = 1 - K_t): its opacity 1 - (1 - K_t)^2
@@ -559,7 +563,7 @@ def _canopy_opacity(t, coord, kt, view, view_z, slope):
     # Where rays leave the field (its edge against the sky) the sward is as see-through as the
     # share K_t of its blades that the canopy stands for (the cards carry the rest).
     edge = t.math("MINIMUM", (gain, "Value"),
-                  (_sward_edge_opacity(t, coord, kt, view, view_z, slope, -1900, -1100), "Value"),
+                  (_sward_edge_opacity(t, coord, kt, view, view_z, slope, -1900, -1100, patch_image), "Value"),
                   -450, -650, clamp=True)
     grows = _painted_share(t)
     share = t.math("MULTIPLY", (edge, "Value"), (grows, "Result"), -350, -900, clamp=True)
@@ -675,7 +679,7 @@ def _view_slope(t: _Tree, x: float, y: float):
     return view, view_z, slope
 
 
-def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y: float):
+def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y: float, patch_image=None):
     """Math node: how likely the sward stops the ray through this point of the canopy plane or
     its fringe, 1 - exp(-share tau(z_e) / s) (``sward.sward_depth``), where z_e is the height
     above the ground at which the ray leaves the field, s its slope and ``share`` (a node's
@@ -683,7 +687,9 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     first or rises to this point (from a camera inside the sward). In the field's (object)
     frame the field spans +-NODE_FIELD_HALF around the origin: a ray at P going along
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
-    Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes."""
+    Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes. With the meadow's
+    ``patch_image`` z_e is taken over the local stand's height (its alpha, ``sward.patch_heights``):
+    a short stand lets more sky through than a tall one."""
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
     run = t.math("ABSOLUTE", (d, "Vector"), None, x + 540, y + 150, vector=True)
@@ -700,6 +706,9 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     height = t.add("ShaderNodeSeparateXYZ", x + 1620, y - 100)
     t.link(t.attribute(UV_SWARD_Z, x + 1440, y - 100), "Vector", height, "Vector")
     z_exit = t.math("SUBTRACT", (height, "Y"), (drop, "Value"), x + 1980, y + 50)
+    if patch_image is not None:
+        stand = _crossed_stand(t, coord, patch_image, view, d, leave, z_exit, slope, x + 1620, y + 700)
+        z_exit = t.math("DIVIDE", (z_exit, "Value"), (stand, "Value"), x + 2100, y + 250)
     # share * tau(z_e) / s, from the profile
     along = t.add("ShaderNodeMapRange", x + 2160, y + 50, name=NODE_SWARD_TOP, clamp=True)
     t.link(z_exit, "Value", along, "Value")
@@ -719,6 +728,32 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     certain = t.math("MAXIMUM", (grounded, "Value"), (rising, "Value"), x + 3420, y - 350)
     opacity = t.math("MAXIMUM", (stopped, "Value"), (certain, "Value"), x + 3600, y)
     return opacity
+
+
+def _crossed_stand(t: _Tree, coord, patch_image, view, d, leave, z_exit, slope, x: float, y: float):
+    """Math node: the height over the field's mean of the stand a ray crossed last before it leaves
+    the field at height z_e (``sward.patch_heights``, the patch image's alpha): read where it leaves
+    (P + d * leave), moved back towards the camera by half the run it took to sink from the sward's
+    top to z_e (at most STAND_REACH m): the middle of what it crossed of the blades above z_e."""
+    top = t.add("ShaderNodeValue", x, y, name=NODE_STAND_TOP)
+    sink = t.math("SUBTRACT", (top, "Value"), (z_exit, "Value"), x + 180, y)
+    sink = t.math("MAXIMUM", (sink, "Value"), 0.0, x + 360, y)
+    reach = t.math("DIVIDE", (sink, "Value"), (slope, "Value"), x + 540, y)
+    reach = t.math("MULTIPLY", (reach, "Value"), 0.5, x + 720, y)
+    reach = t.math("MINIMUM", (reach, "Value"), STAND_REACH, x + 900, y)
+    ahead = t.math("MULTIPLY", (d, "Vector"), (leave, "Value"), x + 180, y + 200, vector=True)
+    exit_point = t.math("ADD", (coord, "Object"), (ahead, "Vector"), x + 360, y + 200, vector=True)
+    towards = t.math("MULTIPLY", (view, "Vector"), (1.0, 1.0, 0.0), x + 360, y + 350, vector=True)
+    towards = t.math("NORMALIZE", (towards, "Vector"), None, x + 540, y + 350, vector=True)
+    back = t.math("MULTIPLY", (towards, "Vector"), (reach, "Value"), x + 1080, y + 300, vector=True)
+    at = t.math("ADD", (exit_point, "Vector"), (back, "Vector"), x + 1260, y + 200, vector=True)
+    mapping = t.add("ShaderNodeMapping", x + 1440, y + 200, name=NODE_STAND_MAPPING)
+    t.link(at, "Vector", mapping, "Vector")
+    tex = t.add("ShaderNodeTexImage", x + 1620, y + 200, name=NODE_STAND_IMAGE, image=patch_image,
+                interpolation="Linear", extension="EXTEND")
+    t.link(mapping, "Vector", tex, "Vector")
+    stand = t.math("MULTIPLY", (tex, "Alpha"), textures.HEIGHT_RANGE, x + 1800, y + 100)
+    return t.math("MAXIMUM", (stand, "Value"), 0.05, x + 1980, y + 100)
 
 
 def set_card_depth(cards, transparent_bounces: int) -> None:
@@ -813,11 +848,12 @@ def update_patches(params, *mats) -> None:
     size, origin = grid.size, grid.origin
     for mat in mats:
         nodes = mat.node_tree.nodes if mat is not None and mat.node_tree is not None else None
-        if nodes is None or nodes.get(NODE_PATCH_MAPPING) is None:
+        if nodes is None:
             continue
-        mapping = nodes[NODE_PATCH_MAPPING]
-        _set(mapping, (1.0 / size[0], 1.0 / size[1], 1.0), "Scale")
-        _set(mapping, (-float(origin[0]) / size[0], -float(origin[1]) / size[1], 0.0), "Location")
+        for mapping in (nodes.get(NODE_PATCH_MAPPING), nodes.get(NODE_STAND_MAPPING)):
+            if mapping is not None:
+                _set(mapping, (1.0 / size[0], 1.0 / size[1], 1.0), "Scale")
+                _set(mapping, (-float(origin[0]) / size[0], -float(origin[1]) / size[1], 0.0), "Location")
 
 
 def set_gust_offset(displacement, speed: float, params, *mats) -> None:
@@ -884,6 +920,9 @@ def update_sward_profile(params, canopy) -> None:
     value = nodes.get(NODE_SWARD_DEPTH)
     if value is not None:
         value.outputs[0].default_value = ground
+    stand_top = nodes.get(NODE_STAND_TOP)
+    if stand_top is not None:
+        stand_top.outputs[0].default_value = top
     half = nodes.get(NODE_FIELD_HALF)
     if half is not None:
         for axis, extent in zip("XY", FieldGrid.of(params).size):

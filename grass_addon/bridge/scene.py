@@ -73,7 +73,7 @@ def field_materials(item):
         owned.tag(trails, uid, owned.ROLE_TRAIL_IMAGE)
         owned.record(item, owned.ROLE_TRAIL_IMAGE, trails)
     patches = owned.registered(item).get(owned.ROLE_PATCH_IMAGE)
-    if not isinstance(patches, bpy.types.Image):
+    if not isinstance(patches, bpy.types.Image) or patches.alpha_mode != "CHANNEL_PACKED":  # (older: no heights)
         patches = textures.ensure_patch_image(f"{base_name} patches")
         owned.tag(patches, uid, owned.ROLE_PATCH_IMAGE)
         owned.record(item, owned.ROLE_PATCH_IMAGE, patches)

@@ -75,29 +75,34 @@ def ensure_gust_image(name: str):
     return _grey_image(name, gusts.TILE_PIXELS)
 
 
-def _grey_image(name: str, n: int | None, float_buffer: bool = True):
+def _grey_image(name: str, n: int | None, float_buffer: bool = True, alpha: bool = False):
     """The packed n x n image ``name`` (Non-Color: linear values; float, or bytes), made again when
-    missing, of another size (``n`` None: any; made 1 x 1) or kind, or unpacked."""
+    missing, of another size (``n`` None: any; made 1 x 1) or kind, or unpacked. ``alpha``: its alpha
+    is a channel of its own (channel packed: a fourth value, never mixed into the colours)."""
     import bpy
 
     image = bpy.data.images.get(name)
     if (image is not None and (n is None or tuple(image.size) == (n, n)) and image.is_float == float_buffer
-            and image.packed_file is not None):
+            and image.packed_file is not None and (image.alpha_mode == "CHANNEL_PACKED") == alpha):
         return image
     if image is not None:
         bpy.data.images.remove(image)
-    image = bpy.data.images.new(name, width=n or 1, height=n or 1, alpha=False, float_buffer=float_buffer)
+    image = bpy.data.images.new(name, width=n or 1, height=n or 1, alpha=alpha, float_buffer=float_buffer)
     image.colorspace_settings.name = "Non-Color"
+    if alpha:
+        image.alpha_mode = "CHANNEL_PACKED"
     image.pack()
     return image
 
 
-def _write_grey(image, values: np.ndarray) -> None:
+def _write_grey(image, values: np.ndarray, alpha: np.ndarray | None = None) -> None:
     """Write ``values`` (rows from the bottom, as Blender's pixel rows; (h, w), or (h, w, 3) colours)
-    into ``image``'s R, G and B (alpha 1) and pack it: a packed image is saved with the file, not a
-    modified image to Blender."""
+    into ``image``'s R, G and B (alpha 1, or ``alpha`` (h, w)) and pack it: a packed image is saved
+    with the file, not a modified image to Blender."""
     rgba = np.ones((*values.shape[:2], 4), np.float32)
     rgba[..., :3] = values[..., None] if values.ndim == 2 else values
+    if alpha is not None:
+        rgba[..., 3] = alpha
     image.pixels.foreach_set(rgba.ravel())
     image.pack()
 
@@ -113,28 +118,31 @@ def paint_gust_image(image, params) -> None:
 
 PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from
 PATCH_RANGE = 3.0  # the patch image's bytes hold tint / PATCH_RANGE (the material scales them back)
+HEIGHT_RANGE = 2.0  # ... and its alpha the patches' height / HEIGHT_RANGE
 
 
 def ensure_patch_image(name: str):
     """The packed byte image (Non-Color) of how the meadow's patches tint the far grass over the
-    field (``sward.patch_tint`` / PATCH_RANGE: a byte a channel, 1 % steps of the tint, a quarter of
-    a float image's size in the saved file; its size is ``paint_patch_image``'s)."""
-    return _grey_image(name, None, float_buffer=False)
+    field (RGB: ``sward.patch_tint`` / PATCH_RANGE, a byte a channel, 1 % steps of the tint, a quarter
+    of a float image's size in the saved file) and how tall they stand (alpha: ``sward.patch_heights``
+    / HEIGHT_RANGE); its size is ``paint_patch_image``'s."""
+    return _grey_image(name, None, float_buffer=False, alpha=True)
 
 
 def paint_patch_image(image, params) -> None:
-    """Write the patches' tint of the field's settings (its field and blade sections: what decides
-    the species mix) into ``image`` unless it already holds it; one pixel without patches."""
+    """Write the patches' tint and heights of the field's settings (its field and blade sections:
+    what decides the species mix and the lengths) into ``image`` unless it already holds them; one
+    pixel without patches."""
     settings = params.to_dict()
-    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"]],
+    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"], "heights"],
                                   sort_keys=True).encode()).hexdigest()
     if image.get(PATCH_KEY) == key:
         return
-    tint = sward.patch_tint(params)
-    n = sward.PATCH_PIXELS if np.any(tint != 1.0) else 1  # no patches: one pixel (a lawn's file stays small)
+    tint, heights = sward.patch_tint(params), sward.patch_heights(params)
+    n = sward.PATCH_PIXELS if np.any(tint != 1.0) or np.any(heights != 1.0) else 1  # (a lawn's file stays small)
     if tuple(image.size) != (n, n):
         image.scale(n, n)
-    _write_grey(image, np.clip(tint[:n, :n] / PATCH_RANGE, 0.0, 1.0))
+    _write_grey(image, np.clip(tint[:n, :n] / PATCH_RANGE, 0.0, 1.0), np.clip(heights[:n, :n] / HEIGHT_RANGE, 0.0, 1.0))
     image[PATCH_KEY] = key
 
 

@@ -30,11 +30,13 @@ IMAGE_GOAL = 0.03
 # row's (the even field's species; at 96x54 and 6 samples a row's noise is a few per cent).
 SEAM_GOAL = 0.15
 # The Meadow preset's six species (issue #34: fine and broad grasses, timothy, buttercups, daisies,
-# dry grass) come out up to 0.059 off in a row of the square view under an overcast sky on Blender
-# 5.2 (the far canopy and the cards' brightness are fitted to the species' mean, not yet to such a
-# mix): an open defect, marked so that the run says so and passes once it is mended.
-MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is up to 0.059 off a "
-                                "row under an overcast sky (goal 0.04)", strict=False)
+# dry grass) in the default scene's patches: under an overcast sky the square view's row where the
+# field's far edge meets the sky was 0.067 off (the far canopy's edge as tall as the field's mean
+# where the stands at the edge are short); reading the height of the stand each ray crossed last
+# (sward.patch_heights) brings it to 0.039 on Blender 5.2, within a render's noise of the goal: still
+# marked, so that a run over it says so rather than fails.
+MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is 0.039 off a row "
+                                "under an overcast sky, within noise of the goal 0.04", strict=False)
 
 
 # dev.py test runs the tests in two processes (pytest-xdist, --dist loadgroup): the tests of one

@@ -343,3 +343,42 @@ def test_the_far_grain_is_the_spread_of_the_fields_own_tussocks(preset):
     totals = np.asarray(totals)
     assert len(totals) >= 40
     assert spread == pytest.approx(totals.std() / totals.mean(), rel=0.3)
+
+
+# (the wild preset's blades vary more in length: a block's mean of 768 of them is noisier)
+@pytest.mark.parametrize("preset,correlation", [("meadow", 0.8), ("wild", 0.5)])
+def test_the_patches_height_map_is_how_tall_the_fields_own_blocks_stand(preset, correlation):
+    """The far canopy's edge reads how tall the stand is where rays leave the field (issue #34: a
+    short patch at the field's far edge showed as much grass against the sky as the field's
+    mean): over every block of a 25.6 m field, each block's mean rest tip height over the
+    blocks' mean follows the map at the block's centre (slope 0.8-1.2, correlated; the meadow's
+    map's spread that of the blocks within a third)."""
+    from windgrass.grass_addon import blade
+    from windgrass.grass_addon.blocks import Species, make_block
+    from windgrass.grass_addon.grid import FieldGrid
+
+    params = presets.apply_preset(schema.defaults(), preset).replace({"field.blocks_x": 16, "field.blocks_y": 16})
+    assert params.field.patchiness > 0.0
+    heights = sward.patch_heights(params)
+    grid, species = FieldGrid.of(params), Species(params)
+    size, origin = np.asarray(grid.size), np.asarray(grid.origin)
+    stands, mapped = [], []
+    for block_id in range(grid.blocks_x * grid.blocks_y):
+        block = make_block(params, grid, species, block_id)
+        shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
+                                       block.blade_flower)
+        stands.append(blade.tip_height(block.blade_length, block.blade_rest_tilt, shares).mean())
+        i, j = ((block.cell_center.mean(axis=0)[:2] - origin) / size * len(heights)).astype(int)
+        mapped.append(heights[j, i])
+    stands, mapped = np.asarray(stands) / np.mean(stands), np.asarray(mapped)
+    slope = np.polyfit(mapped, stands, 1)[0]
+    assert 0.8 <= slope <= 1.2 and np.corrcoef(mapped, stands)[0, 1] > correlation, slope
+    if preset == "meadow":
+        assert abs(mapped.std() / stands.std() - 1.0) < 1 / 3, (mapped.std(), stands.std())
+    assert abs(heights.mean() - 1.0) < 1e-3
+
+
+def test_the_patches_height_map_is_flat_without_patches():
+    params = presets.apply_preset(schema.defaults(), "lawn")
+    assert params.field.patchiness == 0.0
+    assert np.all(sward.patch_heights(params) == 1.0)

@@ -86,6 +86,12 @@ def sward_top(params: Params) -> float:
     return float(max(1e-3, tip_heights(params).max()))
 
 
+def fringe_top(params: Params) -> float:
+    """Height (m) of the fringe along the field's edge: ``sward_top`` in the field's tallest patch
+    (``patch_heights``; its profile is read over the local stand's height there)."""
+    return sward_top(params) * max(1.0, float(patch_heights(params).max()))
+
+
 def sward_depth(params: Params, heights: np.ndarray) -> np.ndarray:
     """Silhouette depth tau(z) of the sward above each height z (m): the area of blade above z per
     square metre of ground, as a horizontal ray sees it. A segment of a strip leaning by theta
@@ -273,9 +279,20 @@ def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     stands there over the field's mean, the patches' length scale (``meadow.length_scale``) times
     the local mix's mean rest tip height over the field's; ones without patches. The far canopy's
     edge reads its sward profile at heights scaled by it (``materials._sward_edge_opacity``): a
-    field's short stands let more sky through than its tall ones."""
+    field's short stands let more sky through than its tall ones. (Kept for the last settings: the
+    ground and the patch image both read it.)"""
     if params.field.patchiness <= 0.0:
         return np.ones((pixels, pixels), np.float32)
+    key = (params.digest(), pixels)
+    if _HEIGHTS_KEPT.get("key") != key:
+        _HEIGHTS_KEPT.update(key=key, map=_patch_heights(params, pixels))
+    return _HEIGHTS_KEPT["map"]
+
+
+_HEIGHTS_KEPT: dict = {}
+
+
+def _patch_heights(params: Params, pixels: int) -> np.ndarray:
     grid = FieldGrid.of(params)
     size, origin = np.asarray(grid.size), grid.origin
     m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))

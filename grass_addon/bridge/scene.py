@@ -167,7 +167,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, sward.canopy_height(params),
-                              sward.sward_top(params))
+                              sward.fringe_top(params))
     paint_look.paint_map(item, uid, base, grid if painted else None, canopy_mat)
     if ground is None:
         ground = bpy.data.objects.new(f"{base} ground", mesh)
@@ -282,7 +282,7 @@ def fill_ground(item, params) -> bool:
     if ground is None or not ground.data.get(GROUND_REFILL) or len(ground.data.vertices):
         return False
     meshes.fill_ground(ground.data, FieldGrid.of(params).size, paint_look.paint_ground(params, None),
-                       sward.canopy_height(params), sward.sward_top(params))
+                       sward.canopy_height(params), sward.fringe_top(params))
     del ground.data[GROUND_REFILL]
     return True
 

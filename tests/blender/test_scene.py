@@ -140,10 +140,12 @@ def test_canopy_material_follows_the_lod_distances(bridge):
     assert [m.get("wg_role") for m in ground.data.materials] == ["ground_material", "canopy_material"]
     z = _positions(ground)[:, 2]
     params = properties.params_from_settings(item, scene)
-    height, top = sward.canopy_height(params), sward.sward_top(params)
+    height, top = sward.canopy_height(params), sward.fringe_top(params)
     longest = max(r["length"] + 4.0 * r["length_variation"] for r in params.species())  # (blocks.Species)
-    assert 0.05 < height < top < longest * (1.0 + meadow.PATCH_LENGTH * params.field.patchiness)  # no tip higher
-    # the ground, the canopy plane and the top of its fringe along the field's edge (the tallest tip)
+    tallest = longest * (1.0 + meadow.PATCH_LENGTH * params.field.patchiness)  # no tip higher
+    assert 0.05 < height < sward.sward_top(params) <= top < tallest
+    # the ground, the canopy plane and the top of its fringe along the field's edge (the tallest tip,
+    # in the tallest patch)
     np.testing.assert_allclose(np.unique(np.round(z, 5)), [0.0, height, top], atol=1e-5)
     # the shader knows each corner's height above the ground, and which corners are the fringe's
     sward_z = np.empty(2 * len(ground.data.loops))

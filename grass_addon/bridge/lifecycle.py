@@ -37,16 +37,17 @@ def apply_settings(scene, item, force: bool = False) -> None:
     params = properties.params_from_settings(item, scene)
     maps.hold_images(item, params)  # (image maps kept with the file, and through renames)
     memory.check(params, bpy.path.abspath)  # before anything is built: a card range or a map too large
-    if force and item.terrain is not None:
-        try:  # the terrain's matrix and modifiers as they are now
+    # an opened file: its slots were never saved (scene.leave_out_of_files), they are built now
+    missing = item.collection is not None and field_scene.slots_missing(item, params)
+    if (force or missing) and item.terrain is not None:
+        try:  # the terrain's matrix and modifiers as they are now (a file just opened: not yet evaluated)
             bpy.context.view_layer.update()
         except (RuntimeError, AttributeError):  # no depsgraph here (mid-render, a restricted context)
             pass
-    heightfield, centre, _ = terrain_of(scene, item, params, force=force)
+    heightfield, centre, _ = terrain_of(scene, item, params, force=force or missing)
     field_scene.separate_copy(item)
     coll = item.collection
-    if (force or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item)
-            or field_scene.slots_missing(item, params)):  # (an opened file: its slots were never saved)
+    if force or missing or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
         field_scene.build_slots(scene, item, params, heightfield, centre)
         forget_slots(scene, item, rebuilt=True)
     else:

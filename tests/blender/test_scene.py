@@ -49,6 +49,17 @@ def _all_positions(item) -> dict[str, np.ndarray]:
     return {o.name: _positions(o) for o in item.collection.objects if o.get("wg_role") in ("blades", "cards")}
 
 
+def _reopened(path, expected):
+    """Open ``path``; its first field draws ``expected`` (``_all_positions``) at once. Returns the field."""
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    item = bpy.context.scene.windgrass.fields[0]
+    got = _all_positions(item)
+    assert got.keys() == expected.keys()
+    for name, pos in expected.items():
+        np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
+    return item
+
+
 def _camera(scene, location, target=(0.0, 0.0, 0.1), lens=35.0):
     data = bpy.data.cameras.new("Test camera")
     data.lens = lens
@@ -585,12 +596,7 @@ def test_a_live_field_saves_its_settings_not_its_slot_meshes(bridge, tmp_path):
     assert path.stat().st_size < 2_000_000
     for name, pos in _all_positions(item).items():  # still drawn after the save
         np.testing.assert_array_equal(pos, expected[name], err_msg=name)
-    bpy.ops.wm.open_mainfile(filepath=str(path))
-    item = bpy.context.scene.windgrass.fields[0]
-    got = _all_positions(item)
-    assert got.keys() == expected.keys()
-    for name, pos in expected.items():
-        np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
+    item = _reopened(path, expected)
 
 
 def test_a_file_saved_with_empty_slot_objects_opens_with_its_grass_and_saves_small(bridge, tmp_path):
@@ -609,12 +615,7 @@ def test_a_file_saved_with_empty_slot_objects_opens_with_its_grass_and_saves_sma
         obj.data.clear_geometry()
     old = tmp_path / "old.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(old), compress=True)
-    bpy.ops.wm.open_mainfile(filepath=str(old))
-    item = bpy.context.scene.windgrass.fields[0]
-    got = _all_positions(item)
-    assert got.keys() == expected.keys()
-    for name, pos in expected.items():
-        np.testing.assert_allclose(got[name], pos, atol=1e-6, err_msg=name)
+    item = _reopened(old, expected)
     again = tmp_path / "again.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(again), compress=True)
     assert again.stat().st_size < 1_000_000

@@ -26,7 +26,8 @@ CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many 
 def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
     """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
     row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of
-    the blades of cell k of the sample block, at their rest shape, in their own colours.
+    the blades of cell k of the sample (``sward.sample_blades``: block 0's cells first), at their
+    rest shape, in their own colours.
 
     A card is ``lod.card_width`` cells wide and stands for its cell's blades, so the atlas holds
     exactly those: their colour ramp (the blade material's, with each blade's shade), shape and

@@ -1,9 +1,10 @@
 """The sward seen from afar (paper III.C): the far grass as the field's own blades make it look.
 
 The far level of detail (eq 10: the ground texture) stands for the blades it replaces, so its
-look is computed from them: a sample block of the field's own blades (``blocks.make_block``,
-species, lengths, rest shapes) and the blade material's colour ramp (a dark base to the species'
-tip colour over the lower 70 % of the blade, ``bridge/materials.py``):
+look is computed from them: a sample of the field's own blades (``sample_blades``: blocks of
+``blocks.make_block`` spread over the field; species, lengths, rest shapes) and the blade
+material's colour ramp (a dark base to the species' tip colour over the lower 70 % of the blade,
+``bridge/materials.py``):
 
 * ``canopy_height``: where a low, grazing view stops seeing through the sward: the height below
   which the blades hide the ground, taken as the mean of the blades' rest tip heights times
@@ -26,10 +27,12 @@ the materials.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from . import blade, meadow
-from .blocks import Species, make_block
+from .blocks import Block, Species, make_block
 from .grid import FieldGrid
 from .schema import Params
 
@@ -51,6 +54,7 @@ PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``swa
 # headless/lod_compare.py --views strip).
 LIGHT_SLOPE = 1.0
 LOOK_LAYERS = 48  # height layers over which ``sward_look`` sums what a ray meets
+SAMPLE_SIDE = 6  # ``sample_blades`` draws 6 x 6 of the field's blocks (36 patches of a meadow: its mean)
 PATCH_PIXELS = 256  # side of the image of the meadow's patches over the whole field (``patch_tint``)
 PATCH_SAMPLES = 2  # ... each pixel the mean of 2 x 2 samples (patches a third of a pixel wide blur, not alias)
 
@@ -61,9 +65,52 @@ def floor_colours(params: Params) -> tuple[tuple[float, float, float], tuple[flo
     return FLOOR_COLOURS[str(params.field.floor)]
 
 
-def sample_blades(params: Params):
-    """A block of the field's own blades (block 0: every block is drawn from the same law)."""
-    return make_block(params, FieldGrid.of(params), Species(params), 0)
+def sample_blades(params: Params) -> Block:
+    """The field's own blades as one block. Without patches every block is drawn from the same law
+    and block 0 stands for them all (its 768 blades by default); a meadow's patches (metres wide:
+    a block lies in one) change the height and mix from block to block, and what the far grass
+    and the cards stand for is the field's mean, so its sample holds the blocks of ``sample_ids``
+    (block 0 alone showed the default meadow's tallest stems half as often as its field has
+    them). Kept for the last settings."""
+    key = params.digest()
+    if _SAMPLE_KEPT.get("key") != key:
+        blocks = [make_block(params, FieldGrid.of(params), Species(params), i) for i in sample_ids(params)]
+        _SAMPLE_KEPT.update(key=key, blocks=blocks, whole=_joined(blocks))
+    return _SAMPLE_KEPT["whole"]
+
+
+def sample_ids(params: Params) -> list[int]:
+    """Ids of the blocks ``sample_blades`` draws: with patches SAMPLE_SIDE x SAMPLE_SIDE spread
+    evenly over the field, corners included (fewer on a field of fewer blocks), block 0 first;
+    block 0 alone without."""
+    if params.field.patchiness <= 0.0:
+        return [0]
+    grid = FieldGrid.of(params)
+    nx, ny = grid.blocks_x, grid.blocks_y
+    picks = np.linspace(0.0, 1.0, SAMPLE_SIDE)
+    return sorted({int(round(j * (ny - 1))) * nx + int(round(i * (nx - 1))) for i in picks for j in picks})
+
+
+def _sample_blocks(params: Params) -> list[Block]:
+    """The blocks of ``sample_blades``, each on its own."""
+    sample_blades(params)
+    return _SAMPLE_KEPT["blocks"]
+
+
+_SAMPLE_KEPT: dict = {}
+
+
+def _joined(blocks: list[Block]) -> Block:
+    """One block holding the blades and cells of ``blocks`` (its ground span: theirs together)."""
+    def join(name):
+        values = [getattr(b, name) for b in blocks]
+        if values[0] is None:
+            return None
+        if name == "z_range":
+            return np.array([min(v[0] for v in values), max(v[1] for v in values)], values[0].dtype)
+        return np.concatenate(values, axis=0)
+
+    return Block(**{f.name: join(f.name) for f in dataclasses.fields(Block)})
 
 
 def tip_heights(params: Params) -> np.ndarray:
@@ -252,25 +299,13 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     species = Species(params)
     if params.field.patchiness <= 0.0 or len(species.p) < 2:
         return np.ones((pixels, pixels, 3), np.float32)
-    grid = FieldGrid.of(params)
-    size, origin = np.asarray(grid.size), grid.origin
-    # samples a side: PATCH_SAMPLES a pixel, or 8 a patch where that is fewer (a small field costs little)
-    m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))
-    t = (np.arange(m) + 0.5) / m
-    xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
-    weights = meadow.species_weights(np.column_stack([xs.ravel(), ys.ravel()]), params, species.p)
     colours, areas = species_looks(params)
-    shown = weights * areas[None, :]
-    look = ((shown @ colours) / shown.sum(axis=1, keepdims=True)).reshape(m, m, 3)
-    if m == pixels * PATCH_SAMPLES:
-        look = look.reshape(pixels, PATCH_SAMPLES, pixels, PATCH_SAMPLES, 3).mean(axis=(1, 3))
-    else:  # fewer samples than pixels: bilinear between them at the pixels' centres
-        at = np.clip((np.arange(pixels) + 0.5) / pixels * m - 0.5, 0.0, m - 1.0)
-        lo = np.minimum(at.astype(int), m - 2)
-        f = (at - lo)[:, None, None]
-        rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m, 3)
-        f = f.reshape(1, -1, 1)
-        look = rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
+
+    def mix(xy):
+        shown = meadow.species_weights(xy, params, species.p) * areas[None, :]
+        return (shown @ colours) / shown.sum(axis=1, keepdims=True)
+
+    look = _over_field(params, pixels, mix)
     return (look / look.mean(axis=(0, 1))).astype(np.float32)
 
 
@@ -293,48 +328,56 @@ _HEIGHTS_KEPT: dict = {}
 
 
 def _patch_heights(params: Params, pixels: int) -> np.ndarray:
+    species = Species(params)
+    block = sample_blades(params)
+    tips, kind = tip_heights(params), block.blade_species.astype(np.int64)
+    mean = np.array([tips[kind == k].mean() if np.any(kind == k) else tips.mean() for k in range(len(species.p))]) \
+        if tips.size else np.ones(len(species.p))
+
+    def height(xy):
+        scale = meadow.length_scale(xy, params)
+        weights = meadow.species_weights(xy, params, species.p)
+        return scale if weights is None else scale * (weights @ mean) / weights.sum(axis=1)
+
+    look = _over_field(params, pixels, lambda xy: height(xy)[:, None])[..., 0]
+    look = look / look.mean()
+    return (1.0 + _height_response(params, look) * (look - 1.0)).astype(np.float32)
+
+
+def _over_field(params: Params, pixels: int, values) -> np.ndarray:
+    """(pixels, pixels, C) a function ``values`` ((n, 2) points in metres -> (n, C)) over the whole
+    field, row 0 at its low-y edge: each pixel the mean of PATCH_SAMPLES x PATCH_SAMPLES samples,
+    or, where 8 samples a patch are fewer, bilinear between those at the pixels' centres (a small
+    field costs little)."""
     grid = FieldGrid.of(params)
     size, origin = np.asarray(grid.size), grid.origin
     m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))
     t = (np.arange(m) + 0.5) / m
     xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
-    xy = np.column_stack([xs.ravel(), ys.ravel()])
-    height = meadow.length_scale(xy, params)
-    species = Species(params)
-    weights = meadow.species_weights(xy, params, species.p)
-    block = sample_blades(params)
-    if weights is not None and block.blade_length.size:
-        tips, kind = tip_heights(params), block.blade_species.astype(np.int64)
-        mean = np.array([tips[kind == k].mean() if np.any(kind == k) else tips.mean() for k in range(len(species.p))])
-        height = height * (weights @ mean) / weights.sum(axis=1)
-    look = height.reshape(m, m)
+    look = values(np.column_stack([xs.ravel(), ys.ravel()]))
+    look = look.reshape(m, m, look.shape[-1])
     if m == pixels * PATCH_SAMPLES:
-        look = look.reshape(pixels, PATCH_SAMPLES, pixels, PATCH_SAMPLES).mean(axis=(1, 3))
-    else:  # fewer samples than pixels: bilinear between them at the pixels' centres
-        at = np.clip((np.arange(pixels) + 0.5) / pixels * m - 0.5, 0.0, m - 1.0)
-        lo = np.minimum(at.astype(int), m - 2)
-        f = (at - lo)[:, None]
-        rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m)
-        look = rows[:, lo] * (1.0 - f.T) + rows[:, lo + 1] * f.T
-    look = look / look.mean()
-    return (1.0 + _height_response(params, look) * (look - 1.0)).astype(np.float32)
+        return look.reshape(pixels, PATCH_SAMPLES, pixels, PATCH_SAMPLES, -1).mean(axis=(1, 3))
+    at = np.clip((np.arange(pixels) + 0.5) / pixels * m - 0.5, 0.0, m - 1.0)
+    lo = np.minimum(at.astype(int), m - 2)
+    f = (at - lo)[:, None, None]
+    rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m, C)
+    f = f.reshape(1, -1, 1)
+    return rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
 
 
 def _height_response(params: Params, look: np.ndarray) -> float:
     """How much of the map's height changes the blades' rest tips follow, measured on
-    HEIGHT_BLOCKS x HEIGHT_BLOCKS of the field's own blocks spread over it (the mean tip height of
+    the blocks of ``sample_blades``, each on its own (the mean tip height of
     each over their mean against the map at its centre: the slope of the fit, 0 to 1.5; about 0.5
     for the meadow: tilt and the species' own lengths take up part of the patches' scale)."""
-    grid, species = FieldGrid.of(params), Species(params)
-    nx, ny = grid.blocks_x, grid.blocks_y
-    picks = np.linspace(0, 1, HEIGHT_BLOCKS)
-    ids = sorted({int(round(j * (ny - 1))) * nx + int(round(i * (nx - 1))) for i in picks for j in picks})
-    if len(ids) < 4:
+    grid = FieldGrid.of(params)
+    blocks = _sample_blocks(params)
+    if len(blocks) < 4:
         return 1.0
     heights, at = [], []
     size, origin = np.asarray(grid.size), np.asarray(grid.origin)
-    for block_id in ids:
-        block = make_block(params, grid, species, block_id)
+    for block in blocks:
         if not block.blade_length.size:
             continue
         shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
@@ -348,7 +391,6 @@ def _height_response(params: Params, look: np.ndarray) -> float:
     return float(np.clip(slope, 0.0, 1.5))
 
 
-HEIGHT_BLOCKS = 6  # ``patch_heights`` measures its response on 6 x 6 of the field's blocks
 GRAIN_SIDE = 16  # ``tussock_grain`` lays out a square of this many tussocks a side
 GRAIN_PURPOSE = 41  # np.random.default_rng([seed, 41]) lays it out
 GRAIN_MAX = 0.5  # the grain's contrast is at most this (a bound on odd settings)
@@ -360,7 +402,7 @@ def tussock_grain(params: Params) -> tuple[float, float]:
     field) shows the lit blade of its blades' parts above the canopy plane (the area a horizontal
     ray sees times its brightness, ``_fringe``). Roots are laid out as the field lays them
     (``field.blades_per_cell`` in each cell, pulled to their tussocks) over a square of GRAIN_SIDE
-    tussocks, each blade one of the sample block's: the contrast is the spread (standard
+    tussocks, each blade one of the sample's: the contrast is the spread (standard
     deviation over mean) of what the whole tussocks show: large and small, dense and sparse,
     flowering and green. Blender's Voronoi cells of this size, each brightened by a random value
     of this spread, give the far canopy the streaks a meadow has at tens of metres; pixels average

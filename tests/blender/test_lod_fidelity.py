@@ -20,8 +20,8 @@ import lod_compare
 import pytest
 
 # The default scene's meadow with its look (tussocks, patches of species, flowers and seed heads:
-# issue #34) is not compared here: its rows come out up to 0.052 (square view) and 0.067 (strip from
-# 1.1 m) off, over the goal where the cards meet the far canopy; `dev.py lod` prints its figures.
+# issue #34) is not compared here (four more renders): `dev.py lod --presets default` prints its
+# figures (the square view at 320x180 within 0.025 overcast, 0.034 in sun).
 # Goals: every image row's mean colour within 0.04 (linear RGB), including the rows where the
 # field's far edge (22 m away, blade tips up to 0.5 m tall) meets the sky; the image within 0.03.
 ROW_GOAL = 0.04
@@ -33,10 +33,12 @@ SEAM_GOAL = 0.15
 # dry grass) in the default scene's patches: under an overcast sky the square view's row where the
 # field's far edge meets the sky was 0.067 off (the far canopy's edge as tall as the field's mean
 # where the stands at the edge are short); reading the height of the stand each ray crossed last
-# (sward.patch_heights) brings it to 0.039 on Blender 5.2, within a render's noise of the goal: still
-# marked, so that a run over it says so rather than fails.
-MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is 0.039 off a row "
-                                "under an overcast sky, within noise of the goal 0.04", strict=False)
+# (sward.patch_heights) brought it to 0.039 on Blender 5.2, and the sward's profile taken over the
+# field's blocks, not block 0 alone (sward.sample_blades: right for the default meadow's seed
+# heads, 0.075 -> 0.025), to 0.045 (the canopy's edge too opaque there: open). Marked, so that a
+# run over the goal says so rather than fails.
+MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is 0.045 off a row "
+                                "under an overcast sky, over the goal 0.04", strict=False)
 
 
 # dev.py test runs the tests in two processes (pytest-xdist, --dist loadgroup): the tests of one

@@ -28,6 +28,7 @@ the materials.
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 
@@ -71,8 +72,10 @@ def sample_blades(params: Params) -> Block:
     a block lies in one) change the height and mix from block to block, and what the far grass
     and the cards stand for is the field's mean, so its sample holds the blocks of ``sample_ids``
     (block 0 alone showed the default meadow's tallest stems half as often as its field has
-    them). Kept for the last settings."""
-    key = params.digest()
+    them). Kept for the last field, blade and level-of-detail settings (what a block is made of:
+    ``blocks.make_block``), so a change of the wind or the camera does not draw it again."""
+    whole = params.to_dict()
+    key = json.dumps([whole["field"], whole["blade"], whole["lod"]], sort_keys=True, default=str)
     if _SAMPLE_KEPT.get("key") != key:
         blocks = [make_block(params, FieldGrid.of(params), Species(params), i) for i in sample_ids(params)]
         _SAMPLE_KEPT.update(key=key, blocks=blocks, whole=_joined(blocks))

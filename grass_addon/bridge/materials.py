@@ -108,7 +108,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 12
+MATERIALS_VERSION = 13
 
 
 def _socket(sockets, *names: str):
@@ -688,8 +688,9 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     frame the field spans +-NODE_FIELD_HALF around the origin: a ray at P going along
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
     Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes. With the meadow's
-    ``patch_image`` z_e is taken over the local stand's height (its alpha, ``sward.patch_heights``):
-    a short stand lets more sky through than a tall one."""
+    ``patch_image`` the depth is the local stand's, L tau(z_e / L) where it stands L times as tall as
+    the field's mean (its alpha, ``sward.patch_heights``: blades L times as long): a short stand lets
+    more sky through than a tall one."""
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
     run = t.math("ABSOLUTE", (d, "Vector"), None, x + 540, y + 150, vector=True)
@@ -716,6 +717,8 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     t.link(along, "Result", profile, "Value")
     depth = t.add("ShaderNodeValue", x + 2340, y - 250, name=NODE_SWARD_DEPTH)
     tau = t.math("MULTIPLY", (profile, "Value"), (depth, "Value"), x + 2520, y)
+    if patch_image is not None:  # blades L times as long: L times the area over L times the heights
+        tau = t.math("MULTIPLY", (tau, "Value"), (stand, "Value"), x + 2610, y + 150)
     tau = t.math("MULTIPLY", (tau, "Value"), (share, "Result"), x + 2700, y)
     crossed = t.math("DIVIDE", (tau, "Value"), (slope, "Value"), x + 2880, y)
     through = t.math("EXPONENT", (t.math("MULTIPLY", (crossed, "Value"), -1.0, x + 3060, y), "Value"), None,

@@ -35,9 +35,10 @@ SEAM_GOAL = 0.15
 # where the stands at the edge are short); reading the height of the stand each ray crossed last
 # (sward.patch_heights) brought it to 0.039 on Blender 5.2, and the sward's profile taken over the
 # field's blocks, not block 0 alone (sward.sample_blades: right for the default meadow's seed
-# heads, 0.075 -> 0.025), to 0.045 (the canopy's edge too opaque there: open). Marked, so that a
-# run over the goal says so rather than fails.
-MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is 0.045 off a row "
+# heads, 0.075 -> 0.025) and scaled by the stand's height (L tau(z/L)), to 0.043: the canopy's edge
+# is too opaque there, where the species mix shows 8 % less blade area than the field's mean (open).
+# Marked, so that a run over the goal says so rather than fails.
+MEADOW_OPEN = pytest.mark.xfail(reason="issue #34: the far LOD of the six-species meadow mix is 0.043 off a row "
                                 "under an overcast sky, over the goal 0.04", strict=False)
 
 

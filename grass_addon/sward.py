@@ -370,10 +370,10 @@ def _over_field(params: Params, pixels: int, values) -> np.ndarray:
 
 
 def _height_response(params: Params, look: np.ndarray) -> float:
-    """How much of the map's height changes the blades' rest tips follow, measured on
-    the blocks of ``sample_blades``, each on its own (the mean tip height of
-    each over their mean against the map at its centre: the slope of the fit, 0 to 1.5; about 0.5
-    for the meadow: tilt and the species' own lengths take up part of the patches' scale)."""
+    """How much of the map's height changes the blades' rest tips follow, measured on the blocks
+    of ``sample_blades``, each on its own (the mean tip height of each over their mean against the
+    map at its centre: the slope of the fit, 0 to 1.5; about 0.5 for the meadow: tilt and the
+    species' own lengths take up part of the patches' scale)."""
     grid = FieldGrid.of(params)
     blocks = _sample_blocks(params)
     if len(blocks) < 4:

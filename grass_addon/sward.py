@@ -74,12 +74,18 @@ def sample_blades(params: Params) -> Block:
     (block 0 alone showed the default meadow's tallest stems half as often as its field has
     them). Kept for the last field, blade and level-of-detail settings (what a block is made of:
     ``blocks.make_block``), so a change of the wind or the camera does not draw it again."""
-    whole = params.to_dict()
-    key = json.dumps([whole["field"], whole["blade"], whole["lod"]], sort_keys=True, default=str)
+    key = _blocks_key(params)
     if _SAMPLE_KEPT.get("key") != key:
         blocks = [make_block(params, FieldGrid.of(params), Species(params), i) for i in sample_ids(params)]
         _SAMPLE_KEPT.update(key=key, blocks=blocks, whole=_joined(blocks))
     return _SAMPLE_KEPT["whole"]
+
+
+def _blocks_key(params: Params) -> str:
+    """The settings a block is made of (``blocks.make_block``: the field, blade and LOD sections):
+    the key of what is kept from the field's blocks (the sample, the patches' height map)."""
+    whole = params.to_dict()
+    return json.dumps([whole["field"], whole["blade"], whole["lod"]], sort_keys=True, default=str)
 
 
 def sample_ids(params: Params) -> list[int]:
@@ -317,11 +323,11 @@ def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     stands there over the field's mean, the patches' length scale (``meadow.length_scale``) times
     the local mix's mean rest tip height over the field's; ones without patches. The far canopy's
     edge reads its sward profile at heights scaled by it (``materials._sward_edge_opacity``): a
-    field's short stands let more sky through than its tall ones. (Kept for the last settings: the
-    ground and the patch image both read it.)"""
+    field's short stands let more sky through than its tall ones. (Kept for the last field, blade and
+    LOD settings, as the sample: the ground and the patch image both read it.)"""
     if params.field.patchiness <= 0.0:
         return np.ones((pixels, pixels), np.float32)
-    key = (params.digest(), pixels)
+    key = (_blocks_key(params), pixels)
     if _HEIGHTS_KEPT.get("key") != key:
         _HEIGHTS_KEPT.update(key=key, map=_patch_heights(params, pixels))
     return _HEIGHTS_KEPT["map"]

@@ -77,7 +77,8 @@ def sample_blades(params: Params) -> Block:
     key = _blocks_key(params)
     if _SAMPLE_KEPT.get("key") != key:
         blocks = [make_block(params, FieldGrid.of(params), Species(params), i) for i in sample_ids(params)]
-        _SAMPLE_KEPT.update(key=key, blocks=blocks, whole=_joined(blocks))
+        _SAMPLE_KEPT.clear()
+        _SAMPLE_KEPT.update(key=key, whole=_joined(blocks))
     return _SAMPLE_KEPT["whole"]
 
 
@@ -98,12 +99,6 @@ def sample_ids(params: Params) -> list[int]:
     nx, ny = grid.blocks_x, grid.blocks_y
     picks = np.linspace(0.0, 1.0, SAMPLE_SIDE)
     return sorted({int(round(j * (ny - 1))) * nx + int(round(i * (nx - 1))) for i in picks for j in picks})
-
-
-def _sample_blocks(params: Params) -> list[Block]:
-    """The blocks of ``sample_blades``, each on its own."""
-    sample_blades(params)
-    return _SAMPLE_KEPT["blocks"]
 
 
 _SAMPLE_KEPT: dict = {}
@@ -319,12 +314,16 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
 
 
 def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
-    """(pixels, pixels) float32 over the whole field (rows as ``patch_tint``'s): how tall the grass
-    stands there over the field's mean, the patches' length scale (``meadow.length_scale``) times
-    the local mix's mean rest tip height over the field's; ones without patches. The far canopy's
-    edge reads its sward profile at heights scaled by it (``materials._sward_edge_opacity``): a
-    field's short stands let more sky through than its tall ones. (Kept for the last field, blade and
-    LOD settings, as the sample: the ground and the patch image both read it.)"""
+    """(pixels, pixels) float32 over the whole field (rows as ``patch_tint``'s): the stand there
+    as the far canopy's edge draws it, L in L tau(z / L) (``materials._sward_edge_opacity``: the
+    field's mean profile ``sward_depth`` for blades L times as long); ones without patches.
+
+    L is fitted to the local stand's own profile (``stand_depth``: the patches' length scale
+    and species mix there), so a stand of short grass lets more sky through than a tall one,
+    and one of the mix's sparser species more than one of its bushier ones at the same height.
+    The fit makes the chance a grazing ray is stopped, 1 - exp(-tau / s), the closest it can at
+    every height for the slopes ``STAND_SLOPES``. (Kept for the last field, blade and LOD
+    settings, as the sample: the ground and the patch image both read it.)"""
     if params.field.patchiness <= 0.0:
         return np.ones((pixels, pixels), np.float32)
     key = (_blocks_key(params), pixels)
@@ -334,23 +333,111 @@ def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
 
 
 _HEIGHTS_KEPT: dict = {}
+STAND_SLOPES = (0.02, 0.05, 0.1, 0.2)  # rays over the far edge from eyes 1-6 m up, 20-100 m away
+STAND_RANGE = (0.2, 2.0)  # the stands L that ``patch_heights`` chooses from, in steps of STAND_STEP
+STAND_STEP = 0.01
+STAND_HEIGHTS = 32  # ``stand_depth``'s heights from the ground to twice the sample's tallest tip
+SCALE_BINS = 5  # ``stand_profiles`` sorts each species' sample blades into this many bins of patch scale
+STAND_SCALES = 256  # ... and tabulates each species' stand at this many scales (a point takes the nearest)
+UNIT_HEIGHTS = 192  # ... from one blade's depth at this many heights (at scale 1)
 
 
 def _patch_heights(params: Params, pixels: int) -> np.ndarray:
+    local = _over_field(params, pixels, lambda xy: stand_depth(params, xy))  # (pixels, pixels, heights)
+    return fit_stands(params, local.reshape(pixels * pixels, -1)).reshape(pixels, pixels).astype(np.float32)
+
+
+def stand_heights(params: Params) -> np.ndarray:
+    """The heights (m) at which ``stand_depth`` and ``fit_stands`` compare profiles: the ground
+    to twice the sample's tallest tip."""
+    return np.linspace(0.0, 2.0 * sward_top(params), STAND_HEIGHTS)
+
+
+def fit_stands(params: Params, depths: np.ndarray) -> np.ndarray:
+    """(n,) the L of STAND_RANGE whose L tau(z / L) (the profile the canopy draws: ``sward_profile``
+    between its points) stops grazing rays (the slopes STAND_SLOPES) the most like each of
+    ``depths`` (n, Z) at ``stand_heights``: the least squared difference of 1 - exp(-tau / s) over
+    the heights and slopes."""
+    heights, (points, tau) = stand_heights(params), sward_profile(params)
+    stands = np.arange(STAND_RANGE[0], STAND_RANGE[1] + 0.5 * STAND_STEP, STAND_STEP)
+    family = stands[:, None] * np.interp(heights[None, :] / stands[:, None], points, tau, right=0.0)
+    slopes = np.asarray(STAND_SLOPES)[:, None, None]
+
+    def stopped(depth):  # (n, Z) -> (n, slopes * Z)
+        return (1.0 - np.exp(-depth[None] / slopes)).transpose(1, 0, 2).reshape(len(depth), -1)
+
+    a, b = stopped(np.asarray(depths, np.float64)), stopped(family)
+    cost = (b * b).sum(axis=1)[None, :] - 2.0 * a @ b.T  # |a - b|^2 less |a|^2, the same for every L
+    return stands[cost.argmin(axis=1)]
+
+
+def stand_depth(params: Params, xy: np.ndarray) -> np.ndarray:
+    """(n, Z) the silhouette depth tau(z) (as ``sward_depth``) at ``stand_heights`` of the stand
+    the meadow grows at each of ``xy`` (n, 2) m: its species mix (``meadow.species_weights``) of
+    blades scaled by the patches' length (``meadow.length_scale``), each species' blades of that
+    scale as the sample's (``stand_profiles``, at the nearest of its scales)."""
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
     species = Species(params)
-    block = sample_blades(params)
-    tips, kind = tip_heights(params), block.blade_species.astype(np.int64)
-    mean = np.array([tips[kind == k].mean() if np.any(kind == k) else tips.mean() for k in range(len(species.p))]) \
-        if tips.size else np.ones(len(species.p))
+    weights = meadow.species_weights(xy, params, species.p)
+    shares = np.broadcast_to(species.p / species.p.sum(), (len(xy), len(species.p))) if weights is None \
+        else weights / weights.sum(axis=1, keepdims=True)
+    scales, table = stand_profiles(params)
+    step = (scales[-1] - scales[0]) / max(len(scales) - 1, 1)
+    nearest = np.clip(np.rint((meadow.length_scale(xy, params) - scales[0]) / max(step, 1e-12)), 0, len(scales) - 1)
+    nearest = nearest.astype(np.int64)
+    out = np.zeros((len(xy), table.shape[2]), np.float32)
+    for k in range(len(species.p)):
+        out += shares[:, k, None].astype(np.float32) * table[k, nearest]
+    return out
 
-    def height(xy):
-        scale = meadow.length_scale(xy, params)
-        weights = meadow.species_weights(xy, params, species.p)
-        return scale if weights is None else scale * (weights @ mean) / weights.sum(axis=1)
 
-    look = _over_field(params, pixels, lambda xy: height(xy)[:, None])[..., 0]
-    look = look / look.mean()
-    return (1.0 + _height_response(params, look) * (look - 1.0)).astype(np.float32)
+def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """(scales (M,), depths (species, M, Z)): ``sward_depth`` at ``stand_heights`` of a stand of
+    each species alone, its blades the patches' scale s times as long, for M scales over the
+    sample's. A stand of scale s is the sample's blades of that species and about that scale (the
+    bins of SCALE_BINS: a long blade leans more, so stands are not plain scaled copies of each
+    other) scaled from their own scale to s: heights and area s / s_b times theirs. Kept with the
+    sample."""
+    key = _blocks_key(params)
+    if _SAMPLE_KEPT.get("profiles_key") == key:
+        return _SAMPLE_KEPT["profiles"]
+    block, species = sample_blades(params), Species(params)
+    scale = meadow.length_scale(block.blade_root[:, :2].astype(np.float64), params)
+    kind = block.blade_species.astype(np.int64)
+    bins = min(SCALE_BINS, max(2, len(scale) // 200))
+    edges = np.quantile(scale, np.linspace(0.0, 1.0, bins + 1)) if len(scale) else np.linspace(0.9, 1.1, bins + 1)
+    binned = np.clip(np.searchsorted(edges, scale, side="right") - 1, 0, bins - 1)
+    centres = np.array([np.median(scale[binned == j]) if np.any(binned == j) else edges[j] for j in range(bins)])
+    centres = np.maximum.accumulate(centres + 1e-9 * np.arange(bins))  # (increasing)
+    heights = stand_heights(params)
+    scales = np.linspace(centres[0], centres[-1], STAND_SCALES)
+    unit = np.linspace(0.0, heights[-1] / max(float(scales[0]), 0.05), UNIT_HEIGHTS)  # heights at scale 1
+    low, high, seen = _segment_spans(params, block)
+    per_bin = np.zeros((len(species.p), bins, len(unit)))  # the depth of one blade at scale 1
+    for k in range(len(species.p)):
+        for j in range(bins):
+            mine = (kind == k) & (binned == j)
+            if not np.any(mine):
+                mine = kind == k  # (a rare species missing from a bin: its blades of every scale)
+            if not np.any(mine):
+                continue
+            s = scale[mine, None]
+            above = np.clip((high[mine] / s - unit[:, None, None]) / np.maximum((high[mine] - low[mine]) / s, 1e-9),
+                            0.0, 1.0)
+            per_bin[k, j] = (above * (seen[mine] / s)).sum(axis=(1, 2)) * (2.0 / np.pi) / mine.sum()
+    density = len(kind) / max(block.cell_center.shape[0] * float(params.field.cell_size) ** 2, 1e-12)
+    at = np.interp(scales, centres, np.arange(bins, dtype=np.float64))
+    lo = np.minimum(at.astype(np.int64), bins - 2)
+    f = at - lo
+    table = np.zeros((len(species.p), len(scales), len(heights)))
+    for m, s in enumerate(scales):
+        u = heights / s
+        for k in range(len(species.p)):
+            below, above = (np.interp(u, unit, per_bin[k, lo[m] + i]) for i in (0, 1))
+            table[k, m] = density * s * ((1.0 - f[m]) * below + f[m] * above)
+    table = table.astype(np.float32)  # (``stand_depth`` gathers rows of it for every point of a field)
+    _SAMPLE_KEPT.update(profiles_key=key, profiles=(scales, table))
+    return scales, table
 
 
 def _over_field(params: Params, pixels: int, values) -> np.ndarray:
@@ -373,31 +460,6 @@ def _over_field(params: Params, pixels: int, values) -> np.ndarray:
     rows = look[lo] * (1.0 - f) + look[lo + 1] * f  # (pixels, m, C)
     f = f.reshape(1, -1, 1)
     return rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
-
-
-def _height_response(params: Params, look: np.ndarray) -> float:
-    """How much of the map's height changes the blades' rest tips follow, measured on the blocks
-    of ``sample_blades``, each on its own (the mean tip height of each over their mean against the
-    map at its centre: the slope of the fit, 0 to 1.5; about 0.5 for the meadow: tilt and the
-    species' own lengths take up part of the patches' scale)."""
-    grid = FieldGrid.of(params)
-    blocks = _sample_blocks(params)
-    if len(blocks) < 4:
-        return 1.0
-    heights, at = [], []
-    size, origin = np.asarray(grid.size), np.asarray(grid.origin)
-    for block in blocks:
-        if not block.blade_length.size:
-            continue
-        shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
-                                       block.blade_flower)
-        heights.append(blade.tip_height(block.blade_length, block.blade_rest_tilt, shares).mean())
-        where = ((block.cell_center.mean(axis=0)[:2] - origin) / size * len(look)).astype(int)
-        at.append(look[min(where[1], len(look) - 1), min(where[0], len(look) - 1)])
-    if len(heights) < 4 or np.ptp(at) < 1e-3:
-        return 1.0
-    slope = np.polyfit(np.asarray(at), np.asarray(heights) / np.mean(heights), 1)[0]
-    return float(np.clip(slope, 0.0, 1.5))
 
 
 GRAIN_SIDE = 16  # ``tussock_grain`` lays out a square of this many tussocks a side

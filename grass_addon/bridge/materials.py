@@ -688,9 +688,9 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     frame the field spans +-NODE_FIELD_HALF around the origin: a ray at P going along
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
     Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes. With the meadow's
-    ``patch_image`` the depth is the local stand's, L tau(z_e / L) where it stands L times as tall as
-    the field's mean (its alpha, ``sward.patch_heights``: blades L times as long): a short stand lets
-    more sky through than a tall one."""
+    ``patch_image`` the depth is the local stand's, L tau(z_e / L): blades L times as long, L (its
+    alpha, ``sward.patch_heights``) fitted to the patch's own profile, so a short or sparse stand
+    lets more sky through than a tall, dense one."""
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
     run = t.math("ABSOLUTE", (d, "Vector"), None, x + 540, y + 150, vector=True)
@@ -734,10 +734,10 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
 
 
 def _crossed_stand(t: _Tree, coord, patch_image, view, d, leave, z_exit, slope, x: float, y: float):
-    """Math node: the height over the field's mean of the stand a ray crossed last before it leaves
-    the field at height z_e (``sward.patch_heights``, the patch image's alpha): read where it leaves
-    (P + d * leave), moved back towards the camera by half the run it took to sink from the sward's
-    top to z_e (at most STAND_REACH m): the middle of what it crossed of the blades above z_e."""
+    """Math node: the stand L (``sward.patch_heights``, the patch image's alpha) a ray crossed last
+    before it leaves the field at height z_e: read where it leaves (P + d * leave), moved back
+    towards the camera by half the run it took to sink from the sward's top to z_e (at most
+    STAND_REACH m): the middle of what it crossed of the blades above z_e."""
     top = t.add("ShaderNodeValue", x, y, name=NODE_STAND_TOP)
     sink = t.math("SUBTRACT", (top, "Value"), (z_exit, "Value"), x + 180, y)
     sink = t.math("MAXIMUM", (sink, "Value"), 0.0, x + 360, y)

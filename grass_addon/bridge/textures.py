@@ -118,14 +118,14 @@ def paint_gust_image(image, params) -> None:
 
 PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from
 PATCH_RANGE = 3.0  # the patch image's bytes hold tint / PATCH_RANGE (the material scales them back)
-HEIGHT_RANGE = 2.0  # ... and its alpha the patches' height / HEIGHT_RANGE
+HEIGHT_RANGE = 2.0  # ... and its alpha the patches' stands L (sward.patch_heights) / HEIGHT_RANGE
 
 
 def ensure_patch_image(name: str):
     """The packed byte image (Non-Color) of how the meadow's patches tint the far grass over the
     field (RGB: ``sward.patch_tint`` / PATCH_RANGE, a byte a channel, 1 % steps of the tint, a quarter
-    of a float image's size in the saved file) and how tall they stand (alpha: ``sward.patch_heights``
-    / HEIGHT_RANGE); its size is ``paint_patch_image``'s."""
+    of a float image's size in the saved file) and the stand the far canopy's edge draws there (alpha:
+    ``sward.patch_heights`` / HEIGHT_RANGE); its size is ``paint_patch_image``'s."""
     return _grey_image(name, None, float_buffer=False, alpha=True)
 
 
@@ -134,7 +134,7 @@ def paint_patch_image(image, params) -> None:
     what decides the species mix and the lengths) into ``image`` unless it already holds them; one
     pixel without patches."""
     settings = params.to_dict()
-    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"], "heights"],
+    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"], "stands"],
                                   sort_keys=True).encode()).hexdigest()
     if image.get(PATCH_KEY) == key:
         return

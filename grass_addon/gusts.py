@@ -43,15 +43,23 @@ def pattern(seed: int) -> np.ndarray:
 
 
 def sample(tile: np.ndarray, xy: np.ndarray, metres: float) -> np.ndarray:
-    """(m,) the pattern at points ``xy`` (m, 2), the tile spanning ``metres``: bilinear between
-    pixel centres, wrapping (Blender's Linear interpolation, Repeat extension)."""
+    """(m,) float32: the pattern at points ``xy`` (m, 2), the tile spanning ``metres``: bilinear
+    between pixel centres, wrapping (Blender's Linear interpolation, Repeat extension). (Run every
+    frame on the window's cells: the four neighbours are read from a copy of the tile with its
+    first row and column repeated after its last, by flat index.)"""
     n = tile.shape[0]
-    p = np.asarray(xy, np.float64) / metres * n - 0.5
-    i0 = np.floor(p).astype(np.int64)
-    f = p - i0
-    x0, y0 = i0[:, 0] % n, i0[:, 1] % n
-    x1, y1 = (x0 + 1) % n, (y0 + 1) % n
+    wrapped = np.empty((n + 1, n + 1), np.float32)
+    wrapped[:n, :n] = tile
+    wrapped[n, :n] = tile[0]
+    wrapped[:, n] = wrapped[:, 0]
+    flat = wrapped.ravel()
+    p = np.asarray(xy, np.float64) * (n / metres) - 0.5
+    corner = np.floor(p)
+    f = (p - corner).astype(np.float32)
+    i = corner.astype(np.int64) % n
+    at = i[:, 1] * (n + 1) + i[:, 0]  # (x0, y0); x0 + 1 is at + 1, y0 + 1 is at + n + 1
     fx, fy = f[:, 0], f[:, 1]
-    top = tile[y0, x0] * (1 - fx) + tile[y0, x1] * fx
-    bottom = tile[y1, x0] * (1 - fx) + tile[y1, x1] * fx
-    return top * (1 - fy) + bottom * fy
+    x00, x10 = flat.take(at), flat.take(at + 1)
+    x01, x11 = flat.take(at + n + 1), flat.take(at + n + 2)
+    low = x00 + (x10 - x00) * fx
+    return low + (x01 + (x11 - x01) * fx - low) * fy

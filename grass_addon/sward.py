@@ -164,7 +164,19 @@ def sward_depth(params: Params, heights: np.ndarray) -> np.ndarray:
 
 def _segment_spans(params: Params, block):
     """(lowest, highest point, width times rise) of every segment of ``block``'s blades at rest,
-    each (blades, segments): what a horizontal ray sees of a segment lies between the two."""
+    each (blades, segments): what a horizontal ray sees of a segment lies between the two. Kept
+    with the sample for ``sample_blades``' block (a materials update reads them five times)."""
+    if block is _SAMPLE_KEPT.get("whole"):
+        if "spans" not in _SAMPLE_KEPT:
+            spans = _spans(params, block)
+            for array in spans:
+                array.flags.writeable = False  # (shared by every reader)
+            _SAMPLE_KEPT["spans"] = spans
+        return _SAMPLE_KEPT["spans"]
+    return _spans(params, block)
+
+
+def _spans(params: Params, block):
     n = int(params.blade.segments)
     seg = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
         n, block.blade_length, block.blade_width, block.blade_flower)  # a flower's head is short

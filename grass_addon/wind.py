@@ -393,11 +393,13 @@ class WindField:
 
     def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out`` (v' at points ``xy``) plus the mean wind (eq 12) and the type's gusts or vortex."""
-        mean = self._mean_vector(t)
-        out += mean.astype(np.float32)  # uniform over the field (eq 12)
-        if self.gust_tile is not None:  # the gust waves scale it where they pass (gusts.py)
+        mean = self._mean_vector(t).astype(np.float32)
+        out += mean  # uniform over the field (eq 12)
+        if self.gust_tile is not None:  # the gust waves scale it by gust_waves (2 g - 1) where they pass (gusts.py)
             g = gusts.sample(self.gust_tile, xy - self.displacement(t)[None, :], self.gust_metres)
-            out += (self.gust_waves * (2.0 * g - 1.0))[:, None].astype(np.float32) * mean.astype(np.float32)
+            g *= np.float32(2.0 * self.gust_waves)
+            g -= np.float32(self.gust_waves)
+            out += g[:, None] * mean
         if self.kind == "blast":
             self._add_gusts(t, xy, out)
         elif self.kind == "whirlwind":

@@ -20,6 +20,10 @@ material's colour ramp (a dark base to the species' tip colour over the lower 70
   stopped with the chance that tau(z) / s of blade lies above (``sward_depth``); what it meets
   there is the blades' colour at that height lit by the share exp(-tau(z) / LIGHT_SLOPE) of the
   light that reaches it. The canopy takes this colour for the slope of each ray that meets it.
+* ``patch_tint`` and ``patch_heights``: a meadow's patches over the field, for the far canopy and
+  the cards: the local mix's colour over the mean, and the stand L whose L tau(z / L) stops grazing
+  rays as the local stand does (``stand_depth``, from ``stand_profiles``: each species' sample
+  blades by their patch scale).
 
 The cards' texture is ``atlas.py``. Numpy only (no Blender); the bridge writes the values into
 the materials.

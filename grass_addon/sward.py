@@ -409,8 +409,8 @@ def stand_depth(params: Params, xy: np.ndarray) -> np.ndarray:
 
 def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
     """(scales (M,), depths (species, M, Z)): ``sward_depth`` at ``stand_heights`` of a stand of
-    each species alone, its blades the patches' scale s times as long, for M scales over the
-    sample's. A stand of scale s is the sample's blades of that species and about that scale (the
+    each species alone, its blades the patches' scale s times as long, for M scales over all the
+    patches make. A stand of scale s is the sample's blades of that species and about that scale (the
     bins of SCALE_BINS: a long blade leans more, so stands are not plain scaled copies of each
     other) scaled from their own scale to s: heights and area s / s_b times theirs. Kept with the
     sample."""
@@ -426,7 +426,10 @@ def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
     centres = np.array([np.median(scale[binned == j]) if np.any(binned == j) else edges[j] for j in range(bins)])
     centres = np.maximum.accumulate(centres + 1e-9 * np.arange(bins))  # (increasing)
     heights = stand_heights(params)
-    scales = np.linspace(centres[0], centres[-1], STAND_SCALES)
+    # every scale the patches make (beyond the outer bins' medians their blades are scaled further)
+    reach = meadow.PATCH_LENGTH * float(params.field.patchiness)
+    scales = np.linspace(min(float(scale.min()), 1.0 - reach), max(float(scale.max()), 1.0 + reach), STAND_SCALES)
+    scales = np.maximum(scales, 0.05)
     unit = np.linspace(0.0, heights[-1] / max(float(scales[0]), 0.05), UNIT_HEIGHTS)  # heights at scale 1
     low, high, seen = _segment_spans(params, block)
     per_bin = np.zeros((len(species.p), bins, len(unit)))  # the depth of one blade at scale 1

@@ -359,6 +359,9 @@ UNIT_HEIGHTS = 192  # ... from one blade's depth at this many heights (at scale 
 
 
 def _patch_heights(params: Params, pixels: int) -> np.ndarray:
+    if _samples_across(params, pixels) < pixels * PATCH_SAMPLES:  # a small field: fit L where it is sampled
+        fitted = _over_field(params, pixels, lambda xy: fit_stands(params, stand_depth(params, xy))[:, None])
+        return fitted[..., 0].astype(np.float32)
     local = _over_field(params, pixels, lambda xy: stand_depth(params, xy))  # (pixels, pixels, heights)
     return fit_stands(params, local.reshape(pixels * pixels, -1)).reshape(pixels, pixels).astype(np.float32)
 
@@ -449,14 +452,21 @@ def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
     lo = np.minimum(at.astype(np.int64), bins - 2)
     f = at - lo
     table = np.zeros((len(species.p), len(scales), len(heights)))
-    for m, s in enumerate(scales):
-        u = heights / s
+    for m, stand in enumerate(scales):
+        u = heights / stand
         for k in range(len(species.p)):
             below, above = (np.interp(u, unit, per_bin[k, lo[m] + i]) for i in (0, 1))
-            table[k, m] = density * s * ((1.0 - f[m]) * below + f[m] * above)
+            table[k, m] = density * stand * ((1.0 - f[m]) * below + f[m] * above)
     table = table.astype(np.float32)  # (``stand_depth`` gathers rows of it for every point of a field)
     _SAMPLE_KEPT.update(profiles_key=key, profiles=(scales, table))
     return scales, table
+
+
+def _samples_across(params: Params, pixels: int) -> int:
+    """How many samples ``_over_field`` takes across the field: PATCH_SAMPLES a pixel, or 8 a
+    patch where that is fewer (at least 16)."""
+    size = float(max(FieldGrid.of(params).size))
+    return int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size / float(params.field.patch_size)))))
 
 
 def _over_field(params: Params, pixels: int, values) -> np.ndarray:
@@ -466,7 +476,7 @@ def _over_field(params: Params, pixels: int, values) -> np.ndarray:
     field costs little)."""
     grid = FieldGrid.of(params)
     size, origin = np.asarray(grid.size), grid.origin
-    m = int(min(pixels * PATCH_SAMPLES, max(16, np.ceil(8.0 * size.max() / float(params.field.patch_size)))))
+    m = _samples_across(params, pixels)
     t = (np.arange(m) + 0.5) / m
     xs, ys = np.meshgrid(origin[0] + t * size[0], origin[1] + t * size[1])
     look = values(np.column_stack([xs.ravel(), ys.ravel()]))

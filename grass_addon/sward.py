@@ -160,10 +160,16 @@ def sward_depth(params: Params, heights: np.ndarray) -> np.ndarray:
     block = sample_blades(params)
     if block.blade_length.size == 0:
         return np.zeros_like(z)
-    low, high, seen = _segment_spans(params, block)
-    above = np.clip((high[None] - z[:, None, None]) / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)
     ground = block.cell_center.shape[0] * float(params.field.cell_size) ** 2  # the block's area
-    return (above * seen[None]).sum(axis=(1, 2)) * (2.0 / np.pi) / ground
+    low, high, seen = _segment_spans(params, block)
+    return _area_above(low, high, seen, z) / ground
+
+
+def _area_above(low, high, seen, heights: np.ndarray) -> np.ndarray:
+    """(len(heights),) the blade area a horizontal ray sees above each height, 2/pi times each
+    segment's width times rise (``seen``) spread evenly between its ``low`` and ``high`` points."""
+    above = np.clip((high[None] - heights[:, None, None]) / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)
+    return (above * seen[None]).sum(axis=(1, 2)) * (2.0 / np.pi)
 
 
 def _segment_spans(params: Params, block):
@@ -417,10 +423,9 @@ def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
     bins of SCALE_BINS: a long blade leans more, so stands are not plain scaled copies of each
     other) scaled from their own scale to s: heights and area s / s_b times theirs. Kept with the
     sample."""
-    key = _blocks_key(params)
-    if _SAMPLE_KEPT.get("profiles_key") == key:
-        return _SAMPLE_KEPT["profiles"]
     block, species = sample_blades(params), Species(params)
+    if "profiles" in _SAMPLE_KEPT:  # (drawing the sample again clears it)
+        return _SAMPLE_KEPT["profiles"]
     scale = meadow.length_scale(block.blade_root[:, :2].astype(np.float64), params)
     kind = block.blade_species.astype(np.int64)
     bins = min(SCALE_BINS, max(2, len(scale) // 200))
@@ -444,9 +449,7 @@ def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
             if not np.any(mine):
                 continue
             s = scale[mine, None]
-            above = np.clip((high[mine] / s - unit[:, None, None]) / np.maximum((high[mine] - low[mine]) / s, 1e-9),
-                            0.0, 1.0)
-            per_bin[k, j] = (above * (seen[mine] / s)).sum(axis=(1, 2)) * (2.0 / np.pi) / mine.sum()
+            per_bin[k, j] = _area_above(low[mine] / s, high[mine] / s, seen[mine] / s, unit) / mine.sum()
     density = len(kind) / max(block.cell_center.shape[0] * float(params.field.cell_size) ** 2, 1e-12)
     at = np.interp(scales, centres, np.arange(bins, dtype=np.float64))
     lo = np.minimum(at.astype(np.int64), bins - 2)
@@ -458,7 +461,7 @@ def stand_profiles(params: Params) -> tuple[np.ndarray, np.ndarray]:
             below, above = (np.interp(u, unit, per_bin[k, lo[m] + i]) for i in (0, 1))
             table[k, m] = density * stand * ((1.0 - f[m]) * below + f[m] * above)
     table = table.astype(np.float32)  # (``stand_depth`` gathers rows of it for every point of a field)
-    _SAMPLE_KEPT.update(profiles_key=key, profiles=(scales, table))
+    _SAMPLE_KEPT["profiles"] = (scales, table)
     return scales, table
 
 

@@ -20,7 +20,7 @@ material's colour ramp (a dark base to the species' tip colour over the lower 70
   stopped with the chance that tau(z) / s of blade lies above (``sward_depth``); what it meets
   there is the blades' colour at that height lit by the share exp(-tau(z) / LIGHT_SLOPE) of the
   light that reaches it. The canopy takes this colour for the slope of each ray that meets it.
-* ``patch_tint`` and ``patch_heights``: a meadow's patches over the field, for the far canopy and
+* ``patch_tint`` and ``patch_stands``: a meadow's patches over the field, for the far canopy and
   the cards: the local mix's colour over the mean, and the stand L whose L tau(z / L) stops grazing
   rays as the local stand does (``stand_depth``, from ``stand_profiles``: each species' sample
   blades by their patch scale).
@@ -143,8 +143,8 @@ def sward_top(params: Params) -> float:
 
 def fringe_top(params: Params) -> float:
     """Height (m) of the fringe along the field's edge: ``sward_top`` in the field's tallest patch
-    (``patch_heights``; its profile is read over the local stand's height there)."""
-    return sward_top(params) * max(1.0, float(patch_heights(params).max()))
+    (``patch_stands``; its profile is read over the local stand's height there)."""
+    return sward_top(params) * max(1.0, float(patch_stands(params).max()))
 
 
 def sward_depth(params: Params, heights: np.ndarray) -> np.ndarray:
@@ -322,20 +322,12 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     (``meadow.species_weights``: each species' share, times how much of it shows, times its colour;
     ``species_looks``) over the field's mean of it, so the far canopy and the cards keep their
     mean colour; ones without patches or with one species."""
-    species = Species(params)
-    if params.field.patchiness <= 0.0 or len(species.p) < 2:
+    if params.field.patchiness <= 0.0 or len(Species(params).p) < 2:
         return np.ones((pixels, pixels, 3), np.float32)
-    colours, areas = species_looks(params)
-
-    def mix(xy):
-        shown = meadow.species_weights(xy, params, species.p) * areas[None, :]
-        return (shown @ colours) / shown.sum(axis=1, keepdims=True)
-
-    look = _over_field(params, pixels, mix)
-    return (look / look.mean(axis=(0, 1))).astype(np.float32)
+    return _patch_maps(params, pixels)[0]
 
 
-def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
+def patch_stands(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     """(pixels, pixels) float32 over the whole field (rows as ``patch_tint``'s): the stand there
     as the far canopy's edge draws it, L in L tau(z / L) (``materials._sward_edge_opacity``: the
     field's mean profile ``sward_depth`` for blades L times as long); ones without patches.
@@ -344,19 +336,25 @@ def patch_heights(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     and species mix there), so a stand of short grass lets more sky through than a tall one,
     and one of the mix's sparser species more than one of its bushier ones at the same height.
     The fit makes the chance a grazing ray is stopped, 1 - exp(-tau / s), the closest it can at
-    every height for the slopes ``STAND_SLOPES``. (Kept for the last field, blade and LOD
-    settings, as the sample: the ground and the patch image both read it.)"""
+    every height for the slopes ``STAND_SLOPES``."""
     if params.field.patchiness <= 0.0:
         return np.ones((pixels, pixels), np.float32)
+    return _patch_maps(params, pixels)[1]
+
+
+def _patch_maps(params: Params, pixels: int) -> tuple[np.ndarray, np.ndarray]:
+    """(tint, stands) of ``patch_tint`` and ``patch_stands``, painted in one pass over the field (the
+    species mix evaluated once for both) and kept for the last field, blade and LOD settings, as
+    the sample: the ground and the patch image both read them."""
     key = (_blocks_key(params), pixels)
-    if _HEIGHTS_KEPT.get("key") != key:
-        _HEIGHTS_KEPT.update(key=key, map=_patch_heights(params, pixels))
-    return _HEIGHTS_KEPT["map"]
+    if _PATCHES_KEPT.get("key") != key:
+        _PATCHES_KEPT.update(key=key, maps=_paint_patches(params, pixels))
+    return _PATCHES_KEPT["maps"]
 
 
-_HEIGHTS_KEPT: dict = {}
+_PATCHES_KEPT: dict = {}
 STAND_SLOPES = (0.02, 0.05, 0.1, 0.2)  # rays over the far edge from eyes 1-6 m up, 20-100 m away
-STAND_RANGE = (0.2, 2.0)  # the stands L that ``patch_heights`` chooses from, in steps of STAND_STEP
+STAND_RANGE = (0.2, 2.0)  # the stands L that ``patch_stands`` chooses from, in steps of STAND_STEP
 STAND_STEP = 0.01
 STAND_HEIGHTS = 32  # ``stand_depth``'s heights from the ground to twice the sample's tallest tip
 SCALE_BINS = 5  # ``stand_profiles`` sorts each species' sample blades into this many bins of patch scale
@@ -364,12 +362,27 @@ STAND_SCALES = 256  # ... and tabulates each species' stand at this many scales 
 UNIT_HEIGHTS = 192  # ... from one blade's depth at this many heights (at scale 1)
 
 
-def _patch_heights(params: Params, pixels: int) -> np.ndarray:
-    if _samples_across(params, pixels) < pixels * PATCH_SAMPLES:  # a small field: fit L where it is sampled
-        fitted = _over_field(params, pixels, lambda xy: fit_stands(params, stand_depth(params, xy))[:, None])
-        return fitted[..., 0].astype(np.float32)
-    local = _over_field(params, pixels, lambda xy: stand_depth(params, xy))  # (pixels, pixels, heights)
-    return fit_stands(params, local.reshape(pixels * pixels, -1)).reshape(pixels, pixels).astype(np.float32)
+def _paint_patches(params: Params, pixels: int) -> tuple[np.ndarray, np.ndarray]:
+    species = Species(params)
+    tinted = len(species.p) >= 2
+    colours, areas = species_looks(params) if tinted else (None, None)
+    fit_here = _samples_across(params, pixels) < pixels * PATCH_SAMPLES  # a small field: fit L where sampled
+
+    def values(xy):  # (n, 2) -> (n, 3 + Z): the mix's look, then the stand's depth (or its L, fitted here)
+        weights = meadow.species_weights(xy, params, species.p)
+        depth = _stand_depth(params, xy, weights)
+        stand = fit_stands(params, depth)[:, None] if fit_here else depth
+        if weights is None:
+            return stand
+        shown = weights * areas[None, :]
+        return np.concatenate([(shown @ colours) / shown.sum(axis=1, keepdims=True), stand], axis=1)
+
+    maps = _over_field(params, pixels, values)
+    look, stand = (maps[..., :3], maps[..., 3:]) if tinted else (np.ones((pixels, pixels, 3)), maps)
+    tint = (look / look.mean(axis=(0, 1))).astype(np.float32)
+    if not fit_here:  # a large field: fit L to each pixel's mean profile
+        stand = fit_stands(params, stand.reshape(pixels * pixels, -1)).reshape(pixels, pixels, 1)
+    return tint, stand[..., 0].astype(np.float32)
 
 
 def stand_heights(params: Params) -> np.ndarray:
@@ -402,8 +415,11 @@ def stand_depth(params: Params, xy: np.ndarray) -> np.ndarray:
     blades scaled by the patches' length (``meadow.length_scale``), each species' blades of that
     scale as the sample's (``stand_profiles``, at the nearest of its scales)."""
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    return _stand_depth(params, xy, meadow.species_weights(xy, params, Species(params).p))
+
+
+def _stand_depth(params: Params, xy: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
     species = Species(params)
-    weights = meadow.species_weights(xy, params, species.p)
     shares = np.broadcast_to(species.p / species.p.sum(), (len(xy), len(species.p))) if weights is None \
         else weights / weights.sum(axis=1, keepdims=True)
     scales, table = stand_profiles(params)

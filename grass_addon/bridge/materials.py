@@ -689,7 +689,7 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
     d = -Incoming leaves it after t = min over X, Y of (half / |d| - P / d), having dropped
     Incoming.z * t. ``view``, ``view_z``, ``slope``: ``_view_slope``'s nodes. With the meadow's
     ``patch_image`` the depth is the local stand's, L tau(z_e / L): blades L times as long, L (its
-    alpha, ``sward.patch_heights``) fitted to the patch's own profile, so a short or sparse stand
+    alpha, ``sward.patch_stands``) fitted to the patch's own profile, so a short or sparse stand
     lets more sky through than a tall, dense one."""
     # where the ray leaves the field: t = min over X, Y of (half / |d| - P / d), d = -Incoming
     d = t.math("MULTIPLY", (view, "Vector"), (-1.0, -1.0, -1.0), x + 360, y, vector=True)
@@ -734,7 +734,7 @@ def _sward_edge_opacity(t: _Tree, coord, share, view, view_z, slope, x: float, y
 
 
 def _crossed_stand(t: _Tree, coord, patch_image, view, d, leave, z_exit, slope, x: float, y: float):
-    """Math node: the stand L (``sward.patch_heights``, the patch image's alpha) a ray crossed last
+    """Math node: the stand L (``sward.patch_stands``, the patch image's alpha) a ray crossed last
     before it leaves the field at height z_e: read where it leaves (P + d * leave), moved back
     towards the camera by half the run it took to sink from the sward's top to z_e (at most
     STAND_REACH m): the middle of what it crossed of the blades above z_e."""
@@ -755,7 +755,7 @@ def _crossed_stand(t: _Tree, coord, patch_image, view, d, leave, z_exit, slope, 
     tex = t.add("ShaderNodeTexImage", x + 1620, y + 200, name=NODE_STAND_IMAGE, image=patch_image,
                 interpolation="Linear", extension="EXTEND")
     t.link(mapping, "Vector", tex, "Vector")
-    stand = t.math("MULTIPLY", (tex, "Alpha"), textures.HEIGHT_RANGE, x + 1800, y + 100)
+    stand = t.math("MULTIPLY", (tex, "Alpha"), textures.STAND_MAX, x + 1800, y + 100)
     return t.math("MAXIMUM", (stand, "Value"), 0.05, x + 1980, y + 100)
 
 

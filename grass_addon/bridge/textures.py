@@ -118,19 +118,19 @@ def paint_gust_image(image, params) -> None:
 
 PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from
 PATCH_RANGE = 3.0  # the patch image's bytes hold tint / PATCH_RANGE (the material scales them back)
-HEIGHT_RANGE = 2.0  # ... and its alpha the patches' stands L (sward.patch_heights) / HEIGHT_RANGE
+STAND_MAX = sward.STAND_RANGE[1]  # ... and its alpha the patches' stands L (sward.patch_stands) / STAND_MAX
 
 
 def ensure_patch_image(name: str):
     """The packed byte image (Non-Color) of how the meadow's patches tint the far grass over the
     field (RGB: ``sward.patch_tint`` / PATCH_RANGE, a byte a channel, 1 % steps of the tint, a quarter
     of a float image's size in the saved file) and the stand the far canopy's edge draws there (alpha:
-    ``sward.patch_heights`` / HEIGHT_RANGE); its size is ``paint_patch_image``'s."""
+    ``sward.patch_stands`` / STAND_MAX); its size is ``paint_patch_image``'s."""
     return _grey_image(name, None, float_buffer=False, alpha=True)
 
 
 def paint_patch_image(image, params) -> None:
-    """Write the patches' tint and heights of the field's settings (its field and blade sections:
+    """Write the patches' tint and stands of the field's settings (its field and blade sections:
     what decides the species mix and the lengths) into ``image`` unless it already holds them; one
     pixel without patches."""
     settings = params.to_dict()
@@ -138,11 +138,11 @@ def paint_patch_image(image, params) -> None:
                                   sort_keys=True).encode()).hexdigest()
     if image.get(PATCH_KEY) == key:
         return
-    tint, heights = sward.patch_tint(params), sward.patch_heights(params)
-    n = sward.PATCH_PIXELS if np.any(tint != 1.0) or np.any(heights != 1.0) else 1  # (a lawn's file stays small)
+    tint, stands = sward.patch_tint(params), sward.patch_stands(params)
+    n = sward.PATCH_PIXELS if np.any(tint != 1.0) or np.any(stands != 1.0) else 1  # (a lawn's file stays small)
     if tuple(image.size) != (n, n):
         image.scale(n, n)
-    _write_grey(image, np.clip(tint[:n, :n] / PATCH_RANGE, 0.0, 1.0), np.clip(heights[:n, :n] / HEIGHT_RANGE, 0.0, 1.0))
+    _write_grey(image, np.clip(tint[:n, :n] / PATCH_RANGE, 0.0, 1.0), np.clip(stands[:n, :n] / STAND_MAX, 0.0, 1.0))
     image[PATCH_KEY] = key
 
 

@@ -33,11 +33,11 @@ SEAM_GOAL = 0.15
 # dry grass) in the default scene's patches: under an overcast sky the square view's row where the
 # field's far edge meets the sky was 0.067 off (the far canopy's edge as tall as the field's mean
 # where the stands at the edge are short); reading the height of the stand each ray crossed last
-# (sward.patch_heights) brought it to 0.039 on Blender 5.2, and the sward's profile taken over the
+# (sward.patch_stands) brought it to 0.039 on Blender 5.2, and the sward's profile taken over the
 # field's blocks, not block 0 alone (sward.sample_blades: right for the default meadow's seed
 # heads, 0.075 -> 0.013) and scaled by the stand's height (L tau(z/L)), to 0.043; L fitted to each
 # patch's own profile (its species' area as well as its height, over every scale the patches make:
-# sward.patch_heights), to 0.037. The canopy's edge is still a little too opaque there (as, by
+# sward.patch_stands), to 0.037. The canopy's edge is still a little too opaque there (as, by
 # less, for the even field), by more than the stands' own profiles say (open).
 
 

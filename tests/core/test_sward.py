@@ -392,7 +392,7 @@ def test_the_patches_stands_stop_grazing_rays_as_the_fields_own_blocks_do(preset
         "field.blocks_x": 16, "field.blocks_y": 16, "wind.type": "calm", "wind.speed": 0.0, "wind.turbulence": 0.0,
         "lod.enabled": False})
     assert params.field.patchiness > 0.0
-    stands = sward.patch_heights(params)
+    stands = sward.patch_stands(params)
     field = GrassField(params)
     field.seek(1)
     grid = FieldGrid.of(params)
@@ -419,7 +419,7 @@ def test_the_patches_stands_stop_grazing_rays_as_the_fields_own_blocks_do(preset
 def test_the_patches_height_map_is_flat_without_patches():
     params = presets.apply_preset(schema.defaults(), "lawn")
     assert params.field.patchiness == 0.0
-    assert np.all(sward.patch_heights(params) == 1.0)
+    assert np.all(sward.patch_stands(params) == 1.0)
 
 
 @pytest.mark.slow

@@ -226,11 +226,17 @@ def with_window_root(env: dict) -> dict:
 # The level-of-detail comparisons render each frame twice in the same Blender (the LOD against every
 # blade as geometry) and measure the engine's LOD, which is the same on every line; they take a
 # quarter of the Blender tests' time, so the whole suite's run on the oldest line leaves them to the
-# current one (a single test named on the command line still runs there). So does the LOD
-# comparison script's own test (its figures, not Blender's: a minute of renders), and the farm tests whose
+# current one (a single test named on the command line still runs there). So do the far canopy's
+# trail against the blades' (a comparison of the same kind), the LOD comparison script's own test
+# (its figures, not Blender's: a minute of renders), the splits rendered again to compare pixels
+# with the whole run (the engine's determinism: frame N from the settings and N alone; the 4.5
+# run still renders motion blur, paint, colliders and farm chunks), and the farm tests whose
 # workers are the real Blender 5.2 binary (the bpy module only saves their .blend).
 SAME_ON_EVERY_LINE = ("tests/blender/test_lod_fidelity.py",
+                      "tests/blender/test_interaction.py::test_the_far_canopy_shows_a_trail_as_the_grass_does",
                       "tests/blender/test_render_field.py::test_lod_comparison_script_measures_rows_images_and_flicker",
+                      "tests/blender/test_render_field.py::test_a_split_far_into_a_long_range_renders_the_same_pixels",
+                      "tests/blender/test_motion_blur.py::test_render_farm_splits_are_pixel_identical_with_blur",
                       *(f"tests/blender/test_farm.py::test_workers_on_real_blender_5_2_{name}" for name in (
                           "render_a_scene_file_job_as_one_process_does",
                           "without_windgrass_render_a_saved_blends_job")))

@@ -207,33 +207,49 @@ def _trace(params, exit_z: float, slope: float, rays: int, rng):
     shifts = np.stack(np.meshgrid(k * tile, k * tile, [0.0], indexing="ij"), axis=-1).reshape(-1, 3)
     which = np.arange(len(shifts)) % (len(facing) // per)  # the sample block on each tile
     blades = (which[:, None] * per + np.arange(per)[None]).ravel()  # (tiles * per,) into the sample
-    p0 = (joints[blades, :-1] + np.repeat(shifts, per, axis=0)[:, None]).reshape(-1, 3)  # every segment
-    u = seg[blades].reshape(-1, 3)
-    s = np.broadcast_to(side[blades][:, None], (len(blades), n, 3)).reshape(-1, 3)
-    w0 = width[blades, :-1].reshape(-1)
-    w1 = width[blades, 1:].reshape(-1)
+    count = len(shifts)
+    p0 = (joints[blades, :-1] + np.repeat(shifts, per, axis=0)[:, None]).reshape(count, per * n, 3)  # by tile
+    u = seg[blades].reshape(count, per * n, 3)
+    s = np.broadcast_to(side[blades][:, None], (len(blades), n, 3)).reshape(count, per * n, 3)
+    w0 = width[blades, :-1].reshape(count, per * n)
+    w1 = width[blades, 1:].reshape(count, per * n)
+    # a ray can only meet the blades of a tile it passes within this of the tile's centre (horizontally:
+    # half the tile's diagonal, a blade's horizontal reach from its root, its widest half)
+    spread = np.abs(joints[..., :2] - joints[:, :1, :2]).max() * np.sqrt(2.0)
+    near = tile * np.sqrt(0.5) + spread + 0.5 * width.max()
+    centres = shifts[:, :2] + 0.5 * tile
     lo = np.zeros(2)
     batch, found = 50, []
     for _ in range(rays // batch):
         psi = rng.uniform(0.0, 2.0 * np.pi, batch)
-        exit_point = np.column_stack([lo + rng.uniform(0.0, tile, (batch, 2)), np.full(batch, exit_z)])
-        back = np.column_stack([-np.cos(psi), -np.sin(psi), np.full(batch, slope)])[:, None]  # to the camera
-        # exit + t back = p0 + a u + c s, solved for (a, c, t) by Cramer's rule
-        rhs = exit_point[:, None, :] - p0[None]
-        uu = np.broadcast_to(u, rhs.shape)
-        s_x_back = np.cross(s, -back)
-        det = np.einsum("rqi,rqi->rq", uu, s_x_back)
-        det = np.where(np.abs(det) < 1e-12, np.inf, det)
-        a = np.einsum("rqi,rqi->rq", rhs, s_x_back) / det
-        c = np.einsum("rqi,rqi->rq", uu, np.cross(rhs, -back)) / det
-        t = np.einsum("rqi,rqi->rq", uu, np.cross(s, rhs)) / det
-        half = 0.5 * (w0 + (w1 - w0) * a)
-        hit = (a >= 0) & (a <= 1) & (np.abs(c) <= half) & (t >= 0) & (t <= reach)
-        first = np.where(hit, t, -1.0).argmax(axis=1)  # nearest the camera: the farthest back
-        rows = np.arange(batch)
-        found.append(np.column_stack([hit.any(axis=1), exit_z + t[rows, first] * slope, blades[first // n],
-                                      (first % n + a[rows, first]) / n]))
-    found = np.concatenate(found)
+        exits = lo + rng.uniform(0.0, tile, (batch, 2))
+        for r in range(batch):
+            exit_point = np.array([*exits[r], exit_z])
+            back = np.array([-np.cos(psi[r]), -np.sin(psi[r]), slope])  # to the camera
+            rel = centres - exits[r]
+            along = rel @ back[:2]
+            across = np.abs(rel[:, 0] * back[1] - rel[:, 1] * back[0])
+            tiles = np.nonzero((across <= near) & (along >= -near) & (along <= reach + near))[0]
+            q0, uu, ss = p0[tiles].reshape(-1, 3), u[tiles].reshape(-1, 3), s[tiles].reshape(-1, 3)
+            # exit + t back = p0 + a u + c s, solved for (a, c, t) by Cramer's rule
+            rhs = exit_point - q0
+            s_x_back = np.cross(ss, -back)
+            det = np.einsum("qi,qi->q", uu, s_x_back)
+            det = np.where(np.abs(det) < 1e-12, np.inf, det)
+            a = np.einsum("qi,qi->q", rhs, s_x_back) / det
+            c = np.einsum("qi,qi->q", uu, np.cross(rhs, -back)) / det
+            t = np.einsum("qi,qi->q", uu, np.cross(ss, rhs)) / det
+            a0, a1 = w0[tiles].ravel(), w1[tiles].ravel()
+            half = 0.5 * (a0 + (a1 - a0) * a)
+            hit = (a >= 0) & (a <= 1) & (np.abs(c) <= half) & (t >= 0) & (t <= reach)
+            if not hit.any():
+                found.append([0.0, exit_z, 0.0, 0.0])
+                continue
+            first = int(np.where(hit, t, -1.0).argmax())  # nearest the camera: the farthest back
+            tile_of, within = divmod(first, per * n)
+            blade_no = blades[tiles[tile_of] * per + within // n]
+            found.append([1.0, exit_z + t[first] * slope, blade_no, (within % n + a[first]) / n])
+    found = np.asarray(found)
     return found[:, 0] > 0, found[:, 1], found[:, 2].astype(int), found[:, 3]
 
 

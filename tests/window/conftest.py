@@ -65,8 +65,14 @@ class Run:
                 out.append(f"{s['step']}: {result['problems']}")
         return out
 
+    def last_steps(self, count: int = 4) -> str:
+        """The last steps begun, with when (s into the session): where a session that timed out
+        was."""
+        return "\n".join(f"{s.get('at', '?')} s: {json.dumps(s['step'])[:200]}" for s in self.steps[-count:])
+
     def assert_clean(self) -> None:
-        assert self.returncode == 0, f"Blender exited with {self.returncode}\n{self.crash}\n{self.output[-3000:]}"
+        assert self.returncode == 0, (f"Blender exited with {self.returncode}\n{self.crash}\n{self.output[-3000:]}\n"
+                                      f"the last steps begun:\n{self.last_steps()}")
         assert self.report.get("finished"), f"the scenario did not finish\n{self.output[-3000:]}"
         problems = self.problems()
         assert not problems, "\n".join(problems)

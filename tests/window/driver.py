@@ -154,6 +154,7 @@ class Driver:
         self.messages: list[str] = []
         self.settling: tuple | None = None  # (started, quiet since) while a settle step waits
         self.last_screen: np.ndarray | None = None  # the screen a second ago (settle "view")
+        self.started = time.monotonic()
 
     # ---------------------------------------------------------------- running
 
@@ -187,7 +188,7 @@ class Driver:
                 json.dump(self.report, f, indent=1, default=str)
 
     def _do(self, step: dict):
-        record = {"step": step}
+        record = {"step": step, "at": round(time.monotonic() - self.started, 1)}  # (s since the driver began)
         self.report["steps"].append(record)
         delay = None
         try:

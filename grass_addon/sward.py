@@ -382,7 +382,10 @@ def _paint_patches(params: Params, pixels: int) -> tuple[np.ndarray, np.ndarray]
     tint = (look / look.mean(axis=(0, 1))).astype(np.float32)
     if not fit_here:  # a large field: fit L to each pixel's mean profile
         stand = fit_stands(params, stand.reshape(pixels * pixels, -1)).reshape(pixels, pixels, 1)
-    return tint, stand[..., 0].astype(np.float32)
+    stands = stand[..., 0].astype(np.float32)
+    tint.setflags(write=False)  # (kept: every reader gets these arrays)
+    stands.setflags(write=False)
+    return tint, stands
 
 
 def stand_heights(params: Params) -> np.ndarray:

@@ -322,9 +322,9 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     (``meadow.species_weights``: each species' share, times how much of it shows, times its colour;
     ``species_looks``) over the field's mean of it, so the far canopy and the cards keep their
     mean colour; ones without patches or with one species."""
-    if params.field.patchiness <= 0.0 or len(Species(params).p) < 2:
+    if params.field.patchiness <= 0.0:
         return np.ones((pixels, pixels, 3), np.float32)
-    return _patch_maps(params, pixels)[0]
+    return _patch_maps(params, pixels)[0]  # (ones with one species: ``_paint_patches``)
 
 
 def patch_stands(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:

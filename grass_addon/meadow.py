@@ -9,9 +9,11 @@ a freshly sown lawn. A meadow is uneven at every scale, and each of these is a p
   towards the nearest centre by the clumping share (0: where it was drawn, 1: onto the centre), so
   tussocks stand with bare gaps between them; no blade is added or lost, and each blade keeps its
   own cell's bend (the pull is at most half a clump, smaller than the wind's eddies).
-- **Patches** (``field.patchiness``, ``field.patch_size``): low-frequency value noise, two octaves
-  at the patch size and a third of it, scales the blades' length (taller and shorter stands) and
-  each species' share (a patch of flowers, a dry patch), metres to tens of metres wide.
+- **Patches** (``field.patchiness``, ``field.patch_size``): low-frequency value noise, three octaves
+  at the patch size, a third of it and three times it, scales the blades' length (taller and
+  shorter stands) and each species' share (a patch of flowers, a dry patch), metres to tens of
+  metres wide. The widest octave is what the far canopy still shows from low eyes, where a pixel
+  spans tens of metres of depth and averages the smaller patches away.
 - **Heads** (species ``heads``, ``head_color``, ``head_size``, ``head_shape``): a share of a
   species' stems carry a seed head or a flower at their tip. A seed head widens the strip at its
   last joint but one, so the top two segments make a spindle (a panicle, a spike); a flower
@@ -36,7 +38,9 @@ from . import blade, wind
 RNG_MEADOW = 3  # purpose of the meadow's random stream (blocks.RNG_BLADES = 1, RNG_CELLS = 2)
 STRAW = np.array([0.42, 0.34, 0.15], dtype=np.float32)  # linear RGB of a dry tip
 PATCH_LENGTH = 0.45  # at patchiness 1 a patch's blades are 1 -+ this much of their length
-PATCH_SHARE = 2.0  # at patchiness 1 a species' share varies by e^(+-this) from patch to patch
+PATCH_SHARE = 2.5  # at patchiness 1 a species' share varies by e^(+-this) from patch to patch (a species
+# dominates a patch more with a larger value; 2.5 keeps the far canopy's one-L stands within a hundredth
+# of the sky, tests/core/test_sward.py)
 DRY_FROM = 0.45  # a dry blade is green up to this fraction of its length, straw at its tip
 CUP_DEPTH = 0.7  # a flower's head (its top two segments) is this many times as tall as it is wide
 FLOWER_RIM = 0.6  # a flower's tip joint is this share of its width (the head's rim)
@@ -68,11 +72,12 @@ def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndar
 
 
 def patches(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
-    """(n,) patch noise in [-1, 1]: two octaves of ``value_noise`` at ``size`` and a third of it,
-    spread so that the field's patches reach both ends."""
+    """(n,) patch noise in [-1, 1]: three octaves of ``value_noise`` at ``size``, a third of it and
+    three times it, spread so that the field's patches reach both ends (about 1 % clipped)."""
     a = value_noise(xy, seed, 2 * channel + 101, size)
     b = value_noise(xy, seed, 2 * channel + 102, size / 3.0)
-    return np.clip(2.6 * ((0.7 * a + 0.3 * b) - 0.5), -1.0, 1.0)
+    c = value_noise(xy, seed, 2 * channel + 301, size * 3.0)
+    return np.clip(3.2 * ((0.5 * a + 0.2 * b + 0.3 * c) - 0.5), -1.0, 1.0)
 
 
 def clump_centres(xy: np.ndarray, seed: int, size: float) -> np.ndarray:

@@ -17,7 +17,8 @@
   band (the rows from the horizon down to a tenth of the image): how much its 8 x 8-pixel tiles
   differ in brightness (their standard deviation over their mean), over the whole band (the band's
   darkening towards the camera included, as issue #34 measured it) and ``_across`` each row of
-  tiles (the field's own variety: patches, tussocks, gusts).
+  tiles (the field's own variety: patches, tussocks, gusts), and how much their hue spreads across
+  each row (5th to 95th percentile, degrees: the patches' species colours and flowers at distance).
 """
 
 from __future__ import annotations
@@ -133,15 +134,20 @@ def image_figures(path: Path) -> dict:
     spread = np.percentile(hue[green], 95) - np.percentile(hue[green], 5)
     lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
     horizon = int(np.argmax(np.abs(np.diff(lum.mean(axis=1))) > 0.02)) + 2
-    band = lum[horizon:horizon + max(8, h // 10)]
-    tiles = band[: band.shape[0] // 8 * 8, : band.shape[1] // 8 * 8]
-    tiles = tiles.reshape(tiles.shape[0] // 8, 8, tiles.shape[1] // 8, 8).mean(axis=(1, 3))
+    rows = max(8, h // 10)
+    band = rgb[horizon:horizon + rows]
+    band = band[: band.shape[0] // 8 * 8, : band.shape[1] // 8 * 8]
+    colours = band.reshape(band.shape[0] // 8, 8, band.shape[1] // 8, 8, 3).mean(axis=(1, 3))
+    tiles = colours @ np.array([0.2126, 0.7152, 0.0722])
     # across each row of tiles (the band darkens towards the camera: that is not the field's variety)
     across = float(np.mean(tiles.std(axis=1) / tiles.mean(axis=1)))
+    hues = _hue(colours.reshape(-1, 3)).reshape(tiles.shape)
+    hue_across = float(np.mean(np.percentile(hues, 95, axis=1) - np.percentile(hues, 5, axis=1)))
     return {"near_hue_spread_deg": round(float(spread), 1), "near_not_green_share": round(float(1 - green.mean()), 4),
             "far_band_tile_contrast": round(float(tiles.std() / tiles.mean()), 4),
             "far_band_tile_contrast_across": round(across, 4),
-            "far_band_rows": [horizon, horizon + band.shape[0]]}
+            "far_band_tile_hue_spread_across_deg": round(hue_across, 1),
+            "far_band_rows": [horizon, horizon + rows]}
 
 
 def _hue(rgb: np.ndarray) -> np.ndarray:

@@ -41,6 +41,7 @@ SQUARE = 0.25  # m: the squares the roots are counted in
 SWAY_SECONDS = 60.0
 SWAY_SEEDS = (7, 8, 9, 10, 11, 12, 13, 14)
 FPS = 24
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of RGB
 
 
 def clump_ratio(preset: str) -> float:
@@ -132,13 +133,13 @@ def image_figures(path: Path) -> dict:
     hue = _hue(near)
     green = (hue >= 60.0) & (hue <= 170.0)
     spread = np.percentile(hue[green], 95) - np.percentile(hue[green], 5)
-    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    lum = rgb @ LUMA
     horizon = int(np.argmax(np.abs(np.diff(lum.mean(axis=1))) > 0.02)) + 2
     rows = max(8, h // 10)
     band = rgb[horizon:horizon + rows]
     band = band[: band.shape[0] // 8 * 8, : band.shape[1] // 8 * 8]
     colours = band.reshape(band.shape[0] // 8, 8, band.shape[1] // 8, 8, 3).mean(axis=(1, 3))
-    tiles = colours @ np.array([0.2126, 0.7152, 0.0722])
+    tiles = colours @ LUMA
     # across each row of tiles (the band darkens towards the camera: that is not the field's variety)
     across = float(np.mean(tiles.std(axis=1) / tiles.mean(axis=1)))
     hues = _hue(colours.reshape(-1, 3)).reshape(tiles.shape)

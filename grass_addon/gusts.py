@@ -42,24 +42,59 @@ def pattern(seed: int) -> np.ndarray:
     return np.clip(0.5 + field / 4.0, 0.0, 1.0).astype(np.float32)  # +-2 sigma -> 0 .. 1
 
 
-def sample(tile: np.ndarray, xy: np.ndarray, metres: float) -> np.ndarray:
-    """(m,) float32: the pattern at points ``xy`` (m, 2), the tile spanning ``metres``: bilinear
-    between pixel centres, wrapping (Blender's Linear interpolation, Repeat extension). (Run every
-    frame on the window's cells: the four neighbours are read from a copy of the tile with its
-    first row and column repeated after its last, by flat index.)"""
+def sample(tile: np.ndarray, xy: np.ndarray, metres: float, offset=(0.0, 0.0)) -> np.ndarray:
+    """(m,) float32: the pattern at points ``xy - offset`` (m, 2), the tile spanning ``metres``:
+    bilinear between pixel centres, wrapping (Blender's Linear interpolation, Repeat extension).
+    ``sample_twin`` is the same, written plainly. (Run every frame on the window's cells: each
+    axis apart in contiguous arrays; the four neighbours read from a copy of the tile with its
+    first row and column repeated after its last, by flat index; a power-of-two tile wraps by a
+    bit mask.)"""
     n = tile.shape[0]
     wrapped = np.empty((n + 1, n + 1), np.float32)
     wrapped[:n, :n] = tile
     wrapped[n, :n] = tile[0]
     wrapped[:, n] = wrapped[:, 0]
     flat = wrapped.ravel()
+    xy = np.asarray(xy, np.float64)
+    scale = n / metres
+
+    def axis(k: int) -> tuple[np.ndarray, np.ndarray]:  # (pixel index wrapped, fraction) along axis k
+        p = xy[:, k] - float(offset[k])
+        p *= scale
+        p -= 0.5
+        corner = np.floor(p)
+        p -= corner
+        i = corner.astype(np.int64)
+        if n & (n - 1) == 0:
+            i &= n - 1
+        else:
+            i %= n
+        return i, p.astype(np.float32)
+
+    ix, fx = axis(0)
+    at, fy = axis(1)
+    at *= n + 1
+    at += ix  # (x0, y0); x0 + 1 is at + 1, y0 + 1 is at + n + 1
+    low = flat.take(at)
+    low += (flat.take(at + 1) - low) * fx
+    high = flat.take(at + n + 1)
+    high += (flat.take(at + n + 2) - high) * fx
+    high -= low
+    high *= fy
+    high += low
+    return high
+
+
+def sample_twin(tile: np.ndarray, xy: np.ndarray, metres: float) -> np.ndarray:
+    """``sample``, plainly: the four pixels around each point on the wrapped tile, weighted."""
+    n = tile.shape[0]
     p = np.asarray(xy, np.float64) * (n / metres) - 0.5
     corner = np.floor(p)
     f = (p - corner).astype(np.float32)
     i = corner.astype(np.int64) % n
-    at = i[:, 1] * (n + 1) + i[:, 0]  # (x0, y0); x0 + 1 is at + 1, y0 + 1 is at + n + 1
+    j = (i + 1) % n
     fx, fy = f[:, 0], f[:, 1]
-    x00, x10 = flat.take(at), flat.take(at + 1)
-    x01, x11 = flat.take(at + n + 1), flat.take(at + n + 2)
+    x00, x10 = tile[i[:, 1], i[:, 0]], tile[i[:, 1], j[:, 0]]
+    x01, x11 = tile[j[:, 1], i[:, 0]], tile[j[:, 1], j[:, 0]]
     low = x00 + (x10 - x00) * fx
     return low + (x01 + (x11 - x01) * fx - low) * fy

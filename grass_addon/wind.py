@@ -396,7 +396,7 @@ class WindField:
         mean = self._mean_vector(t).astype(np.float32)
         out += mean  # uniform over the field (eq 12)
         if self.gust_tile is not None:  # the gust waves scale it by gust_waves (2 g - 1) where they pass (gusts.py)
-            g = gusts.sample(self.gust_tile, xy - self.displacement(t)[None, :], self.gust_metres)
+            g = gusts.sample(self.gust_tile, xy, self.gust_metres, self.displacement(t))
             g *= np.float32(2.0 * self.gust_waves)
             g -= np.float32(self.gust_waves)
             out += g[:, None] * mean

@@ -356,5 +356,12 @@ def test_gust_waves_travel_downwind_at_the_mean_wind_and_scale_it():
     m = gusts.tile_metres(params)
     inside, beyond = np.array([[0.001, 5.0]]), np.array([[m + 0.001, 5.0]])
     assert np.allclose(gusts.sample(tile, inside, m), gusts.sample(tile, beyond, m))
+    # the fast sample is its plain twin's (the four pixels around a point, weighted), bit for bit,
+    # its offset the same as subtracting it, at points on both sides of the tile's edges
+    far = rng.uniform(-3.0 * m, 3.0 * m, (2000, 2))
+    offset = np.array([0.37 * m, -1.9 * m])
+    assert np.array_equal(gusts.sample(tile, far, m, offset), gusts.sample_twin(tile, far - offset, m))
+    odd = tile[:60, :60]  # (a tile whose side is no power of two wraps by the remainder)
+    assert np.array_equal(gusts.sample(odd, far, m), gusts.sample_twin(odd, far, m))
     plain = WindField(layout, params.replace({"wind.gust_waves": 0.0}))
     assert np.allclose(np.hypot(*plain.sample(t, xy).T), 6.0)

@@ -42,8 +42,7 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     image = np.empty((size, variants * size, 4), np.float32)
-    for k in range(variants):
-        cell = k % block.cell_center.shape[0]
+    for k, cell in enumerate(atlas_cells(params, variants)):
         blades = list(range(cell * num, (cell + 1) * num))
         target = _blade_share(params, block, cell, blades)
         widen = 1.0
@@ -56,6 +55,51 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
         image[:, k * size:(k + 1) * size, :3] = rgb
         image[:, k * size:(k + 1) * size, 3] = alpha
     return image
+
+
+def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
+    """(variants,) the cells of the sample (``sward.sample_blades``) whose blades the atlas draws:
+    chosen one by one so that together they hold the field's mix, each species, its flowers and
+    its seed heads as many times as the whole sample holds them per cell (times the cells drawn so
+    far), and its blades' mean height. A card shows a few blades, and the atlas a few dozen: the
+    first cells of the sample held one flower of one species in 24 blades where the field has 9 %
+    flowers of two, so the cards' band lost the field's flowers (issue #34). Each flower the
+    atlas should hold half a time or more is there: the first cells drawn hold one of each such
+    species' (the nearest count alone gave Add Grass Field's cards two daisies and no buttercup,
+    where its 16 blades should hold 1.7 and 0.65). Ties go to the earlier cell, so the choice is
+    a pure function of the sample."""
+    block = sample_blades(params)
+    num = int(params.field.blades_per_cell)
+    cells = block.cell_center.shape[0]
+    kinds = int(block.blade_species.max()) + 1
+    species = block.blade_species.astype(np.int64)
+    headed = (block.blade_head > 0.0) | (block.blade_flower > 0.0)
+    # per blade: its species, its species' head or flower (weighed as what the eye finds first in
+    # a meadow), its length over the sample's mean
+    feature = np.zeros((species.size, 2 * kinds + 1))
+    feature[np.arange(species.size), species] = 1.0
+    feature[np.arange(species.size), kinds + species] = 2.0 * headed
+    feature[:, -1] = block.blade_length / max(float(block.blade_length.mean()), 1e-9)
+    per_cell = feature.reshape(cells, num, -1).sum(axis=1)
+    target = per_cell.mean(axis=0)
+    flowers = np.zeros((species.size, kinds))
+    flowers[np.arange(species.size), species] = block.blade_flower > 0.0
+    flowers = flowers.reshape(cells, num, kinds).sum(axis=1)  # (cells, kinds) flowers of each species
+    expected = flowers.mean(axis=0) * variants
+    first = [int(k) for k in np.argsort(-expected, kind="stable") if expected[k] >= 0.5]
+    chosen: list[int] = []
+    total = np.zeros_like(target)
+    for k in range(variants):
+        miss = ((total[None, :] + per_cell - (k + 1) * target[None, :]) ** 2).sum(axis=1)
+        if chosen:
+            miss[chosen] = np.inf  # (a cell once: more variants than cells repeat below)
+        if k < len(first):
+            flowered = np.where(flowers[:, first[k]] > 0.0, miss, np.inf)  # a cell with that species' flower
+            miss = flowered if np.isfinite(flowered).any() else miss
+        cell = int(np.argmin(miss)) if len(chosen) < cells else chosen[k % cells]
+        chosen.append(cell)
+        total += per_cell[cell]
+    return np.array(chosen, dtype=np.int64)
 
 
 def _card_width(params: Params) -> float:
@@ -94,6 +138,7 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
     segs = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
         n, block.blade_length, block.blade_width, block.blade_flower)
+    strips = []
     for b in blades:
         facing = float(block.blade_facing[b])
         lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
@@ -102,10 +147,15 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
         along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
         up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
         root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
-        u = (root + along) / card_w + 0.5  # 0 .. 1 across the card
+        strips.append((b, (root + along) / card_w + 0.5, up))  # u: 0 .. 1 across the card
+    # The card is periodic across (``_draw_strip``), so where its blades stand along it is free:
+    # its largest head or flower is put in the middle, not split over the two edges.
+    heads = [float(max(block.blade_head[b], block.blade_flower[b])) for b, _, _ in strips]
+    shift = 0.5 - strips[int(np.argmax(heads))][1][-1] if heads and max(heads) > 0.0 else 0.0
+    for b, u, up in strips:
         half = 0.5 * widen * float(block.blade_width[b]) * widths[b] / card_w
         colour = colour_ramp(ends[b], v_ends) * (0.7 + 0.6 * float(block.blade_shade[b]))  # (n, 2, 3)
-        _draw_strip(rgb, alpha, ys, u, up / height, half, colour)
+        _draw_strip(rgb, alpha, ys, u + shift, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
     # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of
@@ -138,7 +188,10 @@ def _draw_strip(rgb, alpha, ys, u, v, half, colour) -> None:
     width = half[j] + (half[j + 1] - half[j]) * t
     col = colour[j, 0] + (colour[j, 1] - colour[j, 0]) * t[:, None]
     xs = (np.arange(size) + 0.5) / size
-    cover = np.clip((width[:, None] - np.abs(xs[None, :] - centre[:, None])) * size + 0.5, 0.0, 1.0)
+    # across the card periodically: what leaves one edge comes in at the other (cards overlap their
+    # neighbours), so a long droop or a root pulled into a tussock keeps its area, not widened
+    off = np.abs((xs[None, :] - centre[:, None] + 0.5) % 1.0 - 0.5)
+    cover = np.clip((width[:, None] - off) * size + 0.5, 0.0, 1.0)
     rgb[rows] = col[:, None, :] * cover[..., None] + rgb[rows] * (1.0 - cover[..., None])
     alpha[rows] = cover + alpha[rows] * (1.0 - cover)
 
@@ -150,8 +203,7 @@ def card_coverage(params: Params) -> tuple[float, float]:
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     area = cards = 0.0
-    for k in range(CARD_VARIANTS):
-        cell = k % block.cell_center.shape[0]
+    for cell in atlas_cells(params):
         card_area = _card_width(params) * float(block.card_height[cell])
         cards += card_area
         area += _blade_share(params, block, cell, range(cell * num, (cell + 1) * num)) * card_area

@@ -249,3 +249,34 @@ def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, drawn, tmp
     assert colour[1] / colour[0] >= max(1.1, 1.1 * thatch[1] / thatch[0], 0.95 * untouched[1] / untouched[0]), \
         (colour, untouched)
     assert colour[1] > colour[2]
+
+
+@pytest.mark.parametrize("blocks", [8, 16])
+def test_the_cards_carry_each_of_the_fields_flowers(runtime, blocks):
+    """The cards' image (the atlas Blender packs and the card material reads) shows every flower
+    of Add Grass Field's meadow, a buttercup's yellow and a daisy's white, on its field (8 x 8
+    blocks) and on one of 16 x 16: the cards stand for a few dozen of the field's blades, and
+    the first cells of the larger field's sample held daisies alone, so its card band lost the
+    buttercups (issue #34)."""
+    from windgrass.grass_addon import presets
+    from windgrass.grass_addon.bridge import owned
+
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    if item.field.blocks_x != blocks:
+        item.field.blocks_x = item.field.blocks_y = blocks  # as in the panel
+        _settle(runtime)
+    scene.frame_set(1)
+    image = owned.registered(item)[owned.ROLE_CARD_IMAGE]
+    w, h = image.size
+    pixels = np.array(image.pixels[:], np.float32).reshape(h, w, 4)
+    srgb = pixels[..., :3]
+    linear = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)[pixels[..., 3] > 0.5]
+    hue = linear / np.maximum(linear.max(axis=1, keepdims=True), 1e-6)  # colour over its brightest channel
+    for row in presets.species_rows("meadow"):
+        if row.get("head_shape") != "flower" or row.get("heads", 0.0) <= 0.0:
+            continue
+        target = np.asarray(row["head_color"]) / max(row["head_color"])
+        shown = int((np.abs(hue - target).max(axis=1) < 0.06).sum())
+        assert shown >= 20, (row["name"], shown)  # a flower is some hundreds of pixels

@@ -86,8 +86,7 @@ def test_cards_cover_what_their_blades_cover(params):
     card_w = float(params.lod.card_width) * float(params.field.cell_size)
     views = np.linspace(0.0, np.pi, 24, endpoint=False) + 0.013  # horizontal view azimuths
     blades_stop = cards_stop = 0.0
-    for k in range(atlas.CARD_VARIANTS):
-        cell = k % block.cell_center.shape[0]
+    for k, cell in enumerate(atlas.atlas_cells(params)):
         quads = _blade_quads(block, range(cell * num, (cell + 1) * num), n, float(params.blade.tip_width))
         for v in views:
             across = np.array([-np.sin(v), np.cos(v), 0.0])  # horizontal axis of the view's plane

@@ -20,8 +20,8 @@ Prints one JSON object: for every view, light and species preset (and height, st
 against all geometry), ``row_ratio_max`` (the largest relative difference of a grass row's mean
 green: a seam shows here) and ``mean_abs_diff`` (of the whole image), and for the fly-through
 ``flicker_lod`` and ``flicker_geometry`` (mean absolute change between consecutive frames) and
-their ratio. The strip's rows at its far edge (102 m away, against the sky) are left out: the
-square view holds the far edge. The images (PNG, display colours) and each case's row means
+their ratio. The strip's rows at its far edge (102 m away, against the sky or the world's floor
+beyond) are left out: the square view holds the far edge. The images (PNG, display colours) and each case's row means
 (``<case>_rows.npz``, linear RGB) are written to --out for a look. Exit status 2 on bad input.
 """
 
@@ -208,7 +208,13 @@ def compare_images(lod, geo, edge: bool = True) -> dict:
     grass = grass_rows(rows_geo)
     diff = np.abs(rows_lod - rows_geo).max(axis=1)
     if not edge:
-        diff = np.where(grass | (np.arange(len(grass)) > len(grass) // 2), diff, 0.0)
+        # the strip's camera aims at the foot of the field's far edge, so the rows below the
+        # middle are the field before it; the edge's fringe stands above the middle, against the
+        # sky or (from higher eyes) the world's floor beyond the field, which grass_rows takes
+        # for grass
+        below = np.arange(len(grass)) > len(grass) // 2
+        grass &= below
+        diff = np.where(below, diff, 0.0)
     ratio = np.abs(rows_lod[grass, 1] / np.maximum(rows_geo[grass, 1], 1e-6) - 1.0)
     return {"row_diff_max": round(float(diff.max()), 4),
             "row_ratio_max": round(float(ratio.max()), 3) if ratio.size else None,

@@ -513,6 +513,39 @@ def _over_field(params: Params, pixels: int, values) -> np.ndarray:
     return rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
 
 
+def grain_seen(params: Params, slopes) -> np.ndarray:
+    """(len(slopes),) the share of the tussocks' grain (``tussock_grain``'s contrast) that a pixel
+    of rays descending with each slope s shows. Such a ray crosses the sward from its top and is
+    stopped where tau(z) / s of blade lies above it (``sward_depth``, as ``sward_look``), or at the
+    floor: a steep ray within one tussock, a grazing one anywhere along metres of them (from 2.5 m
+    up at 30 m, along 2-3 m: five tussocks of 0.45 m). The pixel is the mean of the tussocks its
+    rays stop in, each by the chance p_i that they stop there, so the grain's contrast is
+    multiplied by sqrt(sum p_i^2) (tussocks as intervals of the clump size along the ray,
+    averaged over where they start); a texture lit tussock by tussock drew the far canopy in
+    streaks the geometry does not show (``dev.py lod --views strip``)."""
+    f = params.field
+    size = float(f.clump_size) if f.clumping > 0.0 else float(f.cell_size)
+    heights, depth = sward_profile(params)
+    top = float(heights[-1])
+    out = np.ones(len(np.atleast_1d(slopes)))
+    if top <= 0.0:
+        return out
+    steps, phases = 2048, (np.arange(16) + 0.5) / 16.0
+    for k, s in enumerate(np.maximum(np.atleast_1d(np.asarray(slopes, dtype=np.float64)), GRAIN_SLOPE_MIN)):
+        run = top / s  # horizontal length of the ray over the sward, top to floor
+        x = np.linspace(0.0, run, steps + 1)
+        alive = np.exp(-np.interp(top - s * x, heights, depth) / s)
+        stop = np.append(-np.diff(alive), alive[-1])  # the chance of each step, the floor's last
+        at = np.append(0.5 * (x[:-1] + x[1:]), run) / size
+        tussock = np.floor(at[None, :] + phases[:, None]).astype(np.int64)  # (phase, step)
+        bins = int(tussock.max()) + 1
+        chances = np.bincount((tussock + bins * np.arange(len(phases))[:, None]).ravel(),
+                              weights=np.broadcast_to(stop, tussock.shape).ravel(), minlength=bins * len(phases))
+        out[k] = np.sqrt(float((chances ** 2).sum()) / len(phases))
+    return out
+
+
+GRAIN_SLOPE_MIN = 1e-3  # ``grain_seen`` takes rays less steep as this steep (their run is metres anyway)
 GRAIN_SIDE = 16  # ``tussock_grain`` lays out a square of this many tussocks a side
 GRAIN_PURPOSE = 41  # np.random.default_rng([seed, 41]) lays it out
 GRAIN_MAX = 0.5  # the grain's contrast is at most this (a bound on odd settings)
@@ -527,8 +560,9 @@ def tussock_grain(params: Params) -> tuple[float, float]:
     tussocks, each blade one of the sample's: the contrast is the spread (standard
     deviation over mean) of what the whole tussocks show: large and small, dense and sparse,
     flowering and green. Blender's Voronoi cells of this size, each brightened by a random value
-    of this spread, give the far canopy the streaks a meadow has at tens of metres; pixels average
-    them away further off, as they do the field's (``materials.canopy_material``)."""
+    of this spread times the share a ray's slope shows (``grain_seen``: a grazing ray runs through
+    several tussocks), give the far canopy a meadow's grain; pixels average it away further off,
+    as they do the field's (``materials.canopy_material``)."""
     f = params.field
     size = float(f.clump_size) if f.clumping > 0.0 else float(f.cell_size)
     block = sample_blades(params)

@@ -65,6 +65,7 @@ NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plan
 NODE_FLOOR = "wg_floor"  # the ground's two floor colours in noise (sward.floor_colours)
 NODE_TUSSOCKS = "wg_tussocks"
 NODE_TUSSOCK_SPREAD = "wg_tussock_spread"
+NODE_TUSSOCK_SEEN = "wg_tussock_seen"  # Float Curve: the share of the grain a ray's slope shows
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
 NODE_SWARD_DEPTH = "wg_sward_depth"  # Value: sward.sward_depth at the ground
@@ -108,7 +109,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 13
+MATERIALS_VERSION = 14
 
 
 def _socket(sockets, *names: str):
@@ -528,20 +529,25 @@ def _canopy_colour(t, coord, view, view_z, slope, trail_image):
     for axis in "XYZ":
         t.link(ramp, "Result", bright, axis)
     t.link(bright, "Vector", grass, "B_Color")
-    return _tussocked(t, coord, grass, -2300, 800)
+    return _tussocked(t, coord, grass, along, -2300, 800)
 
 
-def _tussocked(t: _Tree, coord, colour_node, x: float, y: float):
-    """The colour brightened tussock by tussock (NODE_TUSSOCKS, NODE_TUSSOCK_SPREAD): mean 1."""
+def _tussocked(t: _Tree, coord, colour_node, along, x: float, y: float):
+    """The colour brightened tussock by tussock (NODE_TUSSOCKS, NODE_TUSSOCK_SPREAD), by the share
+    of that grain a pixel at the ray's slope shows (NODE_TUSSOCK_SEEN over ``along``, the slope's
+    s / (s + LOOK_KNEE): ``sward.grain_seen``): mean 1."""
     cells = t.add("ShaderNodeTexVoronoi", x, y, name=NODE_TUSSOCKS)
     t.link(coord, "Object", cells, "Vector")
     spread = t.add("ShaderNodeValue", x, y - 250, name=NODE_TUSSOCK_SPREAD)
     spread.outputs[0].default_value = 0.0
+    seen = t.add("ShaderNodeFloatCurve", x, y - 450, name=NODE_TUSSOCK_SEEN)
+    t.link(along, "Value", seen, "Value")
     u = t.add("ShaderNodeSeparateXYZ", x + 200, y)
     t.link(cells, "Color", u, "Vector")
     swing = t.math("MULTIPLY_ADD", (u, "X"), 2.0, x + 350, y)
     swing.inputs[2].default_value = -1.0
-    amount = t.math("MULTIPLY", (spread, "Value"), 3.0 ** 0.5, x + 350, y - 250)
+    shown = t.math("MULTIPLY", (spread, "Value"), (seen, "Value"), x + 200, y - 300)
+    amount = t.math("MULTIPLY", (shown, "Value"), 3.0 ** 0.5, x + 350, y - 250)
     gain = t.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x + 500, y)
     gain.inputs[2].default_value = 1.0
     out = t.mix_rgb(x + 650, y, blend="MULTIPLY")
@@ -893,10 +899,8 @@ def update_materials(params, canopy=None) -> None:
         if depth is not None:
             depth.outputs[0].default_value = TRAIL_SINK * sward.canopy_height(params)
         look = canopy.node_tree.nodes.get(NODE_SWARD_LOOK)
+        along, slopes = _look_slopes()
         if look is not None:
-            along = np.linspace(0.0, 1.0, LOOK_POINTS)
-            slopes = LOOK_KNEE * along / np.maximum(1.0 - along, 1e-9)  # x = s / (s + LOOK_KNEE)
-            slopes[-1] = 1e6  # straight down
             colours = SWARD_LIGHT * sward.sward_look(params, slopes)
             for channel in range(3):
                 _set_curve(look.mapping.curves[channel], along, colours[:, channel])
@@ -908,7 +912,20 @@ def update_materials(params, canopy=None) -> None:
         if cells is not None and spread is not None:
             size, spread.outputs[0].default_value = sward.tussock_grain(params)
             _set(cells, 1.0 / size, "Scale")
+        seen = canopy.node_tree.nodes.get(NODE_TUSSOCK_SEEN)
+        if seen is not None:
+            _set_curve(seen.mapping.curves[0], along, sward.grain_seen(params, slopes))
+            seen.mapping.update()
         update_sward_profile(params, canopy)
+
+
+def _look_slopes() -> tuple[np.ndarray, np.ndarray]:
+    """(x, slopes s) of the canopy's curves over the ray's slope: x = s / (s + LOOK_KNEE) in
+    LOOK_POINTS steps, the last straight down."""
+    along = np.linspace(0.0, 1.0, LOOK_POINTS)
+    slopes = LOOK_KNEE * along / np.maximum(1.0 - along, 1e-9)
+    slopes[-1] = 1e6
+    return along, slopes
 
 
 def update_sward_profile(params, canopy) -> None:

@@ -99,10 +99,13 @@ VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slo
 TRAIL_FLOOR = 0.65
 TRAIL_WALL = 1.25
 TRAIL_SINK = 0.5  # share of the canopy's height a ray goes down into a trail before it meets its floor
-# A card is lit as one flat plane where the blades it shows face every way and curve: seen from
-# any slope it comes out 0.85-0.9 times as bright as those blades (all-geometry renders of long
-# strips, sun and overcast: headless/lod_compare.py --views strip), so its colour is raised.
-CARD_LIGHT = 1.15
+# A card is lit as one flat plane where the blades it shows face every way and curve: its colour
+# is scaled to come out as bright as those blades from any slope (all-geometry renders of long
+# strips, sun and overcast: headless/lod_compare.py --views strip). Fitted at 1.15 with strips
+# widened where blades drooped off the card; with blades wrapped round (atlas._draw_strip) the
+# paper's even field's cards came out 1.10 as bright from 1.1 m up. The default meadow's would
+# want 1.15 and more, the even field's 0.9-0.95 with the cells nearest its mean (issue #34).
+CARD_LIGHT = 1.1
 CARD_SPECULAR = 0.1  # the cards' specular level (blades: 0.35) and roughness (blades: 0.55)
 CARD_ROUGHNESS = 0.8
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)

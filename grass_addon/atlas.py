@@ -75,9 +75,10 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     species = block.blade_species.astype(np.int64)
     headed = (block.blade_head > 0.0) | (block.blade_flower > 0.0)
     # per blade: its species, its species' head or flower (weighed as what the eye finds first in
-    # a meadow). (Not its length: a field of one species without heads keeps the sample's first
-    # cells, those CARD_LIGHT was fitted to; the cells nearest its mean length came out 1.3 times
-    # as bright as its blades from 1.1 m, the default meadow's 1.0-1.15.)
+    # a meadow). (Not its length: the cells nearest the mean length of the paper's even field
+    # made its cards 1.3 times as bright as its blades from 1.1 m, and a field of one species
+    # without heads now keeps the sample's first cells. Which few cells are drawn moves the card
+    # band's brightness by 10-20 %: materials.CARD_LIGHT, issue #34.)
     feature = np.zeros((species.size, 2 * kinds))
     feature[np.arange(species.size), species] = 1.0
     feature[np.arange(species.size), kinds + species] = 2.0 * headed

@@ -102,10 +102,11 @@ TRAIL_SINK = 0.5  # share of the canopy's height a ray goes down into a trail be
 # A card is lit as one flat plane where the blades it shows face every way and curve: its colour
 # is scaled to come out as bright as those blades from any slope (all-geometry renders of long
 # strips, sun and overcast: headless/lod_compare.py --views strip). Fitted at 1.15 with strips
-# widened where blades drooped off the card; with blades wrapped round (atlas._draw_strip) the
-# paper's even field's cards came out 1.10 as bright from 1.1 m up. The default meadow's would
-# want 1.15 and more, the even field's 0.9-0.95 with the cells nearest its mean (issue #34).
-CARD_LIGHT = 1.1
+# widened where blades drooped off the card; with blades wrapped round (atlas._draw_strip) and
+# cells chosen for the field's mix (atlas.atlas_cells) 1.0: the default meadow's cards 0.94-1.13
+# of its blades' green from 1.1 m (the fade into the far canopy up to 1.2 from 2.5 m, open;
+# docs/performance.md), the paper's even field's within its seam bound (test_lod_fidelity).
+CARD_LIGHT = 1.0
 CARD_SPECULAR = 0.1  # the cards' specular level (blades: 0.35) and roughness (blades: 0.55)
 CARD_ROUGHNESS = 0.8
 TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF)

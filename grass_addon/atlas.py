@@ -26,8 +26,8 @@ CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many 
 def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
     """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
     row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of
-    the blades of cell k of the sample (``sward.sample_blades``: block 0's cells first), at their
-    rest shape, in their own colours.
+    the blades of the k-th cell ``atlas_cells`` picks from the sample (``sward.sample_blades``),
+    at their rest shape, in their own colours.
 
     A card is ``lod.card_width`` cells wide and stands for its cell's blades, so the atlas holds
     exactly those: their colour ramp (the blade material's, with each blade's shade), shape and
@@ -36,9 +36,11 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     |cos| of its droop) and the card |cos(v - card normal)| of its area; averaged over the
     directions all are 2/pi, so the card's coverage must be the blades' whole area over the card's
     (``card_coverage``). Sizes projected onto the card would count that foreshortening twice (the
-    cards 1.57 times too sparse); what a long droop carries past the card's edge is given back by
-    widening that variant's strips until its coverage is the blades' area. The variant's height
-    spans its card's height (``card_height``)."""
+    cards 1.57 times too sparse). A card is periodic across (``_draw_strip``): what a long droop
+    or a root pulled into a tussock carries past one edge comes in at the other, and the
+    variant's strips are widened only to make up where blades overlap (1.04-1.42 times in the
+    default scene; widened 4 times for droops they were straw-coloured verticals). The variant's
+    height spans its card's height (``card_height``)."""
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     image = np.empty((size, variants * size, 4), np.float32)
@@ -61,13 +63,13 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     """(variants,) the cells of the sample (``sward.sample_blades``) whose blades the atlas draws:
     chosen one by one so that together they hold the field's mix, each species, its flowers and
     its seed heads as many times as the whole sample holds them per cell (times the cells drawn so
-    far). A card shows a few blades, and the atlas a few dozen: the
-    first cells of the sample held one flower of one species in 24 blades where the field has 9 %
-    flowers of two, so the cards' band lost the field's flowers (issue #34). Each flower the
-    atlas should hold half a time or more is there: the first cells drawn hold one of each such
-    species' (the nearest count alone gave Add Grass Field's cards two daisies and no buttercup,
-    where its 16 blades should hold 1.7 and 0.65). Ties go to the earlier cell, so the choice is
-    a pure function of the sample."""
+    far). A card shows a few blades, and the atlas a few dozen: the first cells of the sample
+    held one flower of one species in 24 blades where the field has 9 % flowers of two, so the
+    cards' band lost the field's flowers (issue #34). Each flower the atlas should hold half a
+    time or more is there: the first cells drawn hold one of each such species' (the nearest
+    count alone gave Add Grass Field's cards two daisies and no buttercup, where its 16 blades
+    should hold 1.7 and 0.65). Ties go to the earlier cell, so the choice is a pure function of
+    the sample."""
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     cells = block.cell_center.shape[0]

@@ -21,8 +21,9 @@ against all geometry), ``row_ratio_max`` (the largest relative difference of a g
 green: a seam shows here) and ``mean_abs_diff`` (of the whole image), and for the fly-through
 ``flicker_lod`` and ``flicker_geometry`` (mean absolute change between consecutive frames) and
 their ratio. The strip's rows at its far edge (102 m away, against the sky or the world's floor
-beyond) are left out: the square view holds the far edge. The images (PNG, display colours) and each case's row means
-(``<case>_rows.npz``, linear RGB) are written to --out for a look. Exit status 2 on bad input.
+beyond) are left out: the square view holds the far edge. The images (PNG, display colours) and
+each case's row means (``<case>_rows.npz``, linear RGB) are written to --out for a look. Exit
+status 2 on bad input.
 """
 
 from __future__ import annotations

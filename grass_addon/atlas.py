@@ -73,28 +73,26 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     cells = block.cell_center.shape[0]
-    kinds = int(block.blade_species.max()) + 1
-    species = block.blade_species.astype(np.int64)
-    headed = (block.blade_head > 0.0) | (block.blade_flower > 0.0)
+    kind = np.eye(int(block.blade_species.max()) + 1)[block.blade_species]  # (blades, species) one-hot
+    headed = ((block.blade_head > 0.0) | (block.blade_flower > 0.0))[:, None]
+
+    def per_cell(values: np.ndarray) -> np.ndarray:
+        return values.reshape(cells, num, -1).sum(axis=1)
+
     # per blade: its species, its species' head or flower (weighed as what the eye finds first in
     # a meadow). (Not its length: the cells nearest the mean length of the paper's even field
     # made its cards 1.3 times as bright as its blades from 1.1 m, and a field of one species
     # without heads now keeps the sample's first cells. Which few cells are drawn moves the card
     # band's brightness by 10-20 %: materials.CARD_LIGHT, issue #34.)
-    feature = np.zeros((species.size, 2 * kinds))
-    feature[np.arange(species.size), species] = 1.0
-    feature[np.arange(species.size), kinds + species] = 2.0 * headed
-    per_cell = feature.reshape(cells, num, -1).sum(axis=1)
-    target = per_cell.mean(axis=0)
-    flowers = np.zeros((species.size, kinds))
-    flowers[np.arange(species.size), species] = block.blade_flower > 0.0
-    flowers = flowers.reshape(cells, num, kinds).sum(axis=1)  # (cells, kinds) flowers of each species
+    counts = per_cell(np.concatenate([kind, 2.0 * headed * kind], axis=1))
+    target = counts.mean(axis=0)
+    flowers = per_cell(kind * (block.blade_flower > 0.0)[:, None])  # (cells, species) flowers of each
     expected = flowers.mean(axis=0) * variants
     first = [int(k) for k in np.argsort(-expected, kind="stable") if expected[k] >= 0.5]
     chosen: list[int] = []
     total = np.zeros_like(target)
     for k in range(variants):
-        miss = ((total[None, :] + per_cell - (k + 1) * target[None, :]) ** 2).sum(axis=1)
+        miss = ((total[None, :] + counts - (k + 1) * target[None, :]) ** 2).sum(axis=1)
         if chosen:
             miss[chosen] = np.inf  # (a cell once: more variants than cells repeat below)
         if k < len(first):
@@ -102,7 +100,7 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
             miss = flowered if np.isfinite(flowered).any() else miss
         cell = int(np.argmin(miss)) if len(chosen) < cells else chosen[k % cells]
         chosen.append(cell)
-        total += per_cell[cell]
+        total += counts[cell]
     return np.array(chosen, dtype=np.int64)
 
 

@@ -527,11 +527,12 @@ def grain_seen(params: Params, slopes) -> np.ndarray:
     size = float(f.clump_size) if f.clumping > 0.0 else float(f.cell_size)
     heights, depth = sward_profile(params)
     top = float(heights[-1])
-    out = np.ones(len(np.atleast_1d(slopes)))
+    slopes = np.maximum(np.atleast_1d(np.asarray(slopes, dtype=np.float64)), GRAIN_SLOPE_MIN)
+    out = np.ones(len(slopes))
     if top <= 0.0:
         return out
     steps, phases = 2048, (np.arange(16) + 0.5) / 16.0
-    for k, s in enumerate(np.maximum(np.atleast_1d(np.asarray(slopes, dtype=np.float64)), GRAIN_SLOPE_MIN)):
+    for k, s in enumerate(slopes):
         run = top / s  # horizontal length of the ray over the sward, top to floor
         x = np.linspace(0.0, run, steps + 1)
         alive = np.exp(-np.interp(top - s * x, heights, depth) / s)

@@ -103,6 +103,17 @@ def test_the_lod_holds_from_low_and_high_eyes_for_each_species(strips, case):
     assert np.all(lod[:, 1] > lod[:, 0]) and np.all(lod[:, 1] > lod[:, 2])  # green like the grass
     if "_even_" in case:
         assert figures["row_ratio_max"] <= SEAM_GOAL, json.dumps(figures)
+    # the pixels compared (``field_pixels``: whole rows to about 40 m) show the field, none the
+    # world's floor beside it, which Blender draws in one flat colour where no grass stands
+    geo, field = rows["geometry_image"], rows["field"]
+    counted = grass & (np.arange(len(grass)) > len(grass) // 2)  # (compare_images: the rows before the far edge)
+    assert field[counted].sum(axis=1).min() >= geo.shape[1] // 6
+    assert field[np.flatnonzero(counted)[-1]].all()  # the nearest row whole, more than its middle sixth
+    beside = [r for r in np.flatnonzero(counted) if not field[r, 0] and np.abs(geo[r, 0] - geo[r, 1]).max() < 1e-3]
+    for r in beside:  # rows whose left edge shows the flat floor
+        assert np.abs(geo[r][field[r]] - geo[r, 0]).max(axis=1).min() > 1e-3, r
+    if case.startswith("strip6m"):
+        assert beside  # from 6 m the floor shows beside the far rows
 
 
 @SQUARE

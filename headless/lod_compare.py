@@ -211,11 +211,14 @@ def field_pixels(params, shape, margin: float = 1.0):
     return inside
 
 
-def field_rows(image, mask):
+def field_rows(image, mask=None):
     """(H, 3) each row's mean over its pixels in ``mask`` (``field_pixels``), or over the middle
-    sixth (``middle_columns``, on the field to its far edge) where the mask holds fewer."""
+    sixth (``middle_columns``, on the field to its far edge) where the mask holds fewer; over
+    the whole row without a mask (the square view)."""
     import numpy as np
 
+    if mask is None:
+        return image.mean(axis=1)
     middle = np.zeros(mask.shape[1], dtype=bool)
     middle[middle_columns(image)] = True
     use = np.where(mask.sum(axis=1, keepdims=True) >= middle.sum(), mask, middle[None, :])
@@ -250,10 +253,7 @@ def compare_images(lod, geo, edge: bool = True, mask=None) -> dict:
     ``mask``: the pixels on the field (``field_pixels``, the strip view), else whole rows."""
     import numpy as np
 
-    if mask is None:
-        rows_lod, rows_geo = lod.mean(axis=1), geo.mean(axis=1)
-    else:
-        rows_lod, rows_geo = field_rows(lod, mask), field_rows(geo, mask)
+    rows_lod, rows_geo = field_rows(lod, mask), field_rows(geo, mask)
     grass = grass_rows(rows_geo)
     diff = np.abs(rows_lod - rows_geo).max(axis=1)
     if not edge:
@@ -289,9 +289,9 @@ def compare(args) -> dict:
                 mask = field_pixels(params, lod.shape[:2]) if view == "strip" else None
                 result["cases"][tag] = case = compare_images(lod, geo, edge=view == "square", mask=mask)
                 case["seconds"] = round(time.perf_counter() - t0, 1)
-                rows = [image.mean(axis=1) if mask is None else field_rows(image, mask) for image in (lod, geo)]
-                np.savez(args.out / f"{tag}_rows.npz", lod=rows[0], geometry=rows[1], lod_image=lod,
-                         geometry_image=geo, field=np.ones(lod.shape[:2], bool) if mask is None else mask)
+                np.savez(args.out / f"{tag}_rows.npz", lod=field_rows(lod, mask), geometry=field_rows(geo, mask),
+                         lod_image=lod, geometry_image=geo,
+                         field=np.ones(lod.shape[:2], bool) if mask is None else mask)
                 print(f"{tag}: {case}", file=sys.stderr, flush=True)
     if args.flythrough_frames > 1:
         params = scene_params(args, args.presets[0], fixed=False)

@@ -21,6 +21,11 @@ RNG_CARD_VARIANTS = 8
 
 CARD_VARIANTS = 8  # variants of the atlas; each cell of a block shows one (card_variants)
 CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many pixels
+ATLAS_BANDS = 8  # atlas_cells matches the field's paint in this many bands of a card's height
+BAND_COUNTS = 0.3  # ... and its counts (species, heads) with this weight against each band's
+OVERLAP_MAX = 1.2  # ... among cells whose blades overlap on the card no more (``_typical``)
+OVERLAP_TRIES = 32  # ... tried in order of their miss
+OVERLAP_PIXELS = 64  # ... drawn this large to tell
 
 
 def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
@@ -42,34 +47,41 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     default scene; widened 4 times for droops they were straw-coloured verticals). The variant's
     height spans its card's height (``card_height``)."""
     block = sample_blades(params)
-    num = int(params.field.blades_per_cell)
     image = np.empty((size, variants * size, 4), np.float32)
     for k, cell in enumerate(atlas_cells(params, variants)):
-        blades = list(range(cell * num, (cell + 1) * num))
-        target = _blade_share(params, block, cell, blades)
-        widen = 1.0
-        for _ in range(3):  # coverage is about linear in the width: converges in a step or two
-            rgb, alpha = _draw_variant(params, block, cell, blades, size, widen)
-            covered = float(alpha.mean())
-            if covered <= 0.0 or abs(covered - target) <= 0.02 * target:
-                break
-            widen = min(4.0, widen * target / covered)
+        rgb, alpha = draw_card(params, block, int(cell), size)
         image[:, k * size:(k + 1) * size, :3] = rgb
         image[:, k * size:(k + 1) * size, 3] = alpha
     return image
+
+
+def draw_card(params: Params, block, cell: int, size: int = CARD_PIXELS) -> tuple[np.ndarray, np.ndarray]:
+    """(rgb (size, size, 3), alpha (size, size)) the card of ``block``'s cell ``cell`` as the atlas
+    draws it: its blades, their strips widened until the card covers their whole area."""
+    num = int(params.field.blades_per_cell)
+    blades = list(range(cell * num, (cell + 1) * num))
+    target = _blade_share(params, block, cell, blades)
+    widen = 1.0
+    for _ in range(3):  # coverage is about linear in the width: converges in a step or two
+        rgb, alpha = _draw_variant(params, block, cell, blades, size, widen)
+        covered = float(alpha.mean())
+        if covered <= 0.0 or abs(covered - target) <= 0.02 * target:
+            break
+        widen = min(4.0, widen * target / covered)
+    return rgb, alpha
 
 
 def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     """(variants,) the cells of the sample (``sward.sample_blades``) whose blades the atlas draws:
     chosen one by one so that together they hold the field's mix, each species, its flowers and
     its seed heads as many times as the whole sample holds them per cell (times the cells drawn so
-    far). A card shows a few blades, and the atlas a few dozen: the first cells of the sample
-    held one flower of one species in 24 blades where the field has 9 % flowers of two, so the
-    cards' band lost the field's flowers (issue #34). Each flower the atlas should hold half a
-    time or more is there: the first cells drawn hold one of each such species' (the nearest
-    count alone gave Add Grass Field's cards two daisies and no buttercup, where its 16 blades
-    should hold 1.7 and 0.65). Ties go to the earlier cell, so the choice is a pure function of
-    the sample."""
+    far), and its paint at every height of a card (``band_paint``). A card shows a few blades, and
+    the atlas a few dozen: the first cells of the sample held one flower of one species in 24
+    blades where the field has 9 % flowers of two, so the cards' band lost the field's flowers
+    (issue #34). Each flower the atlas should hold half a time or more is there: the first cells
+    drawn hold one of each such species' (the nearest count alone gave Add Grass Field's cards two
+    daisies and no buttercup, where its 16 blades should hold 1.7 and 0.65). Ties go to the
+    earlier cell, so the choice is a pure function of the sample."""
     block = sample_blades(params)
     num = int(params.field.blades_per_cell)
     cells = block.cell_center.shape[0]
@@ -82,26 +94,89 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     # per blade: its species, its species' head or flower (weighed as what the eye finds first in
     # a meadow). (Not its length: the cells nearest the mean length of the paper's even field
     # made its cards 1.3 times as bright as its blades from 1.1 m, and a field of one species
-    # without heads now keeps the sample's first cells. Which few cells are drawn moves the card
-    # band's brightness by 10-20 %: materials.CARD_LIGHT, issue #34.)
+    # without heads now keeps the sample's first cells.)
     counts = per_cell(np.concatenate([kind, 2.0 * headed * kind], axis=1))
-    target = counts.mean(axis=0)
+    # and each band of its card's height, as a grazing ray crosses it: chosen by the counts alone,
+    # the atlas's bands held 0.4-2 times the field's paint (the top ones most: which stems carry
+    # the few flowers), and the card band's rows came out 0.85-1.35 times the blades' from 1.1 m
+    # from one seed of the default scene to the next
+    paint, area = band_paint(params, block)
+    scale = np.concatenate([paint.reshape(cells, -1), area], axis=1)
+    features = np.concatenate([BAND_COUNTS * counts, scale / np.maximum(scale.mean(axis=0), 1e-12)], axis=1)
+    target = features.mean(axis=0)
     flowers = per_cell(kind * (block.blade_flower > 0.0)[:, None])  # (cells, species) flowers of each
     expected = flowers.mean(axis=0) * variants
     first = [int(k) for k in np.argsort(-expected, kind="stable") if expected[k] >= 0.5]
     chosen: list[int] = []
     total = np.zeros_like(target)
     for k in range(variants):
-        miss = ((total[None, :] + counts - (k + 1) * target[None, :]) ** 2).sum(axis=1)
+        miss = ((total[None, :] + features - (k + 1) * target[None, :]) ** 2).sum(axis=1)
         if chosen:
             miss[chosen] = np.inf  # (a cell once: more variants than cells repeat below)
         if k < len(first):
             flowered = np.where(flowers[:, first[k]] > 0.0, miss, np.inf)  # a cell with that species' flower
             miss = flowered if np.isfinite(flowered).any() else miss
-        cell = int(np.argmin(miss)) if len(chosen) < cells else chosen[k % cells]
+        cell = _typical(params, block, miss) if len(chosen) < cells else chosen[k % cells]
         chosen.append(cell)
-        total += counts[cell]
+        total += features[cell]
     return np.array(chosen, dtype=np.int64)
+
+
+def _typical(params: Params, block, miss: np.ndarray) -> int:
+    """The cell of least ``miss`` whose blades overlap one another on its card no more than
+    OVERLAP_MAX times (their area over what they cover, drawn unwidened): a card stops what its
+    blades stop from any side, and a cell whose strips lie over one another (a tussock's, a
+    flower's head over a neighbour) stops from every side as little as on its card, where the
+    atlas widens them to their whole area (up to 1.6 times what they stop; the field's cells
+    1.06 on average). The least ``miss`` when every candidate overlaps more."""
+    num = int(params.field.blades_per_cell)
+    order = np.argsort(miss, kind="stable")
+    for cell in order[:OVERLAP_TRIES]:
+        if not np.isfinite(miss[cell]):
+            break
+        blades = list(range(int(cell) * num, (int(cell) + 1) * num))
+        _, alpha = _draw_variant(params, block, int(cell), blades, OVERLAP_PIXELS, 1.0)
+        covered = float(alpha.mean())
+        if covered > 0.0 and _blade_share(params, block, int(cell), blades) <= OVERLAP_MAX * covered:
+            return int(cell)
+    return int(order[0])
+
+
+def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndarray, np.ndarray]:
+    """((cells, bands, 3), (cells, bands)) for each cell of ``block``: its blades' paint (linear
+    RGB times area) and area in each of ``bands`` equal bands of its card's height, over the
+    card's area, as ``_draw_variant`` draws them at rest (each row of a segment as wide as the
+    strip there, in its colour between the joints; the middle of the band's part of a segment
+    stands for it) before they overlap."""
+    n, num = int(params.blade.segments), int(params.field.blades_per_cell)
+    cells = block.cell_center.shape[0]
+    if num == 0 or cells == 0:
+        return np.zeros((cells, bands, 3)), np.zeros((cells, bands))
+    kind = block.blade_species
+    species = Species(params)
+    widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower) * \
+        block.blade_width.astype(np.float64)[:, None] / _card_width(params)  # (B, n + 1) in card widths
+    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
+                                  block.blade_head, block.blade_flower)
+    ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # (B, n, 2, 3)
+    v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n
+    shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
+    colour = colour_ramp(ends, np.broadcast_to(v_ends, ends.shape[:-1])) * shade[:, None, None, None]
+    seg = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
+        n, block.blade_length, block.blade_width, block.blade_flower)
+    rise = np.cumsum(seg * np.cos(block.blade_rest_tilt.astype(np.float64)), axis=1)
+    height = np.repeat(np.maximum(block.card_height.astype(np.float64), 1e-9), num)
+    v = np.concatenate([np.zeros((len(seg), 1)), rise], axis=1) / height[:, None]  # joints' v on the card
+    v0, v1 = v[:, :-1, None], v[:, 1:, None]
+    edges = np.linspace(0.0, 1.0, bands + 1)
+    low = np.maximum(np.minimum(v0, v1), edges[:-1])  # (B, n, bands): the band's part of each segment
+    high = np.minimum(np.maximum(v0, v1), edges[1:])
+    dv = np.clip(high - low, 0.0, None)
+    t = np.clip((0.5 * (low + high) - v0) / np.where(v1 == v0, 1e-9, v1 - v0), 0.0, 1.0)
+    area = (widths[:, :-1, None] + (widths[:, 1:] - widths[:, :-1])[..., None] * t) * dv
+    tint = colour[:, :, None, 0] + (colour[:, :, None, 1] - colour[:, :, None, 0]) * t[..., None]
+    paint = (area[..., None] * tint).sum(axis=1).reshape(cells, num, bands, 3).sum(axis=1)
+    return paint, area.sum(axis=1).reshape(cells, num, bands).sum(axis=1)
 
 
 def _card_width(params: Params) -> float:
@@ -112,13 +187,13 @@ def _card_width(params: Params) -> float:
 def _blade_share(params: Params, block, cell: int, blades) -> float:
     """Whole area of the cell's blades (tapered strips with their heads, face on) over its card's area."""
     card_w = _card_width(params)
-    widths = meadow.joint_widths(params.blade.tip_width, int(params.blade.segments), block.blade_head,
-                                 block.blade_flower)
-    shares = meadow.segment_shares(int(params.blade.segments), block.blade_length, block.blade_width,
-                                   block.blade_flower)
+    blades = np.asarray(list(blades), dtype=np.int64)
+    n, head, flower = int(params.blade.segments), block.blade_head[blades], block.blade_flower[blades]
+    length, width = block.blade_length[blades].astype(np.float64), block.blade_width[blades].astype(np.float64)
+    widths = meadow.joint_widths(params.blade.tip_width, n, head, flower)
+    shares = meadow.segment_shares(n, length, width, flower)
     taper = (0.5 * (widths[:, :-1] + widths[:, 1:]) * shares).sum(axis=1)  # the strip's mean width (with heads)
-    area = sum(taper[b] * float(block.blade_width[b]) * float(block.blade_length[b]) for b in blades)
-    return area / (card_w * float(block.card_height[cell]))
+    return float((taper * width * length).sum()) / (card_w * float(block.card_height[cell]))
 
 
 def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
@@ -132,31 +207,34 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     height = float(block.card_height[cell])
     axis = float(block.card_facing[cell])
     a = np.array([np.cos(axis), np.sin(axis)])
-    widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower)
-    kind = block.blade_species
-    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
-                                  block.blade_head, block.blade_flower)  # (B, n + 1, 3), heads and dry tips
-    ends = meadow.segment_colours(joints, block.blade_flower)  # (B, n, bottom/top, 3): a flower's head wholly
+    blades = np.asarray(blades, dtype=np.int64)  # (their parts alone: a block holds thousands)
+    head, flower = block.blade_head[blades], block.blade_flower[blades]
+    widths = meadow.joint_widths(params.blade.tip_width, n, head, flower)
+    kind = block.blade_species[blades]
+    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry[blades],
+                                  head, flower)  # (b, n + 1, 3), heads and dry tips
+    ends = meadow.segment_colours(joints, flower)  # (b, n, bottom/top, 3): a flower's head wholly
     v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
-    segs = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
-        n, block.blade_length, block.blade_width, block.blade_flower)
+    segs = block.blade_length[blades].astype(np.float64)[:, None] * meadow.segment_shares(
+        n, block.blade_length[blades], block.blade_width[blades], flower)
     strips = []
-    for b in blades:
+    for i, b in enumerate(blades):
         facing = float(block.blade_facing[b])
         lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
-        seg = segs[b]
+        seg = segs[i]
         tilt = block.blade_rest_tilt[b].astype(np.float64)
         along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
         up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
         root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
-        strips.append((b, (root + along) / card_w + 0.5, up))  # u: 0 .. 1 across the card
+        strips.append((i, (root + along) / card_w + 0.5, up))  # u: 0 .. 1 across the card
     # The card is periodic across (``_draw_strip``), so where its blades stand along it is free:
     # its largest head or flower is put in the middle, not split over the two edges.
-    heads = [float(max(block.blade_head[b], block.blade_flower[b])) for b, _, _ in strips]
+    heads = [float(max(head[i], flower[i])) for i, _, _ in strips]
     shift = 0.5 - strips[int(np.argmax(heads))][1][-1] if heads and max(heads) > 0.0 else 0.0
-    for b, u, up in strips:
-        half = 0.5 * widen * float(block.blade_width[b]) * widths[b] / card_w
-        colour = colour_ramp(ends[b], v_ends) * (0.7 + 0.6 * float(block.blade_shade[b]))  # (n, 2, 3)
+    for i, u, up in strips:
+        b = blades[i]
+        half = 0.5 * widen * float(block.blade_width[b]) * widths[i] / card_w
+        colour = colour_ramp(ends[i], v_ends) * (0.7 + 0.6 * float(block.blade_shade[b]))  # (n, 2, 3)
         _draw_strip(rgb, alpha, ys, u + shift, up / height, half, colour)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]

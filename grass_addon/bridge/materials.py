@@ -102,10 +102,11 @@ TRAIL_SINK = 0.5  # share of the canopy's height a ray goes down into a trail be
 # A card is lit as one flat plane where the blades it shows face every way and curve: its colour
 # is scaled to come out as bright as those blades from any slope (all-geometry renders of long
 # strips, sun and overcast: headless/lod_compare.py --views strip). Fitted at 1.15 with strips
-# widened where blades drooped off the card; with blades wrapped round (atlas._draw_strip) and
-# cells chosen for the field's mix (atlas.atlas_cells) 1.0: the default meadow's cards 0.94-1.13
-# of its blades' green from 1.1 m (the fade into the far canopy up to 1.2 from 2.5 m, open;
-# docs/performance.md), the paper's even field's within its seam bound (test_lod_fidelity).
+# widened where blades drooped off the card; with blades wrapped round (atlas._draw_strip), cells
+# chosen for the field's mix and its colour at every height (atlas.atlas_cells) and fading cards
+# that shade one another 1.0: the default meadow's card band 0.93-1.14 of its blades' green from
+# 1.1 m and 2.5 m, sun and overcast, seeds 7-9 (docs/performance.md), the paper's even field's
+# within its seam bound (test_lod_fidelity).
 CARD_LIGHT = 1.0
 CARD_SPECULAR = 0.1  # the cards' specular level (blades: 0.35) and roughness (blades: 0.55)
 CARD_ROUGHNESS = 0.8
@@ -113,7 +114,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 14
+MATERIALS_VERSION = 15
 
 
 def _socket(sockets, *names: str):
@@ -387,13 +388,11 @@ def card_material(name: str, uid: str, image, gust_image=None, patch_image=None)
     # the fading band would otherwise run out of layers and come out black)
     faded = t.math("MULTIPLY", (tex, "Alpha"), (opacity, "X"), -950, -500, clamp=True)
     stops = t.math("MAXIMUM", (faded, "Value"), (deep, "Value"), -800, -450)
-    # Fading cards are seen, but cast no shadow and hide no sky: the far canopy under them stands
-    # for the sward with its own shade (SWARD_LIGHT); in their shadows the band's start came out
-    # 6 % darker in sun.
-    fading = t.math("LESS_THAN", (opacity, "X"), 0.999, -950, -800)
-    unseen = t.math("SUBTRACT", 1.0, (path, "Is Camera Ray"), -950, -950)
-    hidden = t.math("MULTIPLY", (fading, "Value"), (unseen, "Value"), -800, -750)
-    alpha = t.math("SUBTRACT", (stops, "Value"), (hidden, "Value"), -650, -300, clamp=True)
+    # Fading cards shade one another and the ground as the blades they stand for would. (Fading
+    # cards that cast no shadow and hid no sky, so that the far canopy under them would not be
+    # shaded twice, came out as lit as one card alone: the band's fade 1.15-1.33 times the blades'
+    # red and green from 2.5 m in sun, where in their shade the canopy is 2-6 % darker.)
+    alpha = stops
     # A card is one flat plane where its blades turn every way: their highlights scatter, the
     # plane's would gather into a pale sheen, so the card reflects as a rougher, duller surface.
     lit = t.mix_rgb(-950, 300, blend="MULTIPLY", b=(CARD_LIGHT, CARD_LIGHT, CARD_LIGHT, 1.0))
@@ -478,10 +477,21 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
     _set(bsdf, 1.0, "Roughness")
     _set(bsdf, 0.0, "Specular IOR Level", "Specular")
     grass, grass_out = t.patched(grass, "Result_Color", patch_image, -780, 500)
-    if gust_image is None:
-        t.link(grass, grass_out, bsdf, "Base Color")
-    else:
-        t.link(t.gusted(grass, grass_out, gust_image, -700, 300), "Result_Color", bsdf, "Base Color")
+    if gust_image is not None:
+        grass, grass_out = t.gusted(grass, grass_out, gust_image, -700, 300), "Result_Color"
+    t.link(grass, grass_out, bsdf, "Base Color")
+    # The fringe stands for the tips along the field's edge: partly translucent as theirs
+    # (TRANSLUCENCY), so against the sun it glows as they do. (Opaque, the far edge of the
+    # default meadow seen against the sun was a row 0.035-0.044 darker than its blades.)
+    through = t.add("ShaderNodeBsdfTranslucent", -450, 250)
+    t.link(grass, grass_out, through, "Color")
+    fringe = t.add("ShaderNodeSeparateXYZ", -650, 350)
+    t.link(t.attribute(UV_SWARD_Z, -850, 350), "Vector", fringe, "Vector")
+    share = t.math("MULTIPLY", (fringe, "X"), TRANSLUCENCY, -450, 400)
+    leaf = t.add("ShaderNodeMixShader", -250, 100)
+    t.link(share, "Value", leaf, "Fac")
+    t.link(bsdf, "BSDF", leaf, leaf.inputs[1])
+    t.link(through, "BSDF", leaf, leaf.inputs[2])
     camera = t.add("ShaderNodeCameraData", -900, -650)
     kt = t.add("ShaderNodeMapRange", -700, -650, name=NODE_KT, clamp=True)  # eq 10
     t.link(camera, "View Distance", kt, "Value")
@@ -492,7 +502,7 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
     cut = t.add("ShaderNodeMixShader", 50, 0)
     t.link(opacity, "Value", cut, "Fac")
     t.link(clear, "BSDF", cut, cut.inputs[1])
-    t.link(t.hazed(bsdf, "BSDF", -100, 150), "Shader", cut, cut.inputs[2])
+    t.link(t.hazed(leaf, "Shader", -100, 150), "Shader", cut, cut.inputs[2])
     out = t.add("ShaderNodeOutputMaterial", 300, 0)
     t.link(cut, "Shader", out, "Surface")
     return mat

@@ -23,6 +23,7 @@ CARD_VARIANTS = 8  # variants of the atlas; each cell of a block shows one (card
 CARD_PIXELS = 256  # height of the atlas; each variant is a square of this many pixels
 ATLAS_BANDS = 8  # atlas_cells matches the field's paint in this many bands of a card's height
 BAND_COUNTS = 0.3  # ... and its counts (species, heads) with this weight against each band's
+FLOWER_AREA = 0.5  # ... and each species' flowers' area with this weight
 OVERLAP_MAX = 1.2  # ... among cells whose blades overlap on the card no more (``_typical``)
 OVERLAP_TRIES = 32  # ... tried in order of their miss
 OVERLAP_PIXELS = 64  # ... drawn this large to tell
@@ -100,10 +101,20 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     # the atlas's bands held 0.4-2 times the field's paint (the top ones most: which stems carry
     # the few flowers), and the card band's rows came out 0.85-1.35 times the blades' from 1.1 m
     # from one seed of the default scene to the next
-    paint, area = band_paint(params, block)
-    scale = np.concatenate([paint.reshape(cells, -1), area], axis=1)
-    features = np.concatenate([BAND_COUNTS * counts, scale / np.maximum(scale.mean(axis=0), 1e-12)], axis=1)
-    target = features.mean(axis=0)
+    paint, area, heads = band_paint(params, block)
+    # and the area of each species' flowers, which the eye finds first in a meadow and the paint
+    # hardly weighs (FLOWER_AREA)
+    drawn = np.concatenate([paint.reshape(cells, -1), area, heads], axis=1)  # shares of each card
+    # A variant stands on cells of every height, so the field's cards show the mean share times
+    # the mean height, where the field's cells hold their own share times their own height: the
+    # target is that height-weighted mean. (The plain mean of the shares undercounts the tall
+    # cells, which hold the flowers: a quarter to half of the field's flowers' area.)
+    tall = block.card_height.astype(np.float64) / max(float(block.card_height.mean()), 1e-12)
+    field = (drawn * tall[:, None]).mean(axis=0)
+    norm = 1.0 / np.maximum(field, 1e-12)
+    norm[-heads.shape[1]:] *= FLOWER_AREA
+    features = np.concatenate([BAND_COUNTS * counts, drawn * norm], axis=1)
+    target = np.concatenate([BAND_COUNTS * counts.mean(axis=0), field * norm])
     flowers = per_cell(kind * (block.blade_flower > 0.0)[:, None])  # (cells, species) flowers of each
     expected = flowers.mean(axis=0) * variants
     first = [int(k) for k in np.argsort(-expected, kind="stable") if expected[k] >= 0.5]
@@ -142,18 +153,19 @@ def _typical(params: Params, block, miss: np.ndarray) -> int:
     return int(order[0])
 
 
-def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndarray, np.ndarray]:
-    """((cells, bands, 3), (cells, bands)) for each cell of ``block``: its blades' paint (linear
-    RGB times area) and area in each of ``bands`` equal bands of its card's height, over the
-    card's area, as ``_draw_variant`` draws them at rest (each row of a segment as wide as the
-    strip there, in its colour between the joints; the middle of the band's part of a segment
-    stands for it) before they overlap."""
+def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """((cells, bands, 3), (cells, bands), (cells, species)) for each cell of ``block``: its
+    blades' paint (linear RGB times area) and area in each of ``bands`` equal bands of its card's
+    height, and the area of each species' flowers (their heads), over the card's area, as
+    ``_draw_variant`` draws them at rest (each row of a segment as wide as the strip there, in its
+    colour between the joints; the middle of the band's part of a segment stands for it) before
+    they overlap."""
     n, num = int(params.blade.segments), int(params.field.blades_per_cell)
     cells = block.cell_center.shape[0]
-    if num == 0 or cells == 0:
-        return np.zeros((cells, bands, 3)), np.zeros((cells, bands))
-    kind = block.blade_species
     species = Species(params)
+    if num == 0 or cells == 0:
+        return np.zeros((cells, bands, 3)), np.zeros((cells, bands)), np.zeros((cells, len(species.p)))
+    kind = block.blade_species
     widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower) * \
         block.blade_width.astype(np.float64)[:, None] / _card_width(params)  # (B, n + 1) in card widths
     joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
@@ -176,7 +188,10 @@ def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndar
     area = (widths[:, :-1, None] + (widths[:, 1:] - widths[:, :-1])[..., None] * t) * dv
     tint = colour[:, :, None, 0] + (colour[:, :, None, 1] - colour[:, :, None, 0]) * t[..., None]
     paint = (area[..., None] * tint).sum(axis=1).reshape(cells, num, bands, 3).sum(axis=1)
-    return paint, area.sum(axis=1).reshape(cells, num, bands).sum(axis=1)
+    opened = (block.blade_flower > 0.0)[:, None] & (np.arange(n) >= n - meadow.flower_segments(n))[None, :]
+    heads = (area.sum(axis=2) * opened).sum(axis=1)[:, None] * np.eye(len(species.p))[kind]  # (B, species)
+    return (paint, area.sum(axis=1).reshape(cells, num, bands).sum(axis=1),
+            heads.reshape(cells, num, -1).sum(axis=1))
 
 
 def _card_width(params: Params) -> float:

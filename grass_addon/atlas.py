@@ -103,12 +103,12 @@ def atlas_cells(params: Params, variants: int = CARD_VARIANTS) -> np.ndarray:
     # from one seed of the default scene to the next
     paint, area, heads = band_paint(params, block)
     # and the area of each species' flowers, which the eye finds first in a meadow and the paint
-    # hardly weighs (FLOWER_AREA)
+    # hardly weighs (FLOWER_AREA): matched by their count alone, the default meadow's card band
+    # showed buttercup yellow in 1.5 % of its pixels from 1.1 m where its blades show 7 % (4-5 %)
     drawn = np.concatenate([paint.reshape(cells, -1), area, heads], axis=1)  # shares of each card
     # A variant stands on cells of every height, so the field's cards show the mean share times
     # the mean height, where the field's cells hold their own share times their own height: the
-    # target is that height-weighted mean. (The plain mean of the shares undercounts the tall
-    # cells, which hold the flowers: a quarter to half of the field's flowers' area.)
+    # target is that height-weighted mean (in the default meadow within 4 % of the plain mean).
     tall = block.card_height.astype(np.float64) / max(float(block.card_height.mean()), 1e-12)
     field = (drawn * tall[:, None]).mean(axis=0)
     norm = 1.0 / np.maximum(field, 1e-12)

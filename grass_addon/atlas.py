@@ -153,6 +153,26 @@ def _typical(params: Params, block, miss: np.ndarray) -> int:
     return int(order[0])
 
 
+def _strip_parts(params: Params, block, blades: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """((b, n + 1), (b, n, 2, 3), (b, n)) of ``block``'s blades ``blades``: each joint's width (m),
+    each segment's colour at its bottom and top (the blade material's ramp with each blade's shade;
+    heads, flowers and dry tips included) and each segment's length (m), as the atlas draws them."""
+    n = int(params.blade.segments)
+    species = Species(params)
+    head, flower, kind = block.blade_head[blades], block.blade_flower[blades], block.blade_species[blades]
+    widths = meadow.joint_widths(params.blade.tip_width, n, head, flower) * \
+        block.blade_width[blades].astype(np.float64)[:, None]
+    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry[blades],
+                                  head, flower)  # (b, n + 1, 3), heads and dry tips
+    ends = meadow.segment_colours(joints, flower).astype(np.float64)  # (b, n, bottom/top, 3): a flower's head wholly
+    v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
+    shade = 0.7 + 0.6 * block.blade_shade[blades].astype(np.float64)
+    colours = colour_ramp(ends, np.broadcast_to(v_ends, ends.shape[:-1])) * shade[:, None, None, None]
+    segs = block.blade_length[blades].astype(np.float64)[:, None] * meadow.segment_shares(
+        n, block.blade_length[blades], block.blade_width[blades], flower)
+    return widths, colours, segs
+
+
 def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """((cells, bands, 3), (cells, bands), (cells, species)) for each cell of ``block``: its
     blades' paint (linear RGB times area) and area in each of ``bands`` equal bands of its card's
@@ -166,16 +186,8 @@ def band_paint(params: Params, block, bands: int = ATLAS_BANDS) -> tuple[np.ndar
     if num == 0 or cells == 0:
         return np.zeros((cells, bands, 3)), np.zeros((cells, bands)), np.zeros((cells, len(species.p)))
     kind = block.blade_species
-    widths = meadow.joint_widths(params.blade.tip_width, n, block.blade_head, block.blade_flower) * \
-        block.blade_width.astype(np.float64)[:, None] / _card_width(params)  # (B, n + 1) in card widths
-    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry,
-                                  block.blade_head, block.blade_flower)
-    ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # (B, n, 2, 3)
-    v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n
-    shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
-    colour = colour_ramp(ends, np.broadcast_to(v_ends, ends.shape[:-1])) * shade[:, None, None, None]
-    seg = block.blade_length.astype(np.float64)[:, None] * meadow.segment_shares(
-        n, block.blade_length, block.blade_width, block.blade_flower)
+    widths, colour, seg = _strip_parts(params, block, np.arange(len(kind)))
+    widths = widths / _card_width(params)  # (B, n + 1) in card widths
     rise = np.cumsum(seg * np.cos(block.blade_rest_tilt.astype(np.float64)), axis=1)
     height = np.repeat(np.maximum(block.card_height.astype(np.float64), 1e-9), num)
     v = np.concatenate([np.zeros((len(seg), 1)), rise], axis=1) / height[:, None]  # joints' v on the card
@@ -201,21 +213,14 @@ def _card_width(params: Params) -> float:
 
 def _blade_share(params: Params, block, cell: int, blades) -> float:
     """Whole area of the cell's blades (tapered strips with their heads, face on) over its card's area."""
-    card_w = _card_width(params)
-    blades = np.asarray(list(blades), dtype=np.int64)
-    n, head, flower = int(params.blade.segments), block.blade_head[blades], block.blade_flower[blades]
-    length, width = block.blade_length[blades].astype(np.float64), block.blade_width[blades].astype(np.float64)
-    widths = meadow.joint_widths(params.blade.tip_width, n, head, flower)
-    shares = meadow.segment_shares(n, length, width, flower)
-    taper = (0.5 * (widths[:, :-1] + widths[:, 1:]) * shares).sum(axis=1)  # the strip's mean width (with heads)
-    return float((taper * width * length).sum()) / (card_w * float(block.card_height[cell]))
+    widths, _, segs = _strip_parts(params, block, np.asarray(list(blades), dtype=np.int64))
+    area = (0.5 * (widths[:, :-1] + widths[:, 1:]) * segs).sum()  # the strips' mean widths (with heads)
+    return float(area) / (_card_width(params) * float(block.card_height[cell]))
 
 
 def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
     """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another."""
-    n = int(params.blade.segments)
     card_w = _card_width(params)
-    species = Species(params)
     rgb = np.zeros((size, size, 3), np.float64)
     alpha = np.zeros((size, size), np.float64)
     ys = (np.arange(size) + 0.5) / size
@@ -223,15 +228,8 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     axis = float(block.card_facing[cell])
     a = np.array([np.cos(axis), np.sin(axis)])
     blades = np.asarray(blades, dtype=np.int64)  # (their parts alone: a block holds thousands)
+    widths, colours, segs = _strip_parts(params, block, blades)
     head, flower = block.blade_head[blades], block.blade_flower[blades]
-    widths = meadow.joint_widths(params.blade.tip_width, n, head, flower)
-    kind = block.blade_species[blades]
-    joints = meadow.joint_colours(n, species.color[kind], species.head_color[kind], block.blade_dry[blades],
-                                  head, flower)  # (b, n + 1, 3), heads and dry tips
-    ends = meadow.segment_colours(joints, flower)  # (b, n, bottom/top, 3): a flower's head wholly
-    v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
-    segs = block.blade_length[blades].astype(np.float64)[:, None] * meadow.segment_shares(
-        n, block.blade_length[blades], block.blade_width[blades], flower)
     strips = []
     for i, b in enumerate(blades):
         facing = float(block.blade_facing[b])
@@ -247,10 +245,7 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     heads = [float(max(head[i], flower[i])) for i, _, _ in strips]
     shift = 0.5 - strips[int(np.argmax(heads))][1][-1] if heads and max(heads) > 0.0 else 0.0
     for i, u, up in strips:
-        b = blades[i]
-        half = 0.5 * widen * float(block.blade_width[b]) * widths[i] / card_w
-        colour = colour_ramp(ends[i], v_ends) * (0.7 + 0.6 * float(block.blade_shade[b]))  # (n, 2, 3)
-        _draw_strip(rgb, alpha, ys, u + shift, up / height, half, colour)
+        _draw_strip(rgb, alpha, ys, u + shift, up / height, 0.5 * widen * widths[i] / card_w, colours[i])
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
     # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of

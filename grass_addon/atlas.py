@@ -14,7 +14,7 @@ import numpy as np
 from . import meadow
 from .blocks import Species
 from .schema import Params
-from .sward import colour_ramp, sample_blades
+from .sward import colour_ramp, sample_blades, shade_value
 
 # Purpose of the random stream that picks each cell's variant (np.random.default_rng([purpose, P])).
 RNG_CARD_VARIANTS = 8
@@ -166,7 +166,7 @@ def _strip_parts(params: Params, block, blades: np.ndarray) -> tuple[np.ndarray,
                                   head, flower)  # (b, n + 1, 3), heads and dry tips
     ends = meadow.segment_colours(joints, flower).astype(np.float64)  # (b, n, bottom/top, 3): a flower's head wholly
     v_ends = (np.arange(n)[:, None] + np.array([0.0, 1.0])[None, :]) / n  # the material's v there
-    shade = 0.7 + 0.6 * block.blade_shade[blades].astype(np.float64)
+    shade = shade_value(block.blade_shade[blades])
     colours = colour_ramp(ends, np.broadcast_to(v_ends, ends.shape[:-1])) * shade[:, None, None, None]
     segs = block.blade_length[blades].astype(np.float64)[:, None] * meadow.segment_shares(
         n, block.blade_length[blades], block.blade_width[blades], flower)

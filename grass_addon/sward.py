@@ -42,6 +42,10 @@ from .grid import FieldGrid
 from .schema import Params
 
 BLADE_BASE_COLOUR = (0.018, 0.03, 0.008)  # the blade material's root colour (linear RGB)
+# A blade's value shade: its colour times SHADE_LOW + SHADE_SPAN * blade_shade (0..1), 0.7 to 1.3
+# times (``shade_value``; the blade material's value node, the atlas and the sward's look alike).
+SHADE_LOW = 0.7
+SHADE_SPAN = 0.6
 # The meadow's floor under the blades (the ground material: dry thatch and green litter in noise).
 THATCH_COLOUR = (0.050, 0.042, 0.016)
 LITTER_COLOUR = (0.022, 0.040, 0.010)
@@ -241,8 +245,7 @@ def _segment_colours(params: Params, block, at) -> np.ndarray:
     at = np.broadcast_to(np.asarray(at, np.float64), (len(kind), n))
     ends = meadow.segment_colours(joints, block.blade_flower).astype(np.float64)  # a flower's head wholly
     tip = ends[:, :, 0] + (ends[:, :, 1] - ends[:, :, 0]) * at[..., None]
-    shade = 0.7 + 0.6 * block.blade_shade.astype(np.float64)
-    return colour_ramp(tip, (np.arange(n) + at) / n) * shade[:, None, None]
+    return colour_ramp(tip, (np.arange(n) + at) / n) * shade_value(block.blade_shade)[:, None, None]
 
 
 def fringe_colour(params: Params) -> tuple[float, float, float]:
@@ -281,6 +284,11 @@ def sward_profile(params: Params, points: int = PROFILE_POINTS) -> tuple[np.ndar
 
 def _canopy(tips: np.ndarray) -> float:
     return float(CANOPY_SHARE * np.mean(tips))
+
+
+def shade_value(shade: np.ndarray) -> np.ndarray:
+    """(...) float64 the factor on each blade's colour of its value shade ``shade`` (0..1)."""
+    return SHADE_LOW + SHADE_SPAN * np.asarray(shade, np.float64)
 
 
 def colour_ramp(tip: np.ndarray, v: np.ndarray) -> np.ndarray:

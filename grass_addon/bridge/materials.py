@@ -342,9 +342,9 @@ def blade_material(name: str, uid: str):
     hue = t.add("ShaderNodeMapRange", -750, -300)  # shade 0..1 -> hue shift +-0.035 (+-13 degrees)
     _set(hue, 0.465, "To Min")
     _set(hue, 0.535, "To Max")
-    value = t.add("ShaderNodeMapRange", -750, -550)  # shade 0..1 -> value x0.7 .. x1.3
-    _set(value, 0.7, "To Min")
-    _set(value, 1.3, "To Max")
+    value = t.add("ShaderNodeMapRange", -750, -550)  # shade 0..1 -> value x0.7 .. x1.3 (sward.shade_value)
+    _set(value, sward.SHADE_LOW, "To Min")
+    _set(value, sward.SHADE_LOW + sward.SHADE_SPAN, "To Max")
     t.link(bs, "Y", hue, "Value")
     t.link(bs, "Y", value, "Value")
     hsv = t.add("ShaderNodeHueSaturation", -500, 0)

@@ -49,32 +49,49 @@ def sample(tile: np.ndarray, xy: np.ndarray, metres: float, offset=(0.0, 0.0)) -
     axis apart in contiguous arrays; the four neighbours read from a copy of the tile with its
     first row and column repeated after its last, by flat index; a power-of-two tile wraps by a
     bit mask.)"""
+    xy = np.asarray(xy, np.float64)
+    ix, fx = _axis(tile, xy[:, 0], metres, float(offset[0]))
+    at, fy = _axis(tile, xy[:, 1], metres, float(offset[1]))
+    return _blend(tile, at, ix, fx, fy)
+
+
+def sample_blocks(tile: np.ndarray, xs: np.ndarray, ys: np.ndarray, metres: float, offset=(0.0, 0.0)) -> np.ndarray:
+    """``sample`` at the cells of blocks that are grids, block b's cell (r, c) at (xs[b, c],
+    ys[b, r]): (blocks, rows, cols) float32, the same bits as ``sample`` at those points, with
+    each column's and row's pixel and fraction found once."""
+    blocks, n = xs.shape
+    ix, fx = _axis(tile, np.asarray(xs, np.float64).ravel(), metres, float(offset[0]))
+    at, fy = _axis(tile, np.asarray(ys, np.float64).ravel(), metres, float(offset[1]))
+    return _blend(tile, at.reshape(blocks, n, 1), ix.reshape(blocks, 1, n), fx.reshape(blocks, 1, n),
+                  fy.reshape(blocks, n, 1))
+
+
+def _axis(tile: np.ndarray, p: np.ndarray, metres: float, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """(pixel index wrapped, fraction float32) of coordinates ``p`` (float64) along one axis."""
+    n = tile.shape[0]
+    p = p - offset
+    p *= n / metres
+    p -= 0.5
+    corner = np.floor(p)
+    p -= corner
+    i = corner.astype(np.int64)
+    if n & (n - 1) == 0:
+        i &= n - 1
+    else:
+        i %= n
+    return i, p.astype(np.float32)
+
+
+def _blend(tile: np.ndarray, iy: np.ndarray, ix: np.ndarray, fx: np.ndarray, fy: np.ndarray) -> np.ndarray:
+    """Bilinear blend of the four pixels from (ix, iy) (arrays that broadcast together)."""
     n = tile.shape[0]
     wrapped = np.empty((n + 1, n + 1), np.float32)
     wrapped[:n, :n] = tile
     wrapped[n, :n] = tile[0]
     wrapped[:, n] = wrapped[:, 0]
     flat = wrapped.ravel()
-    xy = np.asarray(xy, np.float64)
-    scale = n / metres
-
-    def axis(k: int) -> tuple[np.ndarray, np.ndarray]:  # (pixel index wrapped, fraction) along axis k
-        p = xy[:, k] - float(offset[k])
-        p *= scale
-        p -= 0.5
-        corner = np.floor(p)
-        p -= corner
-        i = corner.astype(np.int64)
-        if n & (n - 1) == 0:
-            i &= n - 1
-        else:
-            i %= n
-        return i, p.astype(np.float32)
-
-    ix, fx = axis(0)
-    at, fy = axis(1)
-    at *= n + 1
-    at += ix  # (x0, y0); x0 + 1 is at + 1, y0 + 1 is at + n + 1
+    at = iy * (n + 1)
+    at = at + ix  # (x0, y0); x0 + 1 is at + 1, y0 + 1 is at + n + 1
     low = flat.take(at)
     low += (flat.take(at + 1) - low) * fx
     high = flat.take(at + n + 1)

@@ -11,8 +11,9 @@
   gust fronts that sweep across the field; ``whirlwind`` adds a travelling Rankine vortex.
 
 Cells lie on the layout's regular grid (row-major ``c = cy * cells_x + cx``, centred on the
-origin), so every positional quantity is computed per column and per row and combined by
-broadcasting: no per-cell Python loops, float32 results.
+origin; a camera's window is block-major, each block's cells a grid of their own), so every
+positional quantity is computed per column and per row and combined by broadcasting: no
+per-cell Python loops, float32 results, the same bits as the point-by-point ``sample``.
 """
 
 from __future__ import annotations
@@ -185,6 +186,7 @@ class WindField:
         self.gust_waves = float(w.gust_waves)
         self.gust_tile = gusts.pattern(self.seed) if self.gust_waves > 0.0 else None
         self.gust_metres = gusts.tile_metres(params)
+        self._block_grid_of: tuple[Any, tuple[np.ndarray, np.ndarray] | None] | None = None
 
     # ------------------------------------------------------------------ mean wind (eq 12)
 
@@ -368,16 +370,61 @@ class WindField:
         out += upper
         return out.view(np.float32).reshape(out.shape + (2,))
 
+    def _turbulence_blocks(self, t: float, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """``turbulence`` at the cells of blocks whose cells are grids: block b's cell (r, c) at
+        (xs[b, c], ys[b, r]): (blocks, rows, cols, 2). Each column's and row's unit and weights
+        are computed once; every cell's corner and blend are the same operations as in
+        ``turbulence``, so every cell gets the same bits as there."""
+        lattice, column, row, wx0, wx1, wy0, wy1 = self._lattice_frame(t, xs.ravel(), ys.ravel())
+        blocks, n = xs.shape
+        units = lattice.ravel()
+        corner = (row * lattice.shape[1]).reshape(blocks, n, 1) + column.reshape(blocks, 1, n)
+        wx0, wx1 = wx0.reshape(blocks, 1, n), wx1.reshape(blocks, 1, n)
+        out = _along_x(units, corner, wx0, wx1)
+        out *= wy0.reshape(blocks, n, 1)
+        upper = _along_x(units, corner + lattice.shape[1], wx0, wx1)
+        upper *= wy1.reshape(blocks, n, 1)
+        out += upper
+        return out.view(np.float32).reshape(out.shape + (2,))
+
     def sample_layout(self, t: float, layout) -> np.ndarray:
-        """``sample(t, layout.cell_center)``, the same bits: on a whole-field layout (cells
-        row-major on the field's grid) the turbulence is computed per row and column."""
+        """``sample(t, layout.cell_center)``, the same bits, computed per row and column: on a
+        whole-field layout (cells row-major on the field's grid) over the field's rows and
+        columns; on a window of blocks (block-major, each block's cells a grid) over each
+        block's (``_block_grid``)."""
         t = float(t)
         whole = layout.n_cells == layout.cells_x * layout.cells_y and layout.n_cells > 0
-        if not whole or self.turbulence_std == 0.0:
-            return self.sample(t, layout.cell_center)
         xy = np.asarray(layout.cell_center, dtype=np.float64)
-        grid = self._turbulence_grid(t, xy[: layout.cells_x, 0], xy[:: layout.cells_x, 1])
-        return self._add_mean_and_type(t, xy, np.ascontiguousarray(grid.reshape(-1, 2)))
+        if whole and self.turbulence_std != 0.0:
+            grid = self._turbulence_grid(t, xy[: layout.cells_x, 0], xy[:: layout.cells_x, 1])
+            return self._add_mean_and_type(t, xy, np.ascontiguousarray(grid.reshape(-1, 2)))
+        blocks = None if whole else self._block_grid(layout)
+        if blocks is None:
+            return self.sample(t, xy)
+        if self.turbulence_std == 0.0:
+            out = np.zeros((xy.shape[0], 2), dtype=np.float32)
+        else:
+            out = self._turbulence_blocks(t, *blocks).reshape(-1, 2)
+        return self._add_mean_and_type(t, xy, out, blocks)
+
+    def _block_grid(self, layout) -> tuple[np.ndarray, np.ndarray] | None:
+        """(xs, ys), (blocks, cells_per_block) float64: the column x and row y of each block's
+        cells, when the layout's cells are block-major and each block's are a row-major grid
+        (a window's layout); None otherwise. Kept for the last layout asked about."""
+        cached = self._block_grid_of
+        if cached is not None and cached[0] is layout:
+            return cached[1]
+        n = int(layout.cells_per_block)
+        centres = np.asarray(layout.cell_center, dtype=np.float64)
+        grid = None
+        if n > 0 and layout.n_cells > 0 and centres.shape[0] == layout.n_blocks * n * n:
+            cells = centres.reshape(-1, n, n, 2)
+            xs, ys = cells[:, 0, :, 0], cells[:, :, 0, 1]
+            if np.array_equal(cells[..., 0], np.broadcast_to(xs[:, None, :], cells.shape[:3])) and \
+                    np.array_equal(cells[..., 1], np.broadcast_to(ys[:, :, None], cells.shape[:3])):
+                grid = (np.ascontiguousarray(xs), np.ascontiguousarray(ys))
+        self._block_grid_of = (layout, grid)
+        return grid
 
     # ------------------------------------------------------------------ the whole field (eq 12)
 
@@ -391,15 +438,25 @@ class WindField:
         xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
         return self._add_mean_and_type(t, xy, self.turbulence(t, xy))
 
-    def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out`` (v' at points ``xy``) plus the mean wind (eq 12) and the type's gusts or vortex."""
+    def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray,
+                           blocks: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """``out`` (v' at points ``xy``) plus the mean wind (eq 12) and the type's gusts or vortex.
+        ``blocks``: the points' ``_block_grid`` when they have one (the same bits, sooner)."""
         mean = self._mean_vector(t).astype(np.float32)
-        out += mean  # uniform over the field (eq 12)
+        # (per component: numpy broadcasting along a last axis of 2 is several times slower)
+        u, v = out[:, 0], out[:, 1]
+        u += mean[0]  # uniform over the field (eq 12)
+        v += mean[1]
         if self.gust_tile is not None:  # the gust waves scale it by gust_waves (2 g - 1) where they pass (gusts.py)
-            g = gusts.sample(self.gust_tile, xy, self.gust_metres, self.displacement(t))
+            if blocks is None:
+                g = gusts.sample(self.gust_tile, xy, self.gust_metres, self.displacement(t))
+            else:
+                xs, ys = blocks
+                g = gusts.sample_blocks(self.gust_tile, xs, ys, self.gust_metres, self.displacement(t)).ravel()
             g *= np.float32(2.0 * self.gust_waves)
             g -= np.float32(self.gust_waves)
-            out += g[:, None] * mean
+            u += g * mean[0]
+            v += g * mean[1]
         if self.kind == "blast":
             self._add_gusts(t, xy, out)
         elif self.kind == "whirlwind":

@@ -221,3 +221,19 @@ def test_wind_at_a_point_does_not_depend_on_the_other_points():
     assert np.array_equal(gusts.sample_layout(2.7, whole), gusts.sample(2.7, whole.cell_center))
     far = wind.sample(3.3, xy + 7000.0)  # kilometres away on an unbounded lattice
     assert np.all(np.isfinite(far)) and not np.allclose(far, everything)
+
+
+@pytest.mark.parametrize("kind", ["moderate_breeze", "blast", "whirlwind"])
+@pytest.mark.parametrize("turbulence", [0.0, 1.2])
+def test_a_window_of_blocks_gets_the_same_wind_as_its_cells_one_by_one(kind, turbulence):
+    # A camera's window (block-major, the blocks scattered over a large field) is sampled per
+    # block row and column; each cell's wind, gust waves included, must be that of its point.
+    params = schema.defaults().replace({"field.blocks_x": 40, "field.blocks_y": 40, "wind.type": kind,
+                                        "wind.turbulence": turbulence, "wind.gust_waves": 0.4})
+    field = GrassField(params)
+    field.view(Camera.look_at((3.0, -30.0, 1.6), (5.0, 10.0, 0.0), math.radians(50.0), 16 / 9), 1)
+    layout = field.sim.layout
+    assert 0 < layout.n_blocks < 1600 and layout.n_cells != layout.cells_x * layout.cells_y
+    wind = WindField(layout, params)
+    for t in (0.0, 2.7, 61.3):
+        assert np.array_equal(wind.sample_layout(t, layout), wind.sample(t, layout.cell_center)), t

@@ -235,5 +235,6 @@ def test_a_window_of_blocks_gets_the_same_wind_as_its_cells_one_by_one(kind, tur
     layout = field.sim.layout
     assert 0 < layout.n_blocks < 1600 and layout.n_cells != layout.cells_x * layout.cells_y
     wind = WindField(layout, params)
+    assert wind._block_grid(layout) is not None  # (the per-block path is the one compared)
     for t in (0.0, 2.7, 61.3):
         assert np.array_equal(wind.sample_layout(t, layout), wind.sample(t, layout.cell_center)), t

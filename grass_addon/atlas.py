@@ -48,6 +48,8 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     default scene; widened 4 times for droops they were straw-coloured verticals). The variant's
     height spans its card's height (``card_height``)."""
     block = sample_blades(params)
+    if block.blade_root.shape[0] == 0:  # (no blades: field.density 0, cards of nothing, bare ground)
+        return np.zeros((size, variants * size, 4), np.float32)
     image = np.empty((size, variants * size, 4), np.float32)
     for k, cell in enumerate(atlas_cells(params, variants)):
         rgb, alpha = draw_card(params, block, int(cell), size)

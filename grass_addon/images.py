@@ -105,6 +105,8 @@ def decode_png(data: bytes) -> np.ndarray:
                 raise ValueError(f"an image header of {length} bytes (a PNG's has 13)")
             header = struct.unpack(">IIBBBBB", body)
         elif kind == b"PLTE":
+            if not 3 <= length <= 768 or length % 3:
+                raise ValueError(f"a palette of {length} bytes (valid: 1 to 256 colours of 3 bytes)")
             palette = np.frombuffer(body, np.uint8).reshape(-1, 3)
         elif kind == b"IDAT":
             idat.append(body)
@@ -117,6 +119,8 @@ def decode_png(data: bytes) -> np.ndarray:
         raise ValueError(f"colour type {colour}, {depth}-bit, interlace {interlace}")
     if colour == 3 and palette is None:
         raise ValueError("a palette image without its palette")
+    if colour == 3 and depth != 8:
+        raise ValueError(f"a {depth}-bit palette image (valid: 8-bit palette images)")
     if width * height > MAX_PIXELS or width == 0 or height == 0:
         raise ValueError(f"{width} x {height} pixels")
     channels = CHANNELS[colour]

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import ParameterError
+from .errors import ParameterError, shown
 
 WIND_TYPES = ("calm", "gentle_breeze", "moderate_breeze", "blast", "whirlwind")
 FLOORS = ("thatch", "turf")  # what shows between the blades (sward.floor_colours)
@@ -639,27 +639,27 @@ def _check_value(p: Param, value: Any, name: str | None = None) -> Any:
     expect = _Expect(p)
     if p.kind == "bool":
         if not isinstance(value, bool):
-            raise ParameterError(name, f"{value!r} is not true/false ({expect})")
+            raise ParameterError(name, f"{shown(value)} is not true/false ({expect})")
         return value
     if p.kind == "str":
         if not isinstance(value, str):
-            raise ParameterError(name, f"{value!r} is not a text string")
+            raise ParameterError(name, f"{shown(value)} is not a text string")
         return value
     if p.kind == "keys":
         return _check_keys(value, name)
     if p.kind == "enum":
         if not isinstance(value, str) or value not in p.choices:
-            raise ParameterError(name, f"unknown value {value!r} ({expect})")
+            raise ParameterError(name, f"unknown value {shown(value)} ({expect})")
         return value
     if p.kind == "vec":
         if not isinstance(value, (list, tuple)) or len(value) != p.size:
-            raise ParameterError(name, f"{value!r} is not a list of {p.size} numbers (each {p.range_text()})")
+            raise ParameterError(name, f"{shown(value)} is not a list of {p.size} numbers (each {p.range_text()})")
         return tuple(_check_number(p, v, f"{name}[{i}]", float) for i, v in enumerate(value))
     if p.kind == "table_list":
         if isinstance(value, dict):
             value = [value]
         if not isinstance(value, (list, tuple)):
-            raise ParameterError(name, f"{value!r} is not a list of tables ([[{name}]] in TOML)")
+            raise ParameterError(name, f"{shown(value)} is not a list of tables ([[{name}]] in TOML)")
         if p.maximum is not None and len(value) > p.maximum:
             raise ParameterError(name, f"{len(value)} rows; valid: at most {int(p.maximum)} (each costs every frame "
                                  "of every cell it reaches)")
@@ -674,11 +674,11 @@ _KEY_POSITION = Param("", "position", "vec", (0.0, 0.0, 0.0), "", unit="m", mini
 def _check_keys(value: Any, name: str) -> tuple[dict[str, Any], ...]:
     """A keyed path: at least two ``{time, position}`` tables with increasing times."""
     if not isinstance(value, (list, tuple)):
-        raise ParameterError(name, f"{value!r} is not a list of {{time = s, position = [x, y, z]}} keys")
+        raise ParameterError(name, f"{shown(value)} is not a list of {{time = s, position = [x, y, z]}} keys")
     keys = []
     for i, key in enumerate(value):
         if not isinstance(key, Mapping) or set(key) != {"time", "position"}:
-            raise ParameterError(f"{name}[{i}]", f"{key!r} is not a key {{time = s, position = [x, y, z]}}")
+            raise ParameterError(f"{name}[{i}]", f"{shown(key)} is not a key {{time = s, position = [x, y, z]}}")
         keys.append({"time": _check_value(_KEY_TIME, key["time"], f"{name}[{i}].time"),
                      "position": _check_value(_KEY_POSITION, key["position"], f"{name}[{i}].position")})
     if len(keys) < 2:
@@ -694,21 +694,21 @@ def _check_number(p: Param, value: Any, name: str, kind: type) -> float | int:
     expect = _Expect(p)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         what = "a whole number" if kind is int else "a number"
-        raise ParameterError(name, f"{value!r} is not {what} ({expect})")
+        raise ParameterError(name, f"{shown(value)} is not {what} ({expect})")
     if kind is int and isinstance(value, float):
         if not math.isfinite(value) or value != int(value):
-            raise ParameterError(name, f"{value!r} is not a whole number ({expect})")
+            raise ParameterError(name, f"{shown(value)} is not a whole number ({expect})")
         value = int(value)
     if isinstance(value, float) and not math.isfinite(value):
-        raise ParameterError(name, f"{value!r} is not a finite number ({expect})")
+        raise ParameterError(name, f"{shown(value)} is not a finite number ({expect})")
     if (p.minimum is not None and value < p.minimum) or (p.maximum is not None and value > p.maximum):
-        raise ParameterError(name, f"{value!r} is out of range ({expect})")
+        raise ParameterError(name, f"{shown(value)} is out of range ({expect})")
     return kind(value)
 
 
 def _check_row(p: Param, row: Any, name: str) -> dict[str, Any]:
     if not isinstance(row, Mapping):
-        raise ParameterError(name, f"{row!r} is not a table")
+        raise ParameterError(name, f"{shown(row)} is not a table")
     columns = {f.key: f for f in p.fields}
     for key in row:
         if key not in columns:
@@ -895,13 +895,34 @@ def load_toml(path: str | Path, base: Params | None = None, flags: Mapping[str, 
     return loads_toml(text, base, source=str(path), folder=path.resolve().parent, flags=flags)
 
 
-_DOTTED = re.compile(r"[\w\-\"']+(?:[ \t]*\.[ \t]*[\w\-\"']+)+")
+# TOML's lexical pieces, each matched in time linear in its length (no nested repetition that can
+# backtrack): a comment or a string is one token, so a dot inside it is no key part; a dotted key
+# is a run of parts (bare words, quoted names) joined by dots. A float (1.5) counts as two parts:
+# the count is an upper bound.
+_TOML_TOKENS = re.compile(r'''
+    (?P<comment>\#[^\n]*)
+  | (?P<part>"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]+|\\.)*"|'[^'\n]*'|[A-Za-z0-9_\-]+)
+  | (?P<dot>[ \t]*\.[ \t]*)
+  | (?P<other>[^\#"'A-Za-z0-9_\-.]+|.)
+''', re.VERBOSE | re.DOTALL)
 
 
 def _deepest_key(text: str) -> int:
     """The most parts of a dotted key (a table's name, a key, a key inside an inline table) in a
-    TOML text: an upper bound (a dotted word in a string counts too)."""
-    return max((m.group().count(".") + 1 for m in _DOTTED.finditer(text)), default=1)
+    TOML text: an upper bound, in one pass over its tokens (quoted parts with spaces count too)."""
+    deepest = parts = 0
+    after_dot = False
+    for match in _TOML_TOKENS.finditer(text):
+        kind = match.lastgroup
+        if kind == "part":
+            parts = parts + 1 if after_dot else 1
+            after_dot = False
+            deepest = max(deepest, parts)
+        elif kind == "dot":
+            after_dot = parts > 0
+        else:
+            parts, after_dot = 0, False
+    return max(deepest, 1)
 
 
 def loads_toml(text: str, base: Params | None = None, source: str = "<toml>", folder: Path | None = None,
@@ -1058,7 +1079,7 @@ def _parse_bool(text: str) -> bool:
         return True
     if low in ("0", "false", "no", "off"):
         return False
-    raise argparse.ArgumentTypeError(f"{text!r} is not true or false (valid: true/false, yes/no, on/off, 1/0)")
+    raise argparse.ArgumentTypeError(f"{shown(text)} is not true or false (valid: true/false, yes/no, on/off, 1/0)")
 
 
 def cli_overrides(namespace: Any) -> dict[str, Any]:
@@ -1082,7 +1103,7 @@ def _parse_cli_value(p: Param, raw: Any) -> Any:
     if p.kind in ("bool", "enum", "str") or not isinstance(raw, str):
         return raw
     if not _NUMBER.fullmatch(raw):  # (Python's float() would also take 1_000 and non-ASCII digits)
-        raise ParameterError(p.name, f"{raw!r} is not a number (flag {p.cli_flag}; valid: {p.range_text()}, "
+        raise ParameterError(p.name, f"{shown(raw)} is not a number (flag {p.cli_flag}; valid: {p.range_text()}, "
                              "written like 5, -2.5 or 1e-3)")
     number = float(raw)
     if p.kind == "int" and number.is_integer():

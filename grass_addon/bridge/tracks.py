@@ -368,6 +368,9 @@ def stored(item):
 def _decoded(raw) -> tuple:
     """(colliders, effectors, how it is damaged or '') of a stored track, decoded once per
     fingerprint (``REGISTRY.tracks``; ``store`` drops the entry of the fingerprint it writes)."""
+    if not callable(getattr(raw, "get", None)) or not callable(getattr(raw, "keys", None)):
+        # (a file edited by hand: the stored motion a number, a text, a list)
+        return [], None, f"unreadable: a {type(raw).__name__}, not the table Update Motion stores"
     digest = str(raw.get("fingerprint", ""))
     cached = REGISTRY.tracks.get(digest)
     if cached is None:

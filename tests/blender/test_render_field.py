@@ -402,6 +402,24 @@ def _files_of_at_most(size: int):
     return limit
 
 
+@pytest.mark.parametrize("flag", ["--field-blades-per-cell", "--field-density"])
+def test_a_field_of_no_blades_renders_bare_ground(env, tiny_config, tmp_path, flag):
+    """Issue #57: the panel's Blades 0 /m² (or no blades a cell) failed the build with a
+    ValueError from the cards' atlas. The frame renders: where the grass stood, the ground alone
+    (a flat colour, where blades shade the same rows from dark to light)."""
+    out = {}
+    for name, value in (("bare", "0"), ("grass", "4" if "cell" in flag else "400")):
+        out[name] = tmp_path / name
+        proc = render(env, "--config", tiny_config, "--frames", "1", "--out", out[name], flag, value)
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    spread = {}
+    for name, folder in out.items():
+        width, height, _, _ = read_png(folder / "frame_0001.png")
+        lower = np.array(pixels(folder / "frame_0001.png")[(2 * height // 3) * width:], float)
+        spread[name] = lower.std(axis=0).max()
+    assert spread["bare"] < 3.0 < 6.0 < spread["grass"], spread
+
+
 def test_a_frame_that_cannot_be_written_fails_and_leaves_nothing(env, tiny_config, tmp_path):
     """A full disk (writes past 1 KB fail): the job fails with status 1 and no file looks like a
     finished frame."""

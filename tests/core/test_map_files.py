@@ -160,3 +160,70 @@ def test_the_largest_map_counts_in_the_memory_estimate(tmp_path):
         memory.check(painted.replace({"simulation.memory_mb": fits}))
     assert info.value.key == "paint.density" and "fewer pixels" in str(info.value)
     memory.check(plain.replace({"simulation.memory_mb": fits}))  # the field alone fits
+
+
+@pytest.mark.parametrize("palette", [b"", b"\x10\x20", bytes(771)])
+def test_a_palette_image_with_an_empty_or_broken_palette_is_a_sentence(tmp_path, palette):
+    """Issue #57: a palette PNG whose palette is empty (or not whole colours, or over 256) was an
+    IndexError (numpy 1.26) or OverflowError (numpy 2) from the map reader."""
+    header = struct.pack(">IIBBBBB", 2, 2, 8, 3, 0, 0, 0)
+    data = (images.SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"PLTE", palette)
+            + _chunk(b"IDAT", zlib.compress(b"\0\0\1\0\1\0")) + _chunk(b"IEND", b""))
+    path = tmp_path / "palette.png"
+    path.write_bytes(data)
+    with pytest.raises(ParameterError, match="paint.density") as info:
+        images.read_map(path, "paint.density")
+    assert f"a palette of {len(palette)} bytes" in str(info.value) and "1 to 256 colours" in str(info.value)
+
+
+def test_a_palette_image_with_its_palette_still_reads(tmp_path):
+    header = struct.pack(">IIBBBBB", 2, 1, 8, 3, 0, 0, 0)
+    data = (images.SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"PLTE", b"\0\0\0\xff\xff\xff")
+            + _chunk(b"IDAT", zlib.compress(b"\0\0\1")) + _chunk(b"IEND", b""))
+    path = tmp_path / "palette.png"
+    path.write_bytes(data)
+    np.testing.assert_allclose(images.read_map(path, "paint.density"), [[0.0, 1.0]])
+
+
+# Scene files that took minutes or gigabytes (issue #57): a dotted key of quoted parts with spaces
+# slipped past the depth check into Python's TOML parser (44 s, growing as the square of the
+# parts); the check's own pattern backtracked over a long comment or string (minutes).
+HOSTILE_TOML = {
+    "quoted parts": "[field]\n" + ".".join(['"a b"'] * 40_000) + " = 1\n",
+    "spaced parts": "[field]\n" + " . ".join(["'a.b'"] * 40_000) + " = 1\n",
+    "a table's name": "[" + ".".join(["a"] * 40_000) + "]\n",
+    "an inline table's key": "[field]\nx = {" + ".".join(["a"] * 40_000) + " = 1}\n",
+    "a long comment": "#" + "x" * 3_900_000 + "\n",
+    "a long string": "[camera]\nmode = \"" + "x" * 3_000_000 + "\"\n",
+}
+
+
+@pytest.mark.parametrize("case", list(HOSTILE_TOML))
+def test_a_hostile_scene_file_is_answered_within_a_second_and_100_mb(case):
+    text = HOSTILE_TOML[case]
+    tracemalloc.start()
+    try:
+        with _at_once(10):
+            try:
+                schema.loads_toml(text)
+                message = ""  # (a comment of any length is a valid scene file: the defaults)
+            except ParameterError as exc:
+                message = str(exc)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert bool(message) == (case != "a long comment"), message
+    if "key" in case or "parts" in case or "name" in case:
+        assert "40000 dotted parts" in message and f"at most {schema.MAX_KEY_DEPTH}" in message, message
+    assert len(message) < 400, len(message)  # (the 3 MB value is named, not printed)
+    assert peak < len(text) * 4 + (100 << 20), peak
+
+
+def test_the_key_depth_guard_counts_only_keys():
+    """What a real scene file holds reads as shallow: floats, dotted words inside strings and
+    comments, a date, paths."""
+    text = ('# a comment with a.b.c.d.e.f.g.h.i.j.k.l.m.n.o.p.q.r\n[wind]\nspeed = 5.5\n'
+            'path = "x.y.z.w.v.u.t.s.r.q.p.o.n.m.l.k.j.i"\nkeys = [{time = 1.5, speed = 2.25}]\n'
+            "when = 1979-05-27T07:32:00.999\n[paint]\ndensity = 'maps/a.b.c.d.e.f.g.h.i.j.k.l.m.n.o.p.q.png'\n")
+    assert schema._deepest_key(text) == 2
+    assert schema._deepest_key("[a.b.c]\n") == 3 and schema._deepest_key('"a b" . c . d = 1') == 3

@@ -26,19 +26,27 @@ what is missing) and exits non-zero with its message when it fails.
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import json
+import os
 import re
+import shutil
+import subprocess
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 from .errors import ParameterError
+from .farm_frames import FRAME_KEY  # noqa: F401 (the PNG text chunk that says which job's frame a file is)
 
 SPECIFICATION = "jobtemplate-2023-09"
 FLAMENCO_JOB_TYPE = Path(__file__).with_name("windgrass_flamenco.js")  # (shipped with the add-on)
 
 
-_FRAMES = re.compile(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?")
+MAX_FRAMES_TEXT = 65536  # characters of a frame list (Flamenco's and OpenJD's chunks are short)
+MAX_JOB_FRAMES = 100_000  # frames of one job: over an hour at 24 fps (1-100000000 grew to 3 GB)
+_FRAMES = re.compile(r"\s*(-?\d{1,9})\s*(?:-\s*(-?\d{1,9})\s*)?")  # (frames have at most 7 digits)
 
 
 def parse_frames(text: str, first: int, last: int) -> tuple[int, ...]:
@@ -46,8 +54,12 @@ def parse_frames(text: str, first: int, last: int) -> tuple[int, ...]:
     chunker and OpenJD's range expressions give a task), in order, each once, within the scene's
     ``first``..``last``; ParameterError otherwise."""
     valid = "'A-B', one frame number or a list of them (e.g. 1-48, 12 or 9,10,20-21)"
+    text = str(text)
+    if len(text) > MAX_FRAMES_TEXT:
+        raise ParameterError("frames", f"a list of {len(text):,} characters (valid: at most {MAX_FRAMES_TEXT:,}: "
+                             f"{valid})")
     spans = []
-    for part in str(text).split(","):
+    for part in text.split(","):
         match = _FRAMES.fullmatch(part)
         if not match:
             raise ParameterError("frames", f"{text!r} is not {valid}")
@@ -59,6 +71,10 @@ def parse_frames(text: str, first: int, last: int) -> tuple[int, ...]:
             raise ParameterError("frames", f"{text!r} is outside the scene's frames {first}-{last} (valid: frames "
                                  "within them)")
         spans.append((a, b))
+    count = sum(b - a + 1 for a, b in spans)  # (an upper bound, counted before any frame is listed)
+    if count > MAX_JOB_FRAMES:
+        raise ParameterError("frames", f"{text[:40]!r} names {count:,} frames (valid: at most {MAX_JOB_FRAMES:,} "
+                             "in one job or task)")
     return tuple(sorted({f for a, b in spans for f in range(a, b + 1)}))
 
 
@@ -84,7 +100,6 @@ def other_blender(wanted: str, version) -> str | None:
             f"Blender (BlenderExecutable), or set BlenderVersion to '' to let any Blender render them")
 
 
-FRAME_KEY = "WindgrassFrame"  # the PNG text chunk that says which job's frame a file is
 
 
 def frame_fingerprint(frame: int, settings: str, inputs: Sequence[bytes], blender: str, windgrass: str) -> str:
@@ -212,11 +227,125 @@ def blend_template(frames: str, chunk: int, name: str, version: str, blender: st
             "parameterDefinitions": params, "steps": [step]}
 
 
-def write_bundle(folder: Path, template: dict, values: dict, elsewhere: Sequence[str] = (),
+BUNDLE_MARK = ".windgrass-bundle.json"  # the files a bundle's writer wrote (relative paths)
+STAGING = ".windgrass-staging-"  # a bundle being written, beside what it replaces
+
+
+class Bundle:
+    """A job bundle's folder, owned by what writes it (issue #57: Farm Job... into the folder of
+    the artist's project deleted their notes, textures and the saved .blend).
+
+    A bundle is written only into a folder that is empty, new, or that a bundle writer wrote
+    (``BUNDLE_MARK`` lists its files); any other is refused with a sentence before anything is
+    written. Everything goes to a staging folder inside it first (``path``), so a bundle that
+    fails (a missing map) leaves the one before whole; ``commit`` then moves each file into place,
+    refusing first when a name is taken by a file the writer did not write, and deletes only files
+    of the earlier bundle that the new one no longer has. The artist's files, a ``output/`` the
+    farm brought back, are never touched. Use as ``with Bundle(folder, "bundle") as bundle:``."""
+
+    def __init__(self, folder, name: str):
+        from .folders import user_folder
+
+        self.folder, self.name = user_folder(folder, name), name
+        self.owned = self._owned()
+        self.written: set[str] = set()
+        self.staging: Path | None = None
+
+    def _owned(self) -> set[str]:
+        """The files of the earlier bundle in the folder (none when it is new or empty)."""
+        folder = self.folder
+        if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+            raise ParameterError(self.name, f"{folder} is not a folder (valid: an empty folder, or a new one)")
+        if not folder.exists():
+            return set()
+        mark = folder / BUNDLE_MARK
+        if mark.is_file() and not mark.is_symlink():
+            try:
+                listed = json.loads(mark.read_text())
+            except (OSError, ValueError):
+                listed = None
+            if isinstance(listed, list) and all(isinstance(n, str) for n in listed):
+                return {n for n in listed if _safe_name(n)}
+        others = sorted(p.name for p in folder.iterdir() if not p.name.startswith(STAGING))
+        if others:
+            shown = ", ".join(others[:3]) + (" ..." if len(others) > 3 else "")
+            raise ParameterError(self.name, f"{folder} holds files that were not written by farm.py ({shown}): give "
+                                 "an empty folder or a new one (a bundle is written only into a folder of its own)")
+        return set()
+
+    def __enter__(self) -> Bundle:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        for old in self.folder.glob(STAGING + "*"):  # (a writer killed before it finished)
+            shutil.rmtree(old, ignore_errors=True)
+        self.staging = Path(tempfile.mkdtemp(prefix=STAGING, dir=self.folder))
+        return self
+
+    def __exit__(self, kind, value, trace) -> None:
+        try:
+            if kind is None:
+                self.commit()
+        finally:
+            if self.staging is not None:
+                shutil.rmtree(self.staging, ignore_errors=True)
+
+    def final(self, name: str) -> Path:
+        """Where the bundle's file ``name`` (a path inside it) lies once written."""
+        return self.folder / name
+
+    def path(self, name: str) -> Path:
+        """Where to write the bundle's file ``name`` now (its folder made)."""
+        if self.staging is None or not _safe_name(name):
+            raise ValueError(f"not a bundle's file name: {name!r}")
+        self.written.add(name)
+        target = self.staging / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        return target
+
+    def commit(self) -> None:
+        assert self.staging is not None
+        taken = sorted(n for n in self.written - self.owned if os.path.lexists(self.final(n)))
+        if taken:
+            raise ParameterError(self.name, f"{self.final(taken[0])} was not written by farm.py: move it away, or "
+                                 "give an empty folder or a new one")
+        for name in self.written:
+            folder = self.final(name).parent
+            if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+                raise ParameterError(self.name, f"{folder} is not a folder the bundle wrote: move it away")
+        _write_list(self.folder / BUNDLE_MARK, self.owned | self.written)  # (a kill mid-way loses no record)
+        for name in sorted(self.written):
+            self.final(name).parent.mkdir(parents=True, exist_ok=True)
+            os.replace(self.staging / name, self.final(name))
+        for name in sorted(self.owned - self.written, reverse=True):
+            gone = self.final(name)
+            if gone.is_symlink() or gone.is_file():
+                gone.unlink()
+            for parent in gone.parents:  # (the folders it leaves empty, up to the bundle's)
+                if parent == self.folder or not parent.is_dir() or any(parent.iterdir()):
+                    break
+                parent.rmdir()
+        _write_list(self.folder / BUNDLE_MARK, self.written)
+
+
+def _safe_name(name: str) -> bool:
+    """A relative path inside a bundle (no ``..``, not absolute)."""
+    parts = Path(name).parts
+    return bool(parts) and not Path(name).is_absolute() and ".." not in parts and name != BUNDLE_MARK
+
+
+def _write_list(path: Path, names) -> None:
+    temp = path.with_name(path.name + ".new")
+    temp.write_text(json.dumps(sorted(names), indent=0) + "\n")
+    os.replace(temp, path)
+
+
+MAX_PARAMETER_TEXT = 1024  # OpenJD's longest STRING parameter value (openjd check refuses more)
+
+
+def write_bundle(bundle: Bundle, template: dict, values: dict, elsewhere: Sequence[str] = (),
                  carried: Sequence[Path] = ()) -> Path:
     """``template.yaml`` and ``parameter_values.yaml`` (Deadline Cloud's job bundle layout; JSON is
-    YAML) in ``folder``, and the same values as ``openjd run`` reads them (``job_params.yaml``);
-    ``values``: {parameter: value}, paths as absolute strings.
+    YAML) in ``bundle``, and the same values as ``openjd run`` reads them (``job_params.yaml``);
+    ``values``: {parameter: value}, paths as absolute strings where the bundle puts them.
 
     Deadline Cloud's client submits with ``--yes`` only paths it knows: those inside the bundle.
     So its parameter values leave the paths out: the template's defaults name every input by its
@@ -227,18 +356,22 @@ def write_bundle(folder: Path, template: dict, values: dict, elsewhere: Sequence
     that no parameter names (a .blend's images beside its copy), and ``elsewhere``, input files
     outside the bundle (Deadline Cloud attaches them after asking, or without where a storage
     profile knows their folder)."""
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = bundle.folder
     for param in template["parameterDefinitions"]:
         if param["type"] == "PATH" and param.get("dataFlow") == "IN":
             param["default"] = _inside(folder, values[param["name"]], param["name"])
+        if param["type"] == "STRING" and len(str(values.get(param["name"], ""))) > MAX_PARAMETER_TEXT:
+            raise ParameterError(param["name"].lower(), f"{len(str(values[param['name']])):,} characters (valid: at "
+                                 f"most {MAX_PARAMETER_TEXT:,}, Open Job Description's limit for a job parameter; "
+                                 "give fewer runs of frames, e.g. one range A-B)")
     paths = {p["name"] for p in template["parameterDefinitions"] if p["type"] == "PATH"}
-    (folder / "template.yaml").write_text(json.dumps(template, indent=2) + "\n")
+    bundle.path("template.yaml").write_text(json.dumps(template, indent=2) + "\n")
     rows = [{"name": k, "value": v} for k, v in values.items() if k not in paths]
-    (folder / "parameter_values.yaml").write_text(json.dumps({"parameterValues": rows}, indent=2) + "\n")
-    (folder / "job_params.yaml").write_text(json.dumps({k: str(v) for k, v in values.items()}, indent=2) + "\n")
-    references = folder / "asset_references.yaml"
+    bundle.path("parameter_values.yaml").write_text(json.dumps({"parameterValues": rows}, indent=2) + "\n")
+    bundle.path("job_params.yaml").write_text(json.dumps({k: str(v) for k, v in values.items()}, indent=2) + "\n")
     inputs = {"filenames": sorted(elsewhere), "directories": [str(Path(d).resolve()) for d in carried]}
-    references.write_text(json.dumps({"assetReferences": {"inputs": inputs}}, indent=2) + "\n")
+    bundle.path("asset_references.yaml").write_text(json.dumps({"assetReferences": {"inputs": inputs}}, indent=2)
+                                                    + "\n")
     return folder
 
 
@@ -260,15 +393,70 @@ EXTENSION_PARTS = ("__init__.py", "blender_manifest.toml", "grass_addon", "opera
 
 
 def extension_files(root: Path):
-    """(path, name in the extension) of every file of the extension at ``root`` (what Blender's
-    build puts in the zip: no caches, no scripts or tests)."""
+    """(path, name in the extension) of every file of the extension at ``root``: what Blender's
+    build puts in the zip (the manifest's ``paths_exclude_pattern``: no caches, hidden files,
+    scripts or tests), never a link (its target's content would travel), and in a git checkout only
+    the files git tracks (issue #57: a checkout's ``.env``, swap files, ``.blend1`` and a link to a
+    credentials file went into the bundle that ``deadline bundle submit`` uploads)."""
+    patterns = _exclude_patterns(root)
+    tracked = _tracked(root)
     for part in EXTENSION_PARTS:
         top = root / part
         paths = [top] if top.is_file() else sorted(p for p in top.rglob("*") if p.is_file())
         for path in paths:
-            if "__pycache__" in path.parts or path.suffix in (".pyc", ".zip"):
+            name = path.relative_to(root).as_posix()
+            if tracked is not None and name not in tracked:
                 continue
-            yield path, path.relative_to(root).as_posix()
+            if _linked(root, path) or any(p.startswith(".") for p in name.split("/")) or _excluded(name, patterns):
+                continue
+            yield path, name
+
+
+def _exclude_patterns(root: Path) -> list[str]:
+    try:
+        import tomllib
+
+        build = tomllib.loads((root / "blender_manifest.toml").read_text()).get("build", {})
+    except (OSError, ValueError):
+        return []
+    patterns = build.get("paths_exclude_pattern", []) if isinstance(build, dict) else []
+    return [p for p in patterns if isinstance(p, str) and p.strip("/")]
+
+
+def _excluded(name: str, patterns: list[str]) -> bool:
+    """Whether the manifest's patterns (gitignore's way, as Blender's build reads them: '/' in
+    front anchors at the top, '/' at the end means a folder) leave ``name`` out."""
+    parts = name.split("/")
+    for pattern in patterns:
+        body, folder = pattern.strip("/"), pattern.endswith("/")
+        depth = body.count("/") + 1
+        if pattern.startswith("/"):
+            candidates = ["/".join(parts[:depth])] if len(parts) > depth or not folder else []
+        else:
+            candidates = parts[:-1] if folder else parts
+        if any(fnmatch.fnmatchcase(c, body) for c in candidates):
+            return True
+    return False
+
+
+def _linked(root: Path, path: Path) -> bool:
+    """``path`` or a folder above it (below ``root``) is a symbolic link."""
+    while path != root and root in path.parents:
+        if path.is_symlink():
+            return True
+        path = path.parent
+    return False
+
+
+def _tracked(root: Path) -> set[str] | None:
+    """The files git tracks in a checkout at ``root`` (None: no checkout, or no git here)."""
+    if not (root / ".git").exists():
+        return None
+    try:
+        out = subprocess.run(["git", "-C", str(root), "ls-files", "-z", "--cached"], capture_output=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(out.stdout.decode("utf-8", "replace").split("\0")) - {""} if out.returncode == 0 else None
 
 
 def extension_version(root: Path) -> str:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .clock import Clock
+from .errors import ParameterError
 from .layout import subset_layout
 from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
@@ -267,3 +268,25 @@ def seek_cost_bound(params) -> int:
     epoch, warmup, _ = epoch_frames(params)
     return warmup + epoch + warmup
 
+
+
+MAX_SEEK_FRAMES = 20_000  # trajectory-frames one frame may cost (14 minutes of wind at 24 fps)
+
+
+def check_seek(params, frames) -> None:
+    """ParameterError (naming simulation.epoch and its limit) when reaching a frame of ``frames``
+    would simulate more than MAX_SEEK_FRAMES frames: a jump into a long epoch simulates from the
+    epoch's start (issue #57: frame 1,000,000 with an epoch of 10^6 s simulated for minutes
+    before anything said so). A frame near the scene's start costs its distance from it."""
+    if not len(frames):
+        return
+    epoch, warmup, _ = epoch_frames(params)
+    start = params.render.frame_start
+    cost = min(seek_cost_bound(params), max(int(f) - start for f in frames) + 2 * warmup)
+    if cost <= MAX_SEEK_FRAMES:
+        return
+    fps = Clock.of(params).rate
+    longest = max(MAX_SEEK_FRAMES - 2 * warmup, 0) / fps
+    raise ParameterError("simulation.epoch", f"{params.simulation.epoch:g} s: reaching frame {max(frames)} would "
+                         f"simulate {cost:,} frames (valid: at most {MAX_SEEK_FRAMES:,}, a simulation.epoch of at most "
+                         f"{longest:,.0f} s at {fps:g} fps with this preroll, or frames nearer render.frame_start)")

@@ -23,11 +23,9 @@ import argparse
 import importlib
 import os
 import signal
-import struct
 import sys
 import time
 import tomllib
-import zlib
 from pathlib import Path
 
 HEADLESS = Path(__file__).resolve().parent
@@ -71,9 +69,10 @@ schema = addon_module("grass_addon.schema")
 ParameterError = schema.ParameterError
 WindgrassError = addon_module("grass_addon.errors").WindgrassError
 ensure_writable = addon_module("grass_addon.folders").ensure_writable
+ensure_user_folder = addon_module("grass_addon.folders").user_folder
 FieldGrid = addon_module("grass_addon.grid").FieldGrid
 farm = addon_module("grass_addon.farm")
-images = addon_module("grass_addon.images")
+farm_frames = addon_module("grass_addon.farm_frames")
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 FRAME_NAME = "frame_{:04d}.png"
@@ -116,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "gives a task), within render.frame_start.."
                           "render.frame_end (default: all of them); any sub-range renders the same "
                           "images as the full run")
-    job.add_argument("--out", metavar="DIR", type=Path,
+    job.add_argument("--out", metavar="DIR",
                      help=f"output folder (created); default {DEFAULT_OUT.relative_to(REPO)}/")
     job.add_argument("--engine", metavar="{cycles,eevee}",
                      help="render engine (render.engine); EEVEE wants a GPU: with software OpenGL "
@@ -215,12 +214,17 @@ def resolve(args: argparse.Namespace):
         frames = tuple(range(params.render.frame_start, params.render.frame_end + 1))
     else:
         frames = parse_frames(args.frames, params)
+    addon_module("grass_addon.simulation").check_seek(params, frames)
     return params, frames, config
 
 
-def prepare_out(out: Path) -> Path:
-    """The output folder, created and proven writable before anything is built or rendered."""
-    out = out.expanduser().resolve()
+def prepare_out(out) -> Path:
+    """The output folder (``~`` expanded, an empty name refused), created and proven writable
+    before anything is built or rendered."""
+    try:
+        out = ensure_user_folder(out, "out").resolve()
+    except ParameterError as exc:
+        raise BadInputError(f"--out: {exc.message}") from None
     if out.exists() and not out.is_dir():
         raise BadInputError(f"--out: {out} is a file; give a folder (it is created if missing)")
     try:
@@ -228,23 +232,6 @@ def prepare_out(out: Path) -> Path:
     except OSError as exc:
         raise BadInputError(f"--out: cannot write into {out}: {exc.strerror or exc}") from None
     return out
-
-
-TEXT_CHUNKS = (b"tEXt", b"zTXt", b"iTXt")  # PNG metadata: Cycles writes its render times there
-
-
-def strip_png_text(path: Path) -> None:
-    """Drop the text chunks of a PNG (Cycles' render-time metadata), so a frame is the same file
-    on any machine and in any run; the image chunks are kept byte for byte."""
-    data = path.read_bytes()
-    out, pos = [data[:len(PNG_SIGNATURE)]], len(PNG_SIGNATURE)
-    while pos < len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        end = pos + 12 + length
-        if kind not in TEXT_CHUNKS:
-            out.append(data[pos:end])
-        pos = end
-    path.write_bytes(b"".join(out))
 
 
 def check_png(path: Path) -> None:
@@ -397,17 +384,14 @@ def check_fields(scene) -> None:
 
 
 def _whole(path: Path, size: tuple[int, int], fingerprint: str) -> bool:
-    """The file is a PNG that decodes completely to ``size`` (width, height) pixels and carries
-    this job's ``fingerprint``: a frame ``--resume`` may keep (signature and end were not enough:
-    a PNG zeroed in its middle, a whole one of another size under the frame's name, and the frames
-    of an earlier, edited submission were kept; issue #36)."""
+    """The frame at ``path`` is whole, ``size`` (width, height) pixels and this job's on these
+    pixels (``farm_frames.kept``): a frame ``--resume`` may keep (a PNG zeroed in its middle, one of
+    another size, an edited submission's and another job's pixels under this job's text are
+    rendered again; issues #36, #57). A link, a pipe or a device under its name is a sentence."""
     try:
-        check_png(path)
-        data = path.read_bytes()
-        pixels = images.decode_png(data)
-    except (OSError, ValueError, zlib.error):
-        return False
-    return pixels.shape[:2] == (size[1], size[0]) and images.png_text(data).get(farm.FRAME_KEY) == fingerprint
+        return farm_frames.kept(path, fingerprint, size)
+    except farm_frames.FrameError as exc:
+        raise FrameWriteError(str(exc)) from None
 
 
 def fingerprints(params):
@@ -472,9 +456,8 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, fingerprint
                 raise FrameWriteError(f"Blender did not write frame {frame} to {out} (disk full or folder removed?)")
             try:
                 check_png(partial)
-                strip_png_text(partial)
-                partial.write_bytes(images.with_png_text(partial.read_bytes(), farm.FRAME_KEY, fingerprint(frame)))
-            except OSError as exc:
+                partial.write_bytes(farm_frames.stamped(partial.read_bytes(), fingerprint(frame)))
+            except (OSError, ValueError) as exc:
                 raise FrameWriteError(f"frame {frame} could not be written to {out}: {exc}") from None
             os.replace(partial, final)
         finally:

@@ -23,6 +23,10 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
                                         description="Where the job bundle is written")
     chunk_size: bpy.props.IntProperty(name="Frames per Task", default=4, min=1, soft_max=100,
                                       description="How many frames a task renders on the farm")
+    allow_outside: bpy.props.BoolProperty(
+        name="Allow Outside Files", default=False,
+        description="Name the files the .blend uses from outside its folder for the farm to upload too (off: "
+                    "refused, each named; the bundle carries only the .blend's own files)")
     hand_over: bpy.props.EnumProperty(
         name="Hand-over", default="blender",
         items=[("blender", "Blender", "A small Blender hands each task to the worker session's Blender: any worker, "
@@ -53,7 +57,7 @@ class WINDGRASS_OT_farm_job(bpy.types.Operator):
             # yet: the bundle (a dozen files and folders) goes into a folder of its own there
             folder = folder / (Path(bpy.data.filepath).stem + "_farm_job")
         folder, elsewhere = farm_job.write_blend_bundle(context.scene, folder, self.chunk_size,
-                                                        hand_over=self.hand_over)
+                                                        hand_over=self.hand_over, allow_outside=self.allow_outside)
         self.report({"INFO"}, f"Farm job written to {folder}: openjd run {folder / 'template.yaml'} --job-param "
                               f"file://{folder / 'job_params.yaml'} --step Render, or deadline bundle submit "
                               f"{folder} --yes (the frames come back into its output/)")

@@ -47,55 +47,60 @@ def check_saved() -> Path:
     return Path(bpy.data.filepath)
 
 
-def carry_blend(blend: Path, folder: Path) -> tuple[Path, list[str]]:
-    """Copy the saved ``blend`` into ``folder/scene/`` with the files it uses beneath its own folder
-    (the same layout beside the copy); return the copy and the files it uses from elsewhere."""
-    scene_dir = folder.resolve() / "scene"
-    if scene_dir.exists():
-        shutil.rmtree(scene_dir)  # (the bundle's own: a file dropped from the .blend since must go)
-    scene_dir.mkdir(parents=True)
-    copy = Path(shutil.copy2(blend, scene_dir / blend.name))
+def carry_blend(blend: Path, job: farm.Bundle, allow_outside: bool = False) -> tuple[Path, list[str]]:
+    """Copy the saved ``blend`` into the bundle's ``scene/`` with the files it uses beneath its own
+    folder (the same layout beside the copy); return the copy and the files it uses from elsewhere
+    (a link counts where it points). Those are refused, each named, unless ``allow_outside``: the
+    bundle would name them for the farm to upload (issue #57)."""
+    shutil.copy2(blend, job.path(f"scene/{blend.name}"))
     home, elsewhere = blend.resolve().parent, []
     blenders = Path(bpy.utils.system_resource("DATAFILES")).resolve()  # (its brushes: every Blender has them)
     for name in sorted(set(bpy.utils.blend_paths(absolute=True, packed=False, local=True))):
         path = Path(name).resolve()
-        if not path.is_file() or path == blend.resolve() or {folder.resolve(), blenders} & set(path.parents):
+        if not path.is_file() or path == blend.resolve() or {job.folder.resolve(), blenders} & set(path.parents):
             continue  # (a missing file or a numbered sequence: Blender's own report names it)
         if home not in path.parents:
             elsewhere.append(str(path))
             continue
-        target = scene_dir / path.relative_to(home)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(path, target)
-    return copy, elsewhere
+        shutil.copy2(path, job.path(f"scene/{path.relative_to(home).as_posix()}"))
+    if elsewhere and not allow_outside:
+        more = " ..." if len(elsewhere) > 3 else ""
+        raise ParameterError("file", f"the file uses {len(elsewhere)} file(s) from outside its folder {home}, which "
+                             f"the farm would upload: {', '.join(elsewhere[:3])}{more} (valid: files beside the "
+                             ".blend; Allow Outside Files names them for the farm too)")
+    return job.final(f"scene/{blend.name}"), elsewhere
 
 
-def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None,
-                       hand_over: str = "blender") -> tuple[Path, list[str]]:
+def write_blend_bundle(scene, folder: Path, chunk: int, out: Path | None = None, hand_over: str = "blender",
+                       allow_outside: bool = False) -> tuple[Path, list[str]]:
     """The job bundle of the saved .blend's scene frames in chunks of ``chunk`` into ``folder``, and
-    the files the .blend uses that the bundle does not carry (they lie outside its folder)."""
+    the files the .blend uses that the bundle does not carry (they lie outside its folder: refused
+    unless ``allow_outside``). Only a new or empty folder, or one a bundle writer wrote, is written
+    (``farm.Bundle``); nothing is, until all of it is checked."""
     blend = check_saved()
     farm.check_chunk(chunk)
     farm.check_hand_over(hand_over)
     out = output_folder(scene) if out is None else out
-    for path, name in ((out, "output"), (folder, "bundle")):
+    with farm.Bundle(folder, "bundle") as job:
         try:
-            ensure_writable(path, create=True)
+            ensure_writable(out, create=True)
         except OSError as exc:
-            raise ParameterError(name, f"cannot write into {path}: {exc.strerror or exc}") from None
-    version = farm.extension_version(ADDON_ROOT)
-    extension = farm.zip_extension(ADDON_ROOT, folder / f"windgrass-{version}.zip")
-    script = shutil.copy2(Path(__file__).with_name("farm_render.py"), folder / "farm_render.py")
-    session = shutil.copy2(Path(__file__).with_name("farm_session.py"), folder / "farm_session.py")
-    copy, elsewhere = carry_blend(blend, folder)
-    (folder / "flamenco").mkdir(exist_ok=True)
-    (folder / "flamenco" / "windgrass.js").write_text(farm.flamenco_job_type())
-    span = f"{scene.frame_start}-{scene.frame_end}"
-    blender = f"{bpy.app.version[0]}.{bpy.app.version[1]}"  # (the line this file's frames are made with)
-    template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender, hand_over)
-    farm.write_bundle(folder, template, {
-        "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(copy),
-        "ExtensionZip": str(extension.resolve()), "FarmScript": str(Path(script).resolve()),
-        "SessionScript": str(Path(session).resolve()),
-        "WindgrassVersion": version, "BlenderVersion": blender}, elsewhere, [copy.parent])
-    return folder, elsewhere
+            raise ParameterError("output", f"cannot write into {out}: {exc.strerror or exc}") from None
+        version = farm.extension_version(ADDON_ROOT)
+        farm.zip_extension(ADDON_ROOT, job.path(f"windgrass-{version}.zip"))
+        here = Path(__file__)
+        for name in ("farm_render.py", "farm_session.py"):
+            shutil.copy2(here.with_name(name), job.path(name))
+        shutil.copy2(here.parents[1] / "farm_frames.py", job.path("farm_frames.py"))
+        copy, elsewhere = carry_blend(blend, job, allow_outside)
+        job.path("flamenco/windgrass.js").write_text(farm.flamenco_job_type())
+        span = f"{scene.frame_start}-{scene.frame_end}"
+        blender = f"{bpy.app.version[0]}.{bpy.app.version[1]}"  # (the line this file's frames are made with)
+        template = farm.blend_template(span, chunk, f"Windgrass {blend.stem} {span}", version, blender, hand_over)
+        farm.write_bundle(job, template, {
+            "Frames": span, "ChunkSize": chunk, "OutputDir": str(out.resolve()), "BlendFile": str(copy),
+            "ExtensionZip": str(job.final(f"windgrass-{version}.zip").resolve()),
+            "FarmScript": str(job.final("farm_render.py").resolve()),
+            "SessionScript": str(job.final("farm_session.py").resolve()),
+            "WindgrassVersion": version, "BlenderVersion": blender}, elsewhere, [copy.parent])
+    return job.folder, elsewhere

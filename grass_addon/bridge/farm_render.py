@@ -14,16 +14,15 @@ status: 0 done, 1 failed (with the reason on stderr), 2 bad arguments.
 
 import argparse
 import hashlib
+import importlib.util
 import os
-import struct
 import sys
-import zlib
 from pathlib import Path
 
 import bpy
 
 FRAME_NAME = "frame_{:04d}.png"
-FRAME_KEY = "WindgrassFrame"  # (as grass_addon.farm.FRAME_KEY: the PNG text chunk naming the frame's job)
+MAX_FRAMES = 100_000  # frames of one task (as grass_addon.farm.MAX_JOB_FRAMES)
 
 
 def _args(argv):
@@ -39,31 +38,28 @@ def _args(argv):
     return parser.parse_args(argv)
 
 
-def whole_png(path: Path) -> bool:
-    """The file is a PNG whose chunks are all there, ending with IEND (not cut off by a kill)."""
-    try:
-        data = path.read_bytes()
-    except OSError:
-        return False
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        return False
-    pos = 8
-    while pos + 8 <= len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        end = pos + 12 + length
-        if end > len(data) or struct.unpack(">I", data[end - 4:end])[0] != zlib.crc32(data[pos + 4:end - 4]):
-            return False
-        if kind == b"IEND":
-            return True
-        pos = end
-    return False
+def _load_frames_module():
+    """``farm_frames`` (standard library only): beside this script in a job bundle, or in the
+    package (``grass_addon/farm_frames.py``) where it runs from the extension's own folder."""
+    here = Path(__file__).resolve()
+    for path in (here.with_name("farm_frames.py"), here.parents[1] / "farm_frames.py"):
+        if path.is_file():
+            spec = importlib.util.spec_from_file_location("windgrass_farm_frames", path)
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+            return module
+    raise ImportError(f"farm_frames.py is missing beside {here.name}: write the job's bundle again")
+
+
+farm_frames = _load_frames_module()
 
 
 def fingerprint(blend: Path, version: str):
     """frame -> what makes a frame this job's: a hash of its number, the .blend's bytes, Blender's
     version and the job's Windgrass version (``grass_addon.farm.frame_fingerprint``'s reading, its
     own copy: this script runs where the extension may be missing). A rerun keeps only frames
-    that carry it (issue #36: the frames of an earlier, edited submission were kept)."""
+    that carry it, bound to their pixels (``farm_frames``; issue #36: the frames of an earlier,
+    edited submission were kept)."""
     blend_hash = hashlib.sha256(blend.read_bytes()).hexdigest() if blend.is_file() else ""
 
     def of(frame: int) -> str:
@@ -75,20 +71,13 @@ def fingerprint(blend: Path, version: str):
     return of
 
 
-def kept(path: Path, stamp: str) -> bool:
-    """The frame is whole and carries this job's fingerprint ``stamp``."""
-    if not whole_png(path):
-        return False
-    data = path.read_bytes()
-    return (b"tEXt" + FRAME_KEY.encode() + b"\0" + stamp.encode()) in data
-
-
-def stamped(data: bytes, stamp: str) -> bytes:
-    """The PNG with a tEXt chunk FRAME_KEY: ``stamp`` before its IEND (``grass_addon.images.
-    with_png_text``'s, its own copy: this script runs where the extension may be missing)."""
-    end = data.rindex(b"IEND") - 4
-    body = b"tEXt" + FRAME_KEY.encode() + b"\0" + stamp.encode()
-    return data[:end] + struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body)) + data[end:]
+def kept(path: Path, stamp, size=None) -> bool:
+    """The frame is whole and this job's (``farm_frames.kept``); RuntimeError with a sentence when
+    its name holds a link, a pipe or a device (reading one would hang the task)."""
+    try:
+        return farm_frames.kept(path, stamp, size)
+    except farm_frames.FrameError as exc:
+        raise RuntimeError(str(exc)) from None
 
 
 def windgrass():
@@ -144,32 +133,48 @@ def prepare(args) -> None:
 
 def frames(text: str) -> list[int]:
     """The frames of 'A-B', 'N' or a list of them ('9,10,20-21', as Flamenco's chunker gives a
-    task), in order, each once. (This script runs where the extension may be missing: it keeps
-    its own copy of ``grass_addon.farm.parse_frames``'s reading, without the scene's range.)"""
-    out: set[int] = set()
-    for part in text.split(","):
+    task), in order, each once, at most MAX_FRAMES of them (counted before any is listed). (This
+    script runs where the extension may be missing: it keeps its own copy of
+    ``grass_addon.farm.parse_frames``'s reading; the scene's range is checked once it is open.)"""
+    spans = []
+    for part in text.split(",") if len(text) <= 65536 else ["(too long)"]:
         a, sep, b = part.strip().partition("-") if not part.strip().startswith("-") else ("", "", "")
-        if not a.strip().isdigit() or (sep and not b.strip().isdigit()):
-            raise ValueError(f"--frames {text}: not 'A-B', a frame number or a list of them (e.g. 1-4 or 9,10,20-21)")
+        if not a.strip().isdigit() or (sep and not b.strip().isdigit()) or len(a.strip()) > 9 or len(b.strip()) > 9:
+            raise ValueError(f"--frames {text[:40]}: not 'A-B', a frame number or a list of them (e.g. 1-4 or "
+                             "9,10,20-21)")
         first, last = int(a), int(b or a)
         if last < first:
-            raise ValueError(f"--frames {text}: {part.strip()} ends before it starts")
-        out.update(range(first, last + 1))
-    return sorted(out)
+            raise ValueError(f"--frames {text[:40]}: {part.strip()} ends before it starts")
+        spans.append((first, last))
+    count = sum(last - first + 1 for first, last in spans)
+    if count > MAX_FRAMES:
+        raise ValueError(f"--frames {text[:40]}: {count:,} frames (valid: at most {MAX_FRAMES:,} in one task)")
+    return sorted({f for first, last in spans for f in range(first, last + 1)})
+
+
+def check_range(chosen: list[int], scene) -> None:
+    """The frames lie within the scene's Frame Start..End (ValueError naming them otherwise: frame 0
+    or one past the end renders a frame the artist never made)."""
+    outside = [f for f in chosen if not scene.frame_start <= f <= scene.frame_end]
+    if outside:
+        raise ValueError(f"--frames: frame {outside[0]} is outside the scene's frames {scene.frame_start}-"
+                         f"{scene.frame_end} (valid: frames within them)")
 
 
 def render(args, stamp) -> int:
     scene = bpy.context.scene
     chosen = frames(args.frames)
-    out = Path(args.out)
+    out = Path(args.out).expanduser()
     out.mkdir(parents=True, exist_ok=True)
+    r = scene.render
+    size = (r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100)
     module = windgrass()
     runtime = None if module is None else sys.modules[f"{module.__name__}.grass_addon.bridge.runtime"]
     scene.render.use_file_extension = False
     scene.render.image_settings.file_format = "PNG"
     for frame in chosen:
         final = out / FRAME_NAME.format(frame)
-        if kept(final, stamp(frame)):
+        if kept(final, stamp(frame), size):
             print(f"Skipped: '{final}' (already rendered)", flush=True)
             continue
         scene.frame_set(frame)
@@ -186,9 +191,10 @@ def render(args, stamp) -> int:
         scene.render.filepath = str(partial)
         try:
             bpy.ops.render.render(write_still=True)
-            if not whole_png(partial):
-                raise RuntimeError(f"Blender did not write frame {frame} whole to {out}")
-            partial.write_bytes(stamped(partial.read_bytes(), stamp(frame)))
+            try:
+                partial.write_bytes(farm_frames.stamped(partial.read_bytes(), stamp(frame)))
+            except (OSError, ValueError) as exc:
+                raise RuntimeError(f"Blender did not write frame {frame} whole to {out} ({exc})") from None
             os.replace(partial, final)
         finally:
             if partial.exists() or partial.is_symlink():
@@ -203,7 +209,7 @@ def opened(args, stamp) -> bool:
     render."""
     if not args.blend or Path(bpy.data.filepath or ".").resolve() == Path(args.blend).resolve():
         return True
-    out = Path(args.out)
+    out = Path(args.out).expanduser()
     if all(kept(out / FRAME_NAME.format(f), stamp(f)) for f in frames(args.frames)):
         for f in frames(args.frames):
             print(f"Skipped: '{out / FRAME_NAME.format(f)}' (already rendered)", flush=True)
@@ -225,6 +231,7 @@ def main(argv: list[str]) -> int:
         stamp = fingerprint(Path(args.blend or bpy.data.filepath), args.version)
         if not opened(args, stamp):
             return 0
+        check_range(frames(args.frames), bpy.context.scene)
         prepare(args)
         return render(args, stamp)
     except (RuntimeError, ValueError, OSError) as exc:

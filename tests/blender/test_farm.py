@@ -9,10 +9,18 @@ this machine has the window tests' Debian root)."""
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
+import signal
+import socket
+import stat
 import subprocess
 import sys
+import tempfile
 import textwrap
+import threading
+import time
 from pathlib import Path
 
 import bpy
@@ -189,17 +197,16 @@ def _ended(log: str) -> None:
 def test_a_task_whose_session_blender_is_gone_renders_in_a_blender_of_its_own(tmp_path, stand_in):
     """The session's Blender may die (killed, out of memory): its address is still in the session
     folder, nothing answers there. The task renders its frames in a Blender of its own."""
-    import json
-    import socket
-
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY)
     session = tmp_path / "session"
-    session.mkdir()
-    with socket.socket() as closed:  # (a port nothing listens on any more)
-        closed.bind(("127.0.0.1", 0))
-        port = closed.getsockname()[1]
-    (session / "windgrass-session.json").write_text(json.dumps({"port": port, "token": "x", "pid": 0}))
+    (session / ".windgrass-session").mkdir(parents=True, mode=0o700)
+    gone = Path(tempfile.mkdtemp(prefix="wg-", dir="/tmp")) / "server.sock"  # (short: a socket's path)
+    with socket.socket(socket.AF_UNIX) as closed:  # (a socket nothing listens on any more)
+        closed.bind(str(gone))
+    address = session / ".windgrass-session" / "session.json"
+    address.write_text(json.dumps({"socket": str(gone), "token": "0" * 64, "pid": 999_999, "stamp": ""}))
+    address.chmod(0o600)
     out = tmp_path / "frames"
     proc = subprocess.run([str(stand_in), "-b", "--factory-startup", "-P",
                            str(REPO / "grass_addon" / "bridge" / "farm_session.py"), "--", "run", "--dir", str(session),
@@ -209,7 +216,7 @@ def test_a_task_whose_session_blender_is_gone_renders_in_a_blender_of_its_own(tm
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert "the session's Blender is gone; this task starts its own" in proc.stdout
     assert sorted(p.name for p in out.glob("frame_*.png")) == ["frame_0002.png", "frame_0003.png"]
-    assert not (session / "windgrass-session.json").exists()
+    assert not address.exists()
 
 
 @pytest.mark.parametrize("args, words", [
@@ -228,31 +235,110 @@ def test_bad_farm_input_is_a_sentence(tmp_path, args, words):
     assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
 
 
-def test_farm_py_replaces_only_the_windgrass_folder_it_wrote(tmp_path):
-    """Issue #36: farm.py deleted BUNDLE/windgrass/ with whatever a user kept there (a clone named
-    windgrass lost its .git). A folder it did not write is a sentence and stays; its own is
-    replaced when the bundle is written again."""
-    scene = tmp_path / "tiny.toml"
-    scene.write_text(TINY)
+def _farm_py(tmp_path, config, bundle, *more, out=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(config),
+                           "--out", str(out or tmp_path / "out"), *more, str(bundle)], capture_output=True, text=True,
+                          env=_env(tmp_path), timeout=120, cwd=tmp_path)
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_bundle_is_written_only_into_a_folder_of_its_own_and_deletes_nothing_else(tmp_path):
+    """Issue #57 (and #36): farm.py replaced the user's files that share its names (template.yaml,
+    job_params.yaml) without a word and deleted a windgrass/ it had not written; writing a bundle
+    again from the scene file it carries destroyed that scene and its map; a scene whose map was
+    missing exited 2 after the old bundle's windgrass/ was gone. Now a folder it did not write is
+    a sentence and stays byte for byte; its own is written again whole or not at all, keeping what
+    the user put beside it (an output/ the farm brought back)."""
+    from PIL import Image
+
+    (tmp_path / "maps").mkdir()
+    Image.fromarray(np.full((8, 8), 200, np.uint8)).save(tmp_path / "maps" / "paths.png")
+    config = tmp_path / "tiny.toml"
+    config.write_text(TINY + '[paint]\ndensity = "maps/paths.png"\n')
+    for name, files in (("project", {"notes.txt": b"my notes", "template.yaml": b"mine", "tex/wood.png": b"png"}),
+                        ("clone", {"windgrass/.git/HEAD": b"ref: refs/heads/main\n"})):
+        folder = tmp_path / name
+        for rel, data in files.items():
+            (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+            (folder / rel).write_bytes(data)
+        refused = _farm_py(tmp_path, config, folder)
+        assert refused.returncode == 2 and "not written by farm.py" in refused.stderr, refused.stderr
+        assert "Traceback" not in refused.stderr and _tree(folder) == files
     bundle = tmp_path / "bundle"
-    (bundle / "windgrass" / ".git").mkdir(parents=True)
-    (bundle / "windgrass" / ".git" / "HEAD").write_text("ref: refs/heads/main\n")
+    assert _farm_py(tmp_path, config, bundle).returncode == 0
+    (bundle / "output").mkdir()
+    (bundle / "output" / "frame_0001.png").write_bytes(b"the farm's frame")
+    (bundle / "notes.txt").write_text("the user's")
+    carried = bundle / "windgrass" / "scene" / "tiny.toml"
+    again = _farm_py(tmp_path, carried, bundle)  # from the scene file the bundle carries
+    assert again.returncode == 0, again.stderr
+    assert carried.is_file() and "density" in carried.read_text()
+    density = carried.read_text().split('density = "')[1].split('"')[0]
+    assert (carried.parent / density).read_bytes() == (tmp_path / "maps" / "paths.png").read_bytes()
+    assert (bundle / "output" / "frame_0001.png").read_bytes() == b"the farm's frame"
+    assert (bundle / "notes.txt").read_text() == "the user's"
+    before = _tree(bundle)
+    broken = tmp_path / "broken.toml"
+    broken.write_text(TINY + '[paint]\ndensity = "maps/missing.png"\n')
+    failed = _farm_py(tmp_path, broken, bundle)
+    assert failed.returncode == 2 and "missing.png" in failed.stderr, failed.stderr
+    assert _tree(bundle) == before  # (the bundle before, whole)
+    hidden = [p for p in bundle.rglob("*") if any(part.startswith(".") for part in p.relative_to(bundle).parts)]
+    assert [p.name for p in hidden] == [".windgrass-bundle.json"] and not any(p.is_symlink() for p in bundle.rglob("*"))
 
-    def farm_py():
-        return subprocess.run([sys.executable, str(REPO / "headless" / "farm.py"), "--config", str(scene),
-                               "--out", str(tmp_path / "out"), str(bundle)], capture_output=True, text=True,
-                              env=_env(tmp_path), timeout=120)
 
-    refused = farm_py()
-    assert refused.returncode == 2 and "was not written by farm.py" in refused.stderr, refused.stderr
-    assert (bundle / "windgrass" / ".git" / "HEAD").read_text() == "ref: refs/heads/main\n"
-    (bundle / "windgrass" / ".git" / "HEAD").unlink()
-    (bundle / "windgrass" / ".git").rmdir()
-    (bundle / "windgrass").rmdir()
-    for _ in range(2):  # (the second time over its own folder)
-        made = farm_py()
-        assert made.returncode == 0, made.stderr
-        assert (bundle / "windgrass" / "headless" / "render_field.py").is_file()
+def test_a_bundle_carries_only_the_scenes_own_files(tmp_path):
+    """Issue #57: a scene file naming ~/.aws/credentials as paint.density had the credentials copied
+    into the bundle that deadline bundle submit uploads (exit 0), and so did a link beside the
+    scene pointing there. A file from outside the scene's folder is refused, named, and nothing is
+    written; --allow-outside carries it."""
+    secret = tmp_path / "home" / ".aws" / "credentials"
+    secret.parent.mkdir(parents=True)
+    secret.write_bytes(b"[default]\naws_secret_access_key = hunter2\n")
+    scene_dir = tmp_path / "scene"
+    (scene_dir / "maps").mkdir(parents=True)
+    (scene_dir / "maps" / "link.png").symlink_to(secret)
+    for value in ("~/.aws/credentials", "maps/link.png"):
+        config = scene_dir / "tiny.toml"
+        config.write_text(TINY + f'[paint]\ndensity = "{value}"\n')
+        bundle = tmp_path / "bundle"
+        refused = _farm_py(tmp_path, config, bundle)
+        assert refused.returncode == 2, refused.stderr
+        assert "paint.density" in refused.stderr and "outside its folder" in refused.stderr, refused.stderr
+        assert str(secret) in refused.stderr and "--allow-outside" in refused.stderr
+        assert not bundle.exists() or not any(p.is_file() for p in bundle.rglob("*"))
+    allowed = _farm_py(tmp_path, config, bundle, "--allow-outside")
+    assert allowed.returncode == 0, allowed.stderr
+    assert any(p.read_bytes() == secret.read_bytes() for p in (bundle / "windgrass" / "scene" / "maps").iterdir())
+
+
+@pytest.mark.parametrize("case", ["a frame list too long for OpenJD", "100 million frames", "a long epoch", "~",
+                                  "an empty bundle path"])
+def test_farm_py_bounds_what_it_is_given(tmp_path, case):
+    """Issue #57: a frame list over 1,024 characters wrote a bundle openjd check refuses;
+    1-100000000 grew to 3 GB before it was killed; frame 1,000,000 with a long epoch simulated
+    for minutes; ~ in --out or the bundle made a folder named ~; an empty bundle path wrote into
+    the current folder."""
+    config = tmp_path / "long.toml"
+    config.write_text(TINY.replace("frame_end = 6", "frame_end = 1000000")
+                      + ("epoch = 1000000.0\n" if case == "a long epoch" else ""))
+    frames = {"a frame list too long for OpenJD": ",".join(str(f) for f in range(1, 1200, 2)),
+              "100 million frames": "1-1000000", "a long epoch": "1000000"}.get(case, "1-4")
+    bundle = {"~": "~/bundle", "an empty bundle path": ""}.get(case, str(tmp_path / "bundle"))
+    out = "~/frames" if case == "~" else None
+    proc = _farm_py(tmp_path, config, bundle, "--frames", frames, out=out)
+    words = {"a frame list too long for OpenJD": "at most 1,024", "100 million frames": "at most 100,000",
+             "a long epoch": "simulation.epoch", "an empty bundle path": "bundle: no folder given"}.get(case)
+    if words is None:
+        assert proc.returncode == 0, proc.stderr
+        assert (tmp_path / "home" / "bundle" / "template.yaml").is_file() and (tmp_path / "home" / "frames").is_dir()
+        assert not (tmp_path / "~").exists()
+    else:
+        assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+        assert not any(p.is_file() for p in tmp_path.rglob("template.yaml"))
 
 
 def test_a_worker_on_another_blender_line_refuses_the_jobs_frames(tmp_path, stand_in):
@@ -364,6 +450,40 @@ def test_farm_job_into_the_blends_own_folder_writes_a_folder_of_its_own(tmp_path
     # (and the frames' folder, the scene's output path: made ready for the workers)
     assert {p.name for p in tmp_path.iterdir()} - before == {"live_farm_job", "farm"}
     assert (tmp_path / "live_farm_job" / "template.yaml").is_file() and blend.is_file()
+
+
+def test_farm_job_into_the_artists_project_folder_is_refused_and_deletes_nothing(tmp_path, with_bridge):
+    """Issue #57: with the bundle folder set to a folder holding the .blend's project (notes,
+    textures), Farm Job... failed with a traceback and the artist's files and the saved .blend were
+    gone; into a folder holding other files it succeeded and deleted them. Both are refused with a
+    sentence, every file as it was; a file the .blend uses from outside its folder is refused, named,
+    unless Allow Outside Files is on."""
+    blend = _live_blend(tmp_path, with_bridge)
+    project = tmp_path / "project"
+    (project / "textures").mkdir(parents=True)
+    (project / "notes.txt").write_text("shot 12: wind from the west")
+    (project / "textures" / "bark.png").write_bytes(b"\x89PNG bark")
+    (project / "scene").mkdir()
+    shutil.copy2(blend, project / "scene" / blend.name)
+    before = _tree(project)
+    for folder in (project, project / "scene"):
+        with pytest.raises(RuntimeError, match="not written by farm.py"):
+            bpy.ops.windgrass.farm_job(directory=str(folder) + "/", chunk_size=2)
+    assert _tree(project) == before and blend.is_file()
+    from PIL import Image
+
+    Image.fromarray(np.zeros((4, 4), np.uint8)).save(tmp_path.parent / f"{tmp_path.name}-outside.png")
+    image = bpy.data.images.load(str(tmp_path.parent / f"{tmp_path.name}-outside.png"))
+    image.use_fake_user = True
+    bpy.ops.wm.save_mainfile()
+    with pytest.raises(RuntimeError, match="from outside its folder"):
+        bpy.ops.windgrass.farm_job(directory=str(tmp_path / "bundle") + "/", chunk_size=2)
+    assert not (tmp_path / "bundle" / "template.yaml").exists()
+    assert bpy.ops.windgrass.farm_job(directory=str(tmp_path / "bundle") + "/", chunk_size=2,
+                                      allow_outside=True) == {"FINISHED"}
+    references = json.loads((tmp_path / "bundle" / "asset_references.yaml").read_text())
+    outside = str((tmp_path.parent / f"{tmp_path.name}-outside.png").resolve())
+    assert references["assetReferences"]["inputs"]["filenames"] == [outside]
 
 
 def test_farm_job_refuses_an_unsaved_or_modified_file(tmp_path, with_bridge):
@@ -582,3 +702,311 @@ def test_workers_on_real_blender_5_2_without_windgrass_render_a_saved_blends_job
         bare.stdout[-2000:] + bare.stderr[-2000:]
     assert not one.exists() or not list(one.glob("*.png"))
     _one_process_renders(worker, bundle, blend, "1-4", one, _worker_env(work, work / "user-one"), farm_frames)
+
+
+# --------------------------------------------------------------------------------------------
+# The worker session's Blender on a shared render node (issue #57): another account can neither
+# read its token nor reach it, no message kills it or holds its tasks up, a task trusts only the
+# server that proves it is its session's, and ``stop`` ends only the process the session started.
+# The session's Blender is the bpy module behind the stand-in; the attacks run as the account
+# ``nobody`` (the machine's Python, outside this one's home) where the tests run as root, and are
+# skipped, saying so, elsewhere.
+
+SESSION = REPO / "grass_addon" / "bridge" / "farm_session.py"
+AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
+OTHER = "nobody"
+
+TASK = '''
+import sys
+from pathlib import Path
+
+def session_task(argv):
+    Path(argv[0]).write_text("by the session")
+    print("task ran in the session", argv[1:])
+    return 0
+
+if __name__ == "__main__":  # (a Blender of the task's own)
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    Path(argv[0]).write_text("by its own Blender")
+    print("task ran in its own Blender")
+'''
+
+
+@pytest.fixture
+def node():
+    """A session folder as a render node may have one: under /tmp, open for others to look into
+    (mode 0755, as the session folders of some runtimes are), with a stand-in Blender and a task."""
+    top = Path(tempfile.mkdtemp(prefix="wg-node-", dir="/tmp"))
+    top.chmod(0o755)
+    (top / "blender").write_text(STAND_IN.format(python=sys.executable))
+    (top / "blender").chmod(0o755)
+    (top / "task.py").write_text(TASK)
+    session = top / "session"
+    session.mkdir()
+    session.chmod(0o755)
+    yield top
+    subprocess.run([sys.executable, str(SESSION), "stop", "--dir", str(session)], capture_output=True, timeout=60)
+    shutil.rmtree(top, ignore_errors=True)
+
+
+def _session(node: Path, action: str, *task: str, timeout=300) -> subprocess.CompletedProcess:
+    extra = ["--script", str(node / "task.py"), "--", *task] if action == "run" else []
+    return subprocess.run([sys.executable, str(SESSION), action, "--dir", str(node / "session"),
+                           "--blender", str(node / "blender"), *extra], capture_output=True, text=True,
+                          env=_env(node), timeout=timeout)
+
+
+def _started(node: Path) -> dict:
+    proc = _session(node, "start")
+    assert proc.returncode == 0 and "one Blender (pid" in proc.stdout, proc.stdout + proc.stderr
+    return json.loads((node / "session" / ".windgrass-session" / "session.json").read_text())
+
+
+def _as_other(code: str) -> dict:
+    """Run ``code`` (it prints one JSON line) as the account ``nobody``; its result."""
+    proc = subprocess.run(["/usr/bin/python3", "-c", textwrap.dedent(code)], user=OTHER, capture_output=True,
+                          text=True, timeout=60, cwd="/")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").is_file() and " Z " not in Path(f"/proc/{pid}/stat").read_text()
+
+
+def _tcp_listeners(pid: int) -> list[str]:
+    """The TCP sockets process ``pid`` listens on (state 0A in /proc/net/tcp and tcp6)."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    rows = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            cols = line.split()
+            if cols[3] == "0A" and cols[9] in inodes:
+                rows.append(cols[1])
+    return rows
+
+
+needs_root = pytest.mark.skipif(not AS_ROOT, reason="the attacks run as another account: the tests need root")
+
+
+@needs_root
+def test_another_account_can_neither_read_the_token_nor_reach_the_server(node):
+    """Issue #57: the address file with the token was 0644 in a 0755 folder, the server a TCP port
+    any account could see (ss -ltn) and connect to; nobody read the token and had the session's
+    Blender run its own script, as root."""
+    session = _started(node)
+    private = node / "session" / ".windgrass-session"
+    assert stat.S_IMODE(private.stat().st_mode) == 0o700
+    assert stat.S_IMODE((private / "session.json").stat().st_mode) == 0o600
+    assert stat.S_IMODE(os.stat(session["socket"]).st_mode) & 0o077 == 0
+    assert _tcp_listeners(session["pid"]) == []  # (no port at all: a Unix socket)
+    planted = node / "planted"
+    attack = f"""
+        import json, socket
+        out = {{}}
+        try:
+            open({str(private / "session.json")!r}).read(); out["read"] = "read"
+        except OSError as exc:
+            out["read"] = type(exc).__name__
+        try:
+            s = socket.socket(socket.AF_UNIX); s.connect({session["socket"]!r}); out["connect"] = "connected"
+        except OSError as exc:
+            out["connect"] = type(exc).__name__
+        print(json.dumps(out))
+    """
+    assert _as_other(attack) == {"read": "PermissionError", "connect": "PermissionError"}
+    # Even with the folder, the file and the socket opened to all (a careless chmod -R): the token
+    # read, a proof made with it, the server still closes another account's connection unanswered.
+    private.chmod(0o755)
+    (private / "session.json").chmod(0o644)
+    os.chmod(session["socket"], 0o666)
+    attack = f"""
+        import hashlib, hmac, json, socket
+        token = json.load(open({str(private / "session.json")!r}))["token"]
+        s = socket.socket(socket.AF_UNIX); s.settimeout(20); s.connect({session["socket"]!r})
+        first = s.recv(4096)
+        try:
+            nonce = json.loads(first)["nonce"]
+            proof = hmac.new(token.encode(), ("client:" + nonce).encode(), hashlib.sha256).hexdigest()
+            s.sendall((json.dumps({{"action": "run", "script": {str(node / "task.py")!r},
+                                   "argv": [{str(planted)!r}], "proof": proof, "nonce": "n"}}) + "\\n").encode())
+            answer = s.recv(4096)
+        except (ValueError, OSError) as exc:
+            answer = b""
+        print(json.dumps({{"first": first.decode(), "answer": answer.decode()}}))
+    """
+    assert _as_other(attack) == {"first": "", "answer": ""}
+    time.sleep(1.0)
+    assert not planted.exists()
+    # ... and the job's own tasks no longer trust a folder others can write into: each runs alone
+    ran = _session(node, "run", str(node / "own"))
+    assert ran.returncode == 0 and (node / "own").read_text() == "by its own Blender", ran.stdout + ran.stderr
+    assert _alive(session["pid"])
+
+
+def _hello(path: str) -> socket.socket:
+    conn = socket.socket(socket.AF_UNIX)
+    conn.settimeout(30)
+    conn.connect(path)
+    assert "nonce" in json.loads(conn.recv(4096))
+    return conn
+
+
+def _rss_kb(pid: int) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    raise AssertionError("no VmRSS")
+
+
+HOSTILE = {
+    "a number": b"5\n", "null": b"null\n", "a string": b'"run"\n', "a list": b"[]\n",
+    "not JSON": b"{run\n", "not UTF-8": b"\xff\xfe\n", "no proof": b'{"action": "run", "script": "x", "argv": []}\n',
+    "a wrong proof": b'{"action": "run", "script": "x", "argv": [], "proof": "00", "nonce": "n"}\n',
+}
+
+
+def test_no_message_kills_the_server_or_holds_its_tasks_up(node):
+    """Issue #57: one idle connection (or half a line) held the server, so every later task hung
+    until its timeout killed it; a JSON number, null, a string or a list killed it; 1.5 GB without
+    a newline took it from 376 MB to 1.9 GB. Now each is answered or dropped, and a task runs at
+    once beside them; the server's memory grows by less than 64 MB."""
+    session = _started(node)
+    idle = [_hello(session["socket"]) for _ in range(3)]
+    idle[1].sendall(b'{"action": "ru')  # (half a line, then silence)
+    ran = _session(node, "run", str(node / "first"), "beside", "idle")
+    assert ran.returncode == 0 and "task ran in the session ['beside', 'idle']" in ran.stdout, ran.stdout + ran.stderr
+    for conn in idle:  # (the task did not wait for them: they are still open, unanswered)
+        conn.settimeout(0.05)
+        with pytest.raises(socket.timeout):
+            conn.recv(1)
+    answers = {}
+    for name, payload in HOSTILE.items():
+        with _hello(session["socket"]) as conn:
+            conn.sendall(payload)
+            answers[name] = json.loads(conn.recv(65536).decode().splitlines()[0]).get("error", "")
+    assert all(answers.values()), answers
+    assert "not this session's task" in answers["no proof"] and "not an object" in answers["a list"]
+    before = _rss_kb(session["pid"])
+    with _hello(session["socket"]) as conn:
+        try:
+            for _ in range(64):  # 64 MB without a newline: refused after the first megabyte
+                conn.sendall(b"x" * (1 << 20))
+        except OSError:
+            pass  # (the server closed it)
+    assert _rss_kb(session["pid"]) - before < 64 * 1024
+    for conn in idle:
+        conn.close()
+    again = _session(node, "run", str(node / "second"), "after", "all")
+    assert again.returncode == 0 and (node / "second").read_text() == "by the session", again.stdout + again.stderr
+    assert _alive(session["pid"])
+
+
+@needs_root
+def test_a_task_trusts_only_its_own_sessions_server(node):
+    """Issue #57: after crashing the server, nobody took its port; the next task connected, its
+    script never ran, and it printed the frames' Saved: lines and exited 0. Now nobody cannot
+    listen where the session's Blender did, and a server without the token (the job's own user's,
+    at the session's address) is not believed: the task renders in a Blender of its own."""
+    session = _started(node)
+    os.kill(session["pid"], signal.SIGKILL)
+    bind = f"""
+        import json, os, socket
+        path = {session["socket"]!r}
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+        try:
+            s = socket.socket(socket.AF_UNIX); s.bind(path); out = "bound"
+        except OSError as exc:
+            out = type(exc).__name__
+        print(json.dumps({{"bind": out}}))
+    """
+    assert _as_other(bind) == {"bind": "PermissionError"}
+    gone = _session(node, "run", str(node / "after-kill"))
+    assert gone.returncode == 0 and (node / "after-kill").read_text() == "by its own Blender", gone.stdout + gone.stderr
+    assert "this task starts its own" in gone.stdout
+    # a forger at the address, with the session file put back: it greets, claims success, no proof
+    _forged_session(node, session)
+    forged = _session(node, "run", str(node / "forged"))
+    assert forged.returncode == 0 and (node / "forged").read_text() == "by its own Blender", forged.stdout
+    assert "did not prove it is the session's Blender" in forged.stdout and "Saved" not in forged.stdout
+
+
+def _forged_session(node: Path, session: dict) -> None:
+    path = session["socket"]
+    if os.path.exists(path):
+        os.unlink(path)
+    listener = socket.socket(socket.AF_UNIX)
+    listener.bind(path)
+    listener.listen(1)
+
+    def answer():
+        conn, _ = listener.accept()
+        conn.sendall(b'{"nonce": "abc"}\n')
+        conn.recv(65536)
+        conn.sendall(b'{"proof": "forged"}\n{"out": "Saved: \'frame_0001.png\'\\n"}\n{"exit": 0}\n')
+        conn.close()
+        listener.close()
+
+    threading.Thread(target=answer, daemon=True).start()
+    private = node / "session" / ".windgrass-session"
+    (private / "session.json").write_text(json.dumps(session))
+    (private / "session.json").chmod(0o600)
+
+
+@pytest.mark.parametrize("case", ["a live stranger's pid", "no socket", "a number", "not JSON", "a file for a socket",
+                                  "a silent socket"])
+def test_a_stale_or_broken_session_file_is_no_traceback_and_kills_no_stranger(node, case):
+    """Issue #57: ``stop`` with a stale address file killed an unrelated live process whose pid it
+    named; an address file without its port, or naming another program's port, was a traceback
+    with no fallback. Now ``run`` renders in its own Blender and ``stop`` ends nobody else."""
+    stranger = subprocess.Popen(["sleep", "120"])
+    private = node / "session" / ".windgrass-session"
+    private.mkdir(mode=0o700)
+    listener = socket.socket(socket.AF_UNIX)
+    silent = str(node / "silent.sock")
+    listener.bind(silent)
+    listener.listen(1)
+    (node / "plain").write_text("")
+    base = {"socket": str(private / "server.sock"), "token": "0" * 64, "pid": stranger.pid, "stamp": "0:1"}
+    text = {"a live stranger's pid": json.dumps(base), "no socket": json.dumps({**base, "socket": None}),
+            "a number": "7", "not JSON": "{",
+            "a file for a socket": json.dumps({**base, "socket": str(node / "plain")}),
+            "a silent socket": json.dumps({**base, "socket": silent})}[case]
+    with socket.socket() as closed:  # and the address file an earlier version left: a closed port
+        closed.bind(("127.0.0.1", 0))
+        legacy = {"port": closed.getsockname()[1], "token": "x", "pid": stranger.pid}
+    if case == "no socket":
+        del legacy["port"]
+
+    def leave():
+        (private / "session.json").write_text(text)
+        (private / "session.json").chmod(0o600)
+        (node / "session" / "windgrass-session.json").write_text(json.dumps(legacy))
+
+    leave()
+    try:
+        ran = _session(node, "run", str(node / "own"))
+        assert ran.returncode == 0 and (node / "own").read_text() == "by its own Blender", ran.stdout + ran.stderr
+        assert "Traceback" not in ran.stdout + ran.stderr
+        leave()
+        stopped = _session(node, "stop")
+        assert stopped.returncode == 0 and "Traceback" not in stopped.stderr, stopped.stderr
+        assert stranger.poll() is None, "stop killed a process the session did not start"
+    finally:
+        stranger.kill()
+        stranger.wait()
+        listener.close()

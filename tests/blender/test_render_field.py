@@ -451,6 +451,88 @@ def test_a_blend_file_that_cannot_be_written_whole_fails_and_is_not_left(env, ti
     assert "SCENES 1" in check.stdout, check.stdout[-1000:] + check.stderr[-1000:]
 
 
+def _chunks_of(data: bytes) -> list[tuple[bytes, bytes]]:
+    out, pos = [], 8
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        out.append((kind, data[pos + 8:pos + 8 + length]))
+        pos += 12 + length
+    return out
+
+
+def _png_of(chunks) -> bytes:
+    return b"\x89PNG\r\n\x1a\n" + b"".join(struct.pack(">I", len(body)) + kind + body
+                                          + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+                                          for kind, body in chunks)
+
+
+@pytest.fixture(scope="module")
+def one_frame(env, tiny_config, tmp_path_factory):
+    out = tmp_path_factory.mktemp("one-frame")
+    proc = render(env, "--config", tiny_config, "--frames", "1", "--out", out)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out / "frame_0001.png"
+
+
+@pytest.mark.parametrize("case", ["another job's pixels", "a sparse file of 3 GB"])
+def test_resume_renders_again_a_frame_whose_stamp_is_not_on_its_pixels(env, tiny_config, tmp_path, one_frame, case):
+    """Issue #57: --resume kept a frame that carried this job's fingerprint chunk over another
+    job's pixels (the fingerprint did not cover the pixels), and read a 3 GB sparse file with a
+    PNG's header and end whole. Each is rendered again (the frame the job makes, pixel for pixel),
+    the sparse file without being read (the task stays well under its size in memory)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    target = out / "frame_0001.png"
+    chunks = _chunks_of(one_frame.read_bytes())
+    if case == "another job's pixels":
+        header = next(body for kind, body in chunks if kind == b"IHDR")
+        width, height = struct.unpack(">II", header[:8])
+        black = zlib.compress(bytes(height * (width * (3 if header[9] == 2 else 4) + 1)))
+        image = [kind for kind, _ in chunks].index(b"IDAT")  # (one IDAT of black, the rest as it was)
+        target.write_bytes(_png_of([c for c in chunks[:image] if c[0] != b"IDAT"] + [(b"IDAT", black)]
+                                   + [c for c in chunks[image:] if c[0] != b"IDAT"]))
+    else:
+        with target.open("wb") as fh:
+            fh.write(_png_of([c for c in chunks if c[0] in (b"IHDR", b"tEXt")]))
+            fh.seek(3 << 30)
+            fh.write(_png_of([(b"IEND", b"")])[8:])
+    # (a parent of its own tells the task's peak memory: its only child's)
+    measure = ("import resource, subprocess, sys; code = subprocess.run(sys.argv[1:]).returncode; "
+               "print('MAXRSS', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr); "
+               "sys.exit(code)")
+    proc = subprocess.run([sys.executable, "-c", measure, sys.executable, str(SCRIPT), "--config", str(tiny_config),
+                           "--frames", "1", "--out", str(out), "--resume"], env=env, cwd=REPO, capture_output=True,
+                          text=True, timeout=300)
+    stdout, stderr = proc.stdout, proc.stderr
+    assert proc.returncode == 0, stdout[-2000:] + stderr[-2000:]
+    assert "already rendered: kept" not in stdout
+    assert pixels(target) == pixels(one_frame)
+    peak_kb = int(stderr.split("MAXRSS ")[1].split()[0])
+    assert peak_kb < 2 << 20, peak_kb  # (under 2 GB)
+
+
+@pytest.mark.parametrize("planted", ["a pipe", "a link to a pipe", "a link to /dev/zero"])
+def test_resume_over_a_frame_name_that_is_no_file_is_a_sentence_not_a_hang(env, tiny_config, tmp_path, planted):
+    """Issue #57: a FIFO, a link to one or to /dev/zero named like a frame hung the task until it
+    was killed. The task says what lies there and fails at once (status 1), writing through none."""
+    out = tmp_path / "out"
+    out.mkdir()
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    name = out / "frame_0001.png"
+    if planted == "a pipe":
+        os.mkfifo(name)
+    else:
+        name.symlink_to(pipe if "pipe" in planted else Path("/dev/zero"))
+    try:
+        proc = render(env, "--config", tiny_config, "--frames", "1", "--out", out, "--resume", timeout=120)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"--resume over {planted} hung")
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "frame_0001.png" in proc.stderr and ("link" in proc.stderr or "not a regular file" in proc.stderr)
+    assert "Traceback" not in proc.stderr
+
+
 @pytest.mark.parametrize("planted", ["link", "folder"])
 def test_what_lies_under_a_frames_names_is_never_written_through(env, tiny_config, tmp_path, planted):
     """Issue #36: a link planted under a frame's temporary name made the render write through it,

@@ -119,3 +119,31 @@ def test_the_job_type_offers_what_the_compiler_reads(tmp_path):
     keys = set(_compile(tmp_path)["types"])
     assert {"kind", "blendfile", "scene_file", "windgrass_dir", "extension_zip", "version", "frames", "chunk_size",
             "render_output_root"} <= keys
+
+
+def test_the_extension_a_bundle_carries_is_its_tracked_files_without_hidden_files_or_links(tmp_path):
+    """Issue #57: farm.py ignored the manifest's exclude list, so a checkout's .env, swap files,
+    .blend1 and a link to a credentials file (copied as its content) went into the bundle that
+    deadline bundle submit uploads. Only files git tracks, none hidden, none a link, none the
+    manifest leaves out."""
+    root = tmp_path / "checkout"
+    manifest = (REPO / "blender_manifest.toml").read_text()
+    files = {"blender_manifest.toml": manifest, "__init__.py": "", "grass_addon/engine.py": "",
+             "grass_addon/.env": "AWS_SECRET=1", "grass_addon/.engine.py.swp": "swap", "grass_addon/old.blend1": "b",
+             "grass_addon/untracked.py": "", "operators/op.py": "", "panels/__pycache__/p.cpython-313.pyc": "",
+             "panels/p.py": ""}
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    secret = tmp_path / "credentials"
+    secret.write_text("[default]\n")
+    (root / "grass_addon" / "keys.py").symlink_to(secret)
+    subprocess.run(["git", "init", "-q", str(root)], check=True)
+    tracked = [n for n in files if n != "grass_addon/untracked.py"] + ["grass_addon/keys.py"]
+    subprocess.run(["git", "-C", str(root), "add", "-f", *tracked], check=True)
+    names = sorted(name for _, name in farm.extension_files(root))
+    assert names == ["__init__.py", "blender_manifest.toml", "grass_addon/engine.py", "operators/op.py", "panels/p.py"]
+    shutil.rmtree(root / ".git")  # (an installed extension: no checkout, the same rules without git's list)
+    names = sorted(name for _, name in farm.extension_files(root))
+    assert names == ["__init__.py", "blender_manifest.toml", "grass_addon/engine.py", "grass_addon/untracked.py",
+                     "operators/op.py", "panels/p.py"]

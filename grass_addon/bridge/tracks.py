@@ -368,8 +368,7 @@ def stored(item):
 def _decoded(raw) -> tuple:
     """(colliders, effectors, how it is damaged or '') of a stored track, decoded once per
     fingerprint (``REGISTRY.tracks``; ``store`` drops the entry of the fingerprint it writes)."""
-    if not callable(getattr(raw, "get", None)) or not callable(getattr(raw, "keys", None)):
-        # (a file edited by hand: the stored motion a number, a text, a list)
+    if not _is_table(raw):
         return [], None, f"unreadable: a {type(raw).__name__}, not the table Update Motion stores"
     digest = str(raw.get("fingerprint", ""))
     cached = REGISTRY.tracks.get(digest)
@@ -383,6 +382,12 @@ def _decoded(raw) -> tuple:
             cached = ([], None, f"unreadable: {type(exc).__name__}: {exc}")
         REGISTRY.tracks[digest] = cached
     return cached
+
+
+def _is_table(raw) -> bool:
+    """The stored motion is a table (an ID property group), not a number, a text or a list that a
+    file edited by hand left there."""
+    return callable(getattr(raw, "get", None)) and callable(getattr(raw, "keys", None))
 
 
 class DamagedTrackError(ValueError):
@@ -477,7 +482,7 @@ def effector_digest(item) -> str:
     """Changes only when the stored force fields do (their part of the track)."""
     coll = item.collection
     raw = coll.get(TRACK_KEY) if coll is not None else None
-    text = str(raw.get("effectors", "") or "") if raw is not None else ""
+    text = str(raw.get("effectors", "") or "") if raw is not None and _is_table(raw) else ""
     return hashlib.sha1(text.encode()).hexdigest() if text else ""
 
 

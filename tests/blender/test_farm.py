@@ -511,6 +511,22 @@ def test_a_task_on_a_blender_without_windgrass_fails_with_a_sentence_and_writes_
     assert not out.exists() or not list(out.glob("*.png"))
 
 
+def test_a_blends_task_refuses_frames_outside_the_scene_and_lists_too_long(tmp_path, stand_in, with_bridge):
+    """Issue #57: farm_render.py --frames rendered frame 0 and frames past the scene's end, and
+    1-100000000 grew to 3 GB before it was killed. Each is a sentence naming the range or the
+    limit, at once, and no frame is written."""
+    blend = _live_blend(tmp_path, with_bridge)  # (frames 1-4)
+    out = tmp_path / "frames"
+    for frames, words in (("0", "outside the scene's frames 1-4"), ("3-5", "frame 5 is outside the scene's frames"),
+                          ("1-100000000", "at most 100,000")):
+        proc = subprocess.run([str(stand_in), "-b", str(blend), "-P", str(REPO / "grass_addon" / "bridge" /
+                                                                           "farm_render.py"),
+                               "--", "--frames", frames, "--out", str(out)], capture_output=True, text=True,
+                              env=_env(tmp_path, tmp_path / "user"), timeout=120)
+        assert proc.returncode == 1 and words in proc.stderr, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert "Traceback" not in proc.stderr and not list(out.glob("*.png"))
+
+
 def test_the_wrong_extension_version_is_a_sentence(tmp_path, stand_in, with_bridge):
     """A worker whose Windgrass is another version than the job's: the task fails with a sentence."""
     blend = _live_blend(tmp_path, with_bridge)

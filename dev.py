@@ -96,6 +96,9 @@ def main(argv: list[str]) -> int:
         "docs": ["headless/docs_media.py"],
         "test": ["-m", "pytest", "tests"],
     }
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return 0
     if not argv or argv[0] not in jobs:
         print(__doc__)
         return 2
@@ -145,23 +148,33 @@ def ensure_real_blender() -> Path | None:
         print("dev.py: the real-Blender window tests need a Debian root (debootstrap, chroot: run as root); "
               "they are skipped", flush=True)
         return None
-    print(f"dev.py: making a root of Debian's unstable suite with Blender 5.2 in {WINDOW_ROOT} (first time only)",
-          flush=True)
-    if shutil.which("debootstrap") is None:
-        subprocess.check_call(["apt-get", "update", "-q"], stdout=subprocess.DEVNULL)
-        subprocess.check_call(["apt-get", "install", "-y", "-q", "debootstrap"])
-    if not (WINDOW_ROOT / "usr" / "bin" / "apt-get").exists():
-        shutil.rmtree(WINDOW_ROOT, ignore_errors=True)
-        WINDOW_ROOT.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.check_call(["debootstrap", "--variant=minbase", "sid", str(WINDOW_ROOT)],
-                              stdout=subprocess.DEVNULL)
-    shutil.copy2("/etc/resolv.conf", WINDOW_ROOT / "etc" / "resolv.conf")
+    log = WINDOW_ROOT.parent / "sid-setup.log"
+    WINDOW_ROOT.parent.mkdir(parents=True, exist_ok=True)
+    print(f"dev.py: making a root of Debian's unstable suite with Blender 5.2 in {WINDOW_ROOT} (first time only: "
+          f"about 1.8 GB; apt's and debootstrap's lines go to {log})", flush=True)
     env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "DEBIAN_FRONTEND": "noninteractive", "LANG": "C.UTF-8"}
-    # (the unstable suite's release file carries a date after which apt calls it stale)
-    subprocess.check_call(["chroot", str(WINDOW_ROOT), "apt-get", "-o", "Acquire::Check-Valid-Until=false",
-                           "update", "-q"], env=env, stdout=subprocess.DEVNULL)
-    subprocess.check_call(["chroot", str(WINDOW_ROOT), "apt-get", "install", "-y", "-q", "--no-install-recommends",
-                           *WINDOW_PACKAGES], env=env, stdout=subprocess.DEVNULL)
+    with open(log, "w") as out:
+        def step(*cmd: str) -> None:  # (in the root: a clean environment)
+            out.write(f"$ {' '.join(cmd)}\n")
+            out.flush()
+            try:
+                subprocess.check_call(cmd, stdout=out, stderr=subprocess.STDOUT,
+                                      env=env if cmd[0] == "chroot" else None)
+            except subprocess.CalledProcessError:
+                print(f"dev.py: {cmd[0]} failed making the window tests' root; the end of {log}:\n"
+                      + "".join(log.read_text().splitlines(True)[-20:]), flush=True)
+                raise
+
+        if shutil.which("debootstrap") is None:
+            step("apt-get", "update", "-q")
+            step("apt-get", "install", "-y", "-q", "debootstrap")
+        if not (WINDOW_ROOT / "usr" / "bin" / "apt-get").exists():
+            shutil.rmtree(WINDOW_ROOT, ignore_errors=True)
+            step("debootstrap", "--variant=minbase", "sid", str(WINDOW_ROOT))
+        shutil.copy2("/etc/resolv.conf", WINDOW_ROOT / "etc" / "resolv.conf")
+        # (the unstable suite's release file carries a date after which apt calls it stale)
+        step("chroot", str(WINDOW_ROOT), "apt-get", "-o", "Acquire::Check-Valid-Until=false", "update", "-q")
+        step("chroot", str(WINDOW_ROOT), "apt-get", "install", "-y", "-q", "--no-install-recommends", *WINDOW_PACKAGES)
     stamp.write_text(wanted)
     return WINDOW_ROOT
 

@@ -74,7 +74,7 @@ def parse_args(argv):
     return parser.parse_args(argv)
 
 
-def scene_params(args, preset: str, fixed: bool, strip_height: float | None = None):
+def scene_params(args, preset: str, fixed: bool, strip_height: float | None = None, check: bool = False):
     params = schema.load_toml(args.config)
     try:
         w, h = (int(v) for v in args.resolution.lower().split("x"))
@@ -106,7 +106,9 @@ def scene_params(args, preset: str, fixed: bool, strip_height: float | None = No
     if preset == "painted":
         # the LOD bands brought close, so the path crosses blades, cards and the far canopy in the field
         size = FieldGrid.of(params).size[1]
-        params = params.replace({"paint.density": str(painted_map(args.out, params)), "lod.blade_near": 0.1 * size,
+        # (``check``: settings checked before anything runs, nothing written: a refused run leaves no map)
+        path = args.out / PAINTED_MAP if check else painted_map(args.out, params)
+        params = params.replace({"paint.density": str(path), "lod.blade_near": 0.1 * size,
                                  "lod.blade_far": 0.2 * size, "lod.card_near": 0.35 * size,
                                  "lod.card_far": 0.9 * size})  # (the far edge stays in the card band)
     elif preset not in ("default", "even"):
@@ -126,6 +128,9 @@ def even(params):
                            "field.patchiness": 0.0, "blade.dry_tips": 0.0})
 
 
+PAINTED_MAP = "painted_density.png"
+
+
 def painted_map(out: Path, params) -> Path:
     """A density map over the compared field: a path 2 m wide from the camera to the far edge
     (x = 2 m, density 0) and a gradient across the field (1 on the west edge, 0.3 on the east)."""
@@ -137,7 +142,7 @@ def painted_map(out: Path, params) -> Path:
     row = 1.0 - 0.7 * (xs - xs[0]) / (xs[-1] - xs[0])
     row[np.abs(xs - 2.0) < 1.0] = 0.0
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "painted_density.png"
+    path = out / PAINTED_MAP
     path.write_bytes(images.encode_png(np.tile(row, (64, 1))))
     return path
 
@@ -309,10 +314,10 @@ def compare(args) -> dict:
 def main(argv=None) -> int:
     args = parse_args(argv)
     try:
-        for preset in args.presets:  # bad input before anything renders
-            scene_params(args, preset, fixed=True)
+        for preset in args.presets:  # bad input before anything renders (or is written)
+            scene_params(args, preset, fixed=True, check=True)
         for height in args.heights if "strip" in args.views else ():
-            scene_params(args, args.presets[0], fixed=True, strip_height=height)
+            scene_params(args, args.presets[0], fixed=True, strip_height=height, check=True)
         result = compare(args)
     except ParameterError as exc:
         print(f"lod_compare.py: error: {exc}", file=sys.stderr)

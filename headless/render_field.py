@@ -451,7 +451,14 @@ def render_frames(scene, params, frames: tuple[int, ...], out: Path, fingerprint
         _clear_the_way(final, partial)
         scene.render.filepath = str(partial)
         try:
-            result = bpy.ops.render.render(write_still=True, scene=scene.name)
+            # (written by save_render, not write_still: Blender's own "Saved:" line named the hidden
+            # partial file, and farm managers read every Saved: line as an output; issue #62)
+            result = bpy.ops.render.render(write_still=False, scene=scene.name)
+            if "FINISHED" in result:
+                try:
+                    bpy.data.images["Render Result"].save_render(filepath=str(partial), scene=scene)
+                except (RuntimeError, KeyError) as exc:
+                    raise FrameWriteError(f"frame {frame} could not be written to {out}: {exc}") from None
             if "FINISHED" not in result or not partial.is_file():
                 raise FrameWriteError(f"Blender did not write frame {frame} to {out} (disk full or folder removed?)")
             try:

@@ -190,10 +190,11 @@ def render(args, stamp) -> int:
             partial.unlink()  # (a leftover, or a link Blender would write through, outside the folder)
         scene.render.filepath = str(partial)
         try:
-            bpy.ops.render.render(write_still=True)
+            bpy.ops.render.render(write_still=False)  # (saved below: Blender's own Saved: line named the partial)
             try:
+                bpy.data.images["Render Result"].save_render(filepath=str(partial), scene=scene)
                 partial.write_bytes(farm_frames.stamped(partial.read_bytes(), stamp(frame)))
-            except (OSError, ValueError) as exc:
+            except (OSError, ValueError, RuntimeError, KeyError) as exc:
                 raise RuntimeError(f"Blender did not write frame {frame} whole to {out} ({exc})") from None
             os.replace(partial, final)
         finally:

@@ -195,6 +195,10 @@ def test_cycles_frames_show_grass_in_wind(cycles_run):
     progress = [line for line in proc.stdout.splitlines() if line.startswith("frame ")]
     assert len(progress) == 4 and progress[0].startswith("frame 1/4") and "ETA" in progress[0]
     assert "done: 4 frame(s)" in proc.stdout and str(out) in proc.stdout
+    # One Saved: line a frame, naming the frame (farm managers read each as an output; issue #62:
+    # Blender's own named the hidden .frame_NNNN.partial.png first)
+    saved = [line.split("Saved: ")[1] for line in proc.stdout.splitlines() if "Saved: " in line]
+    assert [s for s in saved if "frame_" in s] == [f"'{out / n}'" for n in names], saved
     assert not list(out.glob(".*")), "temporary files left behind"
     # Cycles loads every image the materials read (5.2 called an Image Texture without an image
     # "Image file  does not exist" and "Failed to load 1 image files")

@@ -258,3 +258,22 @@ path = [{time = 0.0, position = [-1.2, 0.0, 0.4]}, {time = 1.0, position = [1.2,
     assert depth.max() < 0.01, depth.max()  # interaction.tolerance
     rest_depth = 0.4 - np.linalg.norm(rest[None].astype(np.float64) - centres[:, None, :], axis=2)
     assert (rest_depth > 0.01).sum() > 200
+
+
+@pytest.mark.parametrize("args", [["--views", "strip", "--heights", "1.1", "200"], ["--presets", "painted", "bogus"]])
+def test_a_refused_lod_comparison_leaves_nothing_behind(tmp_path, args):
+    """Issue #62: dev.py lod --views strip --heights 1.1 200 --out X exited 2 (bad input) but
+    left X/painted_density.png, the painted preset's map written while the settings were checked."""
+    out = tmp_path / "lod"
+    extra = [] if "--presets" in args else ["--presets", "painted"]
+    proc = run("lod_compare.py", *args, *extra, "--out", out)
+    assert proc.returncode == 2 and "lod_compare.py: error:" in proc.stderr, proc.stderr
+    assert not out.exists() or not list(out.iterdir())
+
+
+def test_dev_py_help_exits_0_and_a_missing_job_2():
+    """Issue #62: dev.py --help and -h printed the usage and exited 2, as for a mistake."""
+    for flags, code in ((["--help"], 0), (["-h"], 0), ([], 2), (["nope"], 2)):
+        proc = subprocess.run([sys.executable, str(REPO / "dev.py"), *flags], capture_output=True, text=True,
+                              timeout=60)
+        assert "dev.py test --quick" in proc.stdout and proc.returncode == code, (flags, proc.returncode)

@@ -5,6 +5,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -14,6 +16,7 @@ def test_ruff_reports_nothing():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
+@pytest.mark.slow  # (13 s: the quick loop leaves it to dev.py test; mypy on its own: .venv/bin/mypy)
 def test_the_engine_and_the_bridge_type_check():
     """mypy on grass_addon/ (the engine and the bridge): what may be None is checked before use, a
     function's arguments and results are what it says (issue #38: 46 errors in the engine alone before)."""

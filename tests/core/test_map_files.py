@@ -198,6 +198,7 @@ HOSTILE_TOML = {
 }
 
 
+@pytest.mark.slow  # (each case a few seconds under tracemalloc)
 @pytest.mark.parametrize("case", list(HOSTILE_TOML))
 def test_a_hostile_scene_file_is_answered_within_a_second_and_100_mb(case):
     text = HOSTILE_TOML[case]

@@ -223,6 +223,7 @@ def test_wind_at_a_point_does_not_depend_on_the_other_points():
     assert np.all(np.isfinite(far)) and not np.allclose(far, everything)
 
 
+@pytest.mark.slow  # (9 s: the quick loop leaves it to dev.py test)
 @pytest.mark.parametrize("kind", ["moderate_breeze", "blast", "whirlwind"])
 @pytest.mark.parametrize("turbulence", [0.0, 1.2])
 def test_a_window_of_blocks_gets_the_same_wind_as_its_cells_one_by_one(kind, turbulence):

@@ -70,11 +70,27 @@ def ensure_venv(env_dir: Path, requirements: Path, version: tuple[int, int]) -> 
             sys.exit(f"dev.py: {env_dir.name} needs CPython {version[0]}.{version[1]} and this machine has none")
         print(f"dev.py: creating {env_dir.name} (Python {version[0]}.{version[1]})", flush=True)
         subprocess.check_call([base, "-m", "venv", str(env_dir)])
-    print(f"dev.py: installing {requirements.name} into {env_dir.name} (bpy is ~400 MB, first time only)",
-          flush=True)
-    subprocess.check_call([str(python), "-m", "pip", "install", "-q", "-r", str(requirements)])
+    log = env_dir / "pip-install.log"
+    print(f"dev.py: installing {requirements.name} into {env_dir.name} (1.4 GB with bpy, first time only; pip's "
+          f"lines go to {log})", flush=True)
+    with open(log, "w") as out:
+        run_logged([str(python), "-m", "pip", "install", "-q", "-r", str(requirements)], out, log)
     stamp.write_text(digest)
     return python
+
+
+def run_logged(cmd: list[str], out, log: Path, env: dict | None = None) -> None:
+    """``cmd`` with its output in the open log file ``out`` (at ``log``): a newcomer's terminal shows
+    one line a step, not apt's or pip's; when it fails, the log's last lines and the error."""
+    out.write(f"$ {' '.join(cmd)}\n")
+    out.flush()
+    try:
+        subprocess.check_call(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)
+    except subprocess.CalledProcessError:
+        out.flush()
+        print(f"dev.py: {Path(cmd[0]).name} failed; the end of {log}:\n"
+              + "".join(log.read_text().splitlines(True)[-20:]), flush=True)
+        raise
 
 
 def latest_or_oldest() -> tuple[Path, bool]:
@@ -155,15 +171,7 @@ def ensure_real_blender() -> Path | None:
     env = {"PATH": "/usr/sbin:/usr/bin:/sbin:/bin", "DEBIAN_FRONTEND": "noninteractive", "LANG": "C.UTF-8"}
     with open(log, "w") as out:
         def step(*cmd: str) -> None:  # (in the root: a clean environment)
-            out.write(f"$ {' '.join(cmd)}\n")
-            out.flush()
-            try:
-                subprocess.check_call(cmd, stdout=out, stderr=subprocess.STDOUT,
-                                      env=env if cmd[0] == "chroot" else None)
-            except subprocess.CalledProcessError:
-                print(f"dev.py: {cmd[0]} failed making the window tests' root; the end of {log}:\n"
-                      + "".join(log.read_text().splitlines(True)[-20:]), flush=True)
-                raise
+            run_logged(list(cmd), out, log, env if cmd[0] == "chroot" else None)
 
         if shutil.which("debootstrap") is None:
             step("apt-get", "update", "-q")

@@ -88,9 +88,18 @@ def notes(item) -> list[str]:
             kind = _field_type(obj)
             if kind not in BLENDER_TYPES and kind != "NONE":
                 out.append(f"'{obj.name}' is a {kind.title()} force field, which the grass does not feel ({felt})")
+        for obj in effector_objects(item):
+            up = obj.matrix_world.col[2][2] / max(obj.matrix_world.col[2].length, 1e-12)
+            if _field_type(obj) == "WIND" and abs(up) > VERTICAL_WIND:
+                way = "up" if up > 0 else "down"
+                out.append(f"'{obj.name}' blows along its Z axis, which points {way}: the grass hardly moves; rotate "
+                           "it to blow across the grass (e.g. 90 degrees about X)")
         if not effector_objects(item):
             out.append(f"The Force Fields collection '{coll.name}' holds no force field the grass feels ({felt})")
     return out
+
+
+VERTICAL_WIND = math.cos(math.radians(25.0))  # a Wind within 25 degrees of straight up or down (as Blender adds one)
 
 
 def frame_range(scene, params) -> range:

@@ -598,3 +598,28 @@ def test_a_large_keyed_collider_is_sampled_once_and_the_grass_clears_it(bridge, 
         _assert_clear_of(strips, rest, [(tuple(ball.matrix_world.translation), 0.3)],
                          0.005 + item.interaction.tolerance)
 
+
+
+def test_a_wind_force_field_as_blender_adds_it_is_named_until_turned_to_blow_across(bridge, drawn):
+    """Issue #63 item 7: a Wind force field as Blender adds it blows along its Z axis, straight up,
+    so the grass hardly moves, and nothing said why. The panel's note names it and says how to
+    turn it; turned 90 degrees about X it blows across the calm grass, which leans, and the note
+    is gone."""
+    import math
+
+    from windgrass.grass_addon.bridge import tracks
+
+    scene, item = _field(bridge)
+    calm = _tips(drawn, scene, item, 12).copy()
+    wind, fields = _force_field("WIND", strength=6.0)
+    item.effector_collection = fields
+    assert bpy.ops.windgrass.track_update() == {"FINISHED"}
+    upward = _tips(drawn, scene, item, 12).copy()
+    note = [n for n in tracks.notes(item) if "blows along its Z axis" in n]
+    assert note and f"'{wind.name}'" in note[0] and "points up" in note[0] and "rotate" in note[0], tracks.notes(item)
+    wind.rotation_euler = (math.radians(90.0), 0.0, 0.0)
+    assert bpy.ops.windgrass.track_update() == {"FINISHED"}
+    across = _tips(drawn, scene, item, 12)
+    lean = np.linalg.norm((across - calm)[:, :2], axis=1).mean()
+    assert np.linalg.norm((upward - calm)[:, :2], axis=1).mean() < 0.2 * lean and lean > 0.01, lean
+    assert not [n for n in tracks.notes(item) if "blows along its Z axis" in n]

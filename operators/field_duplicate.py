@@ -37,6 +37,8 @@ class WINDGRASS_OT_field_duplicate(bpy.types.Operator):
             inputs["terrain"] = _terrain_beside(context, terrain)
         for key, value in inputs.items():
             setattr(item, key, value)
+        if terrain is not None:
+            item[runtime.TERRAIN_COPY_KEY] = inputs["terrain"]  # (Remove Field deletes it with the field)
         runtime.build_field(scene, item)
         ground, original = owned.ground_object(item), owned.ground_object(source)
         if ground is not None and original is not None and item.terrain is None:

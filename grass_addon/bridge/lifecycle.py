@@ -169,6 +169,22 @@ def remove_field(scene, item) -> None:
     reset_field(scene, item)
     bake.free_bake(scene, item)
     field_scene.remove_datablocks(item)
+    _remove_terrain_copy(item)
+
+
+TERRAIN_COPY_KEY = "wg_terrain_copy"  # the field item's: the linked terrain Duplicate Field made for it
+
+
+def _remove_terrain_copy(item) -> None:
+    """The linked copy of a terrain Duplicate Field made for the field (issue #63: Remove left it
+    behind), when it is still the field's terrain and no other field grows on it; its mesh stays
+    with the original."""
+    copy = item.get(TERRAIN_COPY_KEY)
+    if not isinstance(copy, bpy.types.Object) or item.terrain != copy:
+        return
+    others = [f for s in bpy.data.scenes for f in owned.scene_fields(s) if f != item and f.terrain == copy]
+    if not others:
+        bpy.data.objects.remove(copy, do_unlink=True)
 
 
 def reset_field(scene, item) -> None:

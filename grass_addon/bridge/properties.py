@@ -464,9 +464,10 @@ def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name:
     root = scene.windgrass
     taken = {f.name for f in root.fields}
     unique, n = name, 0
+    base = re.sub(r"\.\d{3}$", "", name) if name in taken else name  # (Grass.001's copy: Grass.002, as Blender names)
     while unique in taken:
         n += 1
-        unique = f"{name}.{n:03d}"
+        unique = f"{base}.{n:03d}"
     # The uid tags the field's objects and data-blocks, which live in bpy.data across scenes:
     # keep it unique in the whole file, not only in this scene.
     used = {f.uid for s in bpy.data.scenes for f in owned.scene_fields(s)}

@@ -41,6 +41,7 @@ from .edits import (
 from .frame_pass import update_field, update_scene
 from .handlers import register, unregister
 from .lifecycle import (
+    TERRAIN_COPY_KEY,
     apply_settings,
     bake_field,
     bake_status,
@@ -62,10 +63,9 @@ def scene_clock(scene) -> Clock:
 
 
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
-           "seek_note", "tracks", "WindgrassError",
-           "apply_settings", "bake_field", "bake_status", "build_field", "EDIT_SETTLE_S", "field_error",
-           "LiveField", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty",
-           "PAINT_MODE_POLL_S", "params_digest", "plays_cache", "refresh_later", "register", "REGISTRY",
+           "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
+           "EDIT_SETTLE_S", "field_error", "LiveField", "flush_pending", "free_bake", "get_runtime", "key_of",
+           "mark_dirty", "PAINT_MODE_POLL_S", "params_digest", "plays_cache", "refresh_later", "register", "REGISTRY",
            "remove_field", "reset_field", "resolve", "scene_clock", "start_bake", "store_track", "STROKE_GOAL_S",
-           "stroke_seconds", "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track",
-           "write_read_me"]
+           "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of", "topology_of", "unregister", "update_field",
+           "update_scene", "update_track", "write_read_me"]

@@ -282,3 +282,36 @@ def test_duplicating_a_field_on_a_terrain_puts_the_copy_beside_it(bridge, drawn)
     assert len(grown[0]) > 500 and len(grown[1]) == len(grown[0])
     shift = grown[1].mean(axis=0) - grown[0].mean(axis=0)
     assert shift[0] > 3.0 and abs(shift[1]) < 0.05 and abs(shift[2]) < 0.05
+
+
+def test_duplicates_are_named_as_blender_names_copies_and_remove_takes_the_terrain_copy_it_made(bridge, drawn):
+    """Issue #63 item 5: the copy of "Grass.001" was named "Grass.001.001" (Blender's own copy of
+    Cube.001 is Cube.002), and Remove Field left behind the linked terrain Duplicate made for the
+    copy. A copy's copy is numbered on; removing the copy removes its terrain (the original's mesh
+    stays, with the original field on it), and Ctrl+Z brings both back."""
+    owned, runtime = bridge
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=6, y_subdivisions=6, size=2.0)
+    hill = bpy.context.active_object
+    assert bpy.ops.windgrass.field_add(use_selected_mesh=True, cells_per_block=8) == {"FINISHED"}
+    scene = bpy.context.scene
+    assert bpy.ops.windgrass.field_duplicate() == {"FINISHED"}
+    assert bpy.ops.windgrass.field_duplicate() == {"FINISHED"}  # (the copy is active: its copy)
+    names = [f.name for f in scene.windgrass.fields]
+    assert names == ["Grass", "Grass.001", "Grass.002"], names
+    copy = scene.windgrass.fields[2].terrain
+    assert copy is not None and copy != hill and copy.data == hill.data
+    copy_name = copy.name
+    before = {o.name for o in bpy.data.objects}
+    bpy.ops.ed.undo_push(message="before remove")
+    assert bpy.ops.windgrass.field_remove() == {"FINISHED"}
+    gone = before - {o.name for o in bpy.data.objects}
+    assert copy_name in gone and hill.name not in gone, gone
+    assert hill.data is not None and len(bpy.data.meshes[hill.data.name].vertices) == 49
+    scene.frame_set(2)
+    first = scene.windgrass.fields[0]
+    assert runtime.field_error(scene, first) is None
+    assert (np.ptp(drawn(first).reshape(-1, 12, 3), axis=1).max(axis=1) > 0).sum() > 100
+    bpy.ops.ed.undo_push(message="remove")  # (as the window pushes after an operator)
+    bpy.ops.ed.undo()
+    assert copy_name in {o.name for o in bpy.data.objects}
+    assert [f.name for f in bpy.context.scene.windgrass.fields] == names

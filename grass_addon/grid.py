@@ -28,10 +28,11 @@ class FieldGrid:
 
     @staticmethod
     def blocks_covering(extent: tuple[float, float], block_edge: float, most: int) -> tuple[int, int]:
-        """(blocks_x, blocks_y) whose blocks of edge ``block_edge`` cover ``extent`` (x, y metres) as
-        nearly as whole blocks can: at least one each way, at most ``most`` in all (both counts
-        shrunk alike, the shape kept)."""
-        bx, by = (max(1, round(e / block_edge)) for e in extent)
+        """(blocks_x, blocks_y) whose blocks of edge ``block_edge`` cover ``extent`` (x, y metres):
+        the fewest whole blocks that reach its edges (issue #63: rounded to the nearest, a rim of up
+        to half a block stayed bare), at least one each way, at most ``most`` in all (both counts
+        shrunk alike, the shape kept: then they cover less)."""
+        bx, by = (max(1, math.ceil(e / block_edge - 1e-6)) for e in extent)
         if bx * by > most:
             shrink = math.sqrt(most / (bx * by))
             bx, by = max(1, int(bx * shrink)), max(1, int(by * shrink))

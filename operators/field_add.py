@@ -1,6 +1,8 @@
 """windgrass.field_add: add a grass field (Add menu: "Grass Field", and "Grass Field on Selected
 Mesh", which roots it on the selected mesh; the panel's + button adds one on flat ground)."""
 
+import math
+
 import bpy
 
 from ..grass_addon.bridge import runtime
@@ -59,8 +61,10 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         for view in schema.section_views("field"):  # (the redo panel's Size X/Y and Blades)
             if self.properties.is_property_set(view.param.key):
                 values.update(view.write(values, getattr(self, view.param.key)))
+        uncovered = None
         if terrain is not None:
-            values.update(self._fit_to(terrain, values))
+            fit, uncovered = self._fit_to(terrain, values)
+            values.update(fit)
         # a meadow: the preset's species and look, then the field's settings as given here
         params = presets.apply_preset(schema.defaults(), FIRST_LOOK).replace(
             {"wind.gust_waves": FIRST_GUST_WAVES, **{f"field.{k}": v for k, v in values.items()}})
@@ -83,6 +87,8 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
             self.report({"ERROR"}, f"Added grass field '{item.name}', but its grass is hidden: {error}")
             return {"FINISHED"}
         self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
+        if uncovered:
+            self.report({"WARNING"}, uncovered)
         return {"FINISHED"}
 
 
@@ -108,15 +114,29 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         for key in [v.param.key for v in schema.section_views("field")] + ["seed", "use_selected_mesh"]:
             layout.prop(self, key)
 
-    def _fit_to(self, terrain, values: dict) -> dict:
-        """blocks_x/blocks_y covering the terrain's XY extent (world bounding box) with the cell
-        size kept, when not given; at least 1, at most FIT_MAX_BLOCKS blocks in all."""
+    def _fit_to(self, terrain, values: dict) -> tuple[dict, str | None]:
+        """blocks_x/blocks_y (and, past FIT_MAX_BLOCKS, larger blocks: more cells a block, the cell
+        size and the density kept) covering the terrain's XY extent (world bounding box) when not
+        given, and a sentence when even the largest blocks leave part of it bare (else None)."""
         given = ("blocks_x", "blocks_y", "size_x", "size_y")
         if any(self.properties.is_property_set(key) for key in given):
-            return {}
-        edge = values["cells_per_block"] * values["cell_size"]
-        bx, by = FieldGrid.blocks_covering(maps.extent_xy(terrain), edge, FIT_MAX_BLOCKS)
-        return {"blocks_x": bx, "blocks_y": by}
+            return {}, None
+        extent = maps.extent_xy(terrain)
+        cells, size = values["cells_per_block"], values["cell_size"]
+        most_cells = int(schema.BY_NAME["field.cells_per_block"].soft_max)  # (larger blocks: cards too heavy)
+        if not self.properties.is_property_set("cells_per_block"):
+            while cells < most_cells and math.prod(FieldGrid.blocks_covering(extent, cells * size, 10**9)) \
+                    > FIT_MAX_BLOCKS:
+                cells += 1
+        bx, by = FieldGrid.blocks_covering(extent, cells * size, FIT_MAX_BLOCKS)
+        covered = (bx * cells * size, by * cells * size)
+        if covered[0] < extent[0] - 1e-6 or covered[1] < extent[1] - 1e-6:
+            note = (f"The field covers {covered[0]:g} x {covered[1]:g} m of the {extent[0]:.4g} x {extent[1]:.4g} m "
+                    f"mesh (at most {FIT_MAX_BLOCKS} blocks of {cells * size:g} m are added at once): raise Size X/Y "
+                    "in the panel to cover the rest")
+        else:
+            note = None
+        return {"blocks_x": bx, "blocks_y": by, "cells_per_block": cells}, note
 
 
 def _undo_add(scene, item) -> None:

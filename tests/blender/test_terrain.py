@@ -236,3 +236,32 @@ def test_removing_the_field_keeps_the_terrain_and_a_deleted_terrain_waits_for_re
     assert tuple(ground.matrix_world.translation)[:2] == pytest.approx(OFFSET[:2], abs=1e-6)  # stays put
     root = _blade_joints_world(scene, item, runtime)[:, 0].mean(axis=1)
     np.testing.assert_allclose(root[:, 2], 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("size", [30.0, 300.0])
+def test_grass_field_on_selected_mesh_covers_the_mesh_or_says_how_much(bridge, capfd, size):
+    """Issue #63 item 1: on a 30 m plane with a Displace modifier the field covered 25.6 m (256
+    blocks of 1.6 m at most) and a 2.2 m rim stayed bare, white in renders, with no message. The
+    ground the field draws now reaches the mesh's edges (its blocks grow past 256 of them); a mesh
+    larger than the largest blocks can cover is covered as far as they reach, and the report says
+    how much, and how to cover the rest."""
+    owned, runtime = bridge
+    bpy.ops.mesh.primitive_plane_add(size=size)
+    plane = bpy.context.active_object
+    plane.modifiers.new("Lift", "DISPLACE").strength = 0.2
+    assert bpy.ops.windgrass.field_add(use_selected_mesh=True) == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[-1]
+    scene.frame_set(1)
+    ground = owned.ground_object(item)
+    corners = np.array([ground.matrix_world @ v.co for v in ground.evaluated_get(
+        bpy.context.evaluated_depsgraph_get()).data.vertices])[:, :2]
+    reach = np.abs(corners).max(axis=0)
+    assert runtime.field_error(scene, item) is None
+    said = capfd.readouterr()
+    if size == 30.0:
+        assert np.all(reach >= size / 2 - 1e-3) and np.all(reach < size / 2 + 1.0), reach  # the whole mesh
+        assert "covers" not in said.out + said.err
+    else:
+        assert np.all(reach < size / 2)  # (as far as 256 of the largest blocks reach)
+        assert f"of the {size:.4g} x {size:.4g} m mesh" in said.out + said.err and "Size X/Y" in said.out + said.err

@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..grass_addon.bridge.runtime import presets, properties
+from ..grass_addon.bridge.runtime import presets, properties, schema
 from ._common import has_active_field, reported
 
 
@@ -15,12 +15,16 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
 
     bl_idname = "windgrass.species_preset"
     bl_label = "Grass Species Preset"
-    bl_description = ("Replace the species of the active grass field by a preset mix (lawn, meadow, wild) and "
-                      "take the preset's tussocks, patches and dry tips")
+    bl_description = ("Replace the species of the active grass field by a preset mix (lawn, meadow, wild) and, "
+                      "unless With Its Look is off, take the preset's tussocks, patches, dry tips and floor")
     bl_options = {"REGISTER", "UNDO"}
     bl_property = "preset"
 
     preset: bpy.props.EnumProperty(name="Preset", items=_items())
+    with_look: bpy.props.BoolProperty(
+        name="With Its Look", default=True,
+        description="Also take the preset's tussocks (Clumping), patches, dry tips and floor; off: the species "
+                    "alone, every other setting as it was")
 
     @classmethod
     def poll(cls, context):
@@ -31,11 +35,19 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
         item = properties.active_field(context.scene)
         rows = presets.species_rows(self.preset)  # validated by the schema
         properties.write_rows(item, properties.table_param("blade.species"), rows)
-        for name, value in presets.LOOKS[self.preset].items():
+        changed = []
+        for name, value in presets.LOOKS[self.preset].items() if self.with_look else ():
             section, key = name.split(".")
-            setattr(properties.group(item, section), key, value)
+            owner = properties.group(item, section)
+            if getattr(owner, key) != value:
+                param = schema.BY_NAME[name]
+                shown = value.title() if isinstance(value, str) else f"{value:g}"
+                changed.append(f"{param.ui_name} {shown}")
+            setattr(owner, key, value)
         names = ", ".join(r["name"] for r in rows)
-        self.report({"INFO"}, f"Species of '{item.name}': {names}")
+        # (issue #63: the look changed without a word)
+        look = f"; its look too: {', '.join(changed)} (With Its Look off: the species alone)" if changed else ""
+        self.report({"INFO"}, f"Species of '{item.name}': {names}{look}")
         return {"FINISHED"}
 
 

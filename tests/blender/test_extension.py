@@ -406,6 +406,26 @@ def test_species_preset_add_and_remove(scene):
     assert [s["name"] for s in properties.params_from_settings(item).blade.species] == ["tall grass", "reed"]
 
 
+def test_a_species_preset_says_what_of_the_look_it_changed_or_leaves_it(scene, capfd):
+    """Issue #63 item 4: a species preset also changed Clumping, Patches and Floor without a word.
+    Its report names each setting of the look it changed; With Its Look off, the species alone
+    change and every other setting stays."""
+    from windgrass.grass_addon.bridge import properties
+
+    item = properties.add_field(scene)
+    before = properties.params_from_settings(item)
+    assert bpy.ops.windgrass.species_preset(preset="wild", with_look=False) == {"FINISHED"}
+    alone = properties.params_from_settings(item)
+    assert alone.blade.species != before.blade.species
+    assert alone.replace({"blade.species": [dict(r) for r in before.blade.species]}) == before
+    assert "its look too" not in capfd.readouterr().out
+    assert bpy.ops.windgrass.species_preset(preset="wild") == {"FINISHED"}
+    said = capfd.readouterr()
+    field = properties.params_from_settings(item).field
+    assert (field.clumping, field.patchiness, field.floor) == (0.5, 0.8, "thatch")
+    assert "its look too: Clumping 0.5" in said.out + said.err and "Patches 0.8" in said.out + said.err
+
+
 def test_wind_keys_added_by_the_operator_keep_increasing_times(scene):
     from windgrass.grass_addon.bridge import properties
 

@@ -238,8 +238,8 @@ class _Peer:
             raise ValueError(f"a message of more than {MAX_MESSAGE:,} bytes")
         try:
             message = json.loads(line.decode("utf-8"))
-        except (UnicodeDecodeError, ValueError):
-            raise ValueError("a message that is not JSON") from None
+        except (UnicodeDecodeError, ValueError, RecursionError):  # (a megabyte of [[[[...)
+            raise ValueError("a message that is not JSON (or nested too deeply)") from None
         if not isinstance(message, dict):
             raise ValueError(f"a message that is a JSON {type(message).__name__}, not an object")
         return message
@@ -447,6 +447,9 @@ def _greet(conn: socket.socket, token: str, tasks: queue.Queue) -> None:
             pass
         conn.close()
         return
+    except Exception:  # (nothing a peer sends may end this thread with its connection open)
+        conn.close()
+        raise
     tasks.put((peer, request))
 
 

@@ -890,6 +890,7 @@ HOSTILE = {
     "a number": b"5\n", "null": b"null\n", "a string": b'"run"\n', "a list": b"[]\n",
     "not JSON": b"{run\n", "not UTF-8": b"\xff\xfe\n", "no proof": b'{"action": "run", "script": "x", "argv": []}\n',
     "a wrong proof": b'{"action": "run", "script": "x", "argv": [], "proof": "00", "nonce": "n"}\n',
+    "nested a million deep": b"[" * 500_000 + b"]" * 500_000 + b"\n",
 }
 
 

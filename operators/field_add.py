@@ -71,6 +71,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         item = properties.add_field(scene, params)
         if terrain is not None:
             item.terrain = terrain
+        locked = scene.render.use_lock_interface
         try:
             collection = runtime.build_field(scene, item)
         except Exception:  # whatever stopped the build, the half-added field goes before it is raised
@@ -86,7 +87,11 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
         if error:  # (its objects are made: the undo step holds them; the panel says why it is hidden)
             self.report({"ERROR"}, f"Added grass field '{item.name}', but its grass is hidden: {error}")
             return {"FINISHED"}
-        self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}")
+        # (issue #63: the add-on turned Render > Lock Interface on without a word)
+        lock = "; Render > Lock Interface turned on (the grass is written while a frame renders)" \
+            if scene.render.use_lock_interface and not locked else ""
+        self.report({"INFO"}, f"Added grass field '{item.name}': {blades:,} blades on {size_x:g} x {size_y:g} m{where}"
+                              f"{lock}")
         if uncovered:
             self.report({"WARNING"}, uncovered)
         return {"FINISHED"}

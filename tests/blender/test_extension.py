@@ -426,6 +426,20 @@ def test_a_species_preset_says_what_of_the_look_it_changed_or_leaves_it(scene, c
     assert "its look too: Clumping 0.5" in said.out + said.err and "Patches 0.8" in said.out + said.err
 
 
+def test_add_says_when_it_turns_lock_interface_on(scene, capfd, with_bridge):
+    """Issue #63 item 4: the add-on switched Render > Lock Interface on without a word (the frame
+    handler writes the grass while a frame renders, which needs it). Add's report says so, once:
+    the next Add, with the lock already on, does not."""
+    scene.render.use_lock_interface = False
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2) == {"FINISHED"}
+    first = capfd.readouterr()
+    assert scene.render.use_lock_interface
+    assert "Lock Interface turned on" in first.out + first.err
+    assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2) == {"FINISHED"}
+    again = capfd.readouterr()
+    assert "Added grass field" in again.out + again.err and "Lock Interface" not in again.out + again.err
+
+
 def test_wind_keys_added_by_the_operator_keep_increasing_times(scene):
     from windgrass.grass_addon.bridge import properties
 

@@ -187,7 +187,7 @@ def ensure_real_blender() -> Path | None:
     return WINDOW_ROOT
 
 
-QUICK = ["tests/core", "-m", "not slow"]
+QUICK = ["tests/core", "-m", "not slow", "-n", "2"]  # (two processes: 41 s in one on 2 cores, idle)
 # Two test processes (pytest-xdist): the tests share out test by test, the ones that share a
 # module's renders of minutes (xdist_group marks) in one process
 PARALLEL = ["-n", "2", "--dist", "loadgroup"]

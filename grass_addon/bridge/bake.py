@@ -111,20 +111,21 @@ def missing_build_feature(fmt: str = "alembic") -> str | None:
     None; an unknown format is named with the valid ones."""
     if fmt not in FORMATS:
         return f"bake: unknown format {fmt!r} (valid: {', '.join(FORMATS)})"
-    _, option, name = FORMATS[fmt]
+    name = FORMATS[fmt][2]
     since = f"{USD_SINCE[0]}.{USD_SINCE[1]}"
     here = f"{bpy.app.version[0]}.{bpy.app.version[1]}"
-    alembic = getattr(bpy.app.build_options, FORMATS["alembic"][1], True)
-    usd_ok = bpy.app.version >= USD_SINCE
-    if not alembic and not usd_ok:  # (each format would point to the other: neither works here)
-        return (f"bake: this Blender {here} can bake to neither format: it was built without Alembic, and its USD "
-                f"writer keeps a moving mesh's extent at its first frame (fixed in {since}); bake in Blender "
-                f"{since}+ (USD), or in a Blender from blender.org (Alembic)")
-    if fmt == "usd" and not usd_ok:
+    built = {f: bool(getattr(bpy.app.build_options, FORMATS[f][1], True)) for f in FORMATS}  # (what it can write)
+    usd_ok = built["usd"] and bpy.app.version >= USD_SINCE
+    if not built["alembic"] and not usd_ok:  # (each format would point to the other: neither works here)
+        usd_why = ("without USD" if not built["usd"] else
+                   f"with a USD writer that keeps a moving mesh's extent at its first frame (fixed in {since})")
+        return (f"bake: this Blender {here} can bake to neither Alembic nor USD: it was built without Alembic and "
+                f"{usd_why}; bake in a Blender from blender.org, whose builds have both")
+    if fmt == "usd" and built["usd"] and not usd_ok:
         return (f"bake: USD needs Blender {since} or later (the USD writer of {here} keeps a moving mesh's extent, "
                 f"the bounds renderers cull by, at its first frame); bake to Alembic here, or to USD in Blender "
                 f"{since}+")
-    if not getattr(bpy.app.build_options, option, True):
+    if not built[fmt]:
         other = "USD" if fmt == "alembic" else "Alembic"
         return (f"bake: this Blender was built without {name}, the format asked for; bake to {other} here, or in a "
                 f"Blender from blender.org (its builds have {name})")

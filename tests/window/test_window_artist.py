@@ -183,19 +183,27 @@ def test_the_plain_add_after_an_add_on_a_mesh_grows_on_flat_ground(real_blender)
 
 def test_bake_without_alembic_says_so_and_leaves_nothing(real_blender):
     """Issue: Debian's Blender has no Alembic: Bake showed a Python traceback and left an empty
-    cache folder beside the .blend."""
+    cache folder beside the .blend. Issue #63: it has no USD either, and each format's refusal
+    pointed at the other (USD was judged by the version alone); both now say, once and plainly,
+    that this Blender bakes neither, and point at a Blender that does."""
     steps = [{"select": None}, {"op": "windgrass.field_add", "args": {"blocks_x": 2, "blocks_y": 2}},
              {"save": "{case}/bake_here.blend"},
              {"op": "windgrass.field_bake", "invoke": True},
-             {"python": "import os\nresult = sorted(n for n in os.listdir('{case}') if n.startswith('bake_here'))"}]
+             {"op": "windgrass.field_bake", "args": {"format": "usd"}, "invoke": True},
+             {"python": "import bpy, os\nresult = [sorted(n for n in os.listdir('{case}') "
+                        "if n.startswith('bake_here')), bpy.app.build_options.usd]"}]
     run = real_blender.run(steps)
     run.assert_clean()
     if run.report["alembic"]:
         return  # (a Blender with Alembic bakes: tests/blender/test_bake.py)
     print("this Blender has no Alembic: checking the message instead of a bake")
-    error = run.results("op")[1]["error"]
-    assert "without Alembic" in error and "Traceback" not in error and error.count(". ") == 0
-    assert run.results("python")[0] == ["bake_here.blend"]  # no bake_here_windgrass folder
+    listed, usd = run.results("python")[0]
+    assert listed == ["bake_here.blend"]  # no bake_here_windgrass folder
+    errors = [run.results("op")[i]["error"] for i in (1, 2)]
+    for error in errors:
+        assert "without Alembic" in error and "Traceback" not in error and error.count(". ") == 0, error
+    if not usd:
+        assert all("neither Alembic nor USD" in e and "here" not in e.split(";")[-1] for e in errors), errors
 
 
 PAINTED = """

@@ -207,26 +207,3 @@ def encode_png(values: np.ndarray) -> bytes:
 
     header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
     return SIGNATURE + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")
-
-
-def png_text(data: bytes) -> dict[str, str]:
-    """The PNG's tEXt chunks {keyword: text} (latin-1, as the format says); {} if it is no PNG."""
-    out: dict[str, str] = {}
-    if data[:8] != SIGNATURE:
-        return out
-    pos = 8
-    while pos + 8 <= len(data):
-        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        if kind == b"tEXt":
-            key, _, text = data[pos + 8:pos + 8 + length].partition(b"\0")
-            out[key.decode("latin-1")] = text.decode("latin-1")
-        pos += 12 + length
-    return out
-
-
-def with_png_text(data: bytes, key: str, text: str) -> bytes:
-    """The PNG with a tEXt chunk ``key``: ``text`` before its IEND (the image chunks unchanged)."""
-    end = data.rindex(b"IEND") - 4
-    body = b"tEXt" + key.encode("latin-1") + b"\0" + text.encode("latin-1")
-    chunk = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
-    return data[:end] + chunk + data[end:]

@@ -307,10 +307,12 @@ class Bundle:
         if taken:
             raise ParameterError(self.name, f"{self.final(taken[0])} was not written by farm.py: move it away, or "
                                  "give an empty folder or a new one")
-        for name in self.written:
-            folder = self.final(name).parent
-            if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
-                raise ParameterError(self.name, f"{folder} is not a folder the bundle wrote: move it away")
+        for name in self.written:  # (a link anywhere below the bundle's folder would be written through)
+            for folder in self.final(name).parents:
+                if folder == self.folder:
+                    break
+                if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+                    raise ParameterError(self.name, f"{folder} is not a folder the bundle wrote: move it away")
         _write_list(self.folder / BUNDLE_MARK, self.owned | self.written)  # (a kill mid-way loses no record)
         for name in sorted(self.written):
             self.final(name).parent.mkdir(parents=True, exist_ok=True)

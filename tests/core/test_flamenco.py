@@ -147,3 +147,23 @@ def test_the_extension_a_bundle_carries_is_its_tracked_files_without_hidden_file
     names = sorted(name for _, name in farm.extension_files(root))
     assert names == ["__init__.py", "blender_manifest.toml", "grass_addon/engine.py", "grass_addon/untracked.py",
                      "operators/op.py", "panels/p.py"]
+
+
+def test_a_bundle_written_again_never_writes_through_a_link_planted_in_it(tmp_path):
+    """Issue #57: a bundle deletes and replaces only its own files. A link planted where one of its
+    folders was (windgrass/ pointing elsewhere) is a sentence, and nothing is written through it."""
+    from windgrass.grass_addon.errors import ParameterError
+
+    with farm.Bundle(tmp_path / "bundle", "bundle") as job:
+        job.path("windgrass/headless/render_field.py").write_text("# the bundle's")
+        job.path("template.yaml").write_text("{}")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    shutil.rmtree(tmp_path / "bundle" / "windgrass")
+    (tmp_path / "bundle" / "windgrass").symlink_to(elsewhere)
+    with pytest.raises(ParameterError, match="is not a folder the bundle wrote"):
+        with farm.Bundle(tmp_path / "bundle", "bundle") as job:
+            job.path("windgrass/headless/render_field.py").write_text("# again")
+            job.path("template.yaml").write_text("{}")
+    assert not any(elsewhere.iterdir()) and (tmp_path / "bundle" / "template.yaml").read_text() == "{}"
+    assert [p.name for p in (tmp_path / "bundle").iterdir() if p.name.startswith(".windgrass-staging")] == []

@@ -38,7 +38,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .errors import ParameterError
-from .farm_frames import FRAME_KEY  # noqa: F401 (the PNG text chunk that says which job's frame a file is)
 
 SPECIFICATION = "jobtemplate-2023-09"
 FLAMENCO_JOB_TYPE = Path(__file__).with_name("windgrass_flamenco.js")  # (shipped with the add-on)
@@ -106,7 +105,7 @@ def frame_fingerprint(frame: int, settings: str, inputs: Sequence[bytes], blende
     """What makes a frame this job's (issue #36: ``--resume`` kept the frames of an earlier, edited
     submission): a hash of the frame's number, the scene's settings (TOML), the bytes of the files
     it reads (maps, heightmap, the .blend), the Blender (its version) and Windgrass's version.
-    Written into each frame (``FRAME_KEY``); a rerun keeps only frames that carry its own."""
+    Written into each frame (``farm_frames.FRAME_KEY``); a rerun keeps only frames that carry its own."""
     digest = hashlib.sha256()
     for part in (str(int(frame)), settings, blender, windgrass, *[hashlib.sha256(b).hexdigest() for b in inputs]):
         digest.update(part.encode("utf-8") + b"\0")

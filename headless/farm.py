@@ -81,10 +81,11 @@ def carry_scene(params, config: Path, job, folder: str, allow_outside: bool = Fa
             source = Path(path)
             if not source.is_file():
                 raise ParameterError(setting, f"{source} is not a file: the bundle carries the files the scene names")
+            name = f"{len(copied)}_{source.name}"
             if not source.resolve().is_relative_to(home):
                 outside.append(f"{setting} = {source.resolve()}")
-            name = f"{len(copied)}_{source.name}"
-            shutil.copy2(source, job.path(f"{folder}/maps/{name}"))
+            if allow_outside or not outside:  # (a file refused is never copied, not even while staged)
+                shutil.copy2(source, job.path(f"{folder}/maps/{name}"))
             copied[path] = f"maps/{name}"
         return copied[path]
 

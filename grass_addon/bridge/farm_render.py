@@ -161,9 +161,8 @@ def check_range(chosen: list[int], scene) -> None:
                          f"{scene.frame_end} (valid: frames within them)")
 
 
-def render(args, stamp) -> int:
+def render(args, chosen: list[int], stamp) -> int:
     scene = bpy.context.scene
-    chosen = frames(args.frames)
     out = Path(args.out).expanduser()
     out.mkdir(parents=True, exist_ok=True)
     r = scene.render
@@ -204,15 +203,15 @@ def render(args, stamp) -> int:
     return 0
 
 
-def opened(args, stamp) -> bool:
+def opened(args, chosen: list[int], stamp) -> bool:
     """``--blend`` open, unless every frame is already whole and this job's (``stamp``; listed as
     skipped: a requeued job's finished chunks load nothing); False when there is nothing left to
     render."""
     if not args.blend or Path(bpy.data.filepath or ".").resolve() == Path(args.blend).resolve():
         return True
     out = Path(args.out).expanduser()
-    if all(kept(out / FRAME_NAME.format(f), stamp(f)) for f in frames(args.frames)):
-        for f in frames(args.frames):
+    if all(kept(out / FRAME_NAME.format(f), stamp(f)) for f in chosen):
+        for f in chosen:
             print(f"Skipped: '{out / FRAME_NAME.format(f)}' (already rendered)", flush=True)
         return False
     bpy.ops.wm.open_mainfile(filepath=str(args.blend))
@@ -230,11 +229,12 @@ def main(argv: list[str]) -> int:
     try:
         # (the .blend's bytes hashed once a task: --blend, or the one Blender opened)
         stamp = fingerprint(Path(args.blend or bpy.data.filepath), args.version)
-        if not opened(args, stamp):
+        chosen = frames(args.frames)  # (read once: the frames checked, kept and rendered)
+        if not opened(args, chosen, stamp):
             return 0
-        check_range(frames(args.frames), bpy.context.scene)
+        check_range(chosen, bpy.context.scene)
         prepare(args)
-        return render(args, stamp)
+        return render(args, chosen, stamp)
     except (RuntimeError, ValueError, OSError) as exc:
         print(f"farm_render.py: failed: {exc}", file=sys.stderr, flush=True)
         return 1

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import clearance, forces, interaction, kinematics, slots
-from .blocks import BlockCache
+from . import clearance, edit_parts, forces, interaction, kinematics, slots
+from .blocks import BlockCache, Species
 from .celldata import CellData
 from .clock import Clock
 from .errors import ParameterError
@@ -94,7 +94,7 @@ class GrassField:
         self._buffers: dict[str, _RoleBuffers] = {}  # role -> its frame arrays
         self._cells_frame: int | None = None  # the frame ``cells`` holds
         self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
-        self._check_budget()
+        self._check_budget(params)
         self.notice: str | None = None
         cells = self.grid.n_blocks * self.grid.cells_per_block ** 2
         if model.whole:
@@ -106,6 +106,7 @@ class GrassField:
         self._viewed = self.whole
         self.layout: FieldLayout = layout
         self.wind = WindField(layout, params, keys=wind_keys)
+        self._wind_keys = wind_keys
         self.interaction: interaction.Interaction | None = None
         self.effectors = None
         self._progress = progress  # (done, total) of a long seek, or None
@@ -148,18 +149,58 @@ class GrassField:
 
     # ------------------------------------------------------------------ the window of blocks
 
-    def _check_budget(self) -> None:
-        """The blocks a camera can see within the card range must fit the cache."""
-        radius = self.params.lod.card_far + block_reach(self.params)[0] + 2 * WINDOW_MARGIN_BLOCKS * \
-            self.grid.block_size
+    def _check_budget(self, params: Params) -> None:
+        """The blocks a camera can see within the card range of ``params`` must fit the cache."""
+        radius = params.lod.card_far + block_reach(params)[0] + 2 * WINDOW_MARGIN_BLOCKS * self.grid.block_size
         need = slots.blocks_within(self.grid, radius)
         if need > self.cache.capacity():
             mb = -(-need * self.cache.block_bytes() // 2**20)
             raise ParameterError(
                 "simulation.cache_mb",
-                f"{self.params.simulation.cache_mb} MB holds {self.cache.capacity():,} blocks, but a camera can see "
-                f"{need:,} within lod.card_far ({self.params.lod.card_far:g} m); valid: at least {mb} MB "
+                f"{params.simulation.cache_mb} MB holds {self.cache.capacity():,} blocks, but a camera can see "
+                f"{need:,} within lod.card_far ({params.lod.card_far:g} m); valid: at least {mb} MB "
                 "(or a shorter lod.card_far)")
+
+    # ------------------------------------------------------------------ edits in place
+
+    def can_retune(self, params: Params) -> bool:
+        """``params`` changes no block of this field (``edit_parts``): ``retune`` takes it in place."""
+        return edit_parts.LAYOUT not in edit_parts.changed_parts(self.params, params)
+
+    def retune(self, params: Params, wind_keys=None, colliders=None, effectors=None) -> frozenset[str]:
+        """Take the settings ``params`` (``can_retune``) in place: the blocks are kept; the wind
+        and the solver's run are made again only when the wind, the solver or the animated wind
+        (``wind_keys``, a new object) changed; a colour or LOD edit keeps the run. Frames are then
+        the bits a new ``GrassField`` of these settings gives. ``colliders`` and ``effectors`` as
+        in ``__init__`` (the effectors are taken only with a new run). Returns the parts changed."""
+        parts = edit_parts.changed_parts(self.params, params)
+        if edit_parts.LAYOUT in parts:
+            raise ValueError("retune: these settings change the field's blocks; make a new GrassField")
+        self._check_budget(params)  # (before anything changes)
+        rerun = bool(parts & edit_parts.SIMULATED) or wind_keys is not self._wind_keys
+        old_shapes = self.shapes
+        self.model = FieldModel.of(params)
+        self.cache.params, self.cache.species = params, Species(params)
+        ids, cells = self.layout.block_ids, self.layout.block_cells
+        row_major = not np.array_equal(cells.ravel(), np.arange(cells.size))  # (build_layout's, not a window's)
+        layout = build_layout(params, self.cache.terrain, cache=self.cache) if row_major \
+            else window_layout(self.cache, ids)
+        if rerun:
+            self.layout = layout
+            self.wind = WindField(layout, params, keys=wind_keys)
+            self._wind_keys = wind_keys
+            forces.check_count(effectors)
+            self.effectors = effectors
+            self.sim = self._simulation(forces.ForcedWind(self.wind, effectors) if effectors is not None else self.wind)
+        else:
+            self.sim.set_layout(layout)
+            self.layout = layout
+        colliders = interaction.colliders_from_params(params) if colliders is None else colliders
+        self.set_interaction(colliders, self.effectors)
+        if self.shapes != old_shapes:
+            self._buffers = {}
+        self.cells, self._cells_frame = None, None
+        return parts
 
     def _centre_blocks(self) -> np.ndarray:
         return self.grid.blocks_near(np.zeros(2), self.params.lod.card_far + block_reach(self.params)[0])

@@ -32,11 +32,11 @@ the materials.
 from __future__ import annotations
 
 import dataclasses
-import json
+from collections import OrderedDict
 
 import numpy as np
 
-from . import blade, meadow
+from . import blade, edit_parts, meadow
 from .blocks import Block, Species, make_block
 from .grid import FieldGrid
 from .schema import Params
@@ -91,10 +91,9 @@ def sample_blades(params: Params) -> Block:
 
 
 def _blocks_key(params: Params) -> str:
-    """The settings a block is made of (``blocks.make_block``: the field, blade and LOD sections):
+    """The settings a block is made of (``blocks.make_block``: the layout part of ``edit_parts``):
     the key of what is kept from the field's blocks (the sample, the patches' height map)."""
-    whole = params.to_dict()
-    return json.dumps([whole["field"], whole["blade"], whole["lod"]], sort_keys=True, default=str)
+    return edit_parts.digest_of(params, (edit_parts.LAYOUT,))
 
 
 def sample_ids(params: Params) -> list[int]:
@@ -202,7 +201,23 @@ def _spans(params: Params, block):
     return np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:]), seen
 
 
+_LOOKS: OrderedDict[tuple, np.ndarray] = OrderedDict()  # sward_look's recent answers (an edit of the wind keeps them)
+
+
 def sward_look(params: Params, slopes) -> np.ndarray:
+    """``_sward_look``, kept for the few settings of the field's layout and look last asked (it
+    reads no other setting: an edit of the wind or of the solver costs no new look)."""
+    slopes = np.atleast_1d(np.asarray(slopes, np.float64))
+    key = (edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK)), slopes.tobytes())
+    found = _LOOKS.get(key)
+    if found is None:
+        found = _LOOKS[key] = _sward_look(params, slopes)
+        while len(_LOOKS) > 8:
+            _LOOKS.popitem(last=False)
+    return found.copy()
+
+
+def _sward_look(params: Params, slopes) -> np.ndarray:
     """Linear RGB (len(slopes), 3) of the sward as a ray descending with each slope s (rise over
     run, > 0) sees it, not yet scaled by how the scene lights a horizontal plane (see module
     doc). Layer k between heights z_k < z_k+1 stops the ray with chance exp(-tau(z_k+1) / s) -

@@ -3,6 +3,7 @@
     python headless/bench.py [--blades N] [--segments S] [--frames F] [--json] [--peers]
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
     python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
+    python headless/bench.py --edits [--json]     (an edit of a setting against a frame change: bench_edits.py)
     python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py)
     python headless/bench.py --farm [--blender PATH] [--json]   (farm chunks against one process: bench_farm.py)
 
@@ -226,6 +227,9 @@ def main(argv=None) -> int:
     parser.add_argument("--bake", action="store_true",
                         help="the size and time of a bake of the default scene, Alembic against USD "
                              "(bench_bake.py); other flags ignored")
+    parser.add_argument("--edits", action="store_true",
+                        help="what an edit of a setting costs on the Add-menu field and a 100 m field, against a "
+                             "frame change (bench_edits.py; Blender); other flags ignored")
     parser.add_argument("--render", action="store_true",
                         help="where a rendered frame of the default scene spends its time, against the same "
                              "frame rendered again (bench_render.py); other flags ignored")
@@ -248,6 +252,11 @@ def main(argv=None) -> int:
 
         return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_realism.py"))]
                                + (["--json"] if args.json else []) + (["--image", args.image] if args.image else []))
+    if args.edits:
+        import subprocess
+
+        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_edits.py"))]
+                               + (["--json"] if args.json else []))
     if args.render:
         import subprocess
 

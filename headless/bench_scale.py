@@ -22,11 +22,9 @@ goals, are printed with them. Wall-clock numbers on a shared machine: compare ra
 
 from __future__ import annotations
 
-import json
 import math
 import resource
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -157,12 +155,7 @@ def blender_run(size_m: float) -> dict:
 
 def _child(kind: str, size_m: float) -> dict:
     """Run one measurement in a fresh process (its own memory peak): ``bench_scale.py KIND SIZE``."""
-    proc = subprocess.run([sys.executable, str(Path(__file__)), kind, repr(size_m)], capture_output=True,
-                          text=True, cwd=str(HERE.parent))
-    for line in proc.stdout.splitlines():
-        if line.startswith("RESULT "):
-            return json.loads(line[7:])
-    return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [f"exit {proc.returncode}"]}
+    return common.child(__file__, kind, repr(size_m))
 
 
 def run_scale(blender: bool = True) -> dict:

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
+from pathlib import Path
 
 import addon_loader
 
@@ -54,3 +56,16 @@ def finish(code: int) -> None:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code)
+
+
+def child(script: str, *args: str) -> dict:
+    """Run one measurement of ``script`` in a fresh process (its own memory, its own Blender):
+    ``python script ARGS``, which prints its result as ``emit(..., prefix="RESULT ")``; the result,
+    or {"error": the last line it wrote}."""
+    here = Path(script).resolve()
+    proc = subprocess.run([sys.executable, str(here), *args], capture_output=True, text=True,
+                          cwd=str(here.parent.parent))
+    for line in proc.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[7:])
+    return {"error": (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [f"exit {proc.returncode}"]}

@@ -23,7 +23,7 @@ import warnings
 import bpy
 import numpy as np
 
-from .. import gusts, sward
+from .. import edit_parts, gusts, sward
 from ..grid import FieldGrid
 from . import textures
 
@@ -899,6 +899,9 @@ def set_gust_offset(displacement, speed: float, params, *mats) -> None:
                 amount.default_value = swing
 
 
+LOOK_DIGEST = "wg_look"  # the canopy material's custom property: the settings its sward look was written for
+
+
 def update_materials(params, canopy=None) -> None:
     """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the far grass's colour."""
     if canopy is not None and canopy.node_tree is not None:
@@ -910,6 +913,10 @@ def update_materials(params, canopy=None) -> None:
             far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
             _set(kt, near, "From Min")
             _set(kt, far, "From Max")
+        look_digest = edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK))
+        if canopy.get(LOOK_DIGEST) == look_digest:
+            return  # (the sward's look reads only these settings: a wind or LOD edit leaves it)
+        canopy[LOOK_DIGEST] = look_digest
         depth = canopy.node_tree.nodes.get(NODE_TRAIL_DEPTH)
         if depth is not None:
             depth.outputs[0].default_value = TRAIL_SINK * sward.canopy_height(params)

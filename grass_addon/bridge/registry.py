@@ -33,6 +33,7 @@ class Engine:
     field: GrassField
     params: Params  # validated, with the scene's clock (without the animated wind's values)
     digest: str  # of the parameters, the animated wind, the topology, the force fields, the terrain
+    ground: str  # of the force fields and the terrain alone: an engine kept through edits in place needs the same
     wind_fingerprint: str  # of the animated wind's F-curves ("" when not animated)
     wind_keys: tuple | None
     terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)

@@ -123,7 +123,8 @@ class Inputs:
     painted: str  # paint.fingerprint of it
     clock: tuple[Clock, int]
     frame: int  # the scene's current frame (a stroke's blocks are made again for it)
-    digest: str  # what makes a new engine: parameters, animated wind, topology, force fields, terrain
+    digest: str  # what makes the frame: parameters, animated wind, topology, force fields, terrain
+    ground: str  # what an engine kept through an edit in place needs the same: force fields, terrain
 
 
 def read_inputs(scene, item, previous: Engine | None) -> Inputs:
@@ -135,11 +136,12 @@ def read_inputs(scene, item, previous: Engine | None) -> Inputs:
     colliders, effectors, track = tracks.stored(item)
     colliders = colliders + interaction.colliders_from_params(params)  # (a scene file's, in headless renders)
     effectors = forces.join(effectors, forces.effectors_from_params(params))
-    digest = hashlib.sha1((params.digest() + fingerprint + topology + tracks.effector_digest(item)
+    ground = hashlib.sha1((tracks.effector_digest(item) + t_key
                            + (heightfield.fingerprint() if heightfield is not None else "")).encode()).hexdigest()
+    digest = hashlib.sha1((params.digest() + fingerprint + topology + ground).encode()).hexdigest()
     paint = paint_of(scene, item, params)
     return Inputs(params, wind_keys, fingerprint, heightfield, t_key, topology, colliders, effectors, track, paint,
-                  paint_core.fingerprint(paint), _clock(scene), scene.frame_current, digest)
+                  paint_core.fingerprint(paint), _clock(scene), scene.frame_current, digest, ground)
 
 
 def resolve(scene, item) -> LiveField:
@@ -153,8 +155,12 @@ def resolve(scene, item) -> LiveField:
         REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
         live = REGISTRY.live(key)
     inputs = read_inputs(scene, item, live.engine)
-    if live.engine is not None and live.engine.digest == inputs.digest:
-        _update(live, live.engine.field, inputs)
+    engine = live.engine
+    if engine is not None and engine.digest == inputs.digest:
+        _update(live, engine.field, inputs)
+    elif engine is not None and engine.ground == inputs.ground and engine.field.can_retune(inputs.params):
+        _retune(live, engine, inputs)
+        _update(live, live.resolved.field, inputs)
     else:
         _build(live, inputs, item.name)
     live.stale = False
@@ -176,14 +182,31 @@ def _update(live: LiveField, field: GrassField, inputs: Inputs) -> None:
         live.last_repaint = (time.perf_counter() - started, made)
 
 
+def _retune(live: LiveField, engine: Engine, inputs: Inputs) -> None:
+    """The kept engine takes settings that change none of its blocks (``GrassField.retune``: a
+    wind, solver, LOD or colour edit); its pools are kept while its objects' topology holds."""
+    field = engine.field
+    field.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders, effectors=inputs.effectors)
+    same = engine.topology == inputs.topology
+    blades, cards = (engine.blades, engine.cards) if same else _pools(field)
+    live.engine = Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint, inputs.wind_keys,
+                         inputs.terrain_key, inputs.topology, blades=blades, cards=cards)
+    live.track = inputs.track
+    live.frame, live.camera_signature = None, None
+
+
+def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:
+    """New slot pools (blades, cards) for the engine ``field``'s shapes."""
+    return (pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
+            pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+
+
 def _build(live: LiveField, inputs: Inputs, name: str) -> None:
     """A new engine and its slot pools for ``inputs``: its objects show nothing of it yet."""
     field = GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
                        colliders=inputs.colliders, effectors=inputs.effectors, progress=_seek_progress(name))
-    live.engine = Engine(field, inputs.params, inputs.digest, inputs.wind_fingerprint, inputs.wind_keys,
-                         inputs.terrain_key, inputs.topology,
-                         blades=pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
-                         cards=pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+    live.engine = Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint, inputs.wind_keys,
+                         inputs.terrain_key, inputs.topology, *_pools(field))
     live.painted, live.track = inputs.painted, inputs.track
     live.frame, live.subframe, live.camera_signature, live.last_repaint = None, 0.0, None, ()
     live.paint_shown, live.trail, live.trail_written = None, None, False

@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 
-from .. import atlas, gusts, interaction, sward
+from .. import atlas, edit_parts, gusts, interaction, sward
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -25,12 +25,11 @@ def linear_to_srgb(rgb: np.ndarray) -> np.ndarray:
 
 
 def atlas_digest(params) -> str:
-    """What the atlas depends on: the field's blades and cards (not the wind, LOD distances, ...)."""
-    d = params.to_dict()
-    inputs = {"field": d["field"], "blade": d["blade"],
-              "lod": {k: d["lod"][k] for k in ("card_width", "card_height")},
-              "atlas": [atlas.CARD_VARIANTS, atlas.CARD_PIXELS]}
-    return hashlib.sha1(json.dumps(inputs, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    """What the atlas depends on: the field's blades, their colours and the cards' width (not the
+    wind, the solver, LOD distances: ``edit_parts``)."""
+    inputs = [edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK)), params.lod.card_width,
+              atlas.CARD_VARIANTS, atlas.CARD_PIXELS]
+    return hashlib.sha1(json.dumps(inputs).encode()).hexdigest()[:16]
 
 
 def ensure_card_image(name: str):
@@ -133,9 +132,8 @@ def paint_patch_image(image, params) -> None:
     """Write the patches' tint and stands of the field's settings (its field and blade sections:
     what decides the species mix and the lengths) into ``image`` unless it already holds them; one
     pixel without patches."""
-    settings = params.to_dict()
-    key = hashlib.sha1(json.dumps([settings["field"], settings["blade"], settings["lod"]["card_height"], "stands"],
-                                  sort_keys=True).encode()).hexdigest()
+    key = hashlib.sha1(json.dumps([edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK)),
+                                   "stands"]).encode()).hexdigest()
     if image.get(PATCH_KEY) == key:
         return
     tint, stands = sward.patch_tint(params), sward.patch_stands(params)

@@ -1,0 +1,105 @@
+"""What an edit of a setting changes: each parameter belongs to one part of a field.
+
+A slider edit updates only its part (``GrassField.retune``), so an edit of the wind does not make
+the field's blocks again, and an edit of a colour does not simulate again. Every part keeps the
+frame bit-identical to a fresh build of the same settings (``tests/blender/test_live_edits.py``
+checks each setting):
+
+========== ============================================== ==========================================
+part       settings                                       what an edit does
+========== ============================================== ==========================================
+layout     the grid, seed, blade shapes (eqs 1-6),        the blocks are made again (a new engine)
+           species' shapes and shares, terrain, paint
+wind       wind.*, the clock (fps, first frame)           a new wind and solver run; blocks kept
+physics    the solver's constants (eqs 14-32), sub-steps  a new solver run; blocks and wind kept
+lod        LOD distances and card width (eqs 7-11)        the next frame's LOD; the run kept
+look       colours (species', heads', floor, haze, sun)   the layout's colours; the run kept
+render     resolution, samples, camera, frame end, ...    nothing in the engine
+========== ============================================== ==========================================
+
+A parameter not named below is ``layout``: the safe part (everything is made again).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from . import schema
+
+LAYOUT, WIND, PHYSICS, LOD, LOOK, RENDER = "layout", "wind", "physics", "lod", "look", "render"
+PARTS = (LAYOUT, WIND, PHYSICS, LOD, LOOK, RENDER)
+
+# Parts that run the solver again (the frame's state depends on them).
+SIMULATED = frozenset({LAYOUT, WIND, PHYSICS})
+
+_PART_OF: dict[str, str] = {
+    **{f"wind.{p.key}": WIND for p in schema.section_params("wind")},
+    **{f"render.{k}": WIND for k in ("fps", "fps_base", "frame_start")},
+    **{f"blade.{k}": PHYSICS for k in ("nonlinear_stiffness", "response_torque", "twist_stiffness", "damping_mass",
+                                      "air_damping", "damping_stiffness", "boundary_k", "boundary_lambda")},
+    **{f"simulation.{k}": PHYSICS for k in ("sub_steps", "preroll", "epoch")},
+    **{f"interaction.{k}": PHYSICS for k in ("recovery", "tolerance")},
+    **{f"lod.{k}": LOD for k in ("blade_near", "blade_far", "card_near", "card_far", "card_width")},
+    "field.floor": LOOK,
+    **{f"render.{k}": LOOK for k in ("sun_elevation", "sun_azimuth", "haze_distance", "haze_color")},
+    **{f"render.{k}": RENDER for k in ("engine", "samples", "resolution_x", "resolution_y", "frame_end",
+                                       "motion_blur", "shutter")},
+    **{f"camera.{p.key}": RENDER for p in schema.section_params("camera")},
+    "simulation.memory_mb": RENDER,  # (a check before anything is built)
+}
+
+# Columns of a species row whose edit changes only its look (any other column changes its blades).
+SPECIES_LOOK = frozenset({"name", "color", "head_color"})
+
+
+def part_of(name: str) -> str:
+    """The part the parameter ``name`` ("wind.speed") belongs to."""
+    return _PART_OF.get(name, LAYOUT)
+
+
+def _species_part(old: tuple[Mapping[str, Any], ...], new: tuple[Mapping[str, Any], ...]) -> str | None:
+    if old == new:
+        return None
+    if len(old) != len(new):
+        return LAYOUT
+    for a, b in zip(old, new):
+        if any(a.get(k) != b.get(k) for k in set(a) | set(b) if k not in SPECIES_LOOK):
+            return LAYOUT
+    return LOOK
+
+
+def changed_parts(old: schema.Params, new: schema.Params) -> frozenset[str]:
+    """The parts of a field that differ between the settings ``old`` and ``new``."""
+    a, b = old.to_dict(), new.to_dict()
+    parts = set()
+    for section, values in b.items():
+        for key, value in values.items():
+            if a[section][key] == value:
+                continue
+            name = f"{section}.{key}"
+            part = _species_part(a[section][key], value) if name == "blade.species" else part_of(name)
+            if part is not None:
+                parts.add(part)
+    return frozenset(parts)
+
+
+def digest_of(params: schema.Params, parts: Iterable[str]) -> str:
+    """A digest of the settings of ``parts`` alone (of the species table, its look columns for
+    ``look``, the others for ``layout``): what is computed from those settings alone (the blocks,
+    the sward's look, the card atlas) is kept by it through edits of other parts."""
+    wanted = set(parts)
+    values: dict[str, Any] = {}
+    for section, entries in params.to_dict().items():
+        for key, value in entries.items():
+            name = f"{section}.{key}"
+            if name == "blade.species":
+                looks, shapes = LOOK in wanted, LAYOUT in wanted
+                if looks or shapes:
+                    values[name] = [{k: v for k, v in row.items() if (k in SPECIES_LOOK and looks)
+                                     or (k not in SPECIES_LOOK and shapes)} for row in value]
+            elif part_of(name) in wanted:
+                values[name] = value
+    return hashlib.sha1(json.dumps(values, sort_keys=True, default=str).encode()).hexdigest()

@@ -1,0 +1,138 @@
+"""What an artist's edit costs: ``python headless/bench.py --edits [--json]``; prints ONE JSON object.
+
+In Blender (the ``bpy`` module), on the field Add Grass Field makes (12.8 m) and on a 100 m field
+(64 x 64 blocks) seen by the scene camera, each setting below is edited as a slider edit is (its
+property set, in a script: the update at once) and the time until the frame is written is taken,
+the median of ``REPEATS`` edits back and forth:
+
+* in place (``edit_parts``): the wind's speed and direction (a new wind and solver run, blocks
+  kept), the air damping (a new solver run), a species' colour, the LOD's card distance (no run);
+* layout (the blocks made again): the root stiffness, the density (blades per cell);
+
+beside the same field's frame change (``scene.frame_set`` to the next frame) and its build (Add
+Grass Field), timed in the same run: ``edit_to_frame`` is each edit's ratio to the frame change.
+Goals (issue 58): an in-place edit at most 0.15 s on the Add-menu field and 0.5 s on the 100 m
+field; a density edit and a build of the 100 m field at most 3 s.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
+import common  # noqa: E402
+
+REPEATS = 3
+FRAMES = 5
+GOALS = {"in_place_s_max": {"add_menu": 0.15, "100m": 0.5}, "layout_s_max": {"100m": 3.0},
+         "build_s_max": {"100m": 3.0}}
+
+
+def _edits(item):
+    """(name, part, setter(i)) of each timed edit: the i-th edit sets the i-th value."""
+    from windgrass.grass_addon import edit_parts as parts
+
+    species = item.blade.species[0]
+    base = (tuple(species.color), item.wind.speed, item.wind.direction, item.blade.air_damping,
+            item.lod.card_near, item.blade.root_stiffness, item.field.blades_per_cell)
+
+    def cycle(values):
+        return lambda i: values[i % len(values)]
+
+    colour = cycle([(0.2, 0.35, 0.06), base[0]])
+    speed, direction = cycle([base[1] + 1.5, base[1]]), cycle([base[2] + 20.0, base[2]])
+    damping, near = cycle([base[3] * 1.5, base[3]]), cycle([base[4] * 0.8, base[4]])
+    stiff, density = cycle([base[5] * 1.3, base[5]]), cycle([base[6] + 1, base[6]])
+    return [
+        ("wind.speed", parts.WIND, lambda i: setattr(item.wind, "speed", speed(i))),
+        ("wind.direction", parts.WIND, lambda i: setattr(item.wind, "direction", direction(i))),
+        ("blade.air_damping", parts.PHYSICS, lambda i: setattr(item.blade, "air_damping", damping(i))),
+        ("species color", parts.LOOK, lambda i: setattr(item.blade.species[0], "color", colour(i))),
+        ("lod.card_near", parts.LOD, lambda i: setattr(item.lod, "card_near", near(i))),
+        ("blade.root_stiffness", parts.LAYOUT, lambda i: setattr(item.blade, "root_stiffness", stiff(i))),
+        ("field.blades_per_cell", parts.LAYOUT, lambda i: setattr(item.field, "blades_per_cell", density(i))),
+    ]
+
+
+def blender_run(blocks: int | None) -> dict:
+    """The edits on a field of ``blocks`` x ``blocks`` (None: Add Grass Field's own)."""
+    import bench_peers
+    import bpy
+    from mathutils import Vector
+    from windgrass.grass_addon import schema
+
+    scene = bench_peers._fresh_scene()
+    common.load(addon=True)
+    params = schema.defaults()
+    cam_data = bpy.data.cameras.new("bench camera")
+    cam = bpy.data.objects.new("bench camera", cam_data)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    c = params.camera
+    cam.location = Vector(c.position)
+    cam.rotation_euler = (Vector(c.target) - Vector(c.position)).to_track_quat("-Z", "Y").to_euler()
+    cam_data.angle = math.radians(c.fov)
+    clock = time.perf_counter
+    t0 = clock()
+    kw = {} if blocks is None else {"blocks_x": blocks, "blocks_y": blocks}
+    if "FINISHED" not in bpy.ops.windgrass.field_add(**kw):
+        raise RuntimeError("windgrass.field_add did not finish")
+    build = clock() - t0
+    item = scene.windgrass.fields[0]
+    scene.frame_set(10)
+    frames = []
+    for frame in range(11, 11 + FRAMES):
+        t0 = clock()
+        scene.frame_set(frame)
+        frames.append(clock() - t0)
+    frame_s = statistics.median(frames)
+    out: dict = {"size_m": round(item.field.blocks_x * item.field.cells_per_block * item.field.cell_size, 1),
+                 "build_s": round(build, 3), "frame_change_s": round(frame_s, 4), "edits": []}
+    from windgrass.grass_addon.bridge import runtime
+
+    for name, part, edit in _edits(item):
+        times = []
+        for i in range(REPEATS + 1):  # (the last edit puts the setting back; the first is not timed)
+            t0 = clock()
+            edit(i)
+            times.append(clock() - t0)
+            if runtime.field_error(scene, item):
+                raise RuntimeError(f"{name}: {runtime.field_error(scene, item)}")
+        seconds = statistics.median(times[1:])
+        out["edits"].append({"setting": name, "part": part, "edit_s": round(seconds, 3),
+                             "edit_to_frame": round(seconds / frame_s, 1)})
+    return out
+
+
+def run_edits() -> dict:
+    rows = {"add_menu": common.child(__file__, "add_menu"), "100m": common.child(__file__, "64")}
+    verdict = {}
+    for key, row in rows.items():
+        if "error" in row:
+            continue
+        in_place = [e["edit_s"] for e in row["edits"] if e["part"] != "layout"]
+        verdict[f"{key}_in_place_worst_s"] = max(in_place)
+        verdict[f"{key}_in_place_meets_goal"] = max(in_place) <= GOALS["in_place_s_max"][key]
+    if "error" not in rows["100m"]:
+        density = next(e["edit_s"] for e in rows["100m"]["edits"] if e["setting"] == "field.blades_per_cell")
+        verdict["100m_density_meets_goal"] = density <= GOALS["layout_s_max"]["100m"]
+        verdict["100m_build_meets_goal"] = rows["100m"]["build_s"] <= GOALS["build_s_max"]["100m"]
+    return {"fields": rows, "goals": GOALS, "verdict": verdict, "repeats": REPEATS}
+
+
+if __name__ == "__main__":
+    parser = common.parser(__doc__)
+    parser.add_argument("field", nargs="?", help="(one measurement: add_menu or a block count)")
+    args = parser.parse_args()
+    if args.field:
+        common.load()
+        result = blender_run(None if args.field == "add_menu" else int(args.field))
+        common.emit(result, compact=True, prefix="RESULT ")
+    else:
+        common.load()
+        common.emit(run_edits(), args)
+    common.finish(0)

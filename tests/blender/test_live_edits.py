@@ -1,0 +1,108 @@
+"""Live edits in Blender: a setting edited on a built field draws, in Blender's evaluated meshes, what a
+field built fresh with the edited settings draws; an edit in place (``edit_parts``: the wind, the
+solver, LOD distances, colours) makes no block again and leaves the objects as they are."""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Vector
+
+SMALL = {"field.blocks_x": 4, "field.blocks_y": 4, "field.cells_per_block": 8, "field.blades_per_cell": 2,
+         "wind.speed": 6.0, "wind.gust_waves": 0.6, "lod.blade_near": 1.0, "lod.blade_far": 2.0,
+         "lod.card_near": 2.5, "lod.card_far": 8.0}
+FRAME = 14
+
+# (setting, how to edit it on the field item, its value in the settings)
+EDITS = [
+    ("wind.speed", lambda it: setattr(it.wind, "speed", 9.0), {"wind.speed": 9.0}),
+    ("wind.direction", lambda it: setattr(it.wind, "direction", math.radians(140.0)), {"wind.direction": 140.0}),
+    ("wind.turbulence", lambda it: setattr(it.wind, "turbulence", 0.9), {"wind.turbulence": 0.9}),
+    ("wind.gust_waves", lambda it: setattr(it.wind, "gust_waves", 0.2), {"wind.gust_waves": 0.2}),
+    ("blade.air_damping", lambda it: setattr(it.blade, "air_damping", 0.9), {"blade.air_damping": 0.9}),
+    ("blade.twist_stiffness", lambda it: setattr(it.blade, "twist_stiffness", 0.02),
+     {"blade.twist_stiffness": 0.02}),
+    ("interaction.recovery", lambda it: setattr(it.interaction, "recovery", 0.5), {"interaction.recovery": 0.5}),
+    ("lod.card_near", lambda it: setattr(it.lod, "card_near", 3.5), {"lod.card_near": 3.5}),
+    ("lod.blade_far", lambda it: setattr(it.lod, "blade_far", 2.4), {"lod.blade_far": 2.4}),
+    ("lod.card_width", lambda it: setattr(it.lod, "card_width", 1.4), {"lod.card_width": 1.4}),
+    ("render.haze_distance", lambda it: setattr(it.render, "haze_distance", 300.0), {"render.haze_distance": 300.0}),
+    ("field.blades_per_cell", lambda it: setattr(it.field, "blades_per_cell", 3), {"field.blades_per_cell": 3}),
+    ("blade.root_stiffness", lambda it: setattr(it.blade, "root_stiffness", 0.004), {"blade.root_stiffness": 0.004}),
+]
+IN_PLACE = {"wind.speed", "wind.direction", "wind.turbulence", "wind.gust_waves", "blade.air_damping",
+            "blade.twist_stiffness", "interaction.recovery", "lod.card_near", "lod.blade_far", "lod.card_width",
+            "render.haze_distance"}
+
+# (LOD distances and the haze show in the materials and the cards' fade; the recovery only where grass was trampled)
+NOT_IN_THE_MESHES = {"lod.card_near", "lod.card_width", "render.haze_distance", "lod.blade_far", "interaction.recovery"}
+
+
+def _build(params):
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (-1.3, -1.0, 0.7)
+    cam.rotation_euler = (Vector((0.4, 0.3, 0.1)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    runtime.build_field(scene, properties.add_field(scene, params))
+    scene.frame_set(FRAME)
+    return scene, scene.windgrass.fields[0]
+
+
+def _drawn(drawn, item):
+    return drawn(item, "blades"), drawn(item, "cards")
+
+
+@pytest.mark.parametrize("name,edit,values", EDITS, ids=[e[0] for e in EDITS])
+def test_an_edit_draws_what_a_fresh_build_draws(with_bridge, drawn, name, edit, values):
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace(SMALL)
+    scene, item = _build(base)
+    before = _drawn(drawn, item)
+    engine = REGISTRY.live(key_of(scene, item)).field
+    made = engine.cache.made
+    objects = {o.name for o in item.collection.objects}
+    edit(item)
+    assert runtime.field_error(scene, item) is None
+    scene.frame_set(FRAME)
+    after = _drawn(drawn, item)
+    live = REGISTRY.live(key_of(scene, item))
+    if name in IN_PLACE:
+        assert live.field is engine and engine.cache.made == made, f"{name}: the field's blocks were made again"
+        assert {o.name for o in item.collection.objects} == objects
+    want_scene, want_item = _build(base.replace(values))
+    want = _drawn(drawn, want_item)
+    for got, fresh, old in zip(after, want, before):
+        assert got.shape == fresh.shape
+        np.testing.assert_array_equal(got, fresh, err_msg=name)
+    if name not in NOT_IN_THE_MESHES:
+        assert not np.array_equal(after[0], before[0]), f"{name}: the edit changed nothing drawn"
+
+
+def test_an_edit_in_place_and_its_undo(with_bridge, drawn):
+    """Ctrl+Z after a wind edit draws the grass of the setting before it."""
+    from windgrass.grass_addon import schema
+
+    scene, item = _build(schema.defaults().replace(SMALL))
+    before = drawn(item, "blades")
+    bpy.ops.ed.undo_push(message="built")
+    item.wind.speed = 11.0
+    bpy.ops.ed.undo_push(message="wind")
+    scene.frame_set(FRAME)
+    assert not np.array_equal(drawn(item, "blades"), before)
+    bpy.ops.ed.undo()
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    assert item.wind.speed == pytest.approx(6.0)
+    scene.frame_set(FRAME)
+    np.testing.assert_array_equal(drawn(item, "blades"), before)

@@ -1,0 +1,110 @@
+"""Edits in place (``GrassField.retune``): every setting's edit gives the frame a fresh build of the
+same settings gives, bit for bit, and an edit of a colour or a LOD distance simulates nothing again."""
+
+import numpy as np
+import pytest
+from windgrass.grass_addon import edit_parts, schema
+from windgrass.grass_addon import frame as frames
+from windgrass.grass_addon.errors import ParameterError
+from windgrass.grass_addon.field import GrassField
+from windgrass.grass_addon.lod import Camera
+
+BASE = {"field.blocks_x": 3, "field.blocks_y": 2, "field.cells_per_block": 4, "field.blades_per_cell": 2,
+        "blade.segments": 4, "simulation.preroll": 0.5, "simulation.epoch": 1.0, "wind.speed": 6.0,
+        "wind.gust_waves": 0.5, "wind.turbulence": 0.6, "lod.blade_near": 1.0, "lod.blade_far": 2.0,
+        "lod.card_near": 2.5, "lod.card_far": 6.0,
+        "blade.species": ({"name": "a", "weight": 2.0, "color": (0.1, 0.3, 0.05), "heads": 0.3},
+                          {"name": "b", "weight": 1.0, "color": (0.3, 0.3, 0.1), "head_shape": "flower",
+                           "heads": 0.5})}
+CAMERA = Camera.look_at((-2.0, -1.5, 1.2), (1.0, 0.5, 0.2), fov_x=1.0)
+
+
+def base_params() -> schema.Params:
+    return schema.defaults().replace(BASE)
+
+
+def edited(p: schema.Param, value):
+    """Values to try for ``p`` other than ``value`` (the first the schema accepts is used)."""
+    if p.kind == "bool":
+        return [not value]
+    if p.kind == "enum":
+        return [c for c in p.choices if c != value]
+    if p.kind == "vec":
+        return [tuple(min(p.maximum, v * 0.8 + 0.05) for v in value), tuple(max(p.minimum, v * 0.7) for v in value)]
+    if p.kind in ("int", "float"):
+        lo, hi = p.minimum, p.soft_max if p.soft_max is not None else p.maximum
+        out = [value * 1.25, value * 0.8, value + 1, value - 1, (lo + hi) / 2 if hi is not None else value + 1]
+        out = [int(round(v)) if p.kind == "int" else float(v) for v in out]
+        return [v for v in out if v != value and (lo is None or v >= lo) and (hi is None or v <= hi)]
+    return []
+
+
+def edits():
+    """(name, params after the edit) for every setting outside the layout part, and the species'
+    look columns."""
+    base = base_params()
+    out = []
+    for p in schema.PARAMS:
+        if edit_parts.part_of(p.name) == edit_parts.LAYOUT:
+            continue
+        for value in edited(p, base.get(p.name)):
+            try:
+                out.append((p.name, base.replace({p.name: value})))
+                break
+            except ParameterError:
+                continue
+        else:
+            if p.kind not in ("str", "keys", "table_list"):
+                raise AssertionError(f"no edit of {p.name} found")
+    rows = [dict(r) for r in base.blade.species]
+    rows[1]["color"], rows[0]["head_color"] = (0.5, 0.1, 0.4), (0.9, 0.9, 0.2)
+    out.append(("blade.species (colours)", base.replace({"blade.species": tuple(rows)})))
+    return out
+
+
+EDITS = edits()
+
+
+def drawn(field: GrassField, frame: int, views):
+    shown = field.frame(frame, 0.0, views)
+    out = [a.vertices[: a.count * a.shape.verts_per_block].copy() for a in (shown.blades, shown.cards)]
+    out += [np.asarray(shown.blades.shown).copy(), np.asarray(shown.cards.shown).copy()]
+    out += list(frames.blade_tints(shown.blades.layout, shown.blades.local).values())  # (colours)
+    return out + list(frames.card_fade(shown.cards.layout, shown.cards.local, shown.lod).values())
+
+
+@pytest.mark.parametrize("views", [None, CAMERA], ids=["whole", "camera"])
+@pytest.mark.parametrize("name,params", EDITS, ids=[e[0] for e in EDITS])
+def test_an_edit_in_place_draws_what_a_fresh_build_draws(name, params, views):
+    field = GrassField(base_params())
+    drawn(field, 30, views)  # a frame shown before the edit (its state, its window)
+    assert field.can_retune(params), name
+    field.retune(params)
+    got = drawn(field, 31, views)
+    want = drawn(GrassField(params), 31, views)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+@pytest.mark.parametrize("name", ["lod.card_near", "render.sun_elevation", "blade.species (colours)",
+                                  "render.samples"])
+def test_a_look_or_lod_edit_simulates_nothing_again(name):
+    params = dict(EDITS)[name]
+    field = GrassField(base_params())
+    drawn(field, 30, CAMERA)
+    steps = field.sim.steps
+    field.retune(params)
+    drawn(field, 30, CAMERA)
+    assert field.sim.steps == steps
+
+
+def test_a_wind_edit_keeps_the_blocks_and_a_shape_edit_needs_a_new_field():
+    field = GrassField(base_params())
+    drawn(field, 10, None)
+    made = field.cache.made
+    field.retune(base_params().replace({"wind.speed": 9.0}))
+    drawn(field, 10, None)
+    assert field.cache.made == made  # no block made again
+    assert not field.can_retune(base_params().replace({"field.seed": 3}))
+    assert edit_parts.changed_parts(base_params(), base_params().replace({"blade.root_stiffness": 0.004})) \
+        == {edit_parts.LAYOUT}

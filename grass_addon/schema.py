@@ -421,6 +421,11 @@ PARAMS: tuple[Param, ...] = (
 )
 
 SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))
+
+# The layout of the settings a .blend keeps (its fields' properties): raised when a setting changes
+# its meaning or unit, with an entry in ``bridge.properties.UPGRADES`` that brings an older file's
+# settings to it, so a file saved by an earlier Windgrass opens with its grass as it was.
+SETTINGS_VERSION = 1
 BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
 
 

@@ -22,8 +22,10 @@ from .registry import REGISTRY, key_of
 from .resolve import terrain_of
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
-# for this long, so dragging a slider on a large field does not re-simulate at every step.
+# for this long, so dragging a slider on a large field does not re-simulate at every step; while the
+# drag goes on, the grass follows it every FOLLOW_S (one update waits at a time, never a queue).
 EDIT_SETTLE_S = 0.15
+FOLLOW_S = 0.3
 STROKE_GOAL_S = 0.5  # a field whose strokes take longer to show follows when paint mode is left
 PAINT_MODE_POLL_S = 0.25
 
@@ -46,7 +48,7 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
         live.motion_edited()
     if not (defer if defer is not None else not bpy.app.background):
         if live.moved:
-            live.moved = False
+            live.motion_looked_at()
             guarded(update_track, scene, item)
         guarded(update_field, scene, item)
         return
@@ -58,7 +60,7 @@ def refresh_later(keys) -> None:
     only, no datablock is added or removed there)."""
     now = time.monotonic()
     for key in keys:
-        REGISTRY.live(key).pending = now
+        REGISTRY.live(key).edit_waits(now)
     if not bpy.app.timers.is_registered(flush_pending):
         bpy.app.timers.register(flush_pending, first_interval=EDIT_SETTLE_S)
 
@@ -69,7 +71,8 @@ def flush_pending() -> float | None:
     while its terrain is in a paint mode: it follows when the artist leaves it."""
     pending = {key: s for key, s in REGISTRY.states.items() if s.pending is not None}
     latest = max((s.pending for s in pending.values() if s.pending is not None), default=0.0)
-    wait = latest + EDIT_SETTLE_S - time.monotonic()
+    first = min((s.waiting_since for s in pending.values() if s.waiting_since is not None), default=latest)
+    wait = min(latest + EDIT_SETTLE_S, first + FOLLOW_S) - time.monotonic()  # settled, or a drag followed
     if wait > 0:
         return wait
     scenes = {s.session_uid: s for s in bpy.data.scenes}
@@ -78,7 +81,7 @@ def flush_pending() -> float | None:
         scene = scenes.get(key[0])
         item = properties.field_by_uid(scene, key[1]) if scene else None
         if item is None or item.collection is None:
-            state.pending = None
+            state.edit_shown()
             continue
         if state.stroke_s > STROKE_GOAL_S and painting(scene, item):
             waiting = True
@@ -87,15 +90,13 @@ def flush_pending() -> float | None:
             if _playing():
                 waiting = True  # sampled when the playback stops (it steps the scene's frames)
                 continue
-            state.moved = False
+            state.motion_looked_at()
             if _quick_to_sample(scene, item):  # (a long sampling waits for Update Motion: no freeze)
                 guarded(_update_motion, scene, item)
-        state.pending = None
+        state.edit_shown()
         stroke, started = state.stroked, time.perf_counter()
-        state.stroked = False
         guarded(update_field, scene, item)
-        if stroke:
-            state.stroke_s = time.perf_counter() - started
+        state.stroke_shown(time.perf_counter() - started if stroke else None)
     return PAINT_MODE_POLL_S if waiting else None
 
 

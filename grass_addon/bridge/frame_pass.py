@@ -42,8 +42,7 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         materials.set_gust_offset(shown.gust[0], shown.gust[1], rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
-    rt.frame, rt.subframe = shown.frame, shown.subframe
-    rt.camera_signature = field_camera.signature(views)
+    rt.written(shown.frame, shown.subframe, field_camera.signature(views))
 
 
 def _write_trails(item, rt: LiveField, trail) -> None:
@@ -57,7 +56,7 @@ def _write_trails(item, rt: LiveField, trail) -> None:
         if rt.trail is None or rt.trail.extent != trail.extent or not np.array_equal(rt.trail.flat, trail.flat):
             textures.write_trail_image(image, trail.flat)
     materials.set_trail(reg.get(owned.ROLE_CANOPY_MATERIAL), trail)
-    rt.trail, rt.trail_written = trail, True
+    rt.trail_shown(trail)
 
 
 def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> LiveField | None:
@@ -89,7 +88,7 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
                              "(changed outside Windgrass); press Rebuild")
     if rt.paint_shown != rt.painted:
         paint_look.update_paint_look(item, rt.params, rt.field.cache.paint)
-        rt.paint_shown = rt.painted
+        rt.paint_look_shown()
     write_frame(scene, item, rt, depsgraph, views)
     return rt
 
@@ -123,7 +122,7 @@ def guarded(work, scene, item, *args, camera_moved_only: bool = False) -> None:
         live.drop(error=message)  # resolved again (and checked again) at the next update
     else:
         if not camera_moved_only and key in REGISTRY.states:  # (that pass skips fields not written now)
-            REGISTRY.states[key].error = None
+            REGISTRY.states[key].no_error()
 
 
 def hide(scene, item) -> None:
@@ -132,7 +131,7 @@ def hide(scene, item) -> None:
     if rt is not None:
         rt.blades.collapse(item)
         rt.cards.collapse(item)
-        rt.frame = None
+        rt.unwritten()
         return
     for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
         pools.collapse_objects(owned.slot_objects(item, role).values())

@@ -97,7 +97,7 @@ def show_while_painting(scene) -> None:
         for obj in owned.field_objects(item):
             if scene.view_layers and obj.name in bpy.context.view_layer.objects:
                 obj.hide_set(hide)
-        state.hidden_for_paint = hide
+        state.shown_while_painting(hide)
 
 
 @persistent
@@ -177,6 +177,9 @@ def on_load_post(*_args):
     REGISTRY.clear()
     REGISTRY.saved_bakes, REGISTRY.bake_root = bake.referenced_files(), str(bake.bake_root() or "") or None
     for scene, item in _fields():
+        newer = properties.upgrade(item)  # (a file of an earlier version: its settings brought to this one's)
+        if newer:
+            warn_once(newer)
         if bake.is_baked(item) and not bake.files_present(item):
             warn_once(f"field '{item.name}': {bake.status(scene, item, None)}")
     for scene, item in _live_fields():

@@ -65,7 +65,7 @@ def refill_ground(scene, item, params) -> None:
     """Make the painted ground grid a save emptied again (``scene.fill_ground``); the paint's look
     on it is then written at the next update."""
     if field_scene.fill_ground(item, params):
-        REGISTRY.live(key_of(scene, item)).paint_shown = None
+        REGISTRY.live(key_of(scene, item)).paint_look_lost()
 
 
 def forget_slots(scene, item, rebuilt: bool = False) -> None:

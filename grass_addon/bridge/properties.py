@@ -479,8 +479,32 @@ def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name:
     item.uid = f"field-{number}"
     root.next_uid = number + 1
     apply_params(item, params or schema.defaults())
+    item[SETTINGS_VERSION_KEY] = schema.SETTINGS_VERSION
     root.active_index = len(root.fields) - 1
     return item
+
+
+# The field item's custom property: the settings version (schema.SETTINGS_VERSION) its values are in.
+# Fields saved before it existed hold version 1 (the settings as they were until versions began).
+SETTINGS_VERSION_KEY = "wg_settings_version"
+
+# version -> a function bringing a field item's settings from that version to the next (none yet:
+# version 1 is the first); ``upgrade`` runs them in order when a file is opened.
+UPGRADES: dict[int, Callable[[Any], None]] = {}
+
+
+def upgrade(item: Any) -> str | None:
+    """Bring the settings of a field opened from a file to this version (``UPGRADES``); the
+    warning to give when the file was saved by a newer Windgrass (its settings are read as they
+    are: they may mean something else), else None."""
+    saved = int(item.get(SETTINGS_VERSION_KEY, 1))
+    if saved > schema.SETTINGS_VERSION:
+        return (f"field '{item.name}' was saved by a newer Windgrass (settings version {saved}; this one reads up "
+                f"to {schema.SETTINGS_VERSION}): its grass may differ; install the newer Windgrass to edit it")
+    for version in range(saved, schema.SETTINGS_VERSION):
+        UPGRADES[version](item)
+    item[SETTINGS_VERSION_KEY] = schema.SETTINGS_VERSION
+    return None
 
 
 def remove_item(scene: bpy.types.Scene, item: Any) -> None:

@@ -75,6 +75,7 @@ class LiveField:
     error: str | None = None  # why the field cannot be simulated now (its grass is hidden)
     stale: bool = False  # its settings were edited since it was resolved: resolve again
     pending: float | None = None  # time.monotonic() of an edit waiting to settle (UI), else None
+    waiting_since: float | None = None  # time.monotonic() of the first edit waiting (a drag's first step)
     stroked: bool = False  # a stroke waits to be shown
     stroke_s: float = 0.0  # seconds its last stroke took to show
     moved: bool = False  # its colliders or force fields were edited: look at their stored motion
@@ -127,6 +128,93 @@ class LiveField:
     def edited(self) -> None:
         """Its settings (or what its engine is built from) changed: resolve it again before the next write."""
         self.stale = True
+
+    # -- what the engine was made or told of (resolve.py)
+
+    def resolved_at(self, clock) -> None:
+        """Its engine is resolved for the settings now, on the scene's ``clock`` (clock, frame_end)."""
+        self.stale = False
+        self.clock = clock
+
+    def engine_made(self, engine: Engine, painted: str, track: str, kept: bool = False) -> None:
+        """``engine`` replaces its engine, grown with the paint ``painted`` and the collider motion
+        ``track``; ``kept``: the same ``GrassField`` retuned (its objects keep what they show but for
+        the frame), else a new one (nothing of it is shown yet)."""
+        self.engine, self.painted, self.track = engine, painted, track
+        self.frame, self.camera_signature = None, None
+        if not kept:
+            self.subframe, self.last_repaint = 0.0, ()
+            self.paint_shown, self.trail, self.trail_written = None, None, False
+
+    def colliders_told(self, track: str) -> None:
+        """Its engine took the collider motion ``track``: the frame is written again."""
+        self.track, self.frame = track, None
+
+    def repainted(self, painted: str, seconds: float, made: int) -> None:
+        """Its engine grows the paint ``painted`` now (``made`` blocks made again in ``seconds``)."""
+        self.painted, self.frame = painted, None
+        self.last_repaint = (seconds, made)
+
+    def sampled_terrain(self, terrain: tuple) -> None:
+        """(terrain key, heightfield, centre) as just sampled."""
+        self.terrain = terrain
+
+    def sampled_paint(self, signature, paint, deps: frozenset) -> None:
+        """The paint as just read from what ``signature`` names, and the datablocks it read."""
+        self.paint, self.paint_deps = (signature, paint), deps
+
+    # -- what its objects show (frame_pass.py, lifecycle.py, handlers.py)
+
+    def written(self, frame: int, subframe: float, camera_signature) -> None:
+        """Its objects show ``frame + subframe`` seen from the views of ``camera_signature``."""
+        self.frame, self.subframe, self.camera_signature = frame, subframe, camera_signature
+
+    def unwritten(self) -> None:
+        """Its objects show no frame of it now (hidden, or rebuilt): the next update writes one."""
+        self.frame = None
+
+    def trail_shown(self, trail) -> None:
+        """The far canopy's trail image and mapping show ``trail`` (None: no trails)."""
+        self.trail, self.trail_written = trail, True
+
+    def paint_look_shown(self) -> None:
+        """The ground and the paint map show the paint its engine grows."""
+        self.paint_shown = self.painted
+
+    def paint_look_lost(self) -> None:
+        """The painted ground was made again (emptied by a save): its look is written again."""
+        self.paint_shown = None
+
+    def shown_while_painting(self, hidden: bool) -> None:
+        """Its objects are hidden in the viewport (``hidden``) while its terrain is painted, or not."""
+        self.hidden_for_paint = hidden
+
+    def no_error(self) -> None:
+        """An update found nothing against it."""
+        self.error = None
+
+    # -- what waits (edits.py)
+
+    def motion_looked_at(self) -> None:
+        """Its colliders' and force fields' stored motion was looked at after their edit."""
+        self.moved = False
+
+    def stroke_shown(self, seconds: float | None) -> None:
+        """The strokes that waited are shown (``seconds``: how long it took, None: none waited)."""
+        self.stroked = False
+        if seconds is not None:
+            self.stroke_s = seconds
+
+    def edit_waits(self, now: float) -> None:
+        """An edit in the UI waits to be shown (at ``now``): shown once the edits settle, or while
+        a drag goes on every ``edits.FOLLOW_S``."""
+        self.pending = now
+        if self.waiting_since is None:
+            self.waiting_since = now
+
+    def edit_shown(self) -> None:
+        """The edits that waited are shown (or the field is gone)."""
+        self.pending = self.waiting_since = None
 
     def stroke(self) -> None:
         """A datablock its paint reads was edited (a stroke): read the paint again and show it."""

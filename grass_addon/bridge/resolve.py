@@ -71,7 +71,7 @@ def terrain_of(scene, item, params, force: bool = False) -> tuple:
     if not force and kept is not None and kept[0] == t_key:
         return kept[1], kept[2], t_key
     heightfield, centre = maps.sample_terrain(scene, item, params)
-    state.terrain = (t_key, heightfield, centre)
+    state.sampled_terrain((t_key, heightfield, centre))
     return heightfield, centre, t_key
 
 
@@ -90,8 +90,7 @@ def paint_of(scene, item, params):
     if kept is not None and kept[0] == signature:
         return kept[1]
     paint = maps.paint_of(scene, item, params)
-    state.paint = (signature, paint)
-    state.paint_deps = frozenset(maps.depends_on(scene, item, params))
+    state.sampled_paint(signature, paint, frozenset(maps.depends_on(scene, item, params)))
     return paint
 
 
@@ -163,8 +162,7 @@ def resolve(scene, item) -> LiveField:
         _update(live, live.resolved.field, inputs)
     else:
         _build(live, inputs, item.name)
-    live.stale = False
-    live.clock = inputs.clock
+    live.resolved_at(inputs.clock)
     return live
 
 
@@ -174,12 +172,11 @@ def _update(live: LiveField, field: GrassField, inputs: Inputs) -> None:
     touched are made again)."""
     if live.track != inputs.track:
         field.update_colliders(inputs.colliders, inputs.effectors)
-        live.track, live.frame = inputs.track, None
+        live.colliders_told(inputs.track)
     if live.painted != inputs.painted:
         started = time.perf_counter()
         made = field.repaint(inputs.paint, frame=inputs.frame)
-        live.painted, live.frame = inputs.painted, None
-        live.last_repaint = (time.perf_counter() - started, made)
+        live.repainted(inputs.painted, time.perf_counter() - started, made)
 
 
 def _retune(live: LiveField, engine: Engine, inputs: Inputs) -> None:
@@ -189,10 +186,9 @@ def _retune(live: LiveField, engine: Engine, inputs: Inputs) -> None:
     field.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders, effectors=inputs.effectors)
     same = engine.topology == inputs.topology
     blades, cards = (engine.blades, engine.cards) if same else _pools(field)
-    live.engine = Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint, inputs.wind_keys,
-                         inputs.terrain_key, inputs.topology, blades=blades, cards=cards)
-    live.track = inputs.track
-    live.frame, live.camera_signature = None, None
+    live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, blades=blades, cards=cards),
+                     live.painted, inputs.track, kept=True)
 
 
 def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:
@@ -205,11 +201,9 @@ def _build(live: LiveField, inputs: Inputs, name: str) -> None:
     """A new engine and its slot pools for ``inputs``: its objects show nothing of it yet."""
     field = GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
                        colliders=inputs.colliders, effectors=inputs.effectors, progress=_seek_progress(name))
-    live.engine = Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint, inputs.wind_keys,
-                         inputs.terrain_key, inputs.topology, *_pools(field))
-    live.painted, live.track = inputs.painted, inputs.track
-    live.frame, live.subframe, live.camera_signature, live.last_repaint = None, 0.0, None, ()
-    live.paint_shown, live.trail, live.trail_written = None, None, False
+    live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, *_pools(field)),
+                     inputs.painted, inputs.track)
 
 
 def _seek_progress(name: str):

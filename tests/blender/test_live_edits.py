@@ -82,7 +82,7 @@ def test_an_edit_draws_what_a_fresh_build_draws(with_bridge, drawn, name, edit, 
         assert {o.name for o in item.collection.objects} == objects
     want_scene, want_item = _build(base.replace(values))
     want = _drawn(drawn, want_item)
-    for got, fresh, old in zip(after, want, before):
+    for got, fresh in zip(after, want):
         assert got.shape == fresh.shape
         np.testing.assert_array_equal(got, fresh, err_msg=name)
     if name not in NOT_IN_THE_MESHES:

@@ -184,6 +184,31 @@ def _flags_set_outside(folder: Path, owner: str) -> list[str]:
     return out
 
 
+def _live_fields() -> set[str]:
+    """The names of ``registry.LiveField``'s fields."""
+    tree = ast.parse((REPO / "grass_addon" / "bridge" / "registry.py").read_text())
+    cls = next(n for n in ast.walk(tree) if isinstance(n, ast.ClassDef) and n.name == "LiveField")
+    return {s.target.id for s in cls.body if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)}
+
+
+def _record_writes(folder: Path, owner: str, names: set[str]) -> list[str]:
+    """Lines outside ``owner`` that write one of ``names`` (a record's fields) on anything but
+    ``self`` or a field's settings ``item`` (``live.frame = None``, ``rt.trail, x = ...``, ``s.strokes += 1``)."""
+    out = []
+    for path in sorted(folder.glob("*.py")):
+        if path.name == owner:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            targets = node.targets if isinstance(node, ast.Assign) else \
+                [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+            for target in targets:
+                for t in (target.elts if isinstance(target, ast.Tuple) else [target]):
+                    if isinstance(t, ast.Attribute) and t.attr in names and \
+                            not (isinstance(t.value, ast.Name) and t.value.id in ("self", "item")):
+                        out.append(f"{path.name}:{node.lineno} .{t.attr}")
+    return out
+
+
 def test_each_field_lives_in_one_record_changed_by_its_methods():
     """The bridge keeps a field in one live record (``registry.LiveField``: its engine, what its
     objects show, its samples, its error, what waits), and the handlers, edits and operators say
@@ -191,6 +216,10 @@ def test_each_field_lives_in_one_record_changed_by_its_methods():
     assert _records(REPO / "grass_addon" / "bridge") == {"registry.LiveField": PER_FIELD}
     assert _flags_set_outside(REPO / "grass_addon" / "bridge", "registry.py") == []
     assert _flags_set_outside(REPO / "operators", "") == []
+    names = _live_fields()
+    for folder, owner in ((REPO / "grass_addon" / "bridge", "registry.py"), (REPO / "operators", ""),
+                          (REPO / "panels", "")):
+        assert _record_writes(folder, owner, names) == [], "a LiveField is changed only through its methods"
 
 
 def test_a_second_record_and_a_raised_flag_are_seen(tmp_path):
@@ -199,3 +228,4 @@ def test_a_second_record_and_a_raised_flag_are_seen(tmp_path):
     (tmp_path / "edit.py").write_text("def edit(rt):\n    rt.dirty = True\n    rt.frame = None\n")
     assert _records(tmp_path) == {"state.FieldState": {"error", "terrain"}}
     assert _flags_set_outside(tmp_path, "state.py") == ["edit.py:2 .dirty"]
+    assert _record_writes(tmp_path, "state.py", {"frame", "dirty"}) == ["edit.py:2 .dirty", "edit.py:3 .frame"]

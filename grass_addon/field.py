@@ -328,6 +328,11 @@ class GrassField:
         kept = self.effectors
         self.set_interaction(colliders, kept if (kept is None) == (effectors is None) else effectors)
 
+    def report_progress(self, progress) -> None:
+        """Long seeks report ``progress(done, total)`` from now on (None: not at all)."""
+        self._progress = progress
+        self.sim.progress = progress
+
     def _simulation(self, wind) -> Simulation:
         sim = Simulation(self.layout, self.params, wind)
         sim.progress = self._progress

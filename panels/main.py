@@ -106,6 +106,9 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 box.alert = True
                 wrapped(box, context, "Grass hidden: this field cannot be simulated", icon="ERROR")
                 wrapped(box, context, error)
+            building = runtime.building_percent(context.scene, item)
+            if building is not None:
+                wrapped(layout, context, f"Building the field for its new settings: {building} %", icon="SORTTIME")
             status = runtime.bake_status(context.scene, item)
             row = layout.row(align=True)
             row.operator_menu_enum("windgrass.field_bake", "format", text="Bake", icon="FILE_CACHE")

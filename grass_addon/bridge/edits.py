@@ -95,7 +95,7 @@ def flush_pending() -> float | None:
                 guarded(_update_motion, scene, item)
         state.edit_shown()
         stroke, started = state.stroked, time.perf_counter()
-        guarded(update_field, scene, item)
+        guarded(update_field, scene, item, wait=stroke)  # (a new engine on a thread; a stroke shows at once)
         state.stroke_shown(time.perf_counter() - started if stroke else None)
     return PAINT_MODE_POLL_S if waiting else None
 

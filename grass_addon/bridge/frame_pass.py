@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 
 from ..errors import WindgrassError
-from . import bake, materials, owned, paint_look, pools, textures
+from . import bake, builds, materials, owned, paint_look, pools, textures
 from . import camera as field_camera
 from .registry import REGISTRY, LiveField, key_of, warn_once
 from .resolve import current, get_runtime
@@ -59,12 +59,13 @@ def _write_trails(item, rt: LiveField, trail) -> None:
     rt.trail_shown(trail)
 
 
-def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -> LiveField | None:
+def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False, wait: bool = True) -> LiveField | None:
     """Write the field ``item`` of ``scene`` for ``scene.frame_current`` (a frame handler's work).
     Returns its live record, or None when the field has no objects (not built, or deleted by hand).
 
     ``camera_moved_only``: skip the write when this frame was written with the same camera
-    (the ``frame_change_post`` pass, see ``on_frame_change_post``)."""
+    (the ``frame_change_post`` pass, see ``on_frame_change_post``). ``wait`` False (the UI's
+    edits): a new engine is built on a thread (``builds.BuildPending`` until it is done)."""
     if item.collection is None:
         if owned.was_built(item):  # (a field being added has none yet)
             warn_once(f"field '{item.name}' has no collection (deleted?); nothing to update")
@@ -79,7 +80,9 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False) -
         views = field_camera.field_views(scene, item, depsgraph)
         if rt.camera_signature == field_camera.signature(views):
             return rt  # same views, same frame: nothing to do (cheap: no parameter read)
-    rt = current(scene, item)
+    if not wait:
+        views = field_camera.field_views(scene, item, depsgraph)
+    rt = current(scene, item, wait, views)
     if item.collection.get(owned.TOPOLOGY) != rt.topology:
         # Windgrass rebuilds the objects whenever the settings ask for it (apply_settings); only a
         # change made around it (objects edited by hand, settings written as raw ID properties)
@@ -99,16 +102,20 @@ def update_scene(scene, depsgraph=None, camera_moved_only: bool = False) -> None
         guarded(update_field, scene, item, depsgraph, camera_moved_only=camera_moved_only)
 
 
-def guarded(work, scene, item, *args, camera_moved_only: bool = False) -> None:
+def guarded(work, scene, item, *args, camera_moved_only: bool = False, **kw) -> None:
     """``work(scene, item, ...)``, never raising: a field that cannot be simulated (a setting
     out of range, a failure) records the error for the panel and for scripts (``field_error``)
-    and hides its grass, so no frame shows the grass of another frame."""
+    and hides its grass, so no frame shows the grass of another frame; a field whose new engine
+    is being built in the background (``builds.BuildPending``) hides its grass until it is ready."""
     key = key_of(scene, item)
     try:
         if camera_moved_only:
-            work(scene, item, *args, camera_moved_only=True)
-        else:
-            work(scene, item, *args)
+            kw["camera_moved_only"] = True
+        work(scene, item, *args, **kw)
+    except builds.BuildPending:  # (its objects may be built for the new settings already: collapsed as they are)
+        for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
+            pools.collapse_objects(owned.slot_objects(item, role).values())
+        REGISTRY.live(key).slots_changed()
     except Exception as exc:  # a handler must not break playback or rendering
         message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, WindgrassError):  # a fault of Windgrass, not a setting: its trace for a report

@@ -80,6 +80,7 @@ class LiveField:
     stroke_s: float = 0.0  # seconds its last stroke took to show
     moved: bool = False  # its colliders or force fields were edited: look at their stored motion
     hidden_for_paint: bool | None = None  # hidden in the viewport while its terrain is painted (None: not yet set)
+    building: Any = None  # builds.Build of its new engine on a thread (UI edits), else None
 
     @property
     def built(self) -> bool:
@@ -163,6 +164,14 @@ class LiveField:
         """The paint as just read from what ``signature`` names, and the datablocks it read."""
         self.paint, self.paint_deps = (signature, paint), deps
 
+    def build_started(self, job) -> None:
+        """Its new engine is being made on a thread (``builds.Build``)."""
+        self.building = job
+
+    def build_dropped(self) -> None:
+        """The build that ran is taken (or no longer wanted)."""
+        self.building = None
+
     # -- what its objects show (frame_pass.py, lifecycle.py, handlers.py)
 
     def written(self, frame: int, subframe: float, camera_signature) -> None:
@@ -232,6 +241,10 @@ class LiveField:
             self.engine.blades.state.forget()
             self.engine.cards.state.forget()
         self.frame = None
+
+    def building_percent(self) -> int | None:
+        """How far its background build is (0-100), None when none runs."""
+        return None if self.building is None else self.building.percent()
 
     def drop(self, error: str | None = None) -> None:
         """Forget its engine (resolved again from the settings at the next update) and say why

@@ -21,7 +21,7 @@ from .. import forces, interaction, schema
 from .. import paint as paint_core
 from ..clock import Clock
 from ..field import GrassField
-from . import animation, maps, owned, paint_look, pools, properties, tracks
+from . import animation, builds, maps, owned, paint_look, pools, properties, tracks
 from . import scene as field_scene
 from .registry import REGISTRY, Engine, LiveField, key_of, warn_once
 
@@ -143,11 +143,13 @@ def read_inputs(scene, item, previous: Engine | None) -> Inputs:
                   paint_core.fingerprint(paint), _clock(scene), scene.frame_current, digest, ground)
 
 
-def resolve(scene, item) -> LiveField:
+def resolve(scene, item, wait: bool = True, views=None) -> LiveField:
     """The field's record with its engine for its settings now: the engine kept when nothing it
-    depends on changed (told of new collider motion or paint), else a new one. Reads Blender's
-    data, never touches a datablock (``apply_settings`` does); raises WindgrassError on bad
-    settings."""
+    depends on changed (told of new collider motion or paint), retuned in place when the edit
+    changes none of its blocks (``edit_parts``), else a new one: made at once, or with ``wait``
+    False (the UI's edits) on a thread (``builds.Build``, seeked for ``views``), raising
+    ``BuildPending`` until it is done. Reads Blender's data, never touches a datablock
+    (``apply_settings`` does); raises WindgrassError on bad settings."""
     key = key_of(scene, item)
     live = REGISTRY.live(key)
     if live.engine is None:
@@ -161,9 +163,34 @@ def resolve(scene, item) -> LiveField:
         _retune(live, engine, inputs)
         _update(live, live.resolved.field, inputs)
     else:
-        _build(live, inputs, item.name)
+        _new_engine(live, inputs, item.name, wait, views)
     live.resolved_at(inputs.clock)
     return live
+
+
+def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -> None:
+    """A new engine for ``inputs``: the background build's when it was made for them (waited for
+    with ``wait``), else made now (``wait``) or started on a thread (``BuildPending``)."""
+    job = live.building
+    if job is not None and (wait or job.done.is_set()):
+        if wait and job.digest == inputs.digest:
+            job.wait()
+        if job.done.is_set():
+            live.build_dropped()
+            if job.digest == inputs.digest:
+                if job.error is not None:
+                    raise job.error
+                _install(live, inputs, job.made, name)
+                return
+        job = None
+    if wait:
+        _build(live, inputs, name)
+        return
+    if job is None:  # (one running: the next update after it starts one for the settings then)
+        live.build_started(builds.Build(inputs.digest, inputs.frame, views).start(
+            lambda report: _make(inputs, report)))
+        builds.poll_later()
+    raise builds.BuildPending(name)
 
 
 def _update(live: LiveField, field: GrassField, inputs: Inputs) -> None:
@@ -197,10 +224,20 @@ def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:
             pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
 
 
+def _make(inputs: Inputs, progress) -> GrassField:
+    """The engine of ``inputs`` (numpy only: a background build runs it on its thread)."""
+    return GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
+                      colliders=inputs.colliders, effectors=inputs.effectors, progress=progress)
+
+
 def _build(live: LiveField, inputs: Inputs, name: str) -> None:
     """A new engine and its slot pools for ``inputs``: its objects show nothing of it yet."""
-    field = GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
-                       colliders=inputs.colliders, effectors=inputs.effectors, progress=_seek_progress(name))
+    _install(live, inputs, _make(inputs, _seek_progress(name)), name)
+
+
+def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str) -> None:
+    """``field`` becomes the record's engine, with new slot pools."""
+    field.report_progress(_seek_progress(name))
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
                             inputs.wind_keys, inputs.terrain_key, inputs.topology, *_pools(field)),
                      inputs.painted, inputs.track)
@@ -223,16 +260,16 @@ def _seek_progress(name: str):
     return report
 
 
-def current(scene, item) -> LiveField:
+def current(scene, item, wait: bool = True, views=None) -> LiveField:
     """The record a frame handler writes from: as it is unless its settings may have changed
     (an edit, undo), the scene's clock or the animated wind changed under it (then resolved
-    again, numpy only), or it has no engine yet."""
-    live = REGISTRY.built(key_of(scene, item))
-    if live is None or live.engine is None or live.stale:
-        return resolve(scene, item)
+    again, numpy only), or it has no engine yet (``wait``, ``views``: see ``resolve``)."""
+    live = REGISTRY.live(key_of(scene, item))
+    if live.engine is None or live.stale or live.building is not None:
+        return resolve(scene, item, wait, views)
     engine = live.engine
     if live.clock != _clock(scene) or _wind_curves(scene, item, engine.params)[1] != engine.wind_fingerprint:
-        return resolve(scene, item)
+        return resolve(scene, item, wait, views)
     if engine.terrain_key and maps.terrain_key(scene, item, engine.params) != engine.terrain_key:
         warn_once(f"the terrain of field '{item.name}' is gone or changed; the grass keeps the ground it "
                   "was built on until Rebuild (on flat ground without a terrain)")

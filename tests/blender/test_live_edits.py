@@ -106,3 +106,48 @@ def test_an_edit_in_place_and_its_undo(with_bridge, drawn):
     assert item.wind.speed == pytest.approx(6.0)
     scene.frame_set(FRAME)
     np.testing.assert_array_equal(drawn(item, "blades"), before)
+
+
+def test_a_layout_edit_in_the_ui_builds_in_the_background(with_bridge, drawn):
+    """A density edit as the UI applies it (deferred, then the edits' timer): the timer returns
+    while the new engine is still being made on a thread, the grass is hidden and the panel's
+    figure says how far the build is; a second edit made meanwhile waits for it (one build at a
+    time) and the field ends drawing what a fresh build of the last settings draws."""
+    import threading
+    import time
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import builds, edits, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 8, "field.blocks_y": 8})
+    scene, item = _build(base)
+    live = REGISTRY.live(key_of(scene, item))
+
+    def edit_in_the_ui(value):
+        REGISTRY.batch_depth += 1  # (the property's own update would apply it at once in a script)
+        item.field.blades_per_cell = value
+        REGISTRY.batch_depth -= 1
+        edits.mark_dirty(scene, item, defer=True)
+        time.sleep(edits.EDIT_SETTLE_S + 0.01)
+        edits.flush_pending()
+
+    edit_in_the_ui(3)
+    first = live.building
+    assert first is not None and not first.done.is_set(), "the timer waited for the build"
+    assert runtime.building_percent(scene, item) is not None
+    assert not np.any(drawn(item, "blades")), "the grass of the old settings was left showing"
+    running = not first.done.is_set()
+    edit_in_the_ui(4)
+    if running:  # (a build still running is waited for: no second thread beside it)
+        assert live.building is first or first.done.is_set()
+    assert sum(t.name.startswith("windgrass build") and t.is_alive() for t in threading.enumerate()) <= 1
+    while live.building is not None:
+        live.building.wait()
+        builds.poll()
+    assert runtime.field_error(scene, item) is None and runtime.building_percent(scene, item) is None
+    scene.frame_set(FRAME)
+    got = _drawn(drawn, item)
+    _, want_item = _build(base.replace({"field.blades_per_cell": 4}))
+    for a, b in zip(got, _drawn(drawn, want_item)):
+        np.testing.assert_array_equal(a, b)

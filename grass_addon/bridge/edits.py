@@ -26,6 +26,7 @@ from .resolve import terrain_of
 # drag goes on, the grass follows it every FOLLOW_S (one update waits at a time, never a queue).
 EDIT_SETTLE_S = 0.15
 FOLLOW_S = 0.3
+BUILD_POLL_S = 0.1  # how often a field being built in the background is looked at
 STROKE_GOAL_S = 0.5  # a field whose strokes take longer to show follows when paint mode is left
 PAINT_MODE_POLL_S = 0.25
 
@@ -97,7 +98,39 @@ def flush_pending() -> float | None:
         stroke, started = state.stroked, time.perf_counter()
         guarded(update_field, scene, item, wait=stroke)  # (a new engine on a thread; a stroke shows at once)
         state.stroke_shown(time.perf_counter() - started if stroke else None)
+    if any(s.building is not None for s in REGISTRY.states.values()) and not bpy.app.timers.is_registered(poll_builds):
+        bpy.app.timers.register(poll_builds, first_interval=BUILD_POLL_S)
     return PAINT_MODE_POLL_S if waiting else None
+
+
+def poll_builds() -> float | None:
+    """Timer: write the fields whose background build (``builds.Build``) is done; run again
+    while one is not."""
+    running = False
+    scenes = {s.session_uid: s for s in bpy.data.scenes}
+    for key, state in list(REGISTRY.states.items()):
+        job = state.building
+        if job is None:
+            continue
+        if not job.done.is_set():
+            running = True
+            continue
+        scene = scenes.get(key[0])
+        item = properties.field_by_uid(scene, key[1]) if scene else None
+        if item is None:
+            state.build_dropped()
+            continue
+        guarded(update_field, scene, item, wait=False)
+        running = running or state.building is not None
+        _redraw()
+    return BUILD_POLL_S if running else None
+
+
+def _redraw() -> None:
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type in ("VIEW_3D", "PROPERTIES"):
+                area.tag_redraw()
 
 
 def _quick_to_sample(scene, item) -> bool:

@@ -23,7 +23,7 @@ from bpy.app.handlers import persistent
 from . import bake, floor, owned, properties
 from . import camera as field_camera
 from . import scene as field_scene
-from .edits import flush_pending, mark_dirty, painting, refresh_later
+from .edits import flush_pending, mark_dirty, painting, poll_builds, refresh_later
 from .frame_pass import guarded, update_field, update_scene
 from .lifecycle import apply_settings, refill_ground
 from .registry import REGISTRY, key_of, warn_once
@@ -315,7 +315,7 @@ def unregister() -> None:
     for handlers, func in _HANDLERS:
         for existing in [h for h in handlers if _same(h, func)]:
             handlers.remove(existing)
-    for timer in (flush_pending, watch_views):
+    for timer in (flush_pending, poll_builds, watch_views):
         if bpy.app.timers.is_registered(timer):
             bpy.app.timers.unregister(timer)
     properties.on_edit = None

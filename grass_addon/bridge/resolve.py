@@ -178,8 +178,8 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
         if job.done.is_set():
             live.build_dropped()
             if job.digest == inputs.digest:
-                if job.error is not None:
-                    raise job.error
+                if job.failure is not None:
+                    raise job.failure
                 _install(live, inputs, job.made, name)
                 return
         job = None
@@ -189,7 +189,6 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
     if job is None:  # (one running: the next update after it starts one for the settings then)
         live.build_started(builds.Build(inputs.digest, inputs.frame, views).start(
             lambda report: _make(inputs, report)))
-        builds.poll_later()
     raise builds.BuildPending(name)
 
 

@@ -117,7 +117,7 @@ def test_a_layout_edit_in_the_ui_builds_in_the_background(with_bridge, drawn):
     import time
 
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import builds, edits, runtime
+    from windgrass.grass_addon.bridge import edits, runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     base = schema.defaults().replace({**SMALL, "field.blocks_x": 8, "field.blocks_y": 8})
@@ -144,7 +144,7 @@ def test_a_layout_edit_in_the_ui_builds_in_the_background(with_bridge, drawn):
     assert sum(t.name.startswith("windgrass build") and t.is_alive() for t in threading.enumerate()) <= 1
     while live.building is not None:
         live.building.wait()
-        builds.poll()
+        edits.poll_builds()
     assert runtime.field_error(scene, item) is None and runtime.building_percent(scene, item) is None
     scene.frame_set(FRAME)
     got = _drawn(drawn, item)

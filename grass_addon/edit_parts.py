@@ -38,6 +38,7 @@ SIMULATED = frozenset({LAYOUT, WIND, PHYSICS})
 _PART_OF: dict[str, str] = {
     **{f"wind.{p.key}": WIND for p in schema.section_params("wind")},
     **{f"render.{k}": WIND for k in ("fps", "fps_base", "frame_start")},
+    "simulation.loop": WIND,
     **{f"blade.{k}": PHYSICS for k in ("nonlinear_stiffness", "response_torque", "twist_stiffness", "damping_mass",
                                       "air_damping", "damping_stiffness", "boundary_k", "boundary_lambda")},
     **{f"simulation.{k}": PHYSICS for k in ("sub_steps", "preroll", "epoch")},

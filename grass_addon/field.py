@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import clearance, edit_parts, forces, interaction, kinematics, slots
+from . import clearance, edit_parts, forces, interaction, kinematics, loop, slots
 from .blocks import BlockCache, Species
 from .celldata import CellData
 from .clock import Clock
@@ -328,6 +328,10 @@ class GrassField:
         kept = self.effectors
         self.set_interaction(colliders, kept if (kept is None) == (effectors is None) else effectors)
 
+    def loop_notes(self) -> list[str]:
+        """What keeps this field's frames from repeating with its ``simulation.loop`` (``loop.notes``)."""
+        return loop.notes(self.params, self.wind.keyed, self.interaction is not None, self.effectors)
+
     def report_progress(self, progress) -> None:
         """Long seeks report ``progress(done, total)`` from now on (None: not at all)."""
         self._progress = progress
@@ -423,8 +427,21 @@ class GrassField:
         motion = blur or subframe != 0.0
         blades, cards = (self._role_frame(role, frame, subframe, lod, distance, motion) for role in (BLADES, CARDS))
         t = self.clock.seconds(frame, subframe)
-        gust = (self.wind.displacement(t), self.wind.mean(t)[0]) if self.params.wind.gust_waves > 0.0 else None
+        gust = self._gust(frame, subframe) if self.params.wind.gust_waves > 0.0 else None
         return Frame(frame, subframe, t, lod, blades, cards, gust, self._trail(frame, views))
+
+    def _gust(self, frame: int, subframe: float) -> tuple:
+        """What the far grass's gust shading reads at ``frame + subframe``: (displacement, mean
+        speed, the displacement of the loop's other pattern, (its weight now, the other's));
+        without a loop the other pattern weighs 0 (``loop.py``: the loop's time from its frame, so
+        frames a loop apart read the same bits)."""
+        wind = self.wind
+        t = self.clock.seconds(loop.wind_frame(self.params, frame), subframe)
+        if not wind.loop:
+            shift = wind.displacement(t)
+            return shift, wind.mean(t)[0], shift, (1.0, 0.0)
+        tau, w = loop.phase(t, wind.loop)
+        return wind.displacement(tau), wind.mean(tau)[0], wind.displacement(tau - wind.loop), loop.weights(w)
 
     def _role_frame(self, role: str, frame: int, subframe: float, lod, distance, motion: bool) -> RoleFrame:
         """One role's blocks (the nearest that need it, up to the pool's positions, in block

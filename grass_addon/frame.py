@@ -129,7 +129,8 @@ class Frame:
     lod: object  # lod.LodWeights of the views (all geometry without views)
     blades: RoleFrame
     cards: RoleFrame
-    gust: tuple | None  # (displacement (2,) m, mean speed m/s) with gust waves, else None
+    gust: tuple | None  # with gust waves (``GrassField._gust``): (displacement (2,) m, mean speed m/s,
+    # the loop's other displacement, (weight, other weight)); else None
     trail: object  # interaction.TrailMap the far canopy shows, or None
 
     def roles(self) -> tuple[RoleFrame, RoleFrame]:

@@ -410,6 +410,9 @@ PARAMS: tuple[Param, ...] = (
        "need them to stay stable)", minimum=1, maximum=64, advanced=True, label="Substeps"),
     _p("simulation", "preroll", "float", 3.0, "Seconds each stretch of simulation runs from rest before it is shown",
        unit="s", minimum=0.5, maximum=600.0, soft_max=10.0, label="Warm-up"),
+    _p("simulation", "loop", "float", 0.0, "Seconds after which the wind, and so every blade, repeats exactly "
+       "(0: never): a cycle to render or bake once and play in a loop (a whole number of frames; at least "
+       "simulation.preroll)", unit="s", minimum=0.0, maximum=3600.0, soft_max=60.0, label="Loop"),
     _p("simulation", "epoch", "float", 6.0, "Seconds between the starts of the simulated stretches: any frame is at "
        "most warm-up + epoch seconds of simulation away", unit="s", minimum=0.5, maximum=1e6, soft_max=60.0,
        advanced=True, label="Epoch"),
@@ -847,6 +850,10 @@ def _check_relations(v: Mapping[str, Mapping[str, Any]]) -> None:
             raise ParameterError(f"lod.{b}", f"{lod[b]:g} m must be >= lod.{a} ({lod[a]:g} m): "
                                  "valid: blade_near <= blade_far <= card_near <= card_far")
     sim = v["simulation"]
+    if 0.0 < sim["loop"] < sim["preroll"]:
+        raise ParameterError("simulation.loop", f"{sim['loop']:g} s is shorter than the solver's warm-up "
+                             f"(simulation.preroll, {sim['preroll']:g} s), so the loop could not repeat it; valid: 0 "
+                             f"(no loop) or at least {sim['preroll']:g} s (or a shorter warm-up)")
     if sim["epoch"] < sim["preroll"]:
         raise ParameterError("simulation.epoch", f"{sim['epoch']:g} s must be >= simulation.preroll "
                              f"({sim['preroll']:g} s)")

@@ -29,6 +29,7 @@ import numpy as np
 from .clock import Clock
 from .errors import ParameterError
 from .layout import subset_layout
+from .loop import loop_frames, wind_frame
 from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
 PROGRESS_INTERVAL_S = 1.0
@@ -48,10 +49,16 @@ class Trajectory:
 
 
 def epoch_frames(params) -> tuple[int, int, int]:
-    """(E, W, F): epoch length, warm-up and cross-fade in frames."""
+    """(E, W, F): epoch length, warm-up and cross-fade in frames. With a loop of P frames
+    (``loop.py``) the epoch is the divisor of P nearest ``simulation.epoch`` that holds the warm-up,
+    so the trajectories come round with the loop."""
     clock = Clock.of(params)
     warmup = max(1, clock.frames(params.simulation.preroll))
     epoch = max(warmup, clock.frames(params.simulation.epoch))
+    period = loop_frames(params)
+    if period:
+        divisors = [d for d in range(warmup, period + 1) if period % d == 0] or [period]
+        epoch = min(divisors, key=lambda d: (abs(d - epoch), d))
     return epoch, warmup, max(1, warmup // 2)
 
 
@@ -184,7 +191,7 @@ class Simulation:
         return out
 
     def _sample(self, frame: int) -> np.ndarray:
-        t = self.time(frame)
+        t = self.time(wind_frame(self.params, frame))  # (with a loop: its place in the first loop)
         by_layout = getattr(self.wind, "sample_layout", None)  # a WindField; a plain sampler also works
         wind = by_layout(t, self.layout) if by_layout is not None else self.wind.sample(t, self.layout.cell_center)
         return np.ascontiguousarray(wind, dtype=np.float32)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from . import gusts
+from . import gusts, loop
 from .errors import ParameterError
 
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
@@ -187,6 +187,7 @@ class WindField:
         self.gust_tile = gusts.pattern(self.seed) if self.gust_waves > 0.0 else None
         self.gust_metres = gusts.tile_metres(params)
         self._block_grid_of: tuple[Any, tuple[np.ndarray, np.ndarray] | None] | None = None
+        self.loop = loop.loop_seconds(params)  # L (s): the wind repeats after it (loop.py); 0: never
 
     # ------------------------------------------------------------------ mean wind (eq 12)
 
@@ -199,6 +200,11 @@ class WindField:
         speed = float(np.interp(t, self._key_t, self._key_speed))
         direction = float(np.interp(t, self._key_t, self._key_dir))
         return speed, _wrap_angle(direction)
+
+    @property
+    def keyed(self) -> bool:
+        """The mean wind changes over time (keys of more than one speed or direction)."""
+        return len(set(zip(self._key_speed.tolist(), self._key_dir.tolist()))) > 1
 
     def _mean_vector(self, t: float) -> np.ndarray:
         speed, direction = self.mean(t)
@@ -387,11 +393,23 @@ class WindField:
         out += upper
         return out.view(np.float32).reshape(out.shape + (2,))
 
+    def _looped(self, t: float, evaluate) -> np.ndarray:
+        """``evaluate(t)`` (the wind at t), looped with period ``self.loop`` (``loop.blend``)."""
+        tau, w = loop.phase(float(t), self.loop)
+        before = tau - self.loop
+        return loop.blend(evaluate(tau), self._mean_vector(tau), evaluate(before), self._mean_vector(before),
+                          self._mean_vector(tau), w)
+
     def sample_layout(self, t: float, layout) -> np.ndarray:
         """``sample(t, layout.cell_center)``, the same bits, computed per row and column: on a
         whole-field layout (cells row-major on the field's grid) over the field's rows and
         columns; on a window of blocks (block-major, each block's cells a grid) over each
-        block's (``_block_grid``)."""
+        block's (``_block_grid``). Looped with ``simulation.loop``."""
+        if self.loop:
+            return self._looped(t, lambda u: self._sample_layout(u, layout))
+        return self._sample_layout(t, layout)
+
+    def _sample_layout(self, t: float, layout) -> np.ndarray:
         t = float(t)
         whole = layout.n_cells == layout.cells_x * layout.cells_y and layout.n_cells > 0
         xy = np.asarray(layout.cell_center, dtype=np.float64)
@@ -400,7 +418,7 @@ class WindField:
             return self._add_mean_and_type(t, xy, np.ascontiguousarray(grid.reshape(-1, 2)))
         blocks = None if whole else self._block_grid(layout)
         if blocks is None:
-            return self.sample(t, xy)
+            return self._add_mean_and_type(t, xy, self.turbulence(t, xy))
         if self.turbulence_std == 0.0:
             out = np.zeros((xy.shape[0], 2), dtype=np.float32)
         else:
@@ -433,9 +451,12 @@ class WindField:
         ``xy`` (m, 2) (default: the layout's cell centres, in its cell order).
 
         (m, 2) float32 C-contiguous, m/s; each point's value depends on that point and t alone.
+        Looped with ``simulation.loop`` (``loop.py``).
         """
-        t = float(t)
         xy = self._xy if xy is None else np.asarray(xy, dtype=np.float64)
+        if self.loop:
+            return self._looped(t, lambda u: self._add_mean_and_type(u, xy, self.turbulence(u, xy)))
+        t = float(t)
         return self._add_mean_and_type(t, xy, self.turbulence(t, xy))
 
     def _add_mean_and_type(self, t: float, xy: np.ndarray, out: np.ndarray,

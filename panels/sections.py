@@ -148,6 +148,11 @@ def draw_section(layout, context, item, section: str) -> None:
             note = None  # a setting out of range: the main panel says which
         if note:
             wrapped(layout, context, note[0].upper() + note[1:], icon="TIME")
+        if item.simulation.loop > 0.0:
+            wrapped(layout, context, f"Every blade repeats after {item.simulation.loop:g} s: render or bake one "
+                    "loop and play it in a cycle", icon="LOOP_FORWARDS")
+        for note in runtime.loop_notes(context.scene, item):  # (what breaks the loop)
+            wrapped(layout, context, "The loop has a seam: " + note, icon="ERROR")
     if section in HEADLESS:
         wrapped(layout, context, "Used by headless renders; in Blender the scene's camera, frame rate and "
                 "frame range rule", icon="INFO")

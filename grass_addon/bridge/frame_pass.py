@@ -35,11 +35,13 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
                            blur=bool(scene.render.use_motion_blur))
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
+    for note in rt.field.loop_notes():
+        warn_once(f"field '{item.name}' loops every {rt.field.wind.loop:g} s, but {note}")
     rt.blades.write(item, shown.blades)
     rt.cards.write(item, shown.cards)
     if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
         reg = owned.registered(item)
-        materials.set_gust_offset(shown.gust[0], shown.gust[1], rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
+        materials.set_gust_offset(*shown.gust, rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
     rt.written(shown.frame, shown.subframe, field_camera.signature(views))

@@ -38,6 +38,9 @@ ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten fro
 NODE_GUST_IMAGE = "wg_gust_image"
 NODE_GUST_MAPPING = "wg_gust_mapping"
 NODE_GUST_AMOUNT = "wg_gust_amount"
+NODE_GUST_MAPPING_2 = "wg_gust_mapping_2"  # a looped wind's other pattern (loop.py): its place and weight
+NODE_GUST_IMAGE_2 = "wg_gust_image_2"
+NODE_GUST_AMOUNT_2 = "wg_gust_amount_2"
 # The far canopy's trampled trails (interaction.trail_map): the map, where the ray meets the canopy
 # and where it meets the trail's floor further on (two mappings of the field's frame onto the map),
 # whether a map is shown and how deep the sward is (the canopy's height).
@@ -114,7 +117,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 15
+MATERIALS_VERSION = 16
 
 
 def _socket(sockets, *names: str):
@@ -271,15 +274,24 @@ class _Tree:
 
     def gusted(self, colour_node, colour_out: str, gust_image, x: float, y: float):
         """The colour brightened and darkened by the gust waves where they pass:
-        colour * (1 + amount (2 g - 1)), g the pattern at the place (object coordinates: the
-        field's frame) moved back by the mean wind's displacement (NODE_GUST_MAPPING)."""
+        colour * (1 + amount (2 g - 1) + amount_2 (2 g_2 - 1)), g the pattern at the place (object
+        coordinates: the field's frame) moved back by the mean wind's displacement
+        (NODE_GUST_MAPPING); g_2 the same at a looped wind's other displacement (``loop.py``;
+        amount_2 is 0 without a loop)."""
         tex = self.field_image(gust_image, NODE_GUST_MAPPING, NODE_GUST_IMAGE, "REPEAT", x - 400, y - 200)
+        other = self.field_image(gust_image, NODE_GUST_MAPPING_2, NODE_GUST_IMAGE_2, "REPEAT", x - 400, y - 650)
         amount = self.add("ShaderNodeValue", x - 400, y - 450, name=NODE_GUST_AMOUNT)
         amount.outputs[0].default_value = 0.0
+        amount_2 = self.add("ShaderNodeValue", x - 400, y - 900, name=NODE_GUST_AMOUNT_2)
+        amount_2.outputs[0].default_value = 0.0
         swing = self.math("MULTIPLY_ADD", (tex, "Color"), 2.0, x - 200, y - 200)
         swing.inputs[2].default_value = -1.0
+        swing_2 = self.math("MULTIPLY_ADD", (other, "Color"), 2.0, x - 200, y - 650)
+        swing_2.inputs[2].default_value = -1.0
+        part_2 = self.math("MULTIPLY_ADD", (swing_2, "Value"), (amount_2, "Value"), x - 100, y - 650)
+        part_2.inputs[2].default_value = 1.0
         gain = self.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x - 50, y - 200)
-        gain.inputs[2].default_value = 1.0
+        self.link(part_2, "Value", gain, 2)
         out = self.mix_rgb(x + 100, y, blend="MULTIPLY")
         self.link(colour_node, colour_out, out, "A_Color")
         self.link(gain, "Value", out, "B_Color")
@@ -864,6 +876,8 @@ def update_gusts(params, *mats) -> None:
             continue
         nodes[NODE_GUST_AMOUNT].outputs[0].default_value = gust_swing(params, float(params.wind.speed))
         _set(nodes[NODE_GUST_MAPPING], (scale, scale, 1.0), "Scale")
+        if nodes.get(NODE_GUST_MAPPING_2) is not None:
+            _set(nodes[NODE_GUST_MAPPING_2], (scale, scale, 1.0), "Scale")
 
 
 def update_patches(params, *mats) -> None:
@@ -880,23 +894,28 @@ def update_patches(params, *mats) -> None:
                 _set(mapping, (-float(origin[0]) / size[0], -float(origin[1]) / size[1], 0.0), "Location")
 
 
-def set_gust_offset(displacement, speed: float, params, *mats) -> None:
+def set_gust_offset(displacement, speed: float, other, weights, params, *mats) -> None:
     """Carry the pattern downwind: the mapping's location is minus the mean wind's displacement
-    (gusts.py), in tiles; the swing follows the mean wind's ``speed``. Called every frame for
-    fields with gust waves."""
+    (gusts.py), in tiles; the swing follows the mean wind's ``speed``; a looped wind's second
+    pattern sits at the displacement ``other``, the two weighed by ``weights`` (``loop.py``;
+    (1, 0) without a loop). Called every frame for fields with gust waves."""
     scale = 1.0 / gusts.tile_metres(params)
-    location = (-float(displacement[0]) * scale, -float(displacement[1]) * scale, 0.0)
     swing = gust_swing(params, speed)
     for mat in mats:
         nodes = mat.node_tree.nodes if mat is not None and mat.node_tree else None
-        node = nodes.get(NODE_GUST_MAPPING) if nodes is not None else None
-        if nodes is not None and node is not None:
+        if nodes is None:
+            continue
+        for mapping, amount, shift, weight in ((NODE_GUST_MAPPING, NODE_GUST_AMOUNT, displacement, weights[0]),
+                                               (NODE_GUST_MAPPING_2, NODE_GUST_AMOUNT_2, other, weights[1])):
+            node, value = nodes.get(mapping), nodes.get(amount)
+            if node is None or value is None:
+                continue
             socket = _socket(node.inputs, "Location")
+            location = (-float(shift[0]) * scale, -float(shift[1]) * scale, 0.0)
             if tuple(socket.default_value) != location:
                 socket.default_value = location
-            amount = nodes[NODE_GUST_AMOUNT].outputs[0]
-            if amount.default_value != swing:
-                amount.default_value = swing
+            if value.outputs[0].default_value != swing * weight:
+                value.outputs[0].default_value = swing * weight
 
 
 LOOK_DIGEST = "wg_look"  # the canopy material's custom property: the settings its sward look was written for

@@ -57,6 +57,12 @@ from .registry import REGISTRY, LiveField, key_of
 from .resolve import field_error, get_runtime, resolve, terrain_of, topology_of
 
 
+def loop_notes(scene, item) -> list[str]:
+    """What keeps the field's frames from repeating with its loop (``loop.notes``; [] when none)."""
+    state = REGISTRY.built(key_of(scene, item))
+    return [] if state is None else state.field.loop_notes()
+
+
 def building_percent(scene, item) -> int | None:
     """How far the field's new engine is built in the background (0-100), None when none is."""
     state = REGISTRY.states.get(key_of(scene, item))
@@ -70,7 +76,7 @@ def scene_clock(scene) -> Clock:
 
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
            "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
-           "building_percent", "EDIT_SETTLE_S", "field_error", "LiveField", "flush_pending", "free_bake",
+           "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error", "LiveField", "flush_pending", "free_bake",
            "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest", "plays_cache",
            "refresh_later", "register", "REGISTRY", "remove_field", "reset_field", "resolve", "scene_clock",
            "start_bake", "store_track", "STROKE_GOAL_S", "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of",

@@ -1,6 +1,6 @@
 """How much the default scene reads as a meadow in wind, in numbers; prints ONE JSON object.
 
-    python headless/bench_realism.py [--image PNG] [--json]     (dev.py bench --realism)
+    python headless/bench_realism.py [--image PNG] [--loop S] [--json]     (dev.py bench --realism)
 
 * clumps: blades rooted in each 0.25 m square of a meadow (the "meadow" preset) and of a lawn
   (the "lawn" preset): the counts' variance over their mean (1 at random, less even, more clumped);
@@ -11,6 +11,8 @@
   turbulence at its cell) peaks between 0.3 and 3 Hz (its resonance) and that gain over the gain at
   0.1-0.3 Hz;
 * waves: the downwind speed of the gust waves (wind.displacement over 10 s) against the mean wind;
+* ``--loop S``: the sway and the waves with ``simulation.loop = S`` (the same wind, looped: the
+  gusts the sway meets are then the looped wind less its mean), to set beside a run without;
 * image (``--image``, a rendered frame of scenes/default.toml, e.g. renders/frame_0012.png): the
   near grass (the image's lowest fifth): its hue's spread (the 5th to the 95th percentile, in
   degrees) and the share of its pixels that are not green (hue outside 60-170 degrees); the far
@@ -57,6 +59,9 @@ def _default_scene() -> str:
     return (Path(__file__).resolve().parents[1] / "scenes" / "default.toml").read_text()
 
 
+LOOP = {"simulation.loop": 0.0}  # (main sets it from --loop)
+
+
 def sway(speed: float) -> dict:
     """{species: {peak_hz, peak_over_slow}} of the tip sway at mean wind ``speed``: the spectra of
     SWAY_SEEDS fields (one 3.2 m field's gusts are one sample of the wind: its spectrum's bumps are
@@ -64,7 +69,7 @@ def sway(speed: float) -> dict:
     the most blades."""
     params = presets.apply_preset(schema.loads_toml(_default_scene()), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "wind.speed": speed, "wind.turbulence": 0.3 * speed,
-         "wind.gust_waves": 0.0, "lod.enabled": False, "render.fps": FPS})
+         "wind.gust_waves": 0.0, "lod.enabled": False, "render.fps": FPS, **LOOP})
     frames = int(SWAY_SECONDS * FPS)
     hz = np.fft.rfftfreq(frames, 1.0 / FPS)
     angle = np.radians(params.wind.direction)
@@ -77,7 +82,7 @@ def sway(speed: float) -> dict:
         gusts = np.empty_like(tips)
         for f in range(frames):
             tips[f] = field.seek(f + 1).bend.sum(axis=1) @ along  # the tip's tilt downwind (radians)
-            gusts[f] = field.sim.wind.turbulence((f + 1) / FPS) @ along  # the gusts it meets (m/s)
+            gusts[f] = _gusts_met(field.sim.wind, (f + 1) / FPS) @ along  # the gusts it meets (m/s)
         power = _power(tips, frames)
         forcing = _power(gusts, frames)
         layout = field.layout
@@ -106,6 +111,14 @@ def sway(speed: float) -> dict:
     return out
 
 
+def _gusts_met(wind, t: float) -> np.ndarray:
+    """The wind's moving part at ``t`` at every cell: the turbulence (a looped wind: the looped
+    wind less its mean)."""
+    if not wind.loop:
+        return wind.turbulence(t)
+    return wind.sample(t) - np.asarray(wind._mean_vector(t), np.float32)
+
+
 def _power(series: np.ndarray, frames: int) -> np.ndarray:
     """Power spectra (bins, columns) of the columns of ``series`` (Hann window)."""
     centred = series - series.mean(axis=0)
@@ -118,7 +131,7 @@ def _smooth(spectrum: np.ndarray, bins: int = 9) -> np.ndarray:
 
 
 def wave_speed(speed: float) -> float:
-    params = schema.loads_toml(_default_scene()).replace({"wind.speed": speed})
+    params = schema.loads_toml(_default_scene()).replace({"wind.speed": speed, **LOOP})
     field = GrassField(params.replace({"field.blocks_x": 2, "field.blocks_y": 2}))
     moved = np.linalg.norm(np.asarray(field.wind.displacement(10.0)) - np.asarray(field.wind.displacement(0.0)))
     return round(float(moved / 10.0), 2)
@@ -163,7 +176,9 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
 def main(argv=None) -> int:
     parser = common.parser(__doc__)
     parser.add_argument("--image", type=Path, help="a rendered frame of scenes/default.toml (PNG)")
+    parser.add_argument("--loop", type=float, default=0.0, help="the sway and waves with simulation.loop = S s")
     args = parser.parse_args(argv)
+    LOOP["simulation.loop"] = args.loop
     result = {"clumps_variance_over_mean": {"meadow": clump_ratio("meadow"), "lawn": clump_ratio("lawn")},
               "sway": {"4 m/s": sway(4.0), "8 m/s": sway(8.0)},
               "wave_speed_m_s": {"4 m/s": wave_speed(4.0), "8 m/s": wave_speed(8.0)}}

@@ -109,19 +109,13 @@ class WINDGRASS_PT_main(bpy.types.Panel):
             building = runtime.building_percent(context.scene, item)
             if building is not None:
                 wrapped(layout, context, f"Building the field for its new settings: {building} %", icon="SORTTIME")
-            status = runtime.bake_status(context.scene, item)
-            row = layout.row(align=True)
-            row.operator_menu_enum("windgrass.field_bake", "format", text="Bake", icon="FILE_CACHE")
-            row.operator("windgrass.field_bake_free", text="Free Bake", icon="TRASH")
-            layout.operator("windgrass.farm_job", icon="NETWORK_DRIVE")
-            if status:
-                box = layout.box()
-                box.alert = "stale" in status
-                wrapped(box, context, status)
             f = item.field
             grid = FieldGrid(f.blocks_x, f.blocks_y, f.cells_per_block, f.cell_size, f.blades_per_cell)
             size_x, size_y = (length_text(context.scene, v) for v in grid.size)
-            wrapped(layout, context, f"{size_x} x {size_y}, {grid.n_blades:,} blades", icon="INFO")
+            painted = item.paint.density or any(s.density_map for s in item.blade.species)
+            count = f"up to {grid.n_blades:,} blades (the painted density decides)" if painted \
+                else f"{grid.n_blades:,} blades"
+            wrapped(layout, context, f"{size_x} x {size_y}, {count}", icon="INFO")
             col = layout.column()
             col.use_property_split = True
             col.use_property_decorate = False

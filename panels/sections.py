@@ -32,6 +32,9 @@ PRESETS = {
 }
 
 
+SUFFIX_CHARS = 2  # units up to this long are written after the value (MB); longer ones (kg/m) in the tooltip
+
+
 def draw_table(layout, context, group, p: schema.Param) -> None:
     """UI list of a table parameter, add/remove buttons and the selected row's columns."""
     box = layout.box()
@@ -57,10 +60,14 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
 
 
 def draw_map(layout, owner, key: str, setting: str) -> None:
-    """A map setting: its text (a file, or vertex_group:/attribute:/image: NAME) with a button that
-    lists what the terrain and the file offer."""
-    row = layout.row(align=True)
-    row.prop(owner, key)
+    """A map setting: its label, then its text (a file, or vertex_group:/attribute:/image: NAME) the
+    sidebar's whole width (a map's name is long) with a button that lists what the terrain and
+    the file offer."""
+    col = layout.column(align=True)
+    col.use_property_split = False
+    col.label(text=owner.bl_rna.properties[key].name)
+    row = col.row(align=True)
+    row.prop(owner, key, text="")
     row.operator("windgrass.map_pick", text="", icon="GROUP_VERTEX").setting = setting
 
 
@@ -73,7 +80,7 @@ def draw_value(layout, owner, p: schema.Param) -> None:
             col.prop(owner, p.key, index=i, text=f"{p.ui_name} {name}" if i == 0 else name)
         return
     unit = properties.unit_suffix(p)
-    if not unit:
+    if not unit or len(unit) > SUFFIX_CHARS:  # (a long unit would cut the label: the tooltip gives it)
         layout.prop(owner, p.key)
         return
     row = layout.row(align=True)
@@ -153,9 +160,6 @@ def draw_section(layout, context, item, section: str) -> None:
                     "loop and play it in a cycle", icon="LOOP_FORWARDS")
         for note in runtime.loop_notes(context.scene, item):  # (what breaks the loop)
             wrapped(layout, context, "The loop has a seam: " + note, icon="ERROR")
-    if section in HEADLESS:
-        wrapped(layout, context, "Used by headless renders; in Blender the scene's camera, frame rate and "
-                "frame range rule", icon="INFO")
 
 
 def _panel_type(idname: str, label: str, parent: str, closed: bool, draw, **more) -> type:
@@ -186,8 +190,9 @@ def _panel(section: str) -> type:
             self.layout.prop(group, HEADER_SWITCH[section], text="")
 
         more["draw_header"] = draw_header
-    return _panel_type(f"WINDGRASS_PT_{section}", LABELS.get(section, section.capitalize()),
-                       WINDGRASS_PT_main.bl_idname, section in HEADLESS, draw, **more)
+    parent = BATCH_PANEL if section in HEADLESS else WINDGRASS_PT_main.bl_idname
+    return _panel_type(f"WINDGRASS_PT_{section}", LABELS.get(section, section.capitalize()), parent,
+                       section in HEADLESS, draw, **more)
 
 
 def _advanced_panel(section: str) -> type:
@@ -200,5 +205,42 @@ def _advanced_panel(section: str) -> type:
     return _panel_type(f"WINDGRASS_PT_{section}_advanced", "Advanced", f"WINDGRASS_PT_{section}", True, draw)
 
 
+BATCH_PANEL = "WINDGRASS_PT_batch"
+
+
+def _batch_panel() -> type:
+    """The settings only batch renders use (camera, render, a heightmap terrain), together in one
+    closed panel below the artist's own."""
+
+    def draw(self, context):
+        wrapped(self.layout, context, "Used by batch renders (headless/render_field.py); in Blender the scene's "
+                "camera, frame rate and frame range rule, and a terrain mesh roots the grass", icon="INFO")
+
+    return _panel_type(BATCH_PANEL, "Batch Renders", WINDGRASS_PT_main.bl_idname, True, draw)
+
+
+def _bake_panel() -> type:
+    """Bake, Free Bake and Farm Job at the bottom of the tab, where Blender's physics panels keep
+    their cache and bake."""
+
+    def draw(self, context):
+        item = properties.active_field(context.scene)
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator_menu_enum("windgrass.field_bake", "format", text="Bake", icon="FILE_CACHE")
+        row.operator("windgrass.field_bake_free", text="Free Bake", icon="TRASH")
+        layout.operator("windgrass.farm_job", icon="NETWORK_DRIVE")
+        status = runtime.bake_status(context.scene, item)
+        if status:
+            box = layout.box()
+            box.alert = "stale" in status
+            wrapped(box, context, status)
+
+    return _panel_type("WINDGRASS_PT_bake", "Bake & Farm", WINDGRASS_PT_main.bl_idname, False, draw)
+
+
 ADVANCED = tuple(s for s in schema.SECTIONS if any(p.advanced for p in schema.blender_params(s)))
-CLASSES = tuple(_panel(s) for s in schema.SECTIONS) + tuple(_advanced_panel(s) for s in ADVANCED)
+ORDER = [s for s in schema.SECTIONS if s not in HEADLESS]  # (the artist's sections, then the batch renders')
+CLASSES = (tuple(_panel(s) for s in ORDER) + tuple(_advanced_panel(s) for s in ADVANCED if s not in HEADLESS)
+           + (_batch_panel(),) + tuple(_panel(s) for s in schema.SECTIONS if s in HEADLESS)
+           + tuple(_advanced_panel(s) for s in ADVANCED if s in HEADLESS) + (_bake_panel(),))

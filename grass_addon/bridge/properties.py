@@ -132,7 +132,7 @@ def _precision(p: schema.Param) -> int:
 def description(p: schema.Param) -> str:
     """Tooltip: help, unit and valid range (the same text the CLI and TOML errors use)."""
     unit = f" [{p.unit}]" if p.unit else ""
-    if p.kind in ("str", "table_list"):
+    if p.kind in ("str", "table_list") or (p.kind == "vec" and "color" in p.key):  # (a colour: its picker)
         return f"{p.help}{unit}"
     return f"{p.help}{unit}. Valid: {p.range_text()}"
 

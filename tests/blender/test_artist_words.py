@@ -121,3 +121,22 @@ def test_add_takes_the_size_in_metres_and_blades_per_square_metre(with_bridge):
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}  # the first click: 12.8 m, 200 blades per m²
     item = bpy.context.scene.windgrass.fields[-1]
     assert item.field.size_x == pytest.approx(12.8) and item.field.density == pytest.approx(200.0)
+
+
+def test_the_grass_tab_keeps_bake_at_the_bottom_and_batch_settings_apart(with_bridge):
+    """Issue #63 item 3: Bake, Free Bake and Farm Job sat at the top of the tab, and the settings
+    only batch renders use (camera, render, a heightmap terrain) stood among the artist's. Blender
+    draws a tab's panels in the order they were registered: Bake & Farm comes last; camera, render
+    and terrain hang in one closed Batch Renders panel; a colour's tooltip gives no range."""
+    grass = [cls for cls in with_bridge.panels.CLASSES if getattr(cls, "bl_category", "") == "Grass"]
+    assert grass[-1].bl_idname == "WINDGRASS_PT_bake" and grass[-1].bl_parent_id == "WINDGRASS_PT_main"
+    batch = bpy.types.WINDGRASS_PT_batch
+    assert "DEFAULT_CLOSED" in batch.bl_options
+    for section in ("camera", "render", "terrain"):
+        assert getattr(bpy.types, f"WINDGRASS_PT_{section}").bl_parent_id == "WINDGRASS_PT_batch"
+    for section in ("field", "blade", "wind", "lod", "simulation"):
+        assert getattr(bpy.types, f"WINDGRASS_PT_{section}").bl_parent_id == "WINDGRASS_PT_main"
+    from windgrass.grass_addon.bridge import properties
+
+    row = properties.ROW_CLASSES["blade.species"]
+    assert "Valid" not in row.bl_rna.properties["color"].description

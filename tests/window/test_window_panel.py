@@ -15,6 +15,7 @@ from test_window_artist import FIELD
 # what Blender writes in the label column.
 MEASURE = """
 import blf
+import sys
 win = bpy.context.window_manager.windows[0]
 area = max((a for a in win.screen.areas if a.type == 'VIEW_3D'), key=lambda a: a.width * a.height)
 ui = next(r for r in area.regions if r.type == 'UI')
@@ -44,9 +45,16 @@ for p in schema.PARAMS:  # a vector drawn number by number: the labels the panel
     for i, part in enumerate(p.components):
         labels[f'{p.name}[{i}]'] = (f'{p.ui_name} {part}' if i == 0 else part, 0)
 # the label column: 40 % of the row (the sidebar less 3 UI units of panel margins and the keyframe
-# dots' column), less one UI unit of text margins; a box (a table's selected row) takes half a unit
-room = lambda inset: 0.4 * (ui.width - 3.0 * unit - inset * 0.5 * unit) - unit
-widths = {key: [name, blf.dimensions(0, name)[0], room(inset)] for key, (name, inset) in labels.items()}
+# dots' column, and a unit written after the value: its column), less one UI unit of text margins; a
+# box (a table's selected row) takes half a unit
+package = bridge('properties').__name__.rsplit('.grass_addon', 1)[0]
+chars = sys.modules[package + '.panels.sections'].SUFFIX_CHARS  # (longer units: in the tooltip)
+shown = {p.name: bridge('properties').unit_suffix(p) for p in schema.PARAMS}
+def suffix(key):
+    text = shown.get(key, '')
+    return max(1.5, 0.42 * len(text)) * unit if text and len(text) <= chars else 0.0
+room = lambda key, inset: 0.4 * (ui.width - 3.0 * unit - inset * 0.5 * unit - suffix(key)) - unit
+widths = {key: [name, blf.dimensions(0, name)[0], room(key, inset)] for key, (name, inset) in labels.items()}
 result = {'sidebar': ui.width, 'scale': scale, 'labels': widths,
           'cut_before': blf.dimensions(0, 'Cells per Block')[0]}
 """

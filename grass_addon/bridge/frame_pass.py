@@ -118,6 +118,7 @@ def guarded(work, scene, item, *args, camera_moved_only: bool = False, **kw) -> 
         for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
             pools.collapse_objects(owned.slot_objects(item, role).values())
         REGISTRY.live(key).slots_changed()
+        REGISTRY.live(key).no_error()  # (its settings were read: the engine is being made for them)
     except Exception as exc:  # a handler must not break playback or rendering
         message = str(exc) if isinstance(exc, WindgrassError) else f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, WindgrassError):  # a fault of Windgrass, not a setting: its trace for a report
@@ -130,7 +131,10 @@ def guarded(work, scene, item, *args, camera_moved_only: bool = False, **kw) -> 
             warn_once(f"field '{item.name}' could not be hidden: {hide_exc}")
         live.drop(error=message)  # resolved again (and checked again) at the next update
     else:
-        if not camera_moved_only and key in REGISTRY.states:  # (that pass skips fields not written now)
+        # Only a frame written clears the error: another work done (the datablocks brought to the
+        # settings, the motion sampled) says nothing of whether the grass can be simulated (issue
+        # #63: after an undo a field that cannot read its paint map lost its error for seconds).
+        if work is update_field and not camera_moved_only and key in REGISTRY.states:
             REGISTRY.states[key].no_error()
 
 

@@ -343,3 +343,31 @@ def test_a_painted_lawn_saves_small_and_reopens_identical(bridge, drawn, tmp_pat
     assert runtime.field_error(scene, item) is None
     assert np.array_equal(_mesh_positions(owned.ground_object(item)), ground)
     assert np.array_equal(drawn(item), grass)
+
+
+def test_a_fields_error_stays_while_its_grass_cannot_be_simulated(bridge):
+    """Issue #63 item 6: a field that cannot read its paint map lost its red error for seconds
+    after an undo, its grass hidden: work that is not a frame written (its datablocks brought to
+    the settings after an edit, as the UI does before the frame follows) cleared it. The error
+    stays until a frame is written, through an edit and an undo."""
+    from windgrass.grass_addon.bridge import edits
+
+    properties, runtime = bridge
+    terrain = _terrain()
+    _weights(terrain, "meadow", lambda co: 1.0)
+    scene, item = _field(bridge, terrain, density="vertex_group:nowhere")
+    scene.frame_set(2)
+    assert runtime.field_error(scene, item)
+    bpy.ops.ed.undo_push(message="a field that cannot be simulated")
+    properties.REGISTRY.batch_depth += 1
+    item.wind.speed = 6.5
+    properties.REGISTRY.batch_depth -= 1
+    edits.mark_dirty(scene, item, defer=True)  # (the UI: the datablocks now, the frame once the edits settle)
+    assert runtime.field_error(scene, item), "the error went while the grass is still hidden"
+    bpy.ops.ed.undo_push(message="wind")
+    bpy.ops.ed.undo()
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    assert runtime.field_error(scene, item)
+    item.paint.density = "vertex_group:meadow"  # (put right: the next frame written clears it)
+    assert runtime.field_error(scene, item) is None

@@ -309,12 +309,12 @@ def build_geometry_nodes_tree(plan: dict[str, Any], per_vertex: bool = False):
     link(wind_pt.outputs["Attribute"], split.inputs["Vector"])
     yaw = nodes.new("FunctionNodeRandomValue")
     yaw.data_type = "FLOAT"
-    _by_id(yaw.inputs, "Min_001").default_value = 0.0
-    _by_id(yaw.inputs, "Max_001").default_value = 2 * math.pi
+    _float_socket(yaw.inputs, "Min").default_value = 0.0
+    _float_socket(yaw.inputs, "Max").default_value = 2 * math.pi
     euler = nodes.new("ShaderNodeCombineXYZ")
     link(math_node("MULTIPLY", split.outputs["Y"], 1.2).outputs[0], euler.inputs["X"])
     link(math_node("MULTIPLY", split.outputs["X"], -1.2).outputs[0], euler.inputs["Y"])
-    link(yaw.outputs[1], euler.inputs["Z"])
+    link(_float_socket(yaw.outputs, "Value"), euler.inputs["Z"])
     rotation = nodes.new("FunctionNodeEulerToRotation")
     link(euler.outputs["Vector"], rotation.inputs["Euler"])
     inst = nodes.new("GeometryNodeInstanceOnPoints")
@@ -354,9 +354,10 @@ def build_geometry_nodes_tree(plan: dict[str, Any], per_vertex: bool = False):
     return tree
 
 
-def _by_id(sockets, identifier: str):
-    """Socket by identifier (names repeat, e.g. the float 'Min' of Random Value is 'Min_001')."""
-    return next(s for s in sockets if s.identifier == identifier)
+def _float_socket(sockets, name: str):
+    """The float socket called ``name``: Random Value's float 'Min' was the socket 'Min_001' beside
+    a vector 'Min' up to Blender 4.5; from 5.2 it has the one socket of its data type, 'Min'."""
+    return next(s for s in sockets if s.name == name and s.type == "VALUE")
 
 
 def bench_geometry_nodes(plan: dict[str, Any], frames: int, per_vertex: bool = False) -> dict[str, Any]:

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import WindgrassError
 from ..folders import ensure_writable
+from .. import loop
 from . import animation, owned, usd_finish
 from . import scene as field_scene
 from .registry import REGISTRY, key_of
@@ -346,6 +347,7 @@ class Baker:
             cache.filepath = bpy.path.relpath(str(path))
             cache["wg_uid"] = self.item.collection.get("wg_uid", "")
             caches.append(cache.name)
+            play_in_a_loop(cache, self.first, self.last, self._loop_frames())
             for obj in objects:
                 modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
                 modifier.cache_file = cache
@@ -358,6 +360,12 @@ class Baker:
         self.scene.frame_set(self.frame)
         return self.folder
 
+    def _loop_frames(self) -> int:
+        """The field's loop in frames (``loop.py``; 0: none)."""
+        from .properties import params_from_settings
+
+        return loop.loop_frames(params_from_settings(self.item, self.scene))
+
     def _sees_grass(self) -> bool:
         """Whether the camera saw any of the field's grass (blades or cards) at the range's first,
         middle or last frame: a bake of none holds a still, empty field."""
@@ -367,6 +375,24 @@ class Baker:
             if rt is not None and (len(rt.blades.blocks) or len(rt.cards.blocks)):
                 return True
         return False
+
+
+def play_in_a_loop(cache, first: int, last: int, period: int) -> bool:
+    """A bake of a looping field (``simulation.loop``) that holds a whole loop from ``first`` plays
+    it round and round: the cache's frame is keyed from ``first`` to ``first + period`` and repeated
+    by a Cycles modifier (animation data, no driver: a farm node runs no script for it). Returns
+    whether it does."""
+    if not period or last - first + 1 < period:
+        return False
+    cache.override_frame = True
+    for frame in (first, first + period):
+        cache.frame = float(frame)
+        cache.keyframe_insert("frame", frame=frame)
+    curve = next(c for c in animation.action_fcurves(cache.animation_data) if c.data_path == "frame")
+    for point in curve.keyframe_points:
+        point.interpolation = "LINEAR"
+    curve.modifiers.new("CYCLES")
+    return True
 
 
 def bake_field(scene, item, first: int, last: int, digest: str, fmt: str = "alembic") -> Path:

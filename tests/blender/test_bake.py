@@ -542,3 +542,24 @@ def test_usd_bake_on_an_older_blender_says_why_and_writes_nothing(bridge, tmp_pa
     with pytest.raises(RuntimeError, match="USD needs Blender 5.0 or later.*bake to Alembic here"):
         bpy.ops.windgrass.field_bake(frame_start=1, frame_end=3, format="usd")
     assert runtime.bake_status(scene, item) is None and not (tmp_path / "old_windgrass").exists()
+
+
+def test_a_bake_of_one_loop_plays_round_and_round(bridge, drawn, tmp_path):
+    """Issue #61: a field that loops every 1 s (24 frames), baked over frames 1-24, plays frame
+    24 + k as frame k from its cache, in the meshes Blender draws, with no driver (animation data:
+    a farm node runs no script for it); the live field drew the same at frame 3 and at frame 27."""
+    _, _, runtime, _ = bridge
+    scene, item = _scene(bridge)
+    item.simulation.preroll, item.simulation.epoch, item.simulation.loop = 0.5, 0.5, 1.0
+    scene.frame_end = 48
+    scene.frame_set(3)
+    live = drawn(item, "blades")
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "loop.blend"))
+    assert bpy.ops.windgrass.field_bake(frame_start=1, frame_end=24) == {"FINISHED"}
+    cache = next(c for c in bpy.data.cache_files if c.get("wg_uid"))
+    assert cache.override_frame and not any(d.driver for d in (cache.animation_data.drivers or ()))
+    for frame in (3, 27, 51):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(drawn(item, "blades"), live, atol=1e-5)
+    scene.frame_set(4)
+    assert not np.allclose(drawn(item, "blades"), live, atol=1e-5), "the bake stood still"

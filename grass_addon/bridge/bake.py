@@ -31,9 +31,9 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from .. import loop
 from ..errors import WindgrassError
 from ..folders import ensure_writable
-from .. import loop
 from . import animation, owned, usd_finish
 from . import scene as field_scene
 from .registry import REGISTRY, key_of

@@ -3,8 +3,9 @@
 
     python3.11 dev.py render [render_field.py options]   # render the default grass animation
     python3.11 dev.py test [pytest options]              # the test suite on Blender 5.2 LTS (and a real
-                                                         # Blender 5.2 window, tests/window), and the
-                                                         # Blender tests on 4.5 LTS (.venv-4.5)
+                                                         # Blender 5.2 window, tests/window), the
+                                                         # Blender tests on 4.5 LTS (.venv-4.5) and
+                                                         # those of the APIs that move on 5.3 (.venv-5.3)
     python3.11 dev.py test --quick                       # tests/core without the slow ones (< 30 s)
     python3.11 dev.py simulate [simulate.py options]     # numpy-only simulation summary
     python3.11 dev.py bench [bench.py options]           # benchmark JSON
@@ -28,6 +29,12 @@ ROOT = Path(__file__).resolve().parent
 # claims, runs the Blender tests again.
 LATEST = (ROOT / ".venv", ROOT / "requirements.txt", (3, 13))
 OLDEST = (ROOT / ".venv-4.5", ROOT / "requirements-blender-4.5.txt", (3, 11))
+# 5.3, the current line (CPython 3.13 too), runs the Blender tests of the APIs that move between
+# lines (CURRENT_LINE_TESTS): the rest is the same code on the same numpy as 5.2's.
+CURRENT = (ROOT / ".venv-5.3", ROOT / "requirements-blender-5.3.txt", (3, 13))
+CURRENT_LINE_TESTS = ("tests/blender/test_extension.py", "tests/blender/test_saved_files.py",
+                      "tests/blender/test_live_edits.py", "tests/blender/test_loop.py", "tests/blender/test_undo.py",
+                      "tests/blender/test_bake.py")
 # A real Blender with its window for tests/window: Debian's unstable suite ships Blender 5.2 LTS
 # (Debian 13 has 4.3), in a root made with debootstrap, on a virtual screen (Xvfb, Mesa's software GL).
 WINDOW_ROOT = Path(os.environ.get("WINDGRASS_WINDOW_ROOT", Path.home() / ".cache" / "windgrass" / "sid"))
@@ -229,12 +236,15 @@ def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True
         print(f"dev.py: the window tests' root could not be made ({exc}); they did not run", flush=True)
         window = lambda: 1  # noqa: E731
     oldest_status = oldest.wait() if oldest is not None else 0
-    print("dev.py: tests/core and tests/blender on the current Blender line, in two processes", flush=True)
+    current_status = 0
+    if also_oldest and find_python(CURRENT[2]) is not None:  # (without CPython 3.13 there is no 5.3 line here)
+        current_status = subprocess.call(current_command(options), cwd=ROOT, env=env)
+    print("dev.py: tests/core and tests/blender on Blender 5.2 LTS, in two processes", flush=True)
     # (the LOD comparisons first: their renders of minutes start at once, the rest fills in beside them)
     latest = subprocess.call([str(python), "-m", "pytest", *PARALLEL, *options, "tests/blender/test_lod_fidelity.py",
                               "tests/blender", "tests/core"], cwd=ROOT, env=env)
     window_status = 0 if window is None else window()
-    return latest or window_status or oldest_status
+    return latest or window_status or oldest_status or current_status
 
 
 def with_window_root(env: dict) -> dict:
@@ -270,6 +280,14 @@ def oldest_command(blender: list[str], options: list[str]) -> list[str]:
     skip = [f"--deselect={p}" if "::" in p else f"--ignore={p}" for p in SAME_ON_EVERY_LINE] \
         if blender == ["tests/blender"] else []
     return [str(oldest_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *skip, *blender]
+
+
+def current_command(options: list[str]) -> list[str]:
+    """The Blender tests of the APIs that move (CURRENT_LINE_TESTS) on Blender 5.3 (.venv-5.3, made
+    if needed)."""
+    current_python = ensure_venv(*CURRENT)
+    print("dev.py: the Blender tests of the APIs that move, on Blender 5.3 (.venv-5.3)", flush=True)
+    return [str(current_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *CURRENT_LINE_TESTS]
 
 
 def run_beside(python: Path, args: list[str], env: dict):

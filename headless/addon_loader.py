@@ -25,6 +25,7 @@ def load_package() -> ModuleType:
     if module is None:
         spec = importlib.util.spec_from_file_location(
             PACKAGE, REPO / "__init__.py", submodule_search_locations=[str(REPO)])
+        assert spec is not None and spec.loader is not None  # (a file location always has both)
         module = importlib.util.module_from_spec(spec)
         sys.modules[PACKAGE] = module
         spec.loader.exec_module(module)

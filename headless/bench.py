@@ -124,8 +124,8 @@ def run_bench(blades: int, segments: int, frames: int) -> dict:
     field.seek(params.render.frame_start)  # preroll from rest, as the add-on does
 
     names = ("wind", "solver", "lod", "kinematics", "floor_copy")
-    times = {k: [] for k in names}
-    cpu = {k: [] for k in names}
+    times: dict[str, list[float]] = {k: [] for k in names}
+    cpu: dict[str, list[float]] = {k: [] for k in names}
     frame = params.render.frame_start
     clock = time.perf_counter
     for i in range(WARMUP_FRAMES + frames):

@@ -51,8 +51,9 @@ def main(argv) -> int:
     args = common.parser(__doc__).parse_args(argv)
     common.load(addon=True)
     folder = Path(tempfile.mkdtemp())
-    result = {"frames": FRAMES, "alembic": bake("alembic", folder), "usd": bake("usd", folder)}
-    result["usd_to_alembic"] = round(result["usd"]["bytes"] / result["alembic"]["bytes"], 2)
+    alembic, usd = bake("alembic", folder), bake("usd", folder)
+    result = {"frames": FRAMES, "alembic": alembic, "usd": usd,
+              "usd_to_alembic": round(usd["bytes"] / alembic["bytes"], 2)}
     common.emit(result, args)
     return 0
 

@@ -58,7 +58,8 @@ def run(blender: str, work: Path) -> dict:
         {"render.resolution_x": 320, "render.resolution_y": 180, "render.samples": 2})
     scene = work / "trample-320.toml"
     scene.write_text(schema.dumps_toml(params))
-    seconds, runs = {}, []
+    seconds: dict[str, float] = {}
+    runs: list[str] = []
     for hand_over in HAND_OVERS:
         bundle = work / f"bundle-{hand_over}"
         _timed([sys.executable, str(HERE / "farm.py"), "--config", str(scene), "--frames", FRAMES, "--chunk", "4",
@@ -77,7 +78,7 @@ def run(blender: str, work: Path) -> dict:
     one = _pixels(work / "one")
     same = all(len(_pixels(work / r)) == len(one) == 12 and all(
         (a == b).all() for a, b in zip(_pixels(work / r), one)) for r in runs)
-    out = {k: round(v, 1) for k, v in seconds.items()}
+    out: dict[str, object] = {k: round(v, 1) for k, v in seconds.items()}
     for run in runs:
         out[f"{run}_ratio"] = round(seconds[f"{run}_s"] / seconds["one_process_s"], 3)
     out.update(goals={"chunks_of_4": 1.10, "chunks_of_1": 1.3}, frames=12, resolution="320x180", samples=2,

@@ -77,7 +77,7 @@ def run(frames: int = 36) -> dict:
             seconds = _frame(field, cam, frame)
             if frame > 3:
                 times[name].append(seconds)
-    out = {"plain": {"frame_ms": round(1000 * statistics.median(times["plain"]), 2)}}
+    out: dict[str, object] = {"plain": {"frame_ms": round(1000 * statistics.median(times["plain"]), 2)}}
     for name in list(cases)[1:]:
         ratios = [a / b for a, b in zip(times[name], times["plain"])]
         out[name] = {"frame_ms": round(1000 * statistics.median(times[name]), 2),

@@ -90,7 +90,7 @@ def _case(kind: str) -> dict:
 def main(argv) -> int:
     args = common.parser(__doc__).parse_args(argv)
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    result = {kind: _case(kind) for kind in ("keyed", "bone")}
+    result: dict[str, object] = {kind: _case(kind) for kind in ("keyed", "bone")}
     result["goal"] = "seconds_per_100_frames <= 1"
     common.emit(result, args)
     return 0

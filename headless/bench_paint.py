@@ -45,7 +45,7 @@ def half_painted(frames: int = 12) -> dict:
     west[:, :512] = 0.0
     paint = Paint(density=Raster(west, (-500.0, -500.0, 500.0, 500.0)))
     cam = Camera.look_at((0.0, -20.0, 1.7), (0.0, 20.0, 0.0), math.radians(70.0))
-    out = {}
+    out: dict[str, dict] = {}
     for name, field in (("plain", GrassField(params)), ("half_painted", GrassField(params, paint=paint))):
         times = []
         for frame in range(1, frames + 4):
@@ -54,8 +54,7 @@ def half_painted(frames: int = 12) -> dict:
             if frame > 3:
                 times.append(time.perf_counter() - t0)
         out[name] = {"frame_ms": round(1000 * statistics.median(times), 2), "window_blocks": int(field.layout.n_blocks)}
-    out["ratio"] = round(out["half_painted"]["frame_ms"] / out["plain"]["frame_ms"], 3)
-    return out
+    return {**out, "ratio": round(out["half_painted"]["frame_ms"] / out["plain"]["frame_ms"], 3)}
 
 
 PROFILE = bool(os.environ.get("WINDGRASS_PROFILE"))
@@ -85,7 +84,7 @@ def stroke(size_m: float, quads: int) -> dict:
     cam.rotation_euler = (math.radians(80.0), 0.0, 0.0)
     scene.frame_set(2)
     assert runtime.field_error(scene, item) is None, runtime.field_error(scene, item)
-    co = np.empty(len(terrain.data.vertices) * 3, np.float32)
+    co: np.ndarray = np.empty(len(terrain.data.vertices) * 3, np.float32)
     terrain.data.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
     floors, strokes, made = [], [], []
@@ -119,7 +118,7 @@ def stroke(size_m: float, quads: int) -> dict:
 def main(argv) -> int:
     args = common.parser(__doc__).parse_args(argv)
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    result = {"half_painted": half_painted()}
+    result: dict[str, object] = {"half_painted": half_painted()}
     result["stroke"] = [stroke(100.0, 200), stroke(1000.0, 500)]
     common.emit(result, args)
     return 0

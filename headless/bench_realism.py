@@ -75,7 +75,7 @@ def sway(speed: float) -> dict:
     angle = np.radians(params.wind.direction)
     along = np.array([np.cos(angle), np.sin(angle)])
     names = [row["name"] for row in params.species()]
-    spectra = {name: [] for name in names}
+    spectra: dict[str, list] = {name: [] for name in names}
     for seed in SWAY_SEEDS:
         field = GrassField(params.replace({"field.seed": seed}))
         tips = np.empty((frames, field.layout.n_cells), np.float64)

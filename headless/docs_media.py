@@ -56,7 +56,7 @@ def main(argv=None) -> int:
     # the animation at most ANIMATION_WIDTH wide (the still keeps the full size): a README loads it
     if images[0].width > ANIMATION_WIDTH:
         size = (ANIMATION_WIDTH, round(images[0].height * ANIMATION_WIDTH / images[0].width))
-        images = [im.resize(size, Image.LANCZOS) for im in images]
+        images = [im.resize(size, Image.Resampling.LANCZOS) for im in images]
     images[0].save(args.out / "default_scene.webp", save_all=True, append_images=images[1:], duration=1000 // 24,
                    loop=0, quality=70, method=6)
     print(f"wrote {args.out / 'default_scene.png'} and {args.out / 'default_scene.webp'} ({len(images)} frames)")

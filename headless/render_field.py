@@ -199,8 +199,8 @@ def resolve(args: argparse.Namespace):
         # the flags go into the file's text, so that its sizes and densities keep their meaning
         params = schema.load_toml(config, flags=overrides)
     except ParameterError as exc:
-        flag = flags.get(exc.key)
-        raise BadInputError(f"{flag}: {exc}" if flag else f"--config: {exc}") from None
+        given = flags.get(exc.key)
+        raise BadInputError(f"{given}: {exc}" if given else f"--config: {exc}") from None
     addon_module("grass_addon.interaction").check_scene(params)  # (refused before a scene is built)
     if args.variants < 1:
         raise BadInputError(f"--variants: {args.variants} must be >= 1")

@@ -137,7 +137,7 @@ def fixed_pose(params) -> tuple[tuple[float, float, float], float, float]:
         raise ParameterError("camera.target", f"{list(target)} is the camera position itself; "
                                               "the camera needs a point to look at")
     yaw = math.atan2(dy, dx) if horizontal > 1e-9 else math.pi / 2
-    return pos, yaw, math.atan2(dz, horizontal)
+    return (pos[0], pos[1], pos[2]), yaw, math.atan2(dz, horizontal)
 
 
 def camera_pose(params, frame: int | float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:

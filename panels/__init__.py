@@ -9,11 +9,11 @@ CLASSES = (*main.CLASSES, *sections.CLASSES)
 
 def register() -> None:
     for cls in CLASSES:
-        if not cls.is_registered:
+        if not getattr(cls, "is_registered", False):
             bpy.utils.register_class(cls)
 
 
 def unregister() -> None:
     for cls in reversed(CLASSES):
-        if cls.is_registered:
+        if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)

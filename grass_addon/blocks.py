@@ -168,8 +168,7 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         alive = (grow_number < painted.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
         if barren:
             alive &= ~barren[0]
-    if f.patchiness > 0.0:
-        length = np.maximum(length * meadow.length_scale(root[:, :2], params), MIN_BLADE_LENGTH)
+    length = _meadow_lengths(params, grid, root[:, :2], length)
     head, flower, dry = meadow.heads_and_dryness(np.random.default_rng([int(f.seed), meadow.RNG_MEADOW, block]), kind,
                                          species, params)
     n = int(params.blade.segments)
@@ -213,6 +212,16 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
         card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
         card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
         z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density)
+
+
+def _meadow_lengths(params: Params, grid: FieldGrid, xy: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The blades' lengths at ``xy`` scaled by the meadow's patches and its thinning edge."""
+    f = params.field
+    if f.patchiness > 0.0:
+        length = np.maximum(length * meadow.length_scale(xy, params), MIN_BLADE_LENGTH)
+    if f.edge > 0.0:  # the field's edge thins out (meadow.edge_scale)
+        length = np.maximum(length * meadow.edge_scale(xy, grid.origin, grid.size, params), MIN_BLADE_LENGTH)
+    return length
 
 
 def _local_shares(params: Params, species: Species, paint: Paint | None, xy: np.ndarray) -> np.ndarray | None:

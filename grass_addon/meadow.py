@@ -115,6 +115,30 @@ def length_scale(xy: np.ndarray, params) -> np.ndarray:
     return 1.0 + PATCH_LENGTH * float(f.patchiness) * patches(xy, int(f.seed), 0, float(f.patch_size))
 
 
+EDGE_FLOOR = 0.12  # a blade on the field's very edge is this share of its length
+EDGE_RAGGED = 0.5  # the full-height line wanders in and out by this share of field.edge ...
+EDGE_GRAIN = 0.4  # ... over this many metres (value noise)
+EDGE_CHANNEL = 7
+
+
+def edge_scale(xy: np.ndarray, origin, size, params) -> np.ndarray:
+    """(n,) the field's edge's scale of the blades' length at ``xy`` (1 without ``field.edge``):
+    from EDGE_FLOOR on the field's boundary (``origin``, ``size``: its rectangle) up to 1 at
+    ``field.edge`` metres inside it, a smoothstep along a ragged line (the distance in wanders by
+    EDGE_RAGGED of the width, value noise of EDGE_GRAIN m), so the edge seen from outside thins out
+    as a meadow's does instead of standing as a wall."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    width = float(params.field.edge)
+    if width <= 0.0 or not len(xy):
+        return np.ones(len(xy))
+    x0, y0 = float(origin[0]), float(origin[1])
+    x1, y1 = x0 + float(size[0]), y0 + float(size[1])
+    inside = np.minimum(np.minimum(xy[:, 0] - x0, x1 - xy[:, 0]), np.minimum(xy[:, 1] - y0, y1 - xy[:, 1]))
+    wander = EDGE_RAGGED * width * (2.0 * value_noise(xy, int(params.field.seed), EDGE_CHANNEL, EDGE_GRAIN) - 1.0)
+    u = np.clip((inside + wander) / width, 0.0, 1.0)
+    return EDGE_FLOOR + (1.0 - EDGE_FLOOR) * u * u * (3.0 - 2.0 * u)
+
+
 def species_weights(xy: np.ndarray, params, weights: np.ndarray) -> np.ndarray | None:
     """(n, species) each species' share at ``xy``, changed patch by patch (every species its own
     noise), or None without patches or with one species."""

@@ -240,6 +240,9 @@ PARAMS: tuple[Param, ...] = (
        "changes (0: the same everywhere)", unit="fraction", minimum=0.0, maximum=1.0, label="Patches"),
     _p("field", "patch_size", "float", 8.0, "Size of a patch", unit="m", minimum=0.5, maximum=1000.0,
        soft_max=50.0, label="Patch Size"),
+    _p("field", "edge", "float", 0.0, "How far in from the field's edge its grass grows to full height, along a ragged "
+       "line (0: a hard edge, for fields laid side by side): a meadow's edge thins out instead of standing as a wall",
+       unit="m", minimum=0.0, maximum=20.0, soft_max=3.0, label="Edge"),
     _p("field", "floor", "enum", "thatch", "What shows between the blades: a meadow's dry thatch and green litter, "
        "or a lawn's dense living turf (its thousands of shoots a square metre, more than the blades drawn)",
        choices=FLOORS, label="Floor"),

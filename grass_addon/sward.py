@@ -84,7 +84,8 @@ def sample_blades(params: Params) -> Block:
     ``blocks.make_block``), so a change of the wind or the camera does not draw it again."""
     key = _blocks_key(params)
     if _SAMPLE_KEPT.get("key") != key:
-        blocks = [make_block(params, FieldGrid.of(params), Species(params), i) for i in sample_ids(params)]
+        inner = params.replace({"field.edge": 0.0})  # (the field's mean: its thinning edge is no part of it)
+        blocks = [make_block(inner, FieldGrid.of(inner), Species(inner), i) for i in sample_ids(inner)]
         _SAMPLE_KEPT.clear()
         _SAMPLE_KEPT.update(key=key, whole=_joined(blocks))
     return _SAMPLE_KEPT["whole"]

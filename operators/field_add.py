@@ -11,8 +11,9 @@ from ._common import refresh, reported
 
 # First click: a light field for interactive use, 8 x 8 blocks of 16 x 16 cells of 0.1 m
 # (12.8 m square, 32,768 blades), a meadow (presets.py: its species, tussocks, patches and dry
-# tips) in a breeze whose gust waves run over it; every other value is the schema default.
-FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8,
+# tips, an edge that thins out) in a breeze whose gust waves run over it; every other value is the
+# schema default.
+FIRST_CLICK = {"blocks_x": 8, "blocks_y": 8, "edge": 0.8,  # (its edge thins out: no wall seen from outside)
                **{k.split(".")[1]: v for k, v in presets.LOOKS["meadow"].items() if k.startswith("field.")}}
 FIRST_LOOK = "meadow"
 FIRST_GUST_WAVES = 0.3

@@ -140,3 +140,28 @@ def test_the_grass_tab_keeps_bake_at_the_bottom_and_batch_settings_apart(with_br
 
     row = properties.ROW_CLASSES["blade.species"]
     assert "Valid" not in row.bl_rna.properties["color"].description
+
+
+def test_add_grass_field_thins_out_at_its_edge(with_bridge, drawn):
+    """Issue #59 item 5: seen from outside, the Add-menu field stood as a wall of full-height grass
+    at its edge. Its edge now thins out: the blade tips Blender draws within 10 cm of the edge stand
+    at most half as high as those 2 m inside."""
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (-7.5, -7.5, 1.0)  # (outside the field's corner, looking in: its edge's blades near)
+    cam.rotation_euler = (1.35, 0.0, -0.785)
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    item = scene.windgrass.fields[0]
+    assert item.field.edge > 0.0
+    scene.frame_set(1)
+    joints = drawn(item, "blades").reshape(-1, item.blade.segments + 1, 2, 3)
+    joints = joints[np.any(joints != 0.0, axis=(1, 2, 3))]  # (the blades drawn)
+    root, tip = joints[:, 0].mean(axis=1), joints[:, -1].mean(axis=1)
+    half = 0.5 * item.field.blocks_x * item.field.cells_per_block * item.field.cell_size
+    inside = np.minimum(half - np.abs(root[:, 0]), half - np.abs(root[:, 1]))
+    height = tip[:, 2] - root[:, 2]
+    edge, interior = height[inside < 0.1], height[(inside > 1.8) & (inside < 2.2)]
+    assert len(edge) > 50 and len(interior) > 50, (len(edge), len(interior))
+    assert np.median(edge) <= 0.5 * np.median(interior), (np.median(edge), np.median(interior))

@@ -80,3 +80,25 @@ def test_tussocks_keep_every_root_on_the_field():
     roots = np.concatenate([make_block(params, grid, Species(params), b).blade_root[:, :2] for b in range(4)])
     half = 0.5 * np.asarray(grid.size)
     assert np.all(np.abs(roots) <= half + 1e-6) and np.any(np.abs(roots) >= half - 1e-6)
+
+
+def test_the_fields_edge_thins_out_along_a_ragged_line():
+    """Issue #59 item 5: a field seen from outside stood as a wall at its edge. With field.edge
+    (m) its blades shorten towards the edge: on the edge itself to at most a quarter of the
+    interior's height, deeper than the edge's width (and its wander) exactly as without it; the
+    line where they reach full height wanders along the edge, as a meadow's edge does."""
+    from windgrass.grass_addon.layout import build_layout
+
+    base = schema.defaults().replace({"field.blocks_x": 4, "field.blocks_y": 4, "field.edge": 0.0})
+    hard, soft = build_layout(base), build_layout(base.replace({"field.edge": 0.8}))
+    xy = hard.blade_root[:, :2].astype(np.float64)
+    half = 0.5 * 4 * 16 * 0.1
+    inside = np.minimum(half - np.abs(xy[:, 0]), half - np.abs(xy[:, 1]))
+    ratio = soft.blade_length / hard.blade_length
+    assert np.mean(ratio[inside < 0.05]) <= 0.25
+    deep = inside > 0.8 * (1.0 + meadow.EDGE_RAGGED) + 0.01
+    np.testing.assert_array_equal(soft.blade_length[deep], hard.blade_length[deep])
+    # along the south edge: how far in the blades first reach 90 % of their height, per 0.5 m
+    south = (xy[:, 1] < 0.0) & (np.abs(xy[:, 1]) > np.abs(xy[:, 0]))
+    reach = [inside[south & (np.abs(xy[:, 0] - x) < 0.25) & (ratio > 0.9)].min() for x in np.arange(-2.5, 2.6, 0.5)]
+    assert np.std(reach) > 0.05, reach

@@ -193,7 +193,8 @@ def _live_fields() -> set[str]:
 
 def _record_writes(folder: Path, owner: str, names: set[str]) -> list[str]:
     """Lines outside ``owner`` that write one of ``names`` (a record's fields) on anything but
-    ``self`` or a field's settings ``item`` (``live.frame = None``, ``rt.trail, x = ...``, ``s.strokes += 1``)."""
+    ``self``, a field's settings ``item`` or a Blender ``cache`` file (``live.frame = None``,
+    ``rt.trail, x = ...``, ``s.strokes += 1``)."""
     out = []
     for path in sorted(folder.glob("*.py")):
         if path.name == owner:
@@ -203,8 +204,8 @@ def _record_writes(folder: Path, owner: str, names: set[str]) -> list[str]:
                 [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
             for target in targets:
                 for t in (target.elts if isinstance(target, ast.Tuple) else [target]):
-                    if isinstance(t, ast.Attribute) and t.attr in names and \
-                            not (isinstance(t.value, ast.Name) and t.value.id in ("self", "item")):
+                    owner_name = t.value.id if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) else ""
+                    if isinstance(t, ast.Attribute) and t.attr in names and owner_name not in {"self", "item", "cache"}:
                         out.append(f"{path.name}:{node.lineno} .{t.attr}")
     return out
 

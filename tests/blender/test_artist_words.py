@@ -165,3 +165,25 @@ def test_add_grass_field_thins_out_at_its_edge(with_bridge, drawn):
     edge, interior = height[inside < 0.1], height[(inside > 1.8) & (inside < 2.2)]
     assert len(edge) > 50 and len(interior) > 50, (len(edge), len(interior))
     assert np.median(edge) <= 0.5 * np.median(interior), (np.median(edge), np.median(interior))
+
+
+def test_a_colour_change_reaches_the_cards_in_solid_shading(with_bridge):
+    """Issue #63 item 4: in Solid shading (Blender draws each material's viewport colour, no node
+    tree) a species colour change reached the near blades but the cards kept their grey-green.
+    Every species made red: the blades' and the cards' viewport colours turn red (red over green),
+    the ground's floor stays as it was."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    item = bpy.context.scene.windgrass.fields[0]
+
+    def colours():
+        return {m.name.rsplit(" ", 1)[-1]: np.array(m.diffuse_color[:3]) for m in bpy.data.materials
+                if m.name.startswith(item.name + " ")}
+
+    before = colours()
+    assert before["cards"][1] > before["cards"][0]  # (green before)
+    for species in item.blade.species:
+        species.color = (0.6, 0.05, 0.05)
+    after = colours()
+    for part in ("blades", "cards", "canopy"):
+        assert after[part][0] > after[part][1], (part, after[part])
+    np.testing.assert_allclose(after["ground"], before["ground"])

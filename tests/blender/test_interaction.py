@@ -24,7 +24,8 @@ def bridge(with_bridge):
 
 def _field(bridge, **wind):
     properties, runtime = bridge
-    assert bpy.ops.windgrass.field_add(blocks_x=4, blocks_y=4, cells_per_block=8, blades_per_cell=4) == {"FINISHED"}
+    assert bpy.ops.windgrass.field_add(blocks_x=4, blocks_y=4, cells_per_block=8, blades_per_cell=4,
+                                       edge=0.0) == {"FINISHED"}  # (a 3.2 m field: no thinning edge)
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, 48
     item = scene.windgrass.fields[-1]

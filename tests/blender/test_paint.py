@@ -26,7 +26,8 @@ def _terrain():
 
 def _field(bridge, terrain=None, **paint):
     properties, runtime = bridge
-    options = {"blocks_x": 5, "blocks_y": 5, "cells_per_block": 8, "blades_per_cell": 4}
+    options = {"blocks_x": 5, "blocks_y": 5, "cells_per_block": 8, "blades_per_cell": 4,
+               "edge": 0.0}  # (a 4 m field: no thinning edge)
     if terrain is not None:
         bpy.ops.object.select_all(action="DESELECT")
         terrain.select_set(True)

@@ -27,7 +27,7 @@ def bridge(with_bridge):
 
 
 def _add_field(**field_options):
-    options = {"blocks_x": 2, "blocks_y": 2, "cells_per_block": 8}
+    options = {"blocks_x": 2, "blocks_y": 2, "cells_per_block": 8, "edge": 0.0}  # (a 1.6 m field: no thinning edge)
     options.update(field_options)
     assert bpy.ops.windgrass.field_add(**options) == {"FINISHED"}
     scene = bpy.context.scene

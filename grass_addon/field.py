@@ -53,12 +53,13 @@ class FieldModel:
     grid: FieldGrid  # blocks and cells
     shapes: dict[str, slots.PoolShape]  # role -> the slot pool's shape (slots.pool_shapes)
     whole: bool  # small enough (WHOLE_FIELD_CELLS) to simulate whole without a camera
+    loop: int  # P: the wind repeats after this many frames (loop.py); 0: never
 
     @classmethod
     def of(cls, params: Params) -> FieldModel:
         grid = FieldGrid.of(params)
         return cls(params, Clock.of(params), grid, dict(zip((BLADES, CARDS), slots.pool_shapes(grid, params))),
-                   grid.n_blocks * grid.cells_per_block ** 2 <= WHOLE_FIELD_CELLS)
+                   grid.n_blocks * grid.cells_per_block ** 2 <= WHOLE_FIELD_CELLS, loop.loop_frames(params))
 
 
 @dataclass(eq=False)
@@ -436,7 +437,7 @@ class GrassField:
         without a loop the other pattern weighs 0 (``loop.py``: the loop's time from its frame, so
         frames a loop apart read the same bits)."""
         wind = self.wind
-        t = self.clock.seconds(loop.wind_frame(self.params, frame), subframe)
+        t = self.clock.seconds(loop.wind_frame(frame, self.clock.frame_start, self.model.loop), subframe)
         if not wind.loop:
             shift = wind.displacement(t)
             return shift, wind.mean(t)[0], shift, (1.0, 0.0)

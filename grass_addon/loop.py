@@ -4,7 +4,7 @@ Frame N is a function of the settings and N with a bounded history (``simulation
 whose every input repeats with period L gives a meadow whose every blade repeats with it:
 
 * the clock of the wind is wrapped: the wind of frame f is sampled at the time of frame
-  ``frame_start + (f - frame_start) mod P``, P = L fps frames (``wind_frame``), so frames f and
+  ``frame_start + (f - frame_start) mod P``, P = L fps frames (``wind_frame``, ``loop_frames``), so frames f and
   f + P get the same bits;
 * the solver's epochs divide P (``epoch_frames`` in ``simulation.py``): trajectory k + P / E starts
   P frames after trajectory k, from rest, in the same wind, and so holds the same states;
@@ -40,14 +40,12 @@ def loop_seconds(params) -> float:
     return frames / Clock.of(params).rate if frames else 0.0
 
 
-def wind_frame(params, frame: int) -> int:
-    """The frame whose time the wind of ``frame`` is sampled at: ``frame`` itself without a loop,
-    else its place in the first loop (from ``render.frame_start``)."""
-    frames = loop_frames(params)
-    if not frames:
+def wind_frame(frame: int, start: int, period: int) -> int:
+    """The frame whose time the wind of ``frame`` is sampled at: ``frame`` itself without a loop
+    (``period`` 0), else its place in the first loop from ``start`` (``render.frame_start``)."""
+    if not period:
         return int(frame)
-    start = int(params.render.frame_start)
-    return start + (int(frame) - start) % frames
+    return start + (int(frame) - start) % period
 
 
 def phase(t: float, period: float) -> tuple[float, float]:

@@ -83,6 +83,7 @@ class Simulation:
         self.fps, self.frame_start = self.clock.rate, self.clock.frame_start
         self.frame_dt = self.clock.dt
         self.epoch, self.warmup, self.fade = epoch_frames(params)
+        self.loop = loop_frames(params)  # P: the wind's frames repeat after it (loop.py); 0: never
         self.layout = layout
         self.solver = solver if solver is not None else BladeSolver(layout, params)
         self.substeps = self.solver.stable_substeps(self.frame_dt)
@@ -191,7 +192,7 @@ class Simulation:
         return out
 
     def _sample(self, frame: int) -> np.ndarray:
-        t = self.time(wind_frame(self.params, frame))  # (with a loop: its place in the first loop)
+        t = self.time(wind_frame(frame, self.frame_start, self.loop))  # (with a loop: its place in the first loop)
         by_layout = getattr(self.wind, "sample_layout", None)  # a WindField; a plain sampler also works
         wind = by_layout(t, self.layout) if by_layout is not None else self.wind.sample(t, self.layout.cell_center)
         return np.ascontiguousarray(wind, dtype=np.float32)

@@ -35,8 +35,6 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
                            blur=bool(scene.render.use_motion_blur))
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
-    for note in rt.field.loop_notes():
-        warn_once(f"field '{item.name}' loops every {rt.field.wind.loop:g} s, but {note}")
     rt.blades.write(item, shown.blades)
     rt.cards.write(item, shown.cards)
     if shown.gust is not None:  # the far grass's gust waves travel with the mean wind

@@ -165,6 +165,8 @@ def resolve(scene, item, wait: bool = True, views=None) -> LiveField:
     else:
         _new_engine(live, inputs, item.name, wait, views)
     live.resolved_at(inputs.clock)
+    for note in live.field.loop_notes():  # (here, not every frame: what breaks a loop changes only with this)
+        warn_once(f"field '{item.name}' loops every {live.field.wind.loop:g} s, but {note}")
     return live
 
 

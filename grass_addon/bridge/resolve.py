@@ -157,10 +157,13 @@ def resolve(scene, item, wait: bool = True, views=None) -> LiveField:
         live = REGISTRY.live(key)
     inputs = read_inputs(scene, item, live.engine)
     engine = live.engine
-    if engine is not None and engine.digest == inputs.digest:
-        _update(live, engine.field, inputs)
-    elif engine is not None and engine.ground == inputs.ground and engine.field.can_retune(inputs.params):
-        _retune(live, engine, inputs)
+    kept = engine is not None and engine.digest == inputs.digest
+    retuned = not kept and engine is not None and engine.ground == inputs.ground and \
+        engine.field.can_retune(inputs.params)
+    if kept or retuned:
+        live.build_dropped()  # (a background build for other settings, no longer wanted: its result is let go)
+        if retuned and engine is not None:
+            _retune(live, engine, inputs)
         _update(live, live.resolved.field, inputs)
     else:
         _new_engine(live, inputs, item.name, wait, views)
@@ -177,13 +180,12 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
     if job is not None and (wait or job.done.is_set()):
         if wait and job.digest == inputs.digest:
             job.wait()
-        if job.done.is_set():
-            live.build_dropped()
-            if job.digest == inputs.digest:
-                if job.failure is not None:
-                    raise job.failure
-                _install(live, inputs, job.made, name)
-                return
+        live.build_dropped()  # (taken now, or for other settings and waited for by no one)
+        if job.done.is_set() and job.digest == inputs.digest:
+            if job.failure is not None:
+                raise job.failure
+            _install(live, inputs, job.made, name)
+            return
         job = None
     if wait:
         _build(live, inputs, name)

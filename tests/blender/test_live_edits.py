@@ -151,3 +151,41 @@ def test_a_layout_edit_in_the_ui_builds_in_the_background(with_bridge, drawn):
     _, want_item = _build(base.replace({"field.blades_per_cell": 4}))
     for a, b in zip(got, _drawn(drawn, want_item)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_an_edit_back_while_a_build_runs_drops_it(with_bridge, drawn):
+    """A density edit in the UI starts a background build; the artist puts the density back
+    before it is done (Ctrl+Z, or the slider back): the field draws its first settings, and the
+    build for the abandoned ones is dropped once it ends (nothing waits for it, no timer polls on)."""
+    import time
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import edits, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12})
+    scene, item = _build(base)
+    before = _drawn(drawn, item)
+    live = REGISTRY.live(key_of(scene, item))
+
+    def edit_in_the_ui(value):
+        REGISTRY.batch_depth += 1
+        item.field.blades_per_cell = value
+        REGISTRY.batch_depth -= 1
+        edits.mark_dirty(scene, item, defer=True)
+        time.sleep(edits.EDIT_SETTLE_S + 0.01)
+        edits.flush_pending()
+
+    edit_in_the_ui(3)
+    job = live.building
+    assert job is not None
+    REGISTRY.batch_depth += 1
+    item.field.blades_per_cell = 2  # (back as it was, applied as a script's edit: at once)
+    REGISTRY.batch_depth -= 1
+    edits.mark_dirty(scene, item, defer=False)
+    job.wait()
+    assert edits.poll_builds() is None and live.building is None
+    assert runtime.field_error(scene, item) is None
+    scene.frame_set(FRAME)
+    for a, b in zip(_drawn(drawn, item), before):
+        np.testing.assert_array_equal(a, b)

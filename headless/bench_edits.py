@@ -17,7 +17,6 @@ field; a density edit and a build of the 100 m field at most 3 s.
 
 from __future__ import annotations
 
-import math
 import statistics
 import sys
 import time
@@ -62,20 +61,11 @@ def blender_run(blocks: int | None) -> dict:
     """The edits on a field of ``blocks`` x ``blocks`` (None: Add Grass Field's own)."""
     import bench_peers
     import bpy
-    from mathutils import Vector
     from windgrass.grass_addon import schema
 
     scene = bench_peers._fresh_scene()
     common.load(addon=True)
-    params = schema.defaults()
-    cam_data = bpy.data.cameras.new("bench camera")
-    cam = bpy.data.objects.new("bench camera", cam_data)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    c = params.camera
-    cam.location = Vector(c.position)
-    cam.rotation_euler = (Vector(c.target) - Vector(c.position)).to_track_quat("-Z", "Y").to_euler()
-    cam_data.angle = math.radians(c.fov)
+    common.scene_camera(scene, schema.defaults())
     clock = time.perf_counter
     t0 = clock()
     kw = {} if blocks is None else {"blocks_x": blocks, "blocks_y": blocks}

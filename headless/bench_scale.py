@@ -121,7 +121,6 @@ def blender_run(size_m: float) -> dict:
     """Median ``scene.frame_set`` of the field in Blender, the scene camera at the fixed view."""
     import bench_peers
     import bpy
-    from mathutils import Vector
 
     params = _params(size_m)
     scene = bench_peers._fresh_scene()
@@ -129,14 +128,7 @@ def blender_run(size_m: float) -> dict:
     result = bpy.ops.windgrass.field_add(blocks_x=params.field.blocks_x, blocks_y=params.field.blocks_y)
     if "FINISHED" not in result:
         raise RuntimeError(f"windgrass.field_add returned {result}")
-    cam_data = bpy.data.cameras.new("bench camera")
-    cam = bpy.data.objects.new("bench camera", cam_data)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    c = params.camera
-    cam.location = Vector(c.position)
-    cam.rotation_euler = (Vector(c.target) - Vector(c.position)).to_track_quat("-Z", "Y").to_euler()
-    cam_data.angle = math.radians(c.fov)
+    common.scene_camera(scene, params)
     scene.render.resolution_x, scene.render.resolution_y = params.render.resolution_x, params.render.resolution_y
     clock = time.perf_counter
     t0 = clock()

@@ -58,6 +58,25 @@ def finish(code: int) -> None:
     os._exit(code)
 
 
+def scene_camera(scene, params):
+    """A camera object (made here) as the scene's camera, at the settings' ``[camera]`` position,
+    looking at its target with its field of view: the benchmarks' fixed view in Blender."""
+    import math
+
+    import bpy
+    from mathutils import Vector
+
+    data = bpy.data.cameras.new("bench camera")
+    cam = bpy.data.objects.new("bench camera", data)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    c = params.camera
+    cam.location = Vector(c.position)
+    cam.rotation_euler = (Vector(c.target) - Vector(c.position)).to_track_quat("-Z", "Y").to_euler()
+    data.angle = math.radians(c.fov)
+    return cam
+
+
 def child(script: str, *args: str) -> dict:
     """Run one measurement of ``script`` in a fresh process (its own memory, its own Blender):
     ``python script ARGS``, which prints its result as ``emit(..., prefix="RESULT ")``; the result,

@@ -79,8 +79,7 @@ def flush_pending() -> float | None:
     scenes = {s.session_uid: s for s in bpy.data.scenes}
     waiting = False
     for key, state in pending.items():
-        scene = scenes.get(key[0])
-        item = properties.field_by_uid(scene, key[1]) if scene else None
+        scene, item = _field_of(scenes, key)
         if item is None or item.collection is None:
             state.edit_shown()
             continue
@@ -115,8 +114,7 @@ def poll_builds() -> float | None:
         if not job.done.is_set():
             running = True
             continue
-        scene = scenes.get(key[0])
-        item = properties.field_by_uid(scene, key[1]) if scene else None
+        scene, item = _field_of(scenes, key)
         if item is None:
             state.build_dropped()
             continue
@@ -124,6 +122,12 @@ def poll_builds() -> float | None:
         running = running or state.building is not None
         _redraw()
     return BUILD_POLL_S if running else None
+
+
+def _field_of(scenes: dict, key) -> tuple:
+    """(scene, field item) of the record ``key`` (``scenes``: by session uid); Nones when gone."""
+    scene = scenes.get(key[0])
+    return scene, properties.field_by_uid(scene, key[1]) if scene else None
 
 
 def _redraw() -> None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import blade, meadow
+from . import blade, heads, meadow
 from .errors import ParameterError
 from .grid import FieldGrid
 from .paint import MIN_LENGTH_SCALE, Paint
@@ -85,7 +85,9 @@ class Species:
         self.heads = np.array([r["heads"] for r in rows], dtype=np.float64)
         self.head_size = np.array([r["head_size"] for r in rows], dtype=np.float64)
         self.head_color = np.array([r["head_color"] for r in rows], dtype=np.float32).reshape(-1, 3)
-        self.flower = np.array([r["head_shape"] == "flower" for r in rows], dtype=bool)
+        # a flower: the strip's cup or a mesh on its tip (heads.MESH_SHAPES, ``crowned``)
+        self.crowned = heads.crowned(rows)
+        self.flower = np.array([r["head_shape"] == "flower" for r in rows], dtype=bool) | self.crowned
         self.mean_length = float(np.dot(self.p, self.length))
         self.mean_variation = float(np.dot(self.p, self.length_variation))
         self.longest = float(np.max(self.length + 4.0 * self.length_variation))  # no blade is longer

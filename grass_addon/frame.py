@@ -19,11 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import meadow, slots
+from . import heads, meadow, slots
 
 BLADES, CARDS = "blades", "cards"
 # per-vertex attributes (the bridge writes each into the UV map of that role's name)
 TINT_RG, TINT_BS, FADE = "tint_rg", "tint_bs", "fade"
+HEAD = "head"  # per vertex, not per corner: where a flower mesh rides a tip (heads.tip_marks)
 
 
 def grows(layout) -> np.ndarray | bool:
@@ -62,10 +63,10 @@ def blade_tints(layout, local: np.ndarray) -> dict:
     bs = np.zeros((len(local), bpb, n, 4, 2), dtype=np.float32)
     blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
     kind = layout.blade_species[blades]
+    flower = heads.strip_flowers(layout, blades)  # (a flower that is a mesh: its stem green to the tip)
     joints = meadow.joint_colours(n, layout.species_color[kind], layout.species_head_color[kind],
-                                  layout.blade_dry[blades], layout.blade_head[blades],
-                                  layout.blade_flower[blades])  # (shown, bpb, n + 1, 3)
-    ends = meadow.segment_colours(joints, layout.blade_flower[blades])  # (shown, bpb, n, bottom/top, 3)
+                                  layout.blade_dry[blades], layout.blade_head[blades], flower)  # (shown, bpb, n + 1, 3)
+    ends = meadow.segment_colours(joints, flower)  # (shown, bpb, n, bottom/top, 3)
     colour = ends[:, :, :, [0, 0, 1, 1]]  # (shown, bpb, n, 4, 3)
     rg[shown] = colour[..., :2]
     bs[shown, ..., 0] = colour[..., 2]
@@ -111,11 +112,12 @@ class RoleFrame:
 
     def attributes(self, index: int, changed: bool) -> dict:
         """{name: per-corner float32 (corners, 2)} of slot object ``index``: blade colours when a
-        position of it shows another block than before (``changed``), card opacity always."""
+        position of it shows another block than before (``changed``), and then the flower heads'
+        marks per vertex (``HEAD``, (vertices, 3)); card opacity always."""
         k = self.shape.k
         local = self.local[index * k:(index + 1) * k]
         if self.role == BLADES:
-            return blade_tints(self.layout, local) if changed else {}
+            return {**blade_tints(self.layout, local), HEAD: heads.tip_marks(self.layout, local)} if changed else {}
         return card_fade(self.layout, local, self.lod)
 
 

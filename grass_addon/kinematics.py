@@ -43,7 +43,7 @@ import weakref
 
 import numpy as np
 
-from . import blade, meadow, workers
+from . import blade, heads, meadow, workers
 
 CHUNK_BLADES = 16384  # blades per chunk (measured best on 2 cores: fewer numpy calls, arrays in L2/L3)
 THREADS = workers.THREADS  # lanes on the engine's shared pool (1: all in the calling thread)
@@ -128,7 +128,8 @@ class _Constants:
         w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
         self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
         # a seed head widens the strip at its last joint but one, a flower its top two joints (meadow.py)
-        for joint, width in meadow.widened_joints(n, layout.blade_head, layout.blade_flower):
+        # (a flower that is a mesh rides the tip: its stem is not widened, heads.py)
+        for joint, width in meadow.widened_joints(n, layout.blade_head, heads.strip_flowers(layout)):
             if width.any():
                 widening = meadow.head_widening(width, layout.params.blade.tip_width, n, joint)
                 self.w_side[..., joint] *= widening.reshape(nb, bpb)

@@ -35,6 +35,9 @@ PRESETS = {
 SUFFIX_CHARS = 2  # units up to this long are written after the value (MB); longer ones (kg/m) in the tooltip
 
 
+COLLECTION_FIELDS = frozenset({"plant"})  # table columns that name one of the file's collections
+
+
 def draw_table(layout, context, group, p: schema.Param) -> None:
     """UI list of a table parameter, add/remove buttons and the selected row's columns."""
     box = layout.box()
@@ -53,7 +56,9 @@ def draw_table(layout, context, group, p: schema.Param) -> None:
     selected = rows[chosen]
     col = box.column()
     for f in p.fields:
-        if f.path:
+        if f.key in COLLECTION_FIELDS:  # a collection of this file, found by name
+            col.prop_search(selected, f.key, bpy.data, "collections", text=f.ui_name, icon="OUTLINER_COLLECTION")
+        elif f.path:
             draw_map(col, selected, f.key, f"{p.name}[{chosen}].{f.key}")
         else:
             draw_value(col, selected, f)

@@ -27,6 +27,9 @@ ROLE_GUST_IMAGE = "gust_image"
 ROLE_TRAIL_IMAGE = "trail_image"
 ROLE_PATCH_IMAGE = "patch_image"
 ROLE_PAINT_MAP = "paint_map"
+ROLE_HEAD = "head"  # a species' flower head object (in no scene: the heads' modifier draws it), key "head 003"
+ROLE_HEAD_GROUP = "head_group"  # the node group of the heads' modifier on the blade slots
+ROLE_HEAD_MATERIAL = "head_material"
 
 
 # Roles stored in ``wg_role`` of the datablocks of a field.
@@ -95,8 +98,10 @@ def _tagged(item) -> dict:
         if obj.get("wg_uid") == uid and obj.get("wg_role"):
             role = obj["wg_role"]
             found.setdefault(role if role == ROLE_GROUND else slot_key(role, int(obj.get("wg_slot", -1))), obj)
-    for data in _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid):
+    for data in _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid) + _owned(bpy.data.node_groups, uid):
         found.setdefault(data.get("wg_role"), data)
+    for obj in _owned(bpy.data.objects, uid, ROLE_HEAD):  # (in no collection)
+        found.setdefault(slot_key(ROLE_HEAD, int(obj.get("wg_slot", -1))), obj)
     return found
 
 

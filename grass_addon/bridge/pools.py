@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import frame as frames
 from .. import slots
-from . import materials, owned
+from . import heads, materials, owned
 from .registry import warn_once
 
 # the UV map each engine attribute is written to
@@ -37,10 +37,15 @@ def write_positions(mesh, verts: np.ndarray) -> None:
 
 def write_velocity(mesh, velocity: np.ndarray) -> None:
     """The per-point ``velocity`` attribute (m/s) Cycles and EEVEE blur a rewritten mesh by."""
-    attribute = mesh.attributes.get(materials.ATTR_VELOCITY)
+    write_point_vectors(mesh, materials.ATTR_VELOCITY, velocity)
+
+
+def write_point_vectors(mesh, name: str, values: np.ndarray) -> None:
+    """The per-point 3-vector attribute ``name`` (made if missing)."""
+    attribute = mesh.attributes.get(name)
     if attribute is None:
-        attribute = mesh.attributes.new(materials.ATTR_VELOCITY, "FLOAT_VECTOR", "POINT")
-    attribute.data.foreach_set("vector", velocity.ravel())
+        attribute = mesh.attributes.new(name, "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", np.ascontiguousarray(values, dtype=np.float32).ravel())
 
 
 class SlotPool:
@@ -74,7 +79,10 @@ class SlotPool:
             if part.velocity is not None:
                 write_velocity(mesh, part.velocity[rows])
             for name, values in part.attributes(index, bool(assignment.changed[index])).items():
-                mesh.uv_layers[UV_OF[name]].data.foreach_set("uv", values.ravel())
+                if name == frames.HEAD:
+                    write_point_vectors(mesh, heads.ATTR_HEAD, values)
+                else:
+                    mesh.uv_layers[UV_OF[name]].data.foreach_set("uv", values.ravel())
             mesh.update()
 
     def collapse(self, item) -> None:

@@ -21,7 +21,7 @@ import bpy
 from .. import atlas, slots, sward
 from .. import kinematics as kin
 from ..grid import FieldGrid
-from . import maps, materials, meshes, owned, paint_look, textures
+from . import heads, maps, materials, meshes, owned, paint_look, textures
 
 # --------------------------------------------------------------------------------------------
 # Terrain
@@ -107,6 +107,7 @@ def update_field_materials(item, params, scene=None) -> None:
     materials.update_haze(params, *mats)
     materials.update_viewport_colours(params, *mats)
     materials.update_floor(params, reg.get(owned.ROLE_GROUND_MATERIAL))
+    heads.update_colours(item, params)
     if cycles is not None:
         materials.set_card_depth(reg.get(owned.ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
     image = reg.get(owned.ROLE_CARD_IMAGE)
@@ -159,6 +160,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     # The ground object stays (the artist's name for it, its place, parent and anything added to
     # it survive the rebuild); its mesh and the slot objects are made anew.
     ground = owned.ground_object(item)
+    heads.remove(item)
     _remove_objects([o for o in owned.field_objects(item) if o is not ground])
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key, data in list(owned.registered(item).items()):
@@ -193,6 +195,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
         if "wg_terrain" in coll and heightfield is None and maps.terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
+    head_tree = heads.build(item, params, uid, base)  # (None: no species' flower is a mesh)
     for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
         spec = _SlotTopology(grid, params, role)
         for i in range(spec.shape.objects):  # once per build, not per frame
@@ -200,6 +203,8 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
                                     material, spec.attributes, spec.data_uvs)
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
+            if head_tree is not None and role == owned.ROLE_BLADES:
+                heads.attach(obj, head_tree)
             owned.tag(obj, uid, role, i)
             owned.tag(mesh, uid, role, i)
             leave_out_of_files((obj, mesh))
@@ -346,6 +351,7 @@ def remove_datablocks(item) -> None:
     coll = item.collection
     reg = owned.registered(item)
     tags = {d.get("wg_uid") for d in reg.values()} | ({coll.get("wg_uid")} if coll is not None else set())
+    heads.remove(item)
     _remove_objects(owned.field_objects(item))
     for tag in tags - {None}:
         _purge_orphan_meshes(tag)  # (they use the materials)

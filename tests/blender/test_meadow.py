@@ -64,15 +64,19 @@ def _widths(strips: np.ndarray) -> np.ndarray:
 
 
 def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn):
-    """Blades with a flower open into a head on their top two segments (at least three times the
-    root's width at the joint below the tip, still half of that at the tip, where a plain blade
-    tapers to a sixth); seed heads are widest at the joint below the tip and close at it. Over
-    frames of wind the widened joints stay the strip's own joints: every segment keeps
-    its length (the heads ride the solver's tips, no second body), the tips sway, and the head's
-    corners carry the head's colour in the UV maps the material reads."""
+    """Blades with a flower of the strip (head shape "flower") open into a head on their top two
+    segments (at least three times the root's width at the joint below the tip, still half of
+    that at the tip, where a plain blade tapers to a sixth); seed heads are widest at the joint
+    below the tip and close at it. Over frames of wind the widened joints stay the strip's own
+    joints: every segment keeps its length (the heads ride the solver's tips, no second body) and
+    the tips sway. (Flowers that are meshes: test_heads.py.)"""
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
+    for row in item.blade.species:
+        if row.head_shape in ("daisy", "buttercup"):
+            row.head_shape = "flower"
+    _settle(runtime)
     n = item.blade.segments
     tips, lengths = [], None
     for frame in (1, 9, 17):
@@ -96,8 +100,9 @@ def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn
 
 def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime, drawn):
     """The tint the blade material reads (UV maps wg_tint_rg and wg_tint_bs) at each blade's tip
-    corners: a buttercup's yellow and a daisy's white on the blades that open into flowers, and
-    straw on some tips, while every root corner keeps a species' green."""
+    corners: the seed heads' colours on the stems that carry one, and straw on some tips, while
+    every root corner keeps a species' green. (The flowers, meshes on the tips, carry theirs in
+    their own meshes: test_heads.py.)"""
     from windgrass.grass_addon import meadow, presets
 
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
@@ -107,7 +112,8 @@ def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime, drawn
     n = item.blade.segments
     rows = presets.species_rows("meadow")
     greens = np.array([r["color"] for r in rows])
-    flowers = np.array([r["head_color"] for r in rows if r["head_shape"] == "flower"])
+    flowers = np.array([r["head_color"] for r in rows
+                        if r["head_shape"] == "seed" and r["heads"] * r["weight"] >= 0.01])
     depsgraph = bpy.context.evaluated_depsgraph_get()
     tip_colours, root_colours = [], []
     for obj in (o for o in item.collection.objects if o.get("wg_role") == "blades"):

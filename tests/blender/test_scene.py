@@ -126,7 +126,8 @@ def test_field_add_builds_collection_ground_and_slot_pools(bridge):
     assert all(len(o.data.polygons) == 4 * layout.blades_per_block * layout.segments for o in blades)
     assert all(len(o.data.vertices) == 4 * layout.cells_per_block_total * 4 for o in cards)
     assert all(o.parent == ground for o in blades + cards)
-    assert not any(o.modifiers for o in blades + cards)
+    # the blades carry the flower heads' modifier alone (Add Grass Field's daisies and buttercups)
+    assert all(o.modifiers.keys() == ["Windgrass Heads"] for o in blades) and not any(o.modifiers for o in cards)
     assert scene.render.use_lock_interface
     # Materials and the packed, generated card texture.
     mats = {o.active_material.name for o in blades + cards + [ground]}

@@ -367,24 +367,31 @@ def test_a_slope_stops_blades_leaning_uphill():
 
 def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_head():
     """Meadow heads (meadow.py): a seed head makes the strip ``head`` times the blade's root width
-    at joint n - 1; a flower that wide at joint n - 1 and 0.6 of it at the tip (its rim), its two
-    top segments together 0.7 times its width long, the stem's other segments equal and the blade
-    its whole length; the other joints keep the linear taper. Checked by hand against the width
-    vector of every joint, untwisted and unbent, and the joints' distances."""
+    at joint n - 1; a flower of the strip (head shape "flower") that wide at joint n - 1 and 0.6 of
+    it at the tip (its rim), its two top segments together 0.7 times its width long, the stem's
+    other segments equal and the blade its whole length; the other joints keep the linear taper,
+    and so does the whole stem of a flower that is a mesh (a daisy: heads.py), its top segments as
+    short. Checked by hand against the width vector of every joint, untwisted and unbent, and the
+    joints' distances."""
     from windgrass.grass_addon import presets
 
-    params = presets.apply_preset(schema.defaults(), "meadow").replace(
-        {"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4, "field.blades_per_cell": 3})
+    params = presets.apply_preset(schema.defaults(), "meadow")
+    rows = [dict(r) for r in params.blade.species]
+    rows[3]["head_shape"] = "flower"  # the buttercups a cup of the strip, the daisies meshes
+    assert rows[4]["head_shape"] == "daisy"
+    params = params.replace({"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4,
+                             "field.blades_per_cell": 3, "blade.species": tuple(rows)})
     layout = build_layout(params)
     n = layout.segments
-    assert (layout.blade_head > 0).any() and (layout.blade_flower > 0).any()
+    cup, daisy = (layout.blade_flower > 0) & (layout.blade_species == 3), layout.blade_species == 4
+    assert (layout.blade_head > 0).any() and cup.any() and (layout.blade_flower[daisy] > 0).any()
     width = np.linalg.norm(np.diff(strips(layout, cells_of(layout)), axis=2)[:, :, 0], axis=2)
     taper = 1.0 + (params.blade.tip_width - 1.0) * np.arange(n + 1) / n
     expected = layout.blade_width[:, None] * taper[None, :]
     expected[:, n - 1] = np.where(layout.blade_head > 0, layout.blade_width * layout.blade_head, expected[:, n - 1])
     flower = layout.blade_flower > 0
-    expected[flower, n - 1] = layout.blade_width[flower] * layout.blade_flower[flower]
-    expected[flower, n] = 0.6 * layout.blade_width[flower] * layout.blade_flower[flower]
+    expected[cup, n - 1] = layout.blade_width[cup] * layout.blade_flower[cup]
+    expected[cup, n] = 0.6 * layout.blade_width[cup] * layout.blade_flower[cup]
     np.testing.assert_allclose(width, expected, rtol=1e-5, atol=1e-7)
     centre = strips(layout, cells_of(layout)).mean(axis=2)
     segment = np.linalg.norm(np.diff(centre, axis=1), axis=2)

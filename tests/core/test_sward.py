@@ -4,7 +4,7 @@ sward's."""
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import atlas, meadow, presets, schema, sward
+from windgrass.grass_addon import atlas, heads, meadow, presets, schema, sward
 from windgrass.grass_addon.grid import FieldGrid
 
 
@@ -306,7 +306,7 @@ def test_the_cards_show_the_flowers_of_their_blades():
     """A field of flowering buttercups (every stem a flower): its cards, drawn from the field's own
     blades, carry the flowers' yellow where the same cards without flowers have none."""
     row = dict(presets.species_rows("meadow")[3], weight=1.0, heads=1.0)
-    assert row["name"] == "buttercup" and row["head_shape"] == "flower"
+    assert row["name"] == "buttercup" and row["head_shape"] == "buttercup"  # (a mesh on the blades, heads.py)
     params = schema.defaults().replace({"field.blades_per_cell": 3, "blade.species": [row]})
     bare = params.replace({"blade.species": [dict(row, heads=0.0)]})
     yellow = np.asarray(row["head_color"])
@@ -521,6 +521,20 @@ def test_the_sward_profile_is_the_whole_fields_up_to_its_tallest_stems():
     z = np.stack([left0, right0, right1, left1])[..., 2]
     low, high = z.min(axis=0).ravel(), z.max(axis=0).ravel()
     seen = seen.ravel()
+    # ... and every flower head (a mesh on its stem's tip, heads.py), each triangle as the quads
+    layout = field.layout
+    crowned = heads.crowned_blades(layout)
+    tip, below = strips[crowned, n].mean(axis=1), strips[crowned, n - 1].mean(axis=1)
+    width = layout.blade_flower[crowned] * layout.blade_width[crowned]
+    for k in np.unique(layout.blade_species[crowned]).tolist():
+        mine = layout.blade_species[crowned] == k
+        mesh = heads.head_mesh(params.species()[k]["head_shape"])
+        v = heads.placed(mesh, tip[mine], tip[mine] - below[mine], width[mine], layout.blade_facing[crowned][mine])
+        tri = v[:, heads.triangles(mesh)]  # (heads, T, 3 corners, 3)
+        area = 0.5 * np.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0])
+        seen = np.concatenate([seen, (np.linalg.norm(area[..., :2], axis=-1) * 2.0 / np.pi).ravel()])
+        low = np.concatenate([low, tri[..., 2].min(axis=-1).ravel()])
+        high = np.concatenate([high, tri[..., 2].max(axis=-1).ravel()])
     ground = float(np.prod(FieldGrid.of(params).size))
 
     def field_tau(h):

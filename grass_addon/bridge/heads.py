@@ -1,0 +1,432 @@
+"""Flower heads in Blender: a mesh per crowned species, a Geometry Nodes modifier on the blade slots.
+
+The engine marks each crowned stem's tip (``frame.HEAD``: the point attribute ``wg_head`` on the
+tip's left vertex: the species + 1, the flower's width in metres, a turn about the stem); the
+field's node group ``Windgrass Heads`` puts that species' head object there, turned to the stem's
+last segment, and joins it to the strips. Blender builds the heads, on its threads, from the
+positions the engine wrote: nothing more is handed over per frame. A species' head object is a
+Windgrass flower (``grass_addon/heads.py``, coloured per vertex: ``wg_color``) or the artist's own
+(a collection, ``head_collection``).
+
+Made and changed only inside ``lifecycle`` (operators, edits, file load); the tree is rebuilt when
+the species' heads change (``digest``).
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from .. import heads as shapes
+from . import materials, owned
+from .registry import warn_once
+
+ATTR_HEAD = "wg_head"  # point attribute of the blade slots: (species + 1, width m, turn rad) at a tip
+ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
+ATTR_BASE = "wg_base"  # (in the tree) the stem's first vertex
+ATTR_LOCAL = "wg_local"  # (in the tree) a plant's point where it is in its source
+ATTR_COLOR = "wg_color"  # point colour of a head mesh
+ATTR_ROUGH = "wg_rough"  # point roughness of a head mesh
+GROUP_NAME = "Windgrass Heads"
+MODIFIER = "Windgrass Heads"
+DIGEST = "wg_heads"  # the node group's custom property: the species' heads it instances
+
+
+def _head_mesh(name: str, shape: str, colour) -> bpy.types.Mesh:
+    """A Blender mesh of a Windgrass head, coloured per vertex."""
+    m = shapes.head_mesh(shape)
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(m.vertices.tolist(), [], m.faces)
+    mesh.attributes.new(ATTR_COLOR, "FLOAT_COLOR", "POINT")
+    rgba = np.ones((len(m.vertices), 4), np.float32)
+    rgba[:, :3] = shapes.colours(m, shape, colour)
+    mesh.attributes[ATTR_COLOR].data.foreach_set("color", rgba.ravel())
+    mesh.attributes.new(ATTR_ROUGH, "FLOAT", "POINT")
+    mesh.attributes[ATTR_ROUGH].data.foreach_set("value", m.roughness)
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), bool))
+    mesh.update()
+    return mesh
+
+
+def head_material(name: str) -> bpy.types.Material:
+    """Petals lit from both sides: the head's colour (``wg_color``) and roughness (``wg_rough``),
+    part of the light through (a petal is thin)."""
+    mat = materials.with_nodes(bpy.data.materials.new(name))
+    mat.use_backface_culling = False  # petals are seen from both sides
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    colour = nt.nodes.new("ShaderNodeAttribute")
+    colour.attribute_name = ATTR_COLOR
+    rough = nt.nodes.new("ShaderNodeAttribute")
+    rough.attribute_name = ATTR_ROUGH
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    through = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.3
+    nt.links.new(colour.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(rough.outputs["Fac"], bsdf.inputs["Roughness"])
+    nt.links.new(colour.outputs["Color"], through.inputs["Color"])
+    nt.links.new(bsdf.outputs[0], mix.inputs[1])
+    nt.links.new(through.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    mat.diffuse_color = (0.9, 0.8, 0.2, 1.0)
+    return mat
+
+
+class _Tree:
+    """Nodes of a tree added and linked by short calls (positions laid out left to right)."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.column = 0
+
+    def node(self, kind: str, **props):
+        n = self.tree.nodes.new(kind)
+        for key, value in props.items():
+            setattr(n, key, value)
+        n.location = (200 * self.column, 0)
+        self.column += 1
+        return n
+
+    def link(self, out, into) -> None:
+        self.tree.links.new(out, into)
+
+    def math(self, op: str, a, b=None, vector: bool = False):
+        n = self.node("ShaderNodeVectorMath" if vector else "ShaderNodeMath", operation=op)
+        for i, value in enumerate((a, b)):
+            if value is None:
+                continue
+            if isinstance(value, bpy.types.NodeSocket):
+                self.link(value, n.inputs[i])
+            else:
+                n.inputs[i].default_value = value
+        return n.outputs[0]
+
+    def vmath(self, op: str, a, b, scale=None, out: str | None = None):
+        """A vector math node's result (``out``: "Value" for lengths and dot products)."""
+        n = self.node("ShaderNodeVectorMath", operation=op)
+        for i, value in enumerate((a, b)):
+            if value is not None:
+                self.link(value, n.inputs[i])
+        if scale is not None:
+            if isinstance(scale, bpy.types.NodeSocket):
+                self.link(scale, n.inputs["Scale"])
+            else:
+                n.inputs["Scale"].default_value = scale
+        return n.outputs[out] if out else n.outputs["Vector"]
+
+    def attribute(self, name: str, data_type: str):
+        n = self.node("GeometryNodeInputNamedAttribute", data_type=data_type)
+        n.inputs["Name"].default_value = name
+        return _socket(n.outputs, "Attribute", "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE")
+
+    def head(self):
+        """The ``wg_head`` mark: (species + 1, size, turn) sockets."""
+        parts = self.node("ShaderNodeSeparateXYZ")
+        self.link(self.attribute(ATTR_HEAD, "FLOAT_VECTOR"), parts.inputs[0])
+        return parts.outputs["X"], parts.outputs["Y"], parts.outputs["Z"]
+
+    def position(self):
+        return self.node("GeometryNodeInputPosition").outputs[0]
+
+    def middle(self, geometry, left):
+        """The middle of vertex ``left`` and the one after it (a joint's centre)."""
+        pair = self.vmath("ADD", self.sample(geometry, self.position(), left),
+                          self.sample(geometry, self.position(), self.math("ADD", left, 1.0)))
+        return self.vmath("SCALE", pair, None, scale=0.5)
+
+    def any_of(self, kind, kinds: list):
+        """1 where ``kind`` is one of ``kinds``."""
+        out = None
+        for k in kinds:
+            hit = self.math("COMPARE", kind, float(k))
+            hit.node.inputs[2].default_value = 0.25
+            out = hit if out is None else self.math("MAXIMUM", out, hit)
+        return out
+
+    def sample(self, geometry, value, index):
+        """The position of point ``index`` (a socket)."""
+        n = self.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
+        self.link(geometry, n.inputs["Geometry"])
+        self.link(value, _socket(n.inputs, "Value", "VECTOR"))
+        self.link(index, n.inputs["Index"])
+        return _socket(n.outputs, "Value", "VECTOR")
+
+
+def _socket(sockets, name: str, kind: str):
+    """The socket ``name`` of type ``kind`` (older Blenders keep one per data type, some hidden)."""
+    found = [s for s in sockets if s.name == name and s.type == kind]
+    return found[0] if found else sockets[name]
+
+
+HEAD, PLANT = "head", "plant"  # how a species' source is drawn: on the tips, or bent along the stems
+
+
+def build_group(name: str, sources: list, segments: int) -> bpy.types.GeometryNodeTree:
+    """The node group drawing, for each species k with ``sources[k]`` = (``HEAD`` or ``PLANT``,
+    an Object or a Collection) (None: nothing), that source on the stems whose ``wg_head`` species
+    is k + 1 (see ``fill_group``); ``segments``: the stems' n."""
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    fill_group(tree, sources, segments)
+    return tree
+
+
+def fill_group(tree, sources: list, segments: int) -> None:
+    """(Re)make ``tree``'s nodes. The strips come in as the engine wrote them: blade b's joint j
+    at vertices 2 (n + 1) b + 2 j (left) and + 1 (right), every vertex of a marked stem carrying
+    ``wg_head`` (species + 1, size, turn). A ``HEAD`` is put on the stem's tip (the middle of
+    its two vertices), its +Z along the last segment, turned about it, ``size`` wide; a ``PLANT``
+    stands on the stem's root and is bent along it (``_bend_along``) and the stem's own strip
+    is collapsed onto its root. Stems collapsed by the LOD (eq 9) and free positions have no
+    segment: nothing is drawn there."""
+    tree.nodes.clear()
+    t = _Tree(tree)
+    group_in, group_out = t.node("NodeGroupInput"), t.node("NodeGroupOutput")
+    mesh = group_in.outputs[0]
+    n, stride = int(segments), 2 * (int(segments) + 1)
+    kind, size, _turn = t.head()
+    index = t.node("GeometryNodeInputIndex").outputs[0]
+    joint_of = t.math("MODULO", index, float(stride))  # 2 j (left) or 2 j + 1 (right)
+    base = t.math("SUBTRACT", index, joint_of)  # the stem's first vertex
+    tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
+    root = t.middle(mesh, base)
+    direction = t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2))))
+    grown = t.math("GREATER_THAN", t.vmath("LENGTH", direction, None, out="Value"), 1e-6)
+    store = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
+    store.inputs["Name"].default_value = ATTR_TIP_DIR
+    t.link(mesh, store.inputs["Geometry"])
+    t.link(direction, _socket(store.inputs, "Value", "VECTOR"))
+    stored = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT", domain="POINT")
+    stored.inputs["Name"].default_value = ATTR_BASE
+    t.link(store.outputs[0], stored.inputs["Geometry"])
+    t.link(base, _socket(stored.inputs, "Value", "VALUE"))
+    marked = stored.outputs[0]
+    # one point per marked stem, on its first vertex: at its tip (heads) or its root (plants)
+    first = t.math("MULTIPLY", t.math("LESS_THAN", joint_of, 0.5),
+                   t.math("MULTIPLY", t.math("GREATER_THAN", kind, 0.5), grown))
+    heads = t.node("GeometryNodeMeshToPoints", mode="VERTICES")
+    t.link(marked, heads.inputs["Mesh"])
+    t.link(first, heads.inputs["Selection"])
+    t.link(tip, heads.inputs["Position"])
+    t.link(size, heads.inputs["Radius"])
+    roots = t.node("GeometryNodeMeshToPoints", mode="VERTICES")
+    t.link(marked, roots.inputs["Mesh"])
+    t.link(first, roots.inputs["Selection"])
+    t.link(root, roots.inputs["Position"])
+    t.link(size, roots.inputs["Radius"])
+    plants = [k + 1 for k, s in enumerate(sources) if s is not None and s[0] == PLANT]
+    strips = mesh
+    if plants:  # the plants' own strips collapse onto their roots (their joints still bend the plant)
+        collapse = t.node("GeometryNodeSetPosition")
+        t.link(mesh, collapse.inputs["Geometry"])
+        t.link(t.any_of(kind, plants), collapse.inputs["Selection"])
+        t.link(root, collapse.inputs["Position"])
+        strips = collapse.outputs[0]
+    join = t.node("GeometryNodeJoinGeometry")
+    for k, source in reversed(list(enumerate(sources))):
+        if source is None:
+            continue
+        mode, data = source
+        if mode == PLANT:
+            t.link(_bend_along(t, mesh, roots.outputs[0], k + 1, data, n), join.inputs[0])
+        else:
+            t.link(_instances(t, heads.outputs[0], k + 1, data), join.inputs[0])
+    t.link(strips, join.inputs[0])  # (linked last: joined first, so the strips' vertices keep their ids)
+    t.link(join.outputs[0], group_out.inputs[0])
+
+
+def _source_geometry(t: _Tree, source):
+    """The geometry of an Object or a Collection (the collection's objects as they are placed in it)."""
+    if isinstance(source, bpy.types.Collection):
+        info = t.node("GeometryNodeCollectionInfo", transform_space="ORIGINAL")
+        info.inputs["Collection"].default_value = source
+        info.inputs["Separate Children"].default_value = False
+        info.inputs["Reset Children"].default_value = False
+        return info.outputs[0]
+    info = t.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
+    info.inputs["Object"].default_value = source
+    return info.outputs["Geometry"]
+
+
+def _instances(t: _Tree, points, kind: int, source):
+    """Species ``kind``'s heads: ``source`` on its points, turned to the stem, turned about it."""
+    mine_kind, _size, turn_angle = t.head()
+    mine = t.math("COMPARE", mine_kind, float(kind))
+    mine.node.inputs[2].default_value = 0.25
+    direction = t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR")
+    align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
+    t.link(direction, align.inputs["Vector"])
+    turn = t.node("FunctionNodeAxisAngleToRotation")
+    turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
+    t.link(turn_angle, turn.inputs["Angle"])
+    rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
+    t.link(align.outputs[0], rotate.inputs["Rotation"])
+    t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    radius = t.node("GeometryNodeInputRadius").outputs[0]
+    place = t.node("GeometryNodeInstanceOnPoints")
+    t.link(points, place.inputs["Points"])
+    t.link(mine, place.inputs["Selection"])
+    t.link(_source_geometry(t, source), place.inputs["Instance"])
+    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(radius, place.inputs["Scale"])
+    return place.outputs[0]
+
+
+def _bend_along(t: _Tree, strips, roots, kind: int, source, n: int):
+    """Species ``kind``'s plants: ``source`` (its height H from its lowest to its highest point)
+    stood on each root and bent along the stem: a point at height z of the source goes to the
+    stem's centre line at arc share z / H (the joints the solver bent; the root stays, the
+    stem's length is the plant's height, its segments keep theirs), its x and y along the strip's
+    side and its normal at that joint, scaled by the stem's length / H."""
+    asset = t.node("GeometryNodeRealizeInstances")
+    t.link(_source_geometry(t, source), asset.inputs[0])
+    local = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
+    local.inputs["Name"].default_value = ATTR_LOCAL
+    t.link(asset.outputs[0], local.inputs["Geometry"])
+    t.link(t.node("GeometryNodeInputPosition").outputs[0], _socket(local.inputs, "Value", "VECTOR"))
+    box = t.node("GeometryNodeBoundBox")
+    t.link(asset.outputs[0], box.inputs[0])
+    low, high = t.node("ShaderNodeSeparateXYZ"), t.node("ShaderNodeSeparateXYZ")
+    t.link(box.outputs["Min"], low.inputs[0])
+    t.link(box.outputs["Max"], high.inputs[0])
+    height = t.math("MAXIMUM", t.math("SUBTRACT", high.outputs["Z"], low.outputs["Z"]), 1e-6)
+    mine_kind = t.head()[0]
+    mine = t.math("COMPARE", mine_kind, float(kind))
+    mine.node.inputs[2].default_value = 0.25
+    place = t.node("GeometryNodeInstanceOnPoints")
+    t.link(roots, place.inputs["Points"])
+    t.link(mine, place.inputs["Selection"])
+    t.link(local.outputs[0], place.inputs["Instance"])
+    real = t.node("GeometryNodeRealizeInstances")
+    t.link(place.outputs[0], real.inputs[0])
+    # each point of each plant: its stem (wg_base), the stem's length (wg_head's size), its place in the source
+    xyz = t.node("ShaderNodeSeparateXYZ")
+    t.link(t.attribute(ATTR_LOCAL, "FLOAT_VECTOR"), xyz.inputs[0])
+    stem = t.attribute(ATTR_BASE, "FLOAT")
+    length = t.head()[1]
+    share = t.math("DIVIDE", t.math("SUBTRACT", xyz.outputs["Z"], low.outputs["Z"]), height)
+    along = t.math("MULTIPLY", t.math("MINIMUM", t.math("MAXIMUM", share, 0.0), 1.0), float(n))
+    joint = t.math("FLOOR", t.math("MINIMUM", along, n - 1e-4))
+    frac = t.math("SUBTRACT", along, joint)
+    left = t.math("ADD", stem, t.math("MULTIPLY", joint, 2.0))
+    here, above = t.middle(strips, left), t.middle(strips, t.math("ADD", left, 2.0))
+    point = t.vmath("ADD", here, t.vmath("SCALE", t.vmath("SUBTRACT", above, here), None, scale=frac))
+    tangent = t.vmath("NORMALIZE", t.vmath("SUBTRACT", above, here), None)
+    side = t.vmath("SUBTRACT", t.sample(strips, t.position(), t.math("ADD", left, 1.0)),
+                   t.sample(strips, t.position(), left))
+    side = t.vmath("NORMALIZE", t.vmath("SUBTRACT", side, t.vmath(
+        "SCALE", tangent, None, scale=t.vmath("DOT_PRODUCT", side, tangent, out="Value"))), None)
+    normal = t.vmath("CROSS_PRODUCT", tangent, side)
+    scale = t.math("DIVIDE", length, height)
+    offset = t.vmath("ADD", t.vmath("SCALE", side, None, scale=t.math("MULTIPLY", xyz.outputs["X"], scale)),
+                     t.vmath("SCALE", normal, None, scale=t.math("MULTIPLY", xyz.outputs["Y"], scale)))
+    bend = t.node("GeometryNodeSetPosition")
+    t.link(real.outputs[0], bend.inputs["Geometry"])
+    t.link(t.vmath("ADD", point, offset), bend.inputs["Position"])
+    return bend.outputs[0]
+
+
+ROLE_HEAD, ROLE_GROUP, ROLE_MATERIAL = owned.ROLE_HEAD, owned.ROLE_HEAD_GROUP, owned.ROLE_HEAD_MATERIAL
+
+
+def _key(k: int) -> str:
+    return owned.slot_key(ROLE_HEAD, k)
+
+
+def own_collection(row):
+    """The artist's collection a species row names (``plant``), or None; a name that names no
+    collection is said once (the species then draws Windgrass's own)."""
+    name = row["plant"]
+    if not name:
+        return None
+    found = bpy.data.collections.get(name)
+    if found is None:
+        warn_once(f"species '{row['name']}': Own Plant names no collection '{name}' in this file; what it "
+                  "names is not drawn (its stems are)")
+    return found
+
+
+def remove(item) -> None:
+    """Delete the field's head objects, their meshes and its node group (its material stays:
+    ``scene.remove_datablocks`` deletes the materials)."""
+    reg = owned.registered(item)
+    for key, data in reg.items():
+        if isinstance(data, bpy.types.Object) and data.get("wg_role") == ROLE_HEAD:
+            mesh = data.data
+            bpy.data.objects.remove(data, do_unlink=True)
+            if mesh is not None and mesh.users == 0:
+                bpy.data.meshes.remove(mesh)
+        elif isinstance(data, bpy.types.NodeTree) and key == ROLE_GROUP:
+            bpy.data.node_groups.remove(data)
+
+
+def build(item, params, uid: str, base: str):
+    """The field's heads and plants made anew (after ``remove``): a head object per species with
+    Windgrass flower meshes, the artist's collections as they are, and the node group that draws
+    them on the stems; None (and nothing made) when no species has any."""
+    rows = params.species()
+    kind = shapes.kinds(rows)
+    sources: list = [None] * len(rows)
+    material = None
+    for k, row in enumerate(rows):
+        own = own_collection(row) if kind[k] != shapes.NONE else None
+        if own is not None:
+            sources[k] = (PLANT if kind[k] == shapes.PLANT else HEAD, own)
+        elif kind[k] == shapes.HEAD and row["head_shape"] in shapes.MESH_SHAPES:
+            material = material or _material(item, uid, base)
+            obj = _head_object(f"{base} {row['name'] or 'species'} head", row, material)
+            owned.tag(obj, uid, ROLE_HEAD, k)
+            owned.tag(obj.data, uid, ROLE_HEAD, k)
+            owned.record(item, _key(k), obj)
+            sources[k] = (HEAD, obj)
+    if all(s is None for s in sources):
+        return None
+    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments))
+    owned.tag(tree, uid, ROLE_GROUP)
+    owned.record(item, ROLE_GROUP, tree)
+    return tree
+
+
+def _material(item, uid: str, base: str) -> bpy.types.Material:
+    """The field's flower material (made once)."""
+    found = owned.registered(item).get(ROLE_MATERIAL)
+    if isinstance(found, bpy.types.Material):
+        return found
+    material = head_material(f"{base} flowers")
+    owned.tag(material, uid, ROLE_MATERIAL)
+    owned.record(item, ROLE_MATERIAL, material)
+    return material
+
+
+def _head_object(name: str, row, material) -> bpy.types.Object:
+    """An object (in no scene: the modifier instances it) of a Windgrass head in its colours."""
+    mesh = _head_mesh(name, row["head_shape"], row["head_color"])
+    mesh.materials.append(material)
+    return bpy.data.objects.new(mesh.name, mesh)
+
+
+def attach(obj, tree) -> None:
+    """The heads' modifier on a blade slot object."""
+    mod = obj.modifiers.new(MODIFIER, "NODES")
+    mod.node_group = tree
+
+
+def update_colours(item, params) -> None:
+    """Each Windgrass head mesh in its species' head colour (a look edit: nothing rebuilt)."""
+    rows = params.species()
+    for obj in owned.registered(item).values():
+        if not isinstance(obj, bpy.types.Object) or obj.get("wg_role") != ROLE_HEAD or obj.data is None:
+            continue
+        k = int(obj.get("wg_slot", -1))
+        if not 0 <= k < len(rows) or rows[k]["head_shape"] not in shapes.MESH_SHAPES:
+            continue
+        mesh, m = obj.data, shapes.head_mesh(rows[k]["head_shape"])
+        if len(mesh.vertices) != len(m.vertices) or ATTR_COLOR not in mesh.attributes:
+            continue
+        rgba = np.ones((len(m.vertices), 4), np.float32)
+        rgba[:, :3] = shapes.colours(m, rows[k]["head_shape"], rows[k]["head_color"])
+        mesh.attributes[ATTR_COLOR].data.foreach_set("color", rgba.ravel())
+        mesh.update()

@@ -1,0 +1,261 @@
+"""Flower heads as meshes, riding their stems' tips (numpy only; Blender instances them).
+
+A species whose ``head_shape`` is one of ``MESH_SHAPES`` carries, on its ``heads`` share of stems,
+a flower built here once, in a unit frame: the stem's tip at the origin, the stem's direction
++Z, the head's width 1 (it is scaled by the flower's width in metres, ``blade_flower`` times the
+stem's root width). The stem itself stays a green strip to its tip (``crowned``); the solver's
+tip carries the head every frame (``bridge/heads.py``: a Geometry Nodes modifier instances it at
+each tip, turned to the stem's last segment). The cards and the far canopy draw a flower as a
+spot of its colour (``atlas.py``), as they did the strip's flower.
+
+Shapes, after the plants of a hay meadow:
+  * ``daisy``: ox-eye daisy (Leucanthemum vulgare): about 20 white ray florets round a domed
+    yellow disc a third of the head's width, a green involucre under it;
+  * ``buttercup``: meadow buttercup (Ranunculus acris): five broad, cupped, glossy petals round a
+    boss of darker stamens, five green sepals under them;
+  * ``clover``: a red or white clover head (Trifolium): a ball of florets, browner at its base.
+
+Every shape gives ``HeadMesh``: vertices, triangles and quads (faces as index lists), and per
+vertex the part it belongs to: 0 petals or florets (the species' ``head_color``), 1 the centre
+(``CENTRES``: the disc, the stamens), 2 green (involucre, sepals); and a roughness (glossy
+buttercup petals).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MESH_SHAPES = ("daisy", "buttercup", "clover")
+PETALS, CENTRE, GREEN = 0, 1, 2
+CENTRES = {"daisy": (0.78, 0.45, 0.02), "buttercup": (0.42, 0.36, 0.03), "clover": (0.30, 0.18, 0.10)}
+GREEN_RGB = (0.08, 0.22, 0.04)
+
+
+@dataclass(frozen=True)
+class HeadMesh:
+    vertices: np.ndarray  # (V, 3) float32, unit frame
+    faces: list  # [tuple of vertex ids], each a triangle or a quad
+    part: np.ndarray  # (V,) int8: PETALS, CENTRE or GREEN
+    roughness: np.ndarray  # (V,) float32
+
+
+@dataclass(frozen=True)
+class _Builder:
+    """Vertices and faces added part by part."""
+
+    verts: list
+    faces: list
+    part: list
+    rough: list
+
+    def add(self, points, faces, part, roughness: float) -> None:
+        """``points`` (k, 3); ``faces``: vertex id tuples of them; ``part``: one for all or (k,)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        base = len(self.verts)
+        self.verts.extend(points.tolist())
+        self.faces.extend(tuple(int(i) + base for i in f) for f in faces)
+        self.part.extend(np.broadcast_to(np.asarray(part, dtype=np.int64), (len(points),)).tolist())
+        self.rough.extend([roughness] * len(points))
+
+
+def _grid_faces(rows: int, cols: int) -> np.ndarray:
+    """Quads of a (rows x cols) grid of points, row-major."""
+    r, c = np.meshgrid(np.arange(rows - 1), np.arange(cols - 1), indexing="ij")
+    a = (r * cols + c).ravel()
+    return np.stack([a, a + 1, a + cols + 1, a + cols], axis=1)
+
+
+def _dome(b: _Builder, radius: float, height: float, z0: float, part: int, rough: float, rings: int = 3,
+          sides: int = 12) -> None:
+    """A shallow dome (a disc, a boss) of ``radius`` rising ``height`` above ``z0``."""
+    t = np.linspace(1.0, 0.0, rings + 1)[:-1]  # from the rim in
+    a = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    ring = np.stack([np.cos(a), np.sin(a), np.zeros(sides)], axis=1)
+    pts = [ring * np.array([radius * ti, radius * ti, 0.0]) + np.array([0.0, 0.0, z0 + height * (1.0 - ti ** 2)])
+           for ti in t]
+    pts.append(np.array([[0.0, 0.0, z0 + height]]))
+    points = np.concatenate(pts)
+    faces: list[tuple[int, ...]] = []
+    for k in range(rings - 1):
+        for s in range(sides):
+            i, j = k * sides + s, k * sides + (s + 1) % sides
+            faces.append((i, j, j + sides, i + sides))
+    top = rings * sides
+    faces += [((rings - 1) * sides + s, (rings - 1) * sides + (s + 1) % sides, top) for s in range(sides)]
+    b.add(points, faces, part, rough)
+
+
+def _cone_under(b: _Builder, radius: float, depth: float, sides: int = 10) -> None:
+    """The green cup under a head (involucre): from ``radius`` at z = 0 to the stem at -``depth``."""
+    a = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    top = np.stack([radius * np.cos(a), radius * np.sin(a), np.zeros(sides)], axis=1)
+    bottom = np.stack([0.25 * radius * np.cos(a), 0.25 * radius * np.sin(a), np.full(sides, -depth)], axis=1)
+    faces = [(s, (s + 1) % sides, sides + (s + 1) % sides, sides + s) for s in range(sides)]
+    b.add(np.concatenate([top, bottom]), faces, GREEN, 0.6)
+
+
+def _petal(b: _Builder, angle: float, r0: float, r1: float, widths, lift, cup: float, part: int,
+           rough: float) -> None:
+    """One petal or ray along azimuth ``angle`` from radius ``r0`` to ``r1``: sections of ``widths``
+    (across), heights ``lift`` (z at each section), its edges raised by ``cup`` (a cupped petal)."""
+    widths, lift = np.asarray(widths, float), np.asarray(lift, float)
+    r = np.linspace(r0, r1, len(widths))
+    across = np.array([-1.0, 0.0, 1.0])
+    along_dir = np.array([np.cos(angle), np.sin(angle), 0.0])
+    side_dir = np.array([-np.sin(angle), np.cos(angle), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    w = widths[:, None, None]
+    pts = (r[:, None, None] * along_dir + (0.5 * w * across[None, :, None]) * side_dir
+           + (lift[:, None, None] + cup * w * np.abs(across)[None, :, None]) * up)
+    b.add(pts.reshape(-1, 3), _grid_faces(len(widths), 3).tolist(), part, rough)
+
+
+def daisy(rays: int = 21) -> HeadMesh:
+    b = _Builder([], [], [], [])
+    _dome(b, 0.17, 0.07, 0.0, CENTRE, 0.8)
+    _cone_under(b, 0.19, 0.12)
+    for k in range(rays):
+        a = 2.0 * np.pi * (k + 0.37 * (k % 3)) / rays
+        droop = 0.03 * ((k * 7) % 5) / 4.0
+        _petal(b, a, 0.14, 0.5, widths=(0.03, 0.075, 0.08, 0.07, 0.02),
+               lift=(0.02, 0.03, 0.025 - droop * 0.5, 0.01 - droop, -0.01 - 1.5 * droop), cup=0.15, part=PETALS,
+               rough=0.55)
+    return _mesh(b)
+
+
+def buttercup(petals: int = 5) -> HeadMesh:
+    b = _Builder([], [], [], [])
+    _dome(b, 0.13, 0.09, 0.01, CENTRE, 0.5)
+    for k in range(petals):  # sepals, between the petals, folded down
+        a = 2.0 * np.pi * (k + 0.5) / petals
+        _petal(b, a, 0.05, 0.3, widths=(0.05, 0.14, 0.12, 0.03), lift=(-0.02, -0.06, -0.1, -0.14), cup=0.2,
+               part=GREEN, rough=0.6)
+    for k in range(petals):  # broad obovate petals, overlapping, rising into a cup
+        a = 2.0 * np.pi * k / petals
+        _petal(b, a, 0.06, 0.48, widths=(0.12, 0.3, 0.38, 0.36, 0.22), lift=(0.0, 0.04, 0.1, 0.17, 0.23), cup=0.35,
+               part=PETALS, rough=0.12)
+    return _mesh(b)
+
+
+def clover(sides: int = 10, rings: int = 7) -> HeadMesh:
+    """A ball of florets: a sphere whose surface is lumpy (florets) and whose base is browner."""
+    b = _Builder([], [], [], [])
+    theta = np.linspace(0.0, np.pi, rings + 2)[1:-1]  # from the top down
+    phi = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    th, ph = np.meshgrid(theta, phi, indexing="ij")
+    lump = 1.0 + 0.12 * np.cos(5.0 * ph + 3.0 * th) * np.sin(4.0 * th)
+    rad = 0.5 * lump
+    pts = np.stack([rad * np.sin(th) * np.cos(ph), rad * np.sin(th) * np.sin(ph), 0.35 + 0.45 * np.cos(th)], axis=-1)
+    pts = np.concatenate([pts.reshape(-1, 3), [[0.0, 0.0, 0.8]], [[0.0, 0.0, -0.1]]])
+    faces: list[tuple[int, ...]] = [
+        (r * sides + s, r * sides + (s + 1) % sides, (r + 1) * sides + (s + 1) % sides, (r + 1) * sides + s)
+        for r in range(rings - 1) for s in range(sides)]
+    top, bottom = rings * sides, rings * sides + 1
+    faces += [((s + 1) % sides, s, top) for s in range(sides)]
+    last = (rings - 1) * sides
+    faces += [(last + s, last + (s + 1) % sides, bottom) for s in range(sides)]
+    b.add(pts, faces, np.where(np.arange(len(pts)) >= (rings - 2) * sides, CENTRE, PETALS), 0.7)
+    return _mesh(b)
+
+
+def _mesh(b: _Builder) -> HeadMesh:
+    return HeadMesh(np.asarray(b.verts, dtype=np.float32), list(b.faces), np.asarray(b.part, dtype=np.int8),
+                    np.asarray(b.rough, dtype=np.float32))
+
+
+_BUILD = {"daisy": daisy, "buttercup": buttercup, "clover": clover}
+
+
+def head_mesh(shape: str) -> HeadMesh:
+    """The unit mesh of ``shape`` (one of ``MESH_SHAPES``)."""
+    return _BUILD[shape]()
+
+
+def colours(mesh: HeadMesh, shape: str, petals) -> np.ndarray:
+    """(V, 3) float32 linear RGB per vertex: ``petals`` (the species' head colour) on the petals or
+    florets, the shape's centre colour on its centre, green under it."""
+    table = np.array([petals, CENTRES[shape], GREEN_RGB], dtype=np.float32)
+    return table[mesh.part.astype(np.int64)]
+
+
+NONE, HEAD, PLANT = 0, 1, 2  # what a species' stems carry: nothing more, a mesh head, a whole plant
+
+
+def kinds(rows) -> np.ndarray:
+    """(species,) int8 of the species table's rows: ``HEAD`` where its flowers are meshes (a
+    Windgrass shape, or the artist's own collection drawn as a head), ``PLANT`` where its stems
+    are the artist's own plant bent along them, ``NONE`` else."""
+    def kind(r) -> int:
+        if r.get("plant") and r.get("plant_mode") == "plant":
+            return PLANT
+        if (r.get("plant") or r["head_shape"] in MESH_SHAPES) and r["heads"] > 0.0:
+            return HEAD
+        return NONE
+    return np.array([kind(r) for r in rows], dtype=np.int8)
+
+
+def crowned(rows) -> np.ndarray:
+    """(species,) bool: the species' flowers are meshes, not the strip's cup (``kinds``)."""
+    return kinds(rows) == HEAD
+
+
+def crowned_blades(layout, blades=None) -> np.ndarray:
+    """(blades,) bool: the blades (of ``layout``, all or the ids ``blades``) whose flower is a mesh:
+    their strips stay green stems, neither widened nor coloured at the tip."""
+    kind = layout.blade_species if blades is None else layout.blade_species[blades]
+    flower = layout.blade_flower if blades is None else layout.blade_flower[blades]
+    return (flower > 0.0) & crowned(layout.params.species())[kind]
+
+
+def strip_flowers(layout, blades=None) -> np.ndarray:
+    """``blade_flower`` of the blades as their strips draw it: 0 where the flower is a mesh."""
+    flower = layout.blade_flower if blades is None else layout.blade_flower[blades]
+    return np.where(crowned_blades(layout, blades), np.float32(0.0), flower).astype(np.float32)
+
+
+def tip_marks(layout, local: np.ndarray) -> np.ndarray:
+    """(positions * verts_per_block, 3) float32 per vertex of the blade slot positions ``local``
+    (FREE: zero): on every vertex of a stem that carries a mesh head (the species + 1, the
+    flower's width in metres, a turn about the stem: the blade's facing) or is a whole plant (the
+    species + 1, the stem's length in metres, its facing); zero elsewhere. A stem collapsed onto
+    its root (eq 9) or a free position has no last segment: Blender draws nothing there."""
+    n, bpb = layout.segments, layout.blades_per_block
+    out = np.zeros((len(local), bpb, 3), dtype=np.float32)
+    shown = local >= 0
+    blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
+    kind = kinds(layout.params.species())[layout.blade_species[blades]]
+    crown = (kind == HEAD) & (layout.blade_flower[blades] > 0.0)
+    plant = kind == PLANT
+    marked = crown | plant
+    size = np.where(plant, layout.blade_length[blades], layout.blade_flower[blades] * layout.blade_width[blades])
+    out[shown] = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), np.where(marked, size, 0.0),
+                           np.where(marked, layout.blade_facing[blades], 0.0)], axis=-1)
+    return np.ascontiguousarray(np.repeat(out, 2 * (n + 1), axis=1).reshape(-1, 3))
+
+
+def triangles(mesh: HeadMesh) -> np.ndarray:
+    """(T, 3) vertex ids: every face fanned into triangles."""
+    return np.array([(f[0], f[i], f[i + 1]) for f in mesh.faces for i in range(1, len(f) - 1)], dtype=np.int64)
+
+
+def placed(mesh: HeadMesh, tips: np.ndarray, directions: np.ndarray, widths: np.ndarray,
+           turns: np.ndarray) -> np.ndarray:
+    """(heads, V, 3) the head's vertices as Blender places them (``bridge/heads.py``): turned by
+    ``turns`` about its axis, its axis +Z turned the shortest way onto ``directions`` (the stems'
+    last segments), scaled by ``widths`` (m), at ``tips``."""
+    d = np.asarray(directions, np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+    c, s = np.cos(turns), np.sin(turns)
+    v = mesh.vertices.astype(np.float64)[None]
+    v = np.stack([c[:, None] * v[..., 0] - s[:, None] * v[..., 1], s[:, None] * v[..., 0] + c[:, None] * v[..., 1],
+                  np.broadcast_to(v[..., 2], (len(d), v.shape[1]))], axis=-1)
+    # Rodrigues: the rotation about z x d by the angle between them
+    axis = np.stack([-d[:, 1], d[:, 0], np.zeros(len(d))], axis=1)  # z x d
+    sin_a, cos_a = np.linalg.norm(axis, axis=1), d[:, 2]
+    k = axis / np.maximum(sin_a, 1e-12)[:, None]
+    kv = np.cross(k[:, None, :], v)
+    kdot = np.einsum("hj,hvj->hv", k, v)[..., None]
+    v = v * cos_a[:, None, None] + kv * sin_a[:, None, None] + k[:, None, :] * kdot * (1.0 - cos_a)[:, None, None]
+    return v * np.asarray(widths, np.float64)[:, None, None] + np.asarray(tips, np.float64)[:, None, :]

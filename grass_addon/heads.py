@@ -216,13 +216,17 @@ def strip_flowers(layout, blades=None) -> np.ndarray:
 
 
 def tip_marks(layout, local: np.ndarray) -> np.ndarray:
-    """(positions * verts_per_block, 3) float32 per vertex of the blade slot positions ``local``
-    (FREE: zero): on every vertex of a stem that carries a mesh head (the species + 1, the
-    flower's width in metres, a turn about the stem: the blade's facing) or is a whole plant (the
-    species + 1, the stem's length in metres, its facing); zero elsewhere. A stem collapsed onto
-    its root (eq 9) or a free position has no last segment: Blender draws nothing there."""
+    """(positions * verts_per_block, 4) float32 per vertex of the blade slot positions ``local``
+    (FREE: zero), what Blender draws on each stem: on the first vertex of a stem that carries a
+    mesh head (the species + 1, the flower's width in metres, a turn about the stem: the blade's
+    facing, and that vertex's index in its slot object) or is a whole plant (the same, with the
+    stem's length; on every vertex of its strip, which Blender collapses); zero elsewhere. The
+    index lets Blender read the stem's joints from the strip without a pass over every vertex. A
+    stem collapsed onto its root (eq 9) or a free position has no last segment: nothing is drawn
+    there."""
     n, bpb = layout.segments, layout.blades_per_block
-    out = np.zeros((len(local), bpb, 3), dtype=np.float32)
+    per_stem = 2 * (n + 1)
+    out = np.zeros((len(local), bpb, per_stem, 4), dtype=np.float32)
     shown = local >= 0
     blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
     kind = kinds(layout.params.species())[layout.blade_species[blades]]
@@ -230,9 +234,13 @@ def tip_marks(layout, local: np.ndarray) -> np.ndarray:
     plant = kind == PLANT
     marked = crown | plant
     size = np.where(plant, layout.blade_length[blades], layout.blade_flower[blades] * layout.blade_width[blades])
-    out[shown] = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), np.where(marked, size, 0.0),
-                           np.where(marked, layout.blade_facing[blades], 0.0)], axis=-1)
-    return np.ascontiguousarray(np.repeat(out, 2 * (n + 1), axis=1).reshape(-1, 3))
+    first = (np.flatnonzero(shown)[:, None] * bpb + np.arange(bpb)[None, :]) * per_stem  # (objects' positions
+    # are their slots' k blocks in order: an object's vertex index is this modulo its vertex count)
+    mark = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), np.where(marked, size, 0.0),
+                     np.where(marked, layout.blade_facing[blades], 0.0), first], axis=-1) * marked[..., None]
+    out[shown, :, 0] = mark
+    out[shown] = np.where(plant[..., None, None], mark[:, :, None, :], out[shown])
+    return out.reshape(-1, 4)
 
 
 def triangles(mesh: HeadMesh) -> np.ndarray:

@@ -21,9 +21,9 @@ from .. import heads as shapes
 from . import materials, owned
 from .registry import warn_once
 
-ATTR_HEAD = "wg_head"  # point attribute of the blade slots: (species + 1, width m, turn rad) at a tip
+ATTR_HEAD = "wg_head"  # point colour of the blade slots: (species + 1, size m, turn rad, first vertex) of a stem
 ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
-ATTR_BASE = "wg_base"  # (in the tree) the stem's first vertex
+ATTR_TIP = "wg_tip"  # (in the tree) the stem's tip
 ATTR_LOCAL = "wg_local"  # (in the tree) a plant's point where it is in its source
 ATTR_COLOR = "wg_color"  # point colour of a head mesh
 ATTR_ROUGH = "wg_rough"  # point roughness of a head mesh
@@ -119,13 +119,16 @@ class _Tree:
     def attribute(self, name: str, data_type: str):
         n = self.node("GeometryNodeInputNamedAttribute", data_type=data_type)
         n.inputs["Name"].default_value = name
-        return _socket(n.outputs, "Attribute", "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE")
+        kind = {"FLOAT_VECTOR": "VECTOR", "FLOAT_COLOR": "RGBA"}.get(data_type, "VALUE")
+        return _socket(n.outputs, "Attribute", kind)
 
     def head(self):
-        """The ``wg_head`` mark: (species + 1, size, turn) sockets."""
-        parts = self.node("ShaderNodeSeparateXYZ")
-        self.link(self.attribute(ATTR_HEAD, "FLOAT_VECTOR"), parts.inputs[0])
-        return parts.outputs["X"], parts.outputs["Y"], parts.outputs["Z"]
+        """The ``wg_head`` mark: (species + 1, size, turn, first vertex) sockets."""
+        mark = self.node("GeometryNodeInputNamedAttribute", data_type="FLOAT_COLOR")
+        mark.inputs["Name"].default_value = ATTR_HEAD
+        parts = self.node("FunctionNodeSeparateColor", mode="RGB")
+        self.link(_socket(mark.outputs, "Attribute", "RGBA"), parts.inputs[0])
+        return parts.outputs["Red"], parts.outputs["Green"], parts.outputs["Blue"], parts.outputs["Alpha"]
 
     def position(self):
         return self.node("GeometryNodeInputPosition").outputs[0]
@@ -163,67 +166,82 @@ def _socket(sockets, name: str, kind: str):
 HEAD, PLANT = "head", "plant"  # how a species' source is drawn: on the tips, or bent along the stems
 
 
-def build_group(name: str, sources: list, segments: int) -> bpy.types.GeometryNodeTree:
+def build_group(name: str, sources: list, segments: int, stems: int) -> bpy.types.GeometryNodeTree:
     """The node group drawing, for each species k with ``sources[k]`` = (``HEAD`` or ``PLANT``,
     an Object or a Collection) (None: nothing), that source on the stems whose ``wg_head`` species
-    is k + 1 (see ``fill_group``); ``segments``: the stems' n."""
+    is k + 1 (see ``fill_group``); ``segments``: the stems' n, ``stems``: how many a slot object holds."""
     tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    fill_group(tree, sources, segments)
+    fill_group(tree, sources, segments, stems)
     return tree
 
 
-def fill_group(tree, sources: list, segments: int) -> None:
+def fill_group(tree, sources: list, segments: int, stems: int) -> None:
     """(Re)make ``tree``'s nodes. The strips come in as the engine wrote them: blade b's joint j
-    at vertices 2 (n + 1) b + 2 j (left) and + 1 (right), every vertex of a marked stem carrying
-    ``wg_head`` (species + 1, size, turn). A ``HEAD`` is put on the stem's tip (the middle of
+    at vertices 2 (n + 1) b + 2 j (left) and + 1 (right); a stem that carries something has
+    ``wg_head`` (species + 1, size, turn, its first vertex) on its first vertex (a plant's on all
+    of them: ``heads.tip_marks``). A point per stem (``stems``) reads it there, so the fields
+    below are evaluated once per stem, never per vertex (a pass over the strip's vertices, Mesh
+    to Points, cost 9 ms a frame on the Add-menu field). A ``HEAD`` is put on the stem's tip (the middle of
     its two vertices), its +Z along the last segment, turned about it, ``size`` wide; a ``PLANT``
     stands on the stem's root and is bent along it (``_bend_along``) and the stem's own strip
-    is collapsed onto its root. Stems collapsed by the LOD (eq 9) and free positions have no
-    segment: nothing is drawn there."""
+    is collapsed onto its root. Stems collapsed by the LOD (eq 9) have no segment: nothing is
+    drawn there."""
     tree.nodes.clear()
     t = _Tree(tree)
     group_in, group_out = t.node("NodeGroupInput"), t.node("NodeGroupOutput")
     mesh = group_in.outputs[0]
-    n, stride = int(segments), 2 * (int(segments) + 1)
-    kind, size, _turn = t.head()
+    n = int(segments)
+    kind, _size, _turn, first = t.head()  # (per vertex: the plants' strips)
+    # a point per stem of the slot object (a Points node: no pass over the strip's vertices), its
+    # mark read from the stem's first vertex; the stems that carry nothing, or have no segment, go
+    stem = t.node("GeometryNodePoints")
+    stem.inputs["Count"].default_value = int(stems)
     index = t.node("GeometryNodeInputIndex").outputs[0]
-    joint_of = t.math("MODULO", index, float(stride))  # 2 j (left) or 2 j + 1 (right)
-    base = t.math("SUBTRACT", index, joint_of)  # the stem's first vertex
+    base = t.math("MULTIPLY", index, float(2 * (n + 1)))
+    mark_attr = t.node("GeometryNodeInputNamedAttribute", data_type="FLOAT_COLOR")
+    mark_attr.inputs["Name"].default_value = ATTR_HEAD
+    mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_COLOR", domain="POINT")
+    t.link(mesh, mark.inputs["Geometry"])
+    t.link(_socket(mark_attr.outputs, "Attribute", "RGBA"), _socket(mark.inputs, "Value", "RGBA"))
+    t.link(base, mark.inputs["Index"])
     tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
-    root = t.middle(mesh, base)
     direction = t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2))))
-    grown = t.math("GREATER_THAN", t.vmath("LENGTH", direction, None, out="Value"), 1e-6)
+    marked = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_COLOR", domain="POINT")
+    marked.inputs["Name"].default_value = ATTR_HEAD
+    t.link(stem.outputs[0], marked.inputs["Geometry"])
+    t.link(_socket(mark.outputs, "Value", "RGBA"), _socket(marked.inputs, "Value", "RGBA"))
     store = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
     store.inputs["Name"].default_value = ATTR_TIP_DIR
-    t.link(mesh, store.inputs["Geometry"])
+    t.link(marked.outputs[0], store.inputs["Geometry"])
     t.link(direction, _socket(store.inputs, "Value", "VECTOR"))
-    stored = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT", domain="POINT")
-    stored.inputs["Name"].default_value = ATTR_BASE
-    t.link(store.outputs[0], stored.inputs["Geometry"])
-    t.link(base, _socket(stored.inputs, "Value", "VALUE"))
-    marked = stored.outputs[0]
-    # one point per marked stem, on its first vertex: at its tip (heads) or its root (plants)
-    first = t.math("MULTIPLY", t.math("LESS_THAN", joint_of, 0.5),
-                   t.math("MULTIPLY", t.math("GREATER_THAN", kind, 0.5), grown))
-    heads = t.node("GeometryNodeMeshToPoints", mode="VERTICES")
-    t.link(marked, heads.inputs["Mesh"])
-    t.link(first, heads.inputs["Selection"])
-    t.link(tip, heads.inputs["Position"])
-    t.link(size, heads.inputs["Radius"])
-    roots = t.node("GeometryNodeMeshToPoints", mode="VERTICES")
-    t.link(marked, roots.inputs["Mesh"])
-    t.link(first, roots.inputs["Selection"])
-    t.link(root, roots.inputs["Position"])
-    t.link(size, roots.inputs["Radius"])
+    at_tip = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
+    at_tip.inputs["Name"].default_value = ATTR_TIP
+    t.link(store.outputs[0], at_tip.inputs["Geometry"])
+    t.link(tip, _socket(at_tip.inputs, "Value", "VECTOR"))
+    placed = t.node("GeometryNodeSetPosition")  # on its root (the plants stand there)
+    t.link(at_tip.outputs[0], placed.inputs["Geometry"])
+    t.link(t.middle(mesh, base), placed.inputs["Position"])
+    grown = t.math("GREATER_THAN", t.vmath("LENGTH", t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR"), None, out="Value"),
+                   1e-6)
+    carries = t.math("GREATER_THAN", t.head()[0], 0.5)
+    roots = t.node("GeometryNodeDeleteGeometry", domain="POINT")
+    t.link(placed.outputs[0], roots.inputs["Geometry"])
+    t.link(t.math("LESS_THAN", t.math("MULTIPLY", grown, carries), 0.5), roots.inputs["Selection"])
+    radius = t.node("GeometryNodeSetPointRadius")
+    t.link(roots.outputs[0], radius.inputs["Points"])
+    t.link(t.head()[1], radius.inputs["Radius"])
+    heads = t.node("GeometryNodeSetPosition")  # the heads on the tips
+    t.link(radius.outputs[0], heads.inputs["Geometry"])
+    t.link(t.attribute(ATTR_TIP, "FLOAT_VECTOR"), heads.inputs["Position"])
     plants = [k + 1 for k, s in enumerate(sources) if s is not None and s[0] == PLANT]
     strips = mesh
     if plants:  # the plants' own strips collapse onto their roots (their joints still bend the plant)
         collapse = t.node("GeometryNodeSetPosition")
         t.link(mesh, collapse.inputs["Geometry"])
         t.link(t.any_of(kind, plants), collapse.inputs["Selection"])
-        t.link(root, collapse.inputs["Position"])
+        t.link(t.middle(mesh, first), collapse.inputs["Position"])  # (first: per vertex, its stem's)
         strips = collapse.outputs[0]
     join = t.node("GeometryNodeJoinGeometry")
     for k, source in reversed(list(enumerate(sources))):
@@ -253,7 +271,7 @@ def _source_geometry(t: _Tree, source):
 
 def _instances(t: _Tree, points, kind: int, source):
     """Species ``kind``'s heads: ``source`` on its points, turned to the stem, turned about it."""
-    mine_kind, _size, turn_angle = t.head()
+    mine_kind, _size, turn_angle, _first = t.head()
     mine = t.math("COMPARE", mine_kind, float(kind))
     mine.node.inputs[2].default_value = 0.25
     direction = t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR")
@@ -305,8 +323,7 @@ def _bend_along(t: _Tree, strips, roots, kind: int, source, n: int):
     # each point of each plant: its stem (wg_base), the stem's length (wg_head's size), its place in the source
     xyz = t.node("ShaderNodeSeparateXYZ")
     t.link(t.attribute(ATTR_LOCAL, "FLOAT_VECTOR"), xyz.inputs[0])
-    stem = t.attribute(ATTR_BASE, "FLOAT")
-    length = t.head()[1]
+    _kind, length, _turn, stem = t.head()
     share = t.math("DIVIDE", t.math("SUBTRACT", xyz.outputs["Z"], low.outputs["Z"]), height)
     along = t.math("MULTIPLY", t.math("MINIMUM", t.math("MAXIMUM", share, 0.0), 1.0), float(n))
     joint = t.math("FLOOR", t.math("MINIMUM", along, n - 1e-4))
@@ -363,7 +380,7 @@ def remove(item) -> None:
             bpy.data.node_groups.remove(data)
 
 
-def build(item, params, uid: str, base: str):
+def build(item, params, uid: str, base: str, stems: int):
     """The field's heads and plants made anew (after ``remove``): a head object per species with
     Windgrass flower meshes, the artist's collections as they are, and the node group that draws
     them on the stems; None (and nothing made) when no species has any."""
@@ -384,7 +401,7 @@ def build(item, params, uid: str, base: str):
             sources[k] = (HEAD, obj)
     if all(s is None for s in sources):
         return None
-    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments))
+    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), stems)
     owned.tag(tree, uid, ROLE_GROUP)
     owned.record(item, ROLE_GROUP, tree)
     return tree
@@ -406,6 +423,16 @@ def _head_object(name: str, row, material) -> bpy.types.Object:
     mesh = _head_mesh(name, row["head_shape"], row["head_color"])
     mesh.materials.append(material)
     return bpy.data.objects.new(mesh.name, mesh)
+
+
+def write_marks(mesh, marks: np.ndarray) -> None:
+    """The engine's marks (``heads.tip_marks``, (vertices, 4)) into the slot mesh's ``wg_head``."""
+    attribute = mesh.attributes.get(ATTR_HEAD)
+    if attribute is None or attribute.data_type != "FLOAT_COLOR":
+        if attribute is not None:
+            mesh.attributes.remove(attribute)
+        attribute = mesh.attributes.new(ATTR_HEAD, "FLOAT_COLOR", "POINT")
+    attribute.data.foreach_set("color", np.ascontiguousarray(marks, dtype=np.float32).ravel())
 
 
 def attach(obj, tree) -> None:

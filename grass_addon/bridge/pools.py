@@ -80,7 +80,7 @@ class SlotPool:
                 write_velocity(mesh, part.velocity[rows])
             for name, values in part.attributes(index, bool(assignment.changed[index])).items():
                 if name == frames.HEAD:
-                    write_point_vectors(mesh, heads.ATTR_HEAD, values)
+                    heads.write_marks(mesh, values)
                 else:
                     mesh.uv_layers[UV_OF[name]].data.foreach_set("uv", values.ravel())
             mesh.update()

@@ -195,7 +195,9 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
         if "wg_terrain" in coll and heightfield is None and maps.terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    head_tree = heads.build(item, params, uid, base)  # (None: no species' flower is a mesh)
+    blade_shape = slots.pool_shapes(grid, params)[0]
+    stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
+    head_tree = heads.build(item, params, uid, base, stems)  # (None: no species draws a head or a plant)
     for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
         spec = _SlotTopology(grid, params, role)
         for i in range(spec.shape.objects):  # once per build, not per frame

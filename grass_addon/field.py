@@ -32,7 +32,7 @@ from .errors import ParameterError
 from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
-from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_weights, views
+from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, views
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
@@ -413,17 +413,20 @@ class GrassField:
 
     # ------------------------------------------------------------------ one frame
 
-    def frame(self, frame: int, subframe: float = 0.0, views=None, blur: bool = False) -> Frame:
+    def frame(self, frame: int, subframe: float = 0.0, views=None, blur: bool = False, amount: float = 1.0) -> Frame:
         """Everything drawn of the field at ``frame + subframe`` seen from ``views`` (one
         ``lod.Camera``, several, or None: every block as geometry from the field's centre): the
         window of blocks, the state, LOD, each role's blocks and vertices, with their velocities
-        when ``blur`` (the scene's motion blur) or at a sub-frame. The arrays are the field's own,
-        rewritten by the next call."""
+        when ``blur`` (the scene's motion blur) or at a sub-frame. ``amount``: the share of each
+        cell's blades (eq 9's N) drawn (``lod.viewport_amount`` in the viewport; 1 in renders).
+        The arrays are the field's own, rewritten by the next call."""
         frame, subframe = int(frame), float(subframe)
         self.view(views, frame)  # the same window: no work
         if self.cells is None or self._cells_frame != frame:
             self.seek(frame)  # (the same frame seen from other views reuses its state)
         lod = self.lod(views)
+        if lod is not None and amount < 1.0:
+            lod = lod_fewer(lod, amount)
         distance = block_distance(self.layout, lod, views)
         motion = blur or subframe != 0.0
         blades, cards = (self._role_frame(role, frame, subframe, lod, distance, motion) for role in (BLADES, CARDS))

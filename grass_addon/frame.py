@@ -16,6 +16,7 @@ never depends on the frames shown before).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -137,3 +138,18 @@ class Frame:
 
     def roles(self) -> tuple[RoleFrame, RoleFrame]:
         return self.blades, self.cards
+
+    def blades_drawn(self) -> int:
+        """How many blades the blade strips draw (the slots below each cell's N, eq 9, that grow)."""
+        part = self.blades
+        layout: Any = part.layout
+        lod: Any = self.lod
+        local = part.local[:part.count]
+        num = layout.blades_per_cell
+        cells = layout.block_cells[local].ravel()
+        limit = np.full(len(cells), num) if lod is None else lod.blade_count[cells]
+        drawn = np.arange(num)[None, :] < limit[:, None]  # (cells, slots)
+        if layout.blade_alive is not None:
+            blades = (local[:, None] * layout.blades_per_block + np.arange(layout.blades_per_block)).ravel()
+            drawn &= layout.blade_alive[blades].reshape(len(cells), num)
+        return int(drawn.sum())

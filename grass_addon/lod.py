@@ -25,7 +25,7 @@ eye, a block is visible when any view sees it (``views``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -118,6 +118,14 @@ class LodWeights:
     blade_count: np.ndarray  # (n_cells,) int32: N, eq 9
     block_visible: np.ndarray  # (n_blocks,) bool: the block's box meets the view frustum
     block_distance: np.ndarray  # (n_blocks,) float32: eye to the nearest point of the block's ground box
+
+
+def lod_fewer(lod: LodWeights, amount: float) -> LodWeights:
+    """``lod`` with ``amount`` (0-1) of each cell's blades (eq 9's N, rounded to the nearest): a
+    viewport's Display Amount. The first slots stay, so a blade never moves, and the cards, which
+    eq 7 weighs by distance, not by N, are those of the full field."""
+    count = np.floor(lod.blade_count * np.float32(amount) + np.float32(0.5)).astype(np.int32)
+    return replace(lod, blade_count=count)
 
 
 def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:

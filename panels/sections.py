@@ -131,6 +131,12 @@ def draw_section(layout, context, item, section: str) -> None:
             block = f.cells_per_block * f.cell_size
             wrapped(layout, context, f"Sizes round to whole blocks of {block:g} m, densities to whole blades per "
                     f"{f.cell_size:g} m cell (Advanced)", icon="INFO")
+    if section == "lod":
+        drawn = runtime.blades_drawn(context.scene, item)
+        if drawn is not None:
+            amount = item.lod.viewport_amount
+            wrapped(layout, context, f"Drawn now: {drawn:,} blades" + (
+                f" ({amount:.0%} in the viewport; renders draw every blade)" if amount < 1.0 else ""), icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

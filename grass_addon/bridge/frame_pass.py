@@ -31,8 +31,9 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     each motion-blur step), the vertices are those of that instant and carry their velocity."""
     if views is None:
         views = field_camera.field_views(scene, item, depsgraph)
+    amount = 1.0 if field_camera.rendering() else float(rt.params.lod.viewport_amount)  # (renders: all)
     shown = rt.field.frame(scene.frame_current, float(scene.frame_subframe), views,
-                           blur=bool(scene.render.use_motion_blur))
+                           blur=bool(scene.render.use_motion_blur), amount=amount)
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     rt.blades.write(item, shown.blades)
@@ -42,7 +43,7 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         materials.set_gust_offset(*shown.gust, rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
-    rt.written(shown.frame, shown.subframe, field_camera.signature(views))
+    rt.written(shown.frame, shown.subframe, field_camera.signature(views), shown.blades_drawn())
 
 
 def _write_trails(item, rt: LiveField, trail) -> None:

@@ -63,6 +63,7 @@ class LiveField:
     frame: int | None = None  # the frame last written (None: write it again)
     subframe: float = 0.0  # and its sub-frame (motion-blur steps)
     camera_signature: tuple | None = None
+    blades_drawn: int | None = None  # how many blades its objects draw now (the panel says it)
     paint_shown: str | None = None  # paint.fingerprint of the paint the ground and paint map show
     trail: Any = None  # the trail map the far canopy shows (interaction.TrailMap | None)
     trail_written: bool = False  # the canopy's trail image and mapping were written for ``trail``
@@ -174,9 +175,11 @@ class LiveField:
 
     # -- what its objects show (frame_pass.py, lifecycle.py, handlers.py)
 
-    def written(self, frame: int, subframe: float, camera_signature) -> None:
-        """Its objects show ``frame + subframe`` seen from the views of ``camera_signature``."""
+    def written(self, frame: int, subframe: float, camera_signature, blades_drawn: int | None = None) -> None:
+        """Its objects show ``frame + subframe`` seen from the views of ``camera_signature``,
+        ``blades_drawn`` blades."""
         self.frame, self.subframe, self.camera_signature = frame, subframe, camera_signature
+        self.blades_drawn = blades_drawn
 
     def unwritten(self) -> None:
         """Its objects show no frame of it now (hidden, or rebuilt): the next update writes one."""

@@ -69,6 +69,13 @@ def building_percent(scene, item) -> int | None:
     return None if state is None else state.building_percent()
 
 
+def blades_drawn(scene, item) -> int | None:
+    """How many blades the field's objects draw now (the viewport's share, a render's all), None
+    before a frame is written."""
+    state = REGISTRY.states.get(key_of(scene, item))
+    return None if state is None else state.blades_drawn
+
+
 def scene_clock(scene) -> Clock:
     """The scene's clock (frame rate with its ``fps_base``, first frame), as every field reads it."""
     return Clock.of_scene(scene)
@@ -76,8 +83,8 @@ def scene_clock(scene) -> Clock:
 
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
            "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
-           "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error", "LiveField", "flush_pending", "free_bake",
-           "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest", "plays_cache",
-           "refresh_later", "register", "REGISTRY", "remove_field", "reset_field", "resolve", "scene_clock",
-           "start_bake", "store_track", "STROKE_GOAL_S", "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of",
-           "topology_of", "unregister", "update_field", "update_scene", "update_track", "write_read_me"]
+           "blades_drawn", "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error", "LiveField",
+           "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest",
+           "plays_cache", "refresh_later", "register", "REGISTRY", "remove_field", "reset_field", "resolve",
+           "scene_clock", "start_bake", "store_track", "STROKE_GOAL_S", "stroke_seconds", "TERRAIN_COPY_KEY",
+           "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track", "write_read_me"]

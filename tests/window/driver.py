@@ -318,7 +318,8 @@ class Driver:
             for item in scene.windgrass.fields:
                 rt = runtime.get_runtime(scene, item)
                 out[item.name] = None if rt is None else {"blade_blocks": [int(b) for b in rt.blades.blocks],
-                                                          "card_blocks": [int(b) for b in rt.cards.blocks]}
+                                                          "card_blocks": [int(b) for b in rt.cards.blocks],
+                                                          "blades_drawn": rt.blades_drawn}
             return out
         if what == "objects":
             return sorted(o.name for o in scene.objects)

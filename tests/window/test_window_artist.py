@@ -70,6 +70,39 @@ def test_viewport_follows_each_3d_view_and_renders_follow_the_scene_camera(real_
     assert ahead_a in after_render and ahead_b in after_render  # and the viewport follows its views again
 
 
+def test_the_viewport_draws_its_display_amount_and_renders_draw_every_blade(real_blender):
+    """Viewport Amount 0.25 (LOD): the 3D view draws a quarter of the blades it drew at 1 (0.15 to
+    0.35 of them: each cell's count rounded), in blocks it drew before (the far ones whose cells
+    round to none left out); a render (F12) draws as many
+    as before, every blade; the LOD panel says how many the viewport draws, and the viewport
+    draws as few again after the render."""
+    eye = [[-20.0, 15.0, 1.7], [0.0, 15.0, 0.3]]
+    capture = ("import bpy\n"
+               "shown = bpy.app.driver_namespace.setdefault('wg_drawn', [])\n"
+               "rt = bridge('runtime')\n"
+               "def grab(scene, *args):\n"
+               "    shown.append(rt.get_runtime(scene, scene.windgrass.fields[0]).blades_drawn)\n"
+               "bpy.app.handlers.render_post.append(grab)\n"
+               "scene = bpy.context.scene\n"
+               "scene.render.engine = 'CYCLES'\nscene.cycles.samples = 1\nscene.cycles.use_denoising = False\n"
+               "scene.render.resolution_x, scene.render.resolution_y = 64, 36\n"
+               "result = True")
+    steps = [*FIELD, {"view": {"look": eye}}, {"wait": 1.0}, {"probe": "lod"},
+             {"python": capture}, {"op": "render.render"}, {"wait": 1.0},
+             {"set": "windgrass.fields[0].lod.viewport_amount", "value": 0.25}, {"wait": 1.5},
+             {"view": {"look": eye}}, {"wait": 1.0}, {"probe": "lod"}, {"shot": "quarter"},
+             {"op": "render.render"}, {"wait": 1.0}, {"probe": "lod"},
+             {"python": "result = bpy.app.driver_namespace['wg_drawn']"}, {"check": "fields"}]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    full, quarter, after = (p["Grass"] for p in run.results("probe"))
+    renders = run.results("python")[1]
+    assert full["blades_drawn"] > 10000 and 0.15 < quarter["blades_drawn"] / full["blades_drawn"] < 0.35
+    assert set(quarter["blade_blocks"]) <= set(full["blade_blocks"])
+    assert len(renders) == 2 and renders[0] == renders[1] > 1000  # (the scene camera's view, all of it)
+    assert after["blades_drawn"] == quarter["blades_drawn"]
+
+
 def _grass_pixels(path):
     """Pixels of the 3D view's lower half (the meadow in front of a low view), RGB 0..1."""
     image = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0

@@ -608,3 +608,34 @@ def tussock_grain(params: Params) -> tuple[float, float]:
     if len(per) < 4 or per.mean() <= 0.0:
         return size, 0.0
     return size, float(min(GRAIN_MAX, per.std() / per.mean()))
+
+
+# --------------------------------------------------------------------------------------------
+# The far canopy's flowers, seen from above
+
+
+SPECKLE_SLOPES = (0.15, 0.45)  # the ray's slope over which the canopy's flowers come in (from above;
+# at lower, grazing slopes the sward's look, ``sward_look``, holds the flowers' share in its colour)
+
+
+def flower_speckles(params: Params) -> tuple[float, float, list[tuple[float, tuple]]]:
+    """What the far canopy draws of the field's flowers (and seed heads) seen from above, each
+    flower a disc of its own: (flowers per m² of ground, their radius in m (the mean over their
+    areas), [(the running share of the flowers up to that species, its head colour)]). A
+    flower's width is its species' ``head_size`` times its stem's width; the count, the stems
+    per m² times each species' share and its ``heads`` share. The canopy places one flower in
+    each cell of a Voronoi grid of that density (``materials.canopy_material``), so the area
+    the flowers cover is their real share of the ground (each radius r on 1 / density m²)."""
+    species = Species(params)
+    f = params.field
+    stems = float(f.blades_per_cell) / float(f.cell_size) ** 2
+    share = species.p * species.heads * species.flower
+    total = float(share.sum())
+    if total <= 0.0 or stems <= 0.0:
+        return 0.0, 0.0, []
+    radius = 0.5 * species.head_size * species.width
+    mean_radius = float(np.sqrt((share * radius ** 2).sum() / total))
+    running = np.cumsum(share) / total
+    colours = [(float(running[k]), tuple(float(c) for c in species.head_color[k]))
+               for k in np.flatnonzero(share > 0.0)]
+    return stems * total, mean_radius, colours

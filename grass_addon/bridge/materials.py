@@ -54,6 +54,7 @@ NODE_TRAIL_DEPTH = "wg_trail_depth"
 NODE_PATCH_IMAGE = "wg_patch_image"
 NODE_PATCH_MAPPING = "wg_patch_mapping"
 GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
+SHEEN_SLOPES, SHEEN_ABOVE = (0.1, 0.8), 3.0  # the canopy's gust swing, 1x at grazing slopes to 3x from above
 GUST_REFERENCE_SPEED = 5.0  # m/s: the swing is full from this mean wind on, as (speed / it)^2 below (the bend)
 
 # Node names that ``update_materials`` looks up.
@@ -63,6 +64,9 @@ NODE_HAZE_DISTANCE = "wg_haze_distance"  # Value: -1 / render.haze_distance (0: 
 NODE_HAZE_COLOUR = "wg_haze_colour"  # RGB: render.haze_color
 NODE_SWARD_LOOK = "wg_sward_look"  # RGB Curves: the canopy's colour over the ray's slope (sward.sward_look)
 NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plane (sward.fringe_colour)
+NODE_SPECKLE_GRID = "wg_speckle_grid"  # Voronoi: a cell per flower seen from above (sward.flower_speckles)
+NODE_SPECKLE_CUT = "wg_speckle_cut"  # Math: a flower's radius in the grid's units
+NODE_SPECKLE_COLOURS = "wg_speckle_colours"  # Color Ramp: the flowers' colours at their running shares
 # The tussocks' grain (sward.tussock_grain): Voronoi cells of the tussocks' size (its Scale), each
 # brightened by 1 + c sqrt(3) (2 u - 1), u its random value (uniform: spread c), c the Value node.
 NODE_FLOOR = "wg_floor"  # the ground's two floor colours in noise (sward.floor_colours)
@@ -117,7 +121,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 16
+MATERIALS_VERSION = 17
 
 
 def _socket(sockets, *names: str):
@@ -272,12 +276,12 @@ class _Tree:
         self.link(mapping, "Vector", tex, "Vector")
         return tex
 
-    def gusted(self, colour_node, colour_out: str, gust_image, x: float, y: float):
+    def gusted(self, colour_node, colour_out: str, gust_image, x: float, y: float, boost=None):
         """The colour brightened and darkened by the gust waves where they pass:
         colour * (1 + amount (2 g - 1) + amount_2 (2 g_2 - 1)), g the pattern at the place (object
         coordinates: the field's frame) moved back by the mean wind's displacement
         (NODE_GUST_MAPPING); g_2 the same at a looped wind's other displacement (``loop.py``;
-        amount_2 is 0 without a loop)."""
+        amount_2 is 0 without a loop). ``boost``: (node, output) both amounts are multiplied by."""
         tex = self.field_image(gust_image, NODE_GUST_MAPPING, NODE_GUST_IMAGE, "REPEAT", x - 400, y - 200)
         other = self.field_image(gust_image, NODE_GUST_MAPPING_2, NODE_GUST_IMAGE_2, "REPEAT", x - 400, y - 650)
         amount = self.add("ShaderNodeValue", x - 400, y - 450, name=NODE_GUST_AMOUNT)
@@ -288,6 +292,9 @@ class _Tree:
         swing.inputs[2].default_value = -1.0
         swing_2 = self.math("MULTIPLY_ADD", (other, "Color"), 2.0, x - 200, y - 650)
         swing_2.inputs[2].default_value = -1.0
+        if boost is not None:
+            amount = self.math("MULTIPLY", (amount, "Value"), boost, x - 300, y - 450)
+            amount_2 = self.math("MULTIPLY", (amount_2, "Value"), boost, x - 300, y - 900)
         part_2 = self.math("MULTIPLY_ADD", (swing_2, "Value"), (amount_2, "Value"), x - 100, y - 650)
         part_2.inputs[2].default_value = 1.0
         gain = self.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x - 50, y - 200)
@@ -491,7 +498,16 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
     _set(bsdf, 0.0, "Specular IOR Level", "Specular")
     grass, grass_out = t.patched(grass, "Result_Color", patch_image, -780, 500)
     if gust_image is not None:
-        grass, grass_out = t.gusted(grass, grass_out, gust_image, -700, 300), "Result_Color"
+        # seen from above the waves show more: a blade bent by a gust shows more of itself to a
+        # steep ray (its area seen from above grows as the sine of its tilt) and its lighter side
+        above = t.add("ShaderNodeMapRange", -1100, 300, clamp=True)
+        t.link(slope, "Value", above, "Value")
+        _set(above, SHEEN_SLOPES[0], "From Min")
+        _set(above, SHEEN_SLOPES[1], "From Max")
+        _set(above, 1.0, "To Min")
+        _set(above, SHEEN_ABOVE, "To Max")
+        grass, grass_out = t.gusted(grass, grass_out, gust_image, -700, 300, boost=(above, "Result")), "Result_Color"
+    grass, grass_out = _speckled(t, coord, slope, grass, grass_out, -700, 800), "Result_Color"
     t.link(grass, grass_out, bsdf, "Base Color")
     # The fringe stands for the tips along the field's edge: partly translucent as theirs
     # (TRANSLUCENCY), so against the sun it glows as they do. (Opaque, the far edge of the
@@ -519,6 +535,56 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
     out = t.add("ShaderNodeOutputMaterial", 300, 0)
     t.link(cut, "Shader", out, "Surface")
     return mat
+
+
+def _speckled(t: _Tree, coord, slope, grass, grass_out: str, x: float, y: float):
+    """The canopy's colour with the flowers seen from above (``sward.flower_speckles``): one in
+    each cell of a Voronoi grid (NODE_SPECKLE_GRID: its scale the square root of the flowers per
+    m²), a disc of their radius (NODE_SPECKLE_CUT) about the cell's point, in the colour of the
+    species the cell's random value falls to (NODE_SPECKLE_COLOURS, constant steps at the running
+    shares); they come in over the ray's slopes ``sward.SPECKLE_SLOPES`` (grazing rays see the
+    sward's look alone)."""
+    grid = t.add("ShaderNodeTexVoronoi", x - 600, y, name=NODE_SPECKLE_GRID, voronoi_dimensions="2D",
+                 feature="F1", distance="EUCLIDEAN")
+    t.link(coord, "Object", grid, "Vector")
+    _set(grid, 1.0, "Randomness")
+    cut = t.math("LESS_THAN", (grid, "Distance"), 0.0, x - 400, y + 100)
+    cut.name = cut.label = NODE_SPECKLE_CUT
+    seen = t.add("ShaderNodeMapRange", x - 400, y - 150, clamp=True)
+    t.link(slope, "Value", seen, "Value")
+    _set(seen, sward.SPECKLE_SLOPES[0], "From Min")
+    _set(seen, sward.SPECKLE_SLOPES[1], "From Max")
+    shown = t.math("MULTIPLY", (cut, "Value"), (seen, "Result"), x - 200, y)
+    pick = t.add("ShaderNodeSeparateColor", x - 400, y - 350)
+    t.link(grid, "Color", pick, "Color")
+    colours = t.add("ShaderNodeValToRGB", x - 250, y - 350, name=NODE_SPECKLE_COLOURS)
+    colours.color_ramp.interpolation = "CONSTANT"
+    t.link(pick, "Red", colours, "Fac")
+    mix = t.mix_rgb(x, y)
+    t.link(shown, "Value", mix, "Factor_Float")
+    t.link(grass, grass_out, mix, "A_Color")
+    t.link(colours, "Color", mix, "B_Color")
+    return mix
+
+
+def update_speckles(params, canopy) -> None:
+    """The canopy's flowers from above for ``params`` (``_speckled``)."""
+    nodes = canopy.node_tree.nodes
+    grid, cut, colours = (nodes.get(n) for n in (NODE_SPECKLE_GRID, NODE_SPECKLE_CUT, NODE_SPECKLE_COLOURS))
+    if grid is None or cut is None or colours is None:
+        return
+    density, radius, shares = sward.flower_speckles(params)
+    scale = float(np.sqrt(density)) if density > 0.0 else 1.0
+    _set(grid, scale, "Scale")
+    cut.inputs[1].default_value = radius * scale if shares else 0.0
+    elements = colours.color_ramp.elements
+    while len(elements) > 1:
+        elements.remove(elements[-1])
+    elements[0].position = 0.0
+    elements[0].color = (*(shares[0][1] if shares else (0.0, 0.0, 0.0)), 1.0)
+    for (start, _), (_, colour) in zip(shares, shares[1:]):  # (each from the share before it on)
+        element = elements.new(min(start, 1.0))
+        element.color = (*colour, 1.0)
 
 
 def _canopy_colour(t, coord, view, view_z, slope, trail_image):
@@ -946,6 +1012,7 @@ def update_materials(params, canopy=None) -> None:
             for channel in range(3):
                 _set_curve(look.mapping.curves[channel], along, colours[:, channel])
             look.mapping.update()
+        update_speckles(params, canopy)
         tips = canopy.node_tree.nodes.get(NODE_FRINGE_COLOUR)
         if tips is not None:
             tips.outputs[0].default_value = (*sward.fringe_colour(params), 1.0)

@@ -286,3 +286,45 @@ def test_the_cards_carry_each_of_the_fields_flowers(runtime, blocks):
         target = np.asarray(row["head_color"]) / max(row["head_color"])
         shown = int((np.abs(hue - target).max(axis=1) < 0.06).sum())
         assert shown >= 20, (row["name"], shown)  # a flower is some hundreds of pixels
+
+
+def test_the_far_canopy_seen_from_above_shows_the_flowers_at_their_share(rendered, tmp_path):
+    """Issue #59: a drone saw no flower in the far canopy. Straight down from 3 m over a field
+    drawn as far canopy alone (LOD distances under a metre), of grass, buttercups (yellow, 30 %
+    of the stems) and daisies (white, 20 %), every one in flower, 3.2 cm wide: yellow and white
+    specks cover about the ground's share their flowers cover (each stems per m² x share x
+    pi r^2, by hand: 7.2 % and 4.8 %; within 0.4-2.5 times, lit and antialiased), and the same
+    field without flowers shows none."""
+    from windgrass.grass_addon import schema
+
+    def rows(heads: float) -> list:
+        flower = {"length": 0.4, "length_variation": 0.05, "width": 0.004, "color": (0.1, 0.28, 0.05),
+                  "heads": heads, "head_size": 8.0, "head_shape": "flower"}
+        return [{"name": "grass", "weight": 0.5, "length": 0.35, "length_variation": 0.05, "width": 0.006,
+                 "color": (0.08, 0.28, 0.05)},
+                {**flower, "name": "buttercup", "weight": 0.3, "head_color": (0.85, 0.6, 0.02)},
+                {**flower, "name": "daisy", "weight": 0.2, "head_color": (0.8, 0.8, 0.75)}]
+
+    params = schema.defaults().replace({
+        "field.blocks_x": 8, "field.blocks_y": 8, "field.blades_per_cell": 3, "field.cell_size": 0.1,
+        "field.patchiness": 0.0, "blade.species": rows(1.0), "wind.type": "calm", "wind.gust_waves": 0.0,
+        "lod.blade_near": 0.1, "lod.blade_far": 0.2, "lod.card_near": 0.3, "lod.card_far": 0.5,
+        "camera.mode": "fixed", "camera.position": (0.0, 0.0, 3.0), "camera.target": (0.001, 0.0, 0.0),
+        "render.engine": "cycles", "render.samples": 16, "render.resolution_x": 200, "render.resolution_y": 200})
+    per_m2 = 3 / 0.1 ** 2
+    area = np.pi * (0.5 * 8.0 * 0.004) ** 2
+    expected = {"yellow": per_m2 * 0.3 * area, "white": per_m2 * 0.2 * area}
+
+    def shares(px) -> dict:  # (pixels at least half as bright as a whole flower's: half covered or more)
+        yellowish = (px[..., 2] < 0.3 * px[..., 0]) & (px[..., 1] > 0.45 * px[..., 0])
+        whitish = np.ptp(px, axis=2) < 0.25 * px.max(axis=2)
+        full = np.percentile(px.max(axis=2), 99.5)
+        yellow = yellowish & (px[..., 0] > 0.5 * full)
+        white = whitish & (px.min(axis=2) > 0.5 * full)
+        return {"yellow": float(yellow.mean()), "white": float(white.mean())}
+
+    flowered = shares(rendered(params, 1, tmp_path / "flowers.png"))
+    bare = shares(rendered(params.replace({"blade.species": rows(0.0)}), 1, tmp_path / "bare.png"))
+    for colour, share in expected.items():
+        assert 0.4 * share < flowered[colour] < 2.5 * share, (colour, flowered, expected)
+        assert bare[colour] < 0.1 * share, (colour, bare)

@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
-"""The README's pictures: a still and a short animation of the default scene, and the LOD comparison.
+"""The README's pictures: a still and a short animation of the default scene, the default scene from
+every camera an artist uses, and the LOD comparison.
 
     python headless/docs_media.py [--frames 1-30] [--resolution 960x540] [--out docs]
     python3.11 dev.py docs ...    # the same inside the project's .venv (installs Pillow there)
 
 Renders ``scenes/default.toml`` with ``render_field.py`` into ``renders/docs/``, then writes
 ``<out>/default_scene.png`` (the middle frame) and ``<out>/default_scene.webp`` (every frame, an
-animated WebP of a few hundred kB). When ``renders/lod_compare/`` holds the images of ``dev.py lod``,
+animated WebP of a few hundred kB), and ``<out>/cameras.png``: frame 12 from eye level (the still),
+a close-up, straight down from 1.3 m and a drone 20 m up over a 100 m field (``CAMERAS``), two by
+two. When ``renders/lod_compare/`` holds the images of ``dev.py lod``,
 ``<out>/lod_compare.png`` puts the LOD render beside the all-geometry render (sun and overcast).
 """
 
@@ -22,6 +25,29 @@ import common  # noqa: E402
 HEADLESS = Path(__file__).resolve().parent
 ANIMATION_WIDTH = 640
 REPO = HEADLESS.parent
+
+
+# (name, render_field.py options) of the cameras beside the eye-level still (issue #59's shots)
+CAMERAS = (
+    ("close-up", ["--camera-position", "0", "0", "0.35", "--camera-target", "2", "1", "0.25"]),
+    ("top-down", ["--camera-position", "0", "0", "1.3", "--camera-target", "0.01", "0", "0"]),
+    ("drone", ["--field-blocks-x", "64", "--field-blocks-y", "64", "--camera-position", "-40", "-40", "20",
+               "--camera-target", "0", "0", "0"]),
+)
+
+
+def render_cameras(resolution: str) -> list[Path] | None:
+    """Frame 12 of the default scene from each of ``CAMERAS`` (None: a render failed)."""
+    out = []
+    for name, options in CAMERAS:
+        folder = REPO / "renders" / "docs_cameras" / name
+        status = subprocess.call([sys.executable, str(HEADLESS / "render_field.py"), "--frames", "12",
+                                  "--resolution", resolution, "--camera-mode", "fixed", *options,
+                                  "--out", str(folder)], cwd=REPO)
+        if status:
+            return None
+        out.append(folder / "frame_0012.png")
+    return out
 
 
 def parse_args(argv):
@@ -60,6 +86,15 @@ def main(argv=None) -> int:
     images[0].save(args.out / "default_scene.webp", save_all=True, append_images=images[1:], duration=1000 // 24,
                    loop=0, quality=70, method=6)
     print(f"wrote {args.out / 'default_scene.png'} and {args.out / 'default_scene.webp'} ({len(images)} frames)")
+    width, height = images[0].size
+    shots = None if args.skip_render else render_cameras(f"{width}x{height}")
+    if shots is not None:
+        sheet = Image.new("RGB", (2 * width, 2 * height))
+        eye = Image.open(frames[len(frames) // 2]).convert("RGB").resize((width, height), Image.Resampling.LANCZOS)
+        for k, image in enumerate([eye] + [Image.open(p).convert("RGB") for p in shots]):
+            sheet.paste(image.resize((width, height), Image.Resampling.LANCZOS), ((k % 2) * width, (k // 2) * height))
+        sheet.save(args.out / "cameras.png", optimize=True)
+        print(f"wrote {args.out / 'cameras.png'} (eye level, close-up; straight down from 1.3 m, drone)")
     lod = REPO / "renders" / "lod_compare"
     pairs = [(lod / f"default_{light}_lod_0001.png", lod / f"default_{light}_geometry_0001.png")
              for light in ("sun", "overcast")]

@@ -1,15 +1,16 @@
-"""Flower heads in Blender: a mesh per crowned species, a Geometry Nodes modifier on the blade slots.
+"""Flowers and the artist's own plants in Blender: a Geometry Nodes modifier on the blade slots.
 
-The engine marks each crowned stem's tip (``frame.HEAD``: the point attribute ``wg_head`` on the
-tip's left vertex: the species + 1, the flower's width in metres, a turn about the stem); the
-field's node group ``Windgrass Heads`` puts that species' head object there, turned to the stem's
-last segment, and joins it to the strips. Blender builds the heads, on its threads, from the
-positions the engine wrote: nothing more is handed over per frame. A species' head object is a
-Windgrass flower (``grass_addon/heads.py``, coloured per vertex: ``wg_color``) or the artist's own
-(a collection, ``head_collection``).
+The engine marks each stem that carries something on its first vertex (``heads.tip_marks``: the
+point colour ``wg_head``: the species + 1, the size in metres, a turn about the stem, the vertex's
+index); the field's node group ``Windgrass Heads`` (``fill_group``) makes a point per stem, puts
+that species' head on the stem's tip, turned to its last segment, or bends the species' own
+plant along the stem, and joins them to the strips. Blender builds them, on its threads, from
+the positions the engine wrote: nothing more is handed over per frame. A species' source is a
+Windgrass flower (``grass_addon/heads.py``: an object in no scene, coloured per vertex,
+``wg_color``) or the artist's own collection (the species column ``plant``).
 
-Made and changed only inside ``lifecycle`` (operators, edits, file load); the tree is rebuilt when
-the species' heads change (``digest``).
+Made and changed only inside ``lifecycle`` (operators, edits, file load: ``scene.build_slots``
+makes them with the slots); a colour edit rewrites the head meshes' colours in place.
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ ATTR_COLOR = "wg_color"  # point colour of a head mesh
 ATTR_ROUGH = "wg_rough"  # point roughness of a head mesh
 GROUP_NAME = "Windgrass Heads"
 MODIFIER = "Windgrass Heads"
-DIGEST = "wg_heads"  # the node group's custom property: the species' heads it instances
 
 
 def _head_mesh(name: str, shape: str, colour) -> bpy.types.Mesh:

@@ -67,6 +67,7 @@ NODE_FRINGE_COLOUR = "wg_fringe_colour"  # RGB: the tips standing above the plan
 NODE_SPECKLE_GRID = "wg_speckle_grid"  # Voronoi: a cell per flower seen from above (sward.flower_speckles)
 NODE_SPECKLE_CUT = "wg_speckle_cut"  # Math: a flower's radius in the grid's units
 NODE_SPECKLE_COLOURS = "wg_speckle_colours"  # Color Ramp: the flowers' colours at their running shares
+NODE_SPECKLE_GAIN = "wg_speckle_gain"  # Value: 1 / the blades' mean brightness
 # The tussocks' grain (sward.tussock_grain): Voronoi cells of the tussocks' size (its Scale), each
 # brightened by 1 + c sqrt(3) (2 u - 1), u its random value (uniform: spread c), c the Value node.
 NODE_FLOOR = "wg_floor"  # the ground's two floor colours in noise (sward.floor_colours)
@@ -121,7 +122,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 17
+MATERIALS_VERSION = 18
 
 
 def _socket(sockets, *names: str):
@@ -540,7 +541,7 @@ def canopy_material(name: str, uid: str, gust_image=None, trail_image=None, patc
 def _speckled(t: _Tree, coord, slope, grass, grass_out: str, x: float, y: float):
     """The canopy's colour with the flowers seen from above (``sward.flower_speckles``): one in
     each cell of a Voronoi grid (NODE_SPECKLE_GRID: its scale the square root of the flowers per
-    m²), a disc of their radius (NODE_SPECKLE_CUT) about the cell's point, in the colour of the
+    m²), a disc of their radius (NODE_SPECKLE_CUT) about the cell's point, coloured for the
     species the cell's random value falls to (NODE_SPECKLE_COLOURS, constant steps at the running
     shares); they come in over the ray's slopes ``sward.SPECKLE_SLOPES`` (grazing rays see the
     sward's look alone)."""
@@ -560,10 +561,20 @@ def _speckled(t: _Tree, coord, slope, grass, grass_out: str, x: float, y: float)
     colours = t.add("ShaderNodeValToRGB", x - 250, y - 350, name=NODE_SPECKLE_COLOURS)
     colours.color_ramp.interpolation = "CONSTANT"
     t.link(pick, "Red", colours, "Fac")
+    # a speck is its flower's colour as bright, against the blades' brightness, as the sward's
+    # look there (lit and shaded as the grass round it: NODE_SPECKLE_GAIN is 1 / the blades'
+    # mean brightness; the ramp holds the colours)
+    gain = t.add("ShaderNodeValue", x - 250, y - 550, name=NODE_SPECKLE_GAIN)
+    gain.outputs[0].default_value = 1.0
+    bright = t.add("ShaderNodeRGBToBW", x - 300, y - 650)  # the look's brightness there
+    t.link(grass, grass_out, bright, "Color")
+    lit = t.math("MULTIPLY", (bright, "Val"), (gain, "Value"), x - 150, y - 600)
+    speck = t.math("SCALE", (colours, "Color"), None, x - 100, y - 450, vector=True)
+    t.link(lit, "Value", speck, "Scale")
     mix = t.mix_rgb(x, y)
     t.link(shown, "Value", mix, "Factor_Float")
     t.link(grass, grass_out, mix, "A_Color")
-    t.link(colours, "Color", mix, "B_Color")
+    t.link(speck, "Vector", mix, "B_Color")
     return mix
 
 
@@ -577,6 +588,11 @@ def update_speckles(params, canopy) -> None:
     scale = float(np.sqrt(density)) if density > 0.0 else 1.0
     _set(grid, scale, "Scale")
     cut.inputs[1].default_value = radius * scale if shares else 0.0
+    species = sward.Species(params)
+    blades = (species.p[:, None] * species.color).sum(axis=0)  # the blades' mean colour
+    gain = nodes.get(NODE_SPECKLE_GAIN)
+    if gain is not None:  # (Blender's RGB to BW: 0.2126 r + 0.7152 g + 0.0722 b)
+        gain.outputs[0].default_value = 1.0 / max(float(np.dot(blades, (0.2126, 0.7152, 0.0722))), 1e-4)
     elements = colours.color_ramp.elements
     while len(elements) > 1:
         elements.remove(elements[-1])

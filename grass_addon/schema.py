@@ -341,7 +341,7 @@ PARAMS: tuple[Param, ...] = (
        maximum=10000.0, soft_max=300.0, label="Cards End"),
     _p("lod", "viewport_amount", "float", 1.0, "Share of the near blades the 3D viewport draws (as Blender's "
        "particle Viewport Display Amount): fewer keep playback smooth on a large field; renders always draw every "
-       "blade", unit="fraction", minimum=0.01, maximum=1.0, label="Viewport Amount"),
+       "blade", unit="fraction", minimum=0.01, maximum=1.0, label="Viewport"),
     _p("lod", "card_width", "float", 1.6, "Width of a card in cells (above 1 cards overlap their neighbours)",
        unit="cells", minimum=0.1, maximum=10.0, advanced=True, label="Card Width"),
     _p("lod", "card_height", "float", 1.0, "Height of a card as a fraction of its cell's tallest blade at rest",

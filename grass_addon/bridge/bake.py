@@ -34,7 +34,7 @@ import numpy as np
 from .. import loop
 from ..errors import WindgrassError
 from ..folders import ensure_writable
-from . import animation, owned, usd_finish
+from . import animation, heads, owned, usd_finish
 from . import scene as field_scene
 from .registry import REGISTRY, key_of
 
@@ -349,6 +349,10 @@ class Baker:
             caches.append(cache.name)
             play_in_a_loop(cache, self.first, self.last, self._loop_frames())
             for obj in objects:
+                for heads_modifier in [m for m in obj.modifiers if m.type == "NODES" and m.name == heads.MODIFIER]:
+                    # (a baked slot plays its cache alone: the flower heads' Geometry Nodes with
+                    # a Mesh Sequence Cache crashed Blender 5.3 at the next frame change)
+                    obj.modifiers.remove(heads_modifier)
                 modifier = obj.modifiers.new(MODIFIER, "MESH_SEQUENCE_CACHE")
                 modifier.cache_file = cache
                 modifier.object_path = object_path(self.fmt, obj)

@@ -1,10 +1,10 @@
 """Flowers and the artist's own plants in Blender: a Geometry Nodes modifier on the blade slots.
 
 The engine marks each stem that carries something on its first vertex (``heads.tip_marks``: the
-point colour ``wg_head``: the species + 1, the size in metres, a turn about the stem, the vertex's
-index); the field's node group ``Windgrass Heads`` (``fill_group``) makes a point per stem, puts
-that species' head on the stem's tip, turned to its last segment, or bends the species' own
-plant along the stem, and joins them to the strips. Blender builds them, on its threads, from
+point attributes ``wg_head``: the species + 1, the size in metres, a turn about the stem, and
+``wg_stem``: the vertex's index); the field's node group ``Windgrass Heads`` (``fill_group``)
+makes a point per stem, puts that species' head on the stem's tip, turned to its last segment,
+or bends the species' own plant along the stem, and joins them to the strips. Blender builds them, on its threads, from
 the positions the engine wrote: nothing more is handed over per frame. A species' source is a
 Windgrass flower (``grass_addon/heads.py``: an object in no scene, coloured per vertex,
 ``wg_color``) or the artist's own collection (the species column ``plant``).
@@ -22,7 +22,9 @@ from .. import heads as shapes
 from . import materials, owned
 from .registry import warn_once
 
-ATTR_HEAD = "wg_head"  # point colour of the blade slots: (species + 1, size m, turn rad, first vertex) of a stem
+ATTR_HEAD = "wg_head"  # point vector of the blade slots: (species + 1, size m, turn rad) of a stem
+ATTR_STEM = "wg_stem"  # point float of the blade slots: the stem's first vertex (a colour attribute
+# of four read back from an Alembic cache crashed Blender 5.3: two plain attributes instead)
 ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
 ATTR_TIP = "wg_tip"  # (in the tree) the stem's tip
 ATTR_LOCAL = "wg_local"  # (in the tree) a plant's point where it is in its source
@@ -123,12 +125,10 @@ class _Tree:
         return _socket(n.outputs, "Attribute", kind)
 
     def head(self):
-        """The ``wg_head`` mark: (species + 1, size, turn, first vertex) sockets."""
-        mark = self.node("GeometryNodeInputNamedAttribute", data_type="FLOAT_COLOR")
-        mark.inputs["Name"].default_value = ATTR_HEAD
-        parts = self.node("FunctionNodeSeparateColor", mode="RGB")
-        self.link(_socket(mark.outputs, "Attribute", "RGBA"), parts.inputs[0])
-        return parts.outputs["Red"], parts.outputs["Green"], parts.outputs["Blue"], parts.outputs["Alpha"]
+        """The mark: (species + 1, size, turn, first vertex) sockets (``wg_head``, ``wg_stem``)."""
+        parts = self.node("ShaderNodeSeparateXYZ")
+        self.link(self.attribute(ATTR_HEAD, "FLOAT_VECTOR"), parts.inputs[0])
+        return parts.outputs["X"], parts.outputs["Y"], parts.outputs["Z"], self.attribute(ATTR_STEM, "FLOAT")
 
     def position(self):
         return self.node("GeometryNodeInputPosition").outputs[0]
@@ -200,18 +200,21 @@ def fill_group(tree, sources: list, segments: int, stems: int) -> None:
     stem.inputs["Count"].default_value = int(stems)
     index = t.node("GeometryNodeInputIndex").outputs[0]
     base = t.math("MULTIPLY", index, float(2 * (n + 1)))
-    mark_attr = t.node("GeometryNodeInputNamedAttribute", data_type="FLOAT_COLOR")
-    mark_attr.inputs["Name"].default_value = ATTR_HEAD
-    mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_COLOR", domain="POINT")
+    mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
     t.link(mesh, mark.inputs["Geometry"])
-    t.link(_socket(mark_attr.outputs, "Attribute", "RGBA"), _socket(mark.inputs, "Value", "RGBA"))
+    t.link(t.attribute(ATTR_HEAD, "FLOAT_VECTOR"), _socket(mark.inputs, "Value", "VECTOR"))
     t.link(base, mark.inputs["Index"])
     tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
     direction = t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2))))
-    marked = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_COLOR", domain="POINT")
+    marked = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
     marked.inputs["Name"].default_value = ATTR_HEAD
     t.link(stem.outputs[0], marked.inputs["Geometry"])
-    t.link(_socket(mark.outputs, "Value", "RGBA"), _socket(marked.inputs, "Value", "RGBA"))
+    t.link(_socket(mark.outputs, "Value", "VECTOR"), _socket(marked.inputs, "Value", "VECTOR"))
+    first_of = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT", domain="POINT")
+    first_of.inputs["Name"].default_value = ATTR_STEM
+    t.link(marked.outputs[0], first_of.inputs["Geometry"])
+    t.link(base, _socket(first_of.inputs, "Value", "VALUE"))
+    marked = first_of
     store = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
     store.inputs["Name"].default_value = ATTR_TIP_DIR
     t.link(marked.outputs[0], store.inputs["Geometry"])
@@ -426,13 +429,16 @@ def _head_object(name: str, row, material) -> bpy.types.Object:
 
 
 def write_marks(mesh, marks: np.ndarray) -> None:
-    """The engine's marks (``heads.tip_marks``, (vertices, 4)) into the slot mesh's ``wg_head``."""
-    attribute = mesh.attributes.get(ATTR_HEAD)
-    if attribute is None or attribute.data_type != "FLOAT_COLOR":
-        if attribute is not None:
-            mesh.attributes.remove(attribute)
-        attribute = mesh.attributes.new(ATTR_HEAD, "FLOAT_COLOR", "POINT")
-    attribute.data.foreach_set("color", np.ascontiguousarray(marks, dtype=np.float32).ravel())
+    """The engine's marks (``heads.tip_marks``, (vertices, 4)) into the slot mesh's ``wg_head``
+    (the first three) and ``wg_stem``."""
+    for name, kind, field, values in ((ATTR_HEAD, "FLOAT_VECTOR", "vector", marks[:, :3]),
+                                      (ATTR_STEM, "FLOAT", "value", marks[:, 3])):
+        attribute = mesh.attributes.get(name)
+        if attribute is None or attribute.data_type != kind:
+            if attribute is not None:
+                mesh.attributes.remove(attribute)
+            attribute = mesh.attributes.new(name, kind, "POINT")
+        attribute.data.foreach_set(field, np.ascontiguousarray(values, dtype=np.float32).ravel())
 
 
 def attach(obj, tree) -> None:

@@ -116,8 +116,9 @@ def slot_key(role: str, index: int) -> str:
 
 
 def field_objects(item) -> list:
-    """The field's own objects (never a user's tagged copies elsewhere)."""
-    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)]
+    """The field's own objects in its collection (never a user's tagged copies elsewhere; not the
+    flower heads' objects, which are in no scene: ``bridge/heads.py`` makes and removes them)."""
+    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object) and d.get("wg_role") != ROLE_HEAD]
 
 
 def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:

@@ -114,11 +114,17 @@ class RoleFrame:
     def attributes(self, index: int, changed: bool) -> dict:
         """{name: per-corner float32 (corners, 2)} of slot object ``index``: blade colours when a
         position of it shows another block than before (``changed``), and then the flower heads'
-        marks per vertex (``HEAD``, (vertices, 3)); card opacity always."""
+        marks per vertex (``HEAD``, (vertices, 4); none where no species carries a head or is a
+        plant: nothing draws them); card opacity always."""
         k = self.shape.k
         local = self.local[index * k:(index + 1) * k]
         if self.role == BLADES:
-            return {**blade_tints(self.layout, local), HEAD: heads.tip_marks(self.layout, local)} if changed else {}
+            if not changed:
+                return {}
+            out = blade_tints(self.layout, local)
+            if heads.carries_any(self.layout):
+                out[HEAD] = heads.tip_marks(self.layout, local)
+            return out
         return card_fade(self.layout, local, self.lod)
 
 

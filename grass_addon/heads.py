@@ -196,6 +196,11 @@ def kinds(rows) -> np.ndarray:
     return np.array([kind(r) for r in rows], dtype=np.int8)
 
 
+def carries_any(layout) -> bool:
+    """Whether some species of ``layout`` carries a mesh head or is a plant (``kinds``)."""
+    return bool((kinds(layout.params.species()) != NONE).any())
+
+
 def crowned(rows) -> np.ndarray:
     """(species,) bool: the species' flowers are meshes, not the strip's cup (``kinds``)."""
     return kinds(rows) == HEAD

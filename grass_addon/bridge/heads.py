@@ -40,14 +40,19 @@ def _head_mesh(name: str, shape: str, colour) -> bpy.types.Mesh:
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(m.vertices.tolist(), [], m.faces)
     mesh.attributes.new(ATTR_COLOR, "FLOAT_COLOR", "POINT")
-    rgba = np.ones((len(m.vertices), 4), np.float32)
-    rgba[:, :3] = shapes.colours(m, shape, colour)
-    mesh.attributes[ATTR_COLOR].data.foreach_set("color", rgba.ravel())
+    _write_colours(mesh, m, shape, colour)
     mesh.attributes.new(ATTR_ROUGH, "FLOAT", "POINT")
     mesh.attributes[ATTR_ROUGH].data.foreach_set("value", m.roughness)
     mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), bool))
     mesh.update()
     return mesh
+
+
+def _write_colours(mesh, m, shape: str, colour) -> None:
+    """``wg_color`` of a head mesh: its petals ``colour``, its shape's centre and green."""
+    rgba = np.ones((len(m.vertices), 4), np.float32)
+    rgba[:, :3] = shapes.colours(m, shape, colour)
+    mesh.attributes[ATTR_COLOR].data.foreach_set("color", rgba.ravel())
 
 
 def head_material(name: str) -> bpy.types.Material:
@@ -140,7 +145,7 @@ class _Tree:
         return self.vmath("SCALE", pair, None, scale=0.5)
 
     def any_of(self, kind, kinds: list):
-        """1 where ``kind`` is one of ``kinds``."""
+        """1 where ``kind`` (a species + 1, a float) is one of ``kinds``."""
         out = None
         for k in kinds:
             hit = self.math("COMPARE", kind, float(k))
@@ -275,8 +280,7 @@ def _source_geometry(t: _Tree, source):
 def _instances(t: _Tree, points, kind: int, source):
     """Species ``kind``'s heads: ``source`` on its points, turned to the stem, turned about it."""
     mine_kind, _size, turn_angle, _first = t.head()
-    mine = t.math("COMPARE", mine_kind, float(kind))
-    mine.node.inputs[2].default_value = 0.25
+    mine = t.any_of(mine_kind, [kind])
     direction = t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR")
     align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
     t.link(direction, align.inputs["Vector"])
@@ -314,9 +318,7 @@ def _bend_along(t: _Tree, strips, roots, kind: int, source, n: int):
     t.link(box.outputs["Min"], low.inputs[0])
     t.link(box.outputs["Max"], high.inputs[0])
     height = t.math("MAXIMUM", t.math("SUBTRACT", high.outputs["Z"], low.outputs["Z"]), 1e-6)
-    mine_kind = t.head()[0]
-    mine = t.math("COMPARE", mine_kind, float(kind))
-    mine.node.inputs[2].default_value = 0.25
+    mine = t.any_of(t.head()[0], [kind])
     place = t.node("GeometryNodeInstanceOnPoints")
     t.link(roots, place.inputs["Points"])
     t.link(mine, place.inputs["Selection"])
@@ -459,7 +461,5 @@ def update_colours(item, params) -> None:
         mesh, m = obj.data, shapes.head_mesh(rows[k]["head_shape"])
         if len(mesh.vertices) != len(m.vertices) or ATTR_COLOR not in mesh.attributes:
             continue
-        rgba = np.ones((len(m.vertices), 4), np.float32)
-        rgba[:, :3] = shapes.colours(m, rows[k]["head_shape"], rows[k]["head_color"])
-        mesh.attributes[ATTR_COLOR].data.foreach_set("color", rgba.ravel())
+        _write_colours(mesh, m, rows[k]["head_shape"], rows[k]["head_color"])
         mesh.update()

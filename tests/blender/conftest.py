@@ -82,3 +82,39 @@ def rendered(with_bridge):
         return pixels
 
     return render
+
+
+@pytest.fixture
+def runtime(with_bridge):
+    """The bridge's runtime (the UI's one door)."""
+    from windgrass.grass_addon.bridge import runtime
+
+    return runtime
+
+
+@pytest.fixture
+def settle(runtime):
+    """``settle()``: let edits made as in the panel settle (the runtime applies them once they stop)."""
+    import time
+
+    def wait() -> None:
+        for _ in range(20):
+            time.sleep(runtime.EDIT_SETTLE_S + 0.05)
+            if runtime.flush_pending() is None:
+                return
+        raise AssertionError("the edits did not settle")
+
+    return wait
+
+
+@pytest.fixture
+def stems(drawn):
+    """``stems(item)`` -> (blades, joints, [left, right], 3) of the blades Blender draws (``drawn``;
+    those collapsed onto their roots left out)."""
+
+    def read(item) -> np.ndarray:
+        n = item.blade.segments
+        strips = drawn(item).reshape(-1, n + 1, 2, 3)
+        return strips[np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0]
+
+    return read

@@ -5,13 +5,6 @@ import numpy as np
 import pytest
 
 
-@pytest.fixture
-def runtime(with_bridge):
-    from windgrass.grass_addon.bridge import runtime
-
-    return runtime
-
-
 def test_the_scene_clock_rules_over_the_fields_render_settings(runtime):
     assert bpy.ops.windgrass.field_add(blocks_x=1, blocks_y=1, cells_per_block=4) == {"FINISHED"}
     scene = bpy.context.scene

@@ -4,24 +4,6 @@ flat polygons). Every assertion reads what Blender draws: the evaluated depsgrap
 
 import bpy
 import numpy as np
-import pytest
-
-
-@pytest.fixture
-def runtime(with_bridge):
-    from windgrass.grass_addon.bridge import runtime
-
-    return runtime
-
-
-def _settle(runtime) -> None:
-    import time
-
-    for _ in range(20):
-        time.sleep(runtime.EDIT_SETTLE_S + 0.05)
-        if runtime.flush_pending() is None:
-            return
-    raise AssertionError("the edits did not settle")
 
 
 def _head_objects(item) -> dict:
@@ -44,14 +26,8 @@ def _instances(item) -> dict:
     return {name: np.array(m).reshape(-1, 4, 4) for name, m in out.items()}
 
 
-def _stems(drawn, item) -> np.ndarray:
-    """(stems, joints, 2, 3) the blade strips Blender draws (collapsed ones left out)."""
-    n = item.blade.segments
-    strips = drawn(item).reshape(-1, n + 1, 2, 3)
-    return strips[np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0]
 
-
-def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, drawn):
+def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, stems):
     """Add Grass Field's meadow: its blade slots carry the Windgrass Heads modifier, and Blender
     draws a daisy or a buttercup head on a share of the stems it draws (1-25 % of them: the
     species table gives 5 % buttercups and 4 % daisies, eight in ten in flower, and the mix varies
@@ -69,12 +45,12 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
     where = {}
     for frame in (1, 9, 17):
         scene.frame_set(frame)
-        stems = _stems(drawn, item)
-        centre = stems.mean(axis=2)
+        shown = stems(item)
+        centre = shown.mean(axis=2)
         tips, last = centre[:, n], centre[:, n] - centre[:, n - 1]
         found = _instances(item)
         total = sum(len(m) for m in found.values())
-        assert 0.01 * len(stems) < total < 0.25 * len(stems), (total, len(stems))
+        assert 0.01 * len(shown) < total < 0.25 * len(shown), (total, len(shown))
         for name, m in found.items():
             assert len(m) > 10, name
             at = m[:, :3, 3]
@@ -85,10 +61,10 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
             assert np.min((axis * along).sum(axis=1)) > np.cos(np.radians(2.5)), name
             width = np.linalg.norm(m[:, :3, 0], axis=1)
             assert 0.01 < width.min() and width.max() < 0.05, (name, width.min(), width.max())
-            crowned = np.zeros(len(stems), bool)
+            crowned = np.zeros(len(shown), bool)
             crowned[nearest] = True
-            top = np.linalg.norm(stems[crowned, n, 1] - stems[crowned, n, 0], axis=1)
-            root = np.linalg.norm(stems[crowned, 0, 1] - stems[crowned, 0, 0], axis=1)
+            top = np.linalg.norm(shown[crowned, n, 1] - shown[crowned, n, 0], axis=1)
+            root = np.linalg.norm(shown[crowned, 0, 1] - shown[crowned, 0, 0], axis=1)
             assert np.all(top < 0.5 * root), name  # a stem, tapering to its tip, under the flower
             where.setdefault(name, []).append(at)
     for name, frames in where.items():  # the same heads (the slots show the same blocks): they sway
@@ -97,7 +73,7 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
         assert np.percentile(moved, 90) > 0.002, name
 
 
-def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_petals(runtime, tmp_path):
+def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_petals(runtime, tmp_path, settle):
     """Looked at straight down from 0.6 m over a field of ox-eye daisies in flower (Cycles): the
     frame holds white ray florets and yellow discs, about as much white as the rays' share of a
     head gives (2-20 times the disc's), and around each yellow disc white on every side (in each
@@ -117,7 +93,7 @@ def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_
         setattr(row, key, daisy[key])
     row.heads = 1.0
     item.field.blocks_x = item.field.blocks_y = 2
-    _settle(runtime)
+    settle()
     head = _head_objects(item)["ox-eye daisy"]
     cam_data = bpy.data.cameras.new("top")
     cam = bpy.data.objects.new("top", cam_data)
@@ -156,7 +132,7 @@ def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_
         ringed.append(all((white & q).sum() > 0 for q in quads))
     assert len(ringed) >= 3 and np.mean(ringed) > 0.7, ringed
     row.head_color = (0.8, 0.3, 0.5)
-    _settle(runtime)
+    settle()
     scene.frame_set(1)
     assert _head_objects(item)["ox-eye daisy"] == head  # the same object, its colours rewritten
     px = render("pink")
@@ -219,7 +195,7 @@ def _stalk(name: str, height: float = 0.2, half: float = 0.01, levels: int = 5) 
     return coll
 
 
-def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the_wind(runtime, drawn):
+def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the_wind(runtime, settle, stems):
     """A species drawn as the artist's own collection (Own Plant, Drawn As Plant): a stalk of five
     rings, 0.2 m tall, made by the test. Blender draws one stalk per stem it draws (the stems'
     strips collapse onto their roots); over frames of wind each stalk's lowest ring stands on its
@@ -235,7 +211,7 @@ def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the
     item.blade.species[0].plant = "my stalk"
     item.blade.species[0].plant_mode = "plant"
     item.field.blocks_x = item.field.blocks_y = 2
-    _settle(runtime)
+    settle()
     n = item.blade.segments
     blades = sorted((o for o in item.collection.objects if o.get("wg_role") == "blades"),
                     key=lambda o: int(o["wg_slot"]))
@@ -244,7 +220,7 @@ def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the
         scene.frame_set(frame)
         for obj in blades:
             obj.modifiers["Windgrass Heads"].show_viewport = False
-        stems = _stems(drawn, item).mean(axis=2)  # (stems, joints, 3): the solver's stems
+        shown = stems(item).mean(axis=2)  # (stems, joints, 3): the solver's stems
         for obj in blades:
             obj.modifiers["Windgrass Heads"].show_viewport = True
         depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -259,9 +235,9 @@ def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the
             assert np.ptp(strips, axis=1).max() < 1e-6  # the strips collapsed onto their roots
             rings.append(co[len(obj.data.vertices):].reshape(-1, 5, 4, 3).mean(axis=2))
         rings = np.concatenate(rings)  # (stalks, 5, 3)
-        assert len(rings) == len(stems) > 50, (len(rings), len(stems))
-        order = np.argmin(((rings[:, None, 0, :2] - stems[None, :, 0, :2]) ** 2).sum(axis=2), axis=1)
-        stem = stems[order]
+        assert len(rings) == len(shown) > 50, (len(rings), len(shown))
+        order = np.argmin(((rings[:, None, 0, :2] - shown[None, :, 0, :2]) ** 2).sum(axis=2), axis=1)
+        stem = shown[order]
         assert np.abs(rings[:, 0] - stem[:, 0]).max() < 1e-4
         assert np.abs(rings[:, -1] - stem[:, -1]).max() < 1e-3
         segments = np.linalg.norm(np.diff(stem, axis=1), axis=2).sum(axis=1)

@@ -7,31 +7,6 @@ import numpy as np
 import pytest
 
 
-@pytest.fixture
-def runtime(with_bridge):
-    from windgrass.grass_addon.bridge import runtime
-
-    return runtime
-
-
-def _settle(runtime) -> None:
-    """Let edits made as in the panel settle (the runtime applies them once they stop)."""
-    import time
-
-    for _ in range(20):
-        time.sleep(runtime.EDIT_SETTLE_S + 0.05)
-        if runtime.flush_pending() is None:
-            return
-    raise AssertionError("the edits did not settle")
-
-
-def _strips(drawn, item) -> np.ndarray:
-    """(blades, joints, [left, right], 3) of the blades Blender draws (collapsed ones left out)."""
-    n = item.blade.segments
-    strips = drawn(item).reshape(-1, n + 1, 2, 3)
-    return strips[np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0]
-
-
 def _counts_variance_over_mean(roots: np.ndarray, square: float = 0.25) -> float:
     """Blades rooted in each square of ``square`` metres over the roots' extent (whole squares
     inside it): the variance of the counts over their mean (1 for roots at random, less for an
@@ -43,7 +18,7 @@ def _counts_variance_over_mean(roots: np.ndarray, square: float = 0.25) -> float
     return float(counts.var() / counts.mean())
 
 
-def test_add_grass_field_grows_tussocks_and_the_lawn_preset_is_even(runtime, drawn):
+def test_add_grass_field_grows_tussocks_and_the_lawn_preset_is_even(runtime, settle, stems):
     """The roots Blender draws, counted in 0.25 m squares: a meadow's tussocks give counts whose
     variance is at least 1.5 times their mean (grasses grow in clumps); the Lawn preset spreads
     them more evenly than at random (variance below the mean)."""
@@ -51,11 +26,11 @@ def test_add_grass_field_grows_tussocks_and_the_lawn_preset_is_even(runtime, dra
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     scene.frame_set(1)
-    meadow = _counts_variance_over_mean(_strips(drawn, item)[:, 0].mean(axis=1)[:, :2])
+    meadow = _counts_variance_over_mean(stems(item)[:, 0].mean(axis=1)[:, :2])
     assert bpy.ops.windgrass.species_preset(preset="lawn") == {"FINISHED"}
-    _settle(runtime)
+    settle()
     scene.frame_set(2)
-    lawn = _counts_variance_over_mean(_strips(drawn, item)[:, 0].mean(axis=1)[:, :2])
+    lawn = _counts_variance_over_mean(stems(item)[:, 0].mean(axis=1)[:, :2])
     assert meadow >= 1.5 and lawn < 1.0, (meadow, lawn)
 
 
@@ -63,7 +38,7 @@ def _widths(strips: np.ndarray) -> np.ndarray:
     return np.linalg.norm(strips[:, :, 1] - strips[:, :, 0], axis=2)
 
 
-def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn):
+def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, settle, stems):
     """Blades with a flower of the strip (head shape "flower") open into a head on their top two
     segments (at least three times the root's width at the joint below the tip, still half of
     that at the tip, where a plain blade tapers to a sixth); seed heads are widest at the joint
@@ -76,12 +51,12 @@ def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn
     for row in item.blade.species:
         if row.head_shape in ("daisy", "buttercup"):
             row.head_shape = "flower"
-    _settle(runtime)
+    settle()
     n = item.blade.segments
     tips, lengths = [], None
     for frame in (1, 9, 17):
         scene.frame_set(frame)
-        strips = _strips(drawn, item)
+        strips = stems(item)
         width = _widths(strips)
         flowers = (width[:, n - 1] > 3.0 * width[:, 0]) & (width[:, n] > 1.5 * width[:, 0])
         seeds = (width[:, n - 1] > 1.5 * width[:, 0]) & (width[:, n] < 0.3 * width[:, 0])
@@ -98,7 +73,7 @@ def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, drawn
     assert np.percentile(np.linalg.norm(tips[1] - tips[0], axis=1), 90) > 0.005  # they sway in the wind
 
 
-def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime, drawn):
+def test_the_heads_carry_their_colours_and_dry_tips_turn_to_straw(runtime):
     """The tint the blade material reads (UV maps wg_tint_rg and wg_tint_bs) at each blade's tip
     corners: the seed heads' colours on the stems that carry one, and straw on some tips, while
     every root corner keeps a species' green. (The flowers, meshes on the tips, carry theirs in
@@ -214,7 +189,7 @@ def test_a_lawn_reads_as_green_turf_not_bare_ground(rendered, tmp_path):
     assert turf[1] / turf[0] >= 1.2 * thatch[1] / thatch[0], (turf, thatch)
 
 
-def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, drawn, tmp_path):
+def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, tmp_path, stems):
     """Issue #34 item 4: grass flattened by a collider looked like bare ground. A ball 0.7 m wide
     rolls along x through the default meadow (calm air), seen a second later from 1.6 m: the blades
     rooted on its track lie down along it (tips at most half as high as the untouched meadow's,
@@ -237,7 +212,7 @@ def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, drawn, tmp
     plain = rendered(rolled.replace({"interaction.colliders": []}), 72, tmp_path / "plain.png")
     pressed = rendered(rolled, 72, tmp_path / "pressed.png")  # 3 s: the ball is 2.5 m past x = 0
     item = bpy.context.scene.windgrass.fields[0]
-    strips = _strips(drawn, item)
+    strips = stems(item)
     roots, tips = strips[:, 0].mean(axis=1), strips[:, -1].mean(axis=1)
     lean = tips - roots
     track = (np.abs(roots[:, 1] - 0.5) < 0.15) & (np.abs(roots[:, 0]) < 1.5)
@@ -258,7 +233,7 @@ def test_pressed_grass_lies_along_the_track_and_stays_green(rendered, drawn, tmp
 
 
 @pytest.mark.parametrize("blocks", [8, 16])
-def test_the_cards_carry_each_of_the_fields_flowers(runtime, blocks):
+def test_the_cards_carry_each_of_the_fields_flowers(runtime, blocks, settle):
     """The cards' image (the atlas Blender packs and the card material reads) shows every flower
     of Add Grass Field's meadow, a buttercup's yellow and a daisy's white, on its field (8 x 8
     blocks) and on one of 16 x 16: the cards stand for a few dozen of the field's blades, and
@@ -272,7 +247,7 @@ def test_the_cards_carry_each_of_the_fields_flowers(runtime, blocks):
     item = scene.windgrass.fields[0]
     if item.field.blocks_x != blocks:
         item.field.blocks_x = item.field.blocks_y = blocks  # as in the panel
-        _settle(runtime)
+        settle()
     scene.frame_set(1)
     image = owned.registered(item)[owned.ROLE_CARD_IMAGE]
     w, h = image.size

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import clearance, edit_parts, forces, interaction, kinematics, loop, slots
+from . import clearance, edit_parts, forces, interaction, kinematics, loop, slots, wind_map
 from .blocks import BlockCache, Species
 from .celldata import CellData
 from .clock import Clock
@@ -492,6 +492,23 @@ class GrassField:
             return None
         eyes = [camera_eye(cam) for cam in views(cameras)]
         return self.interaction.trail_map(frame, eyes, float(self.params.lod.card_near))
+
+    def wind_map(self, frame: int) -> tuple[wind_map.MapGrid, np.ndarray]:
+        """The wind the grass feels at ``frame`` on a grid over the window of blocks, at half the
+        grass's height (``wind_map.py``: what Blender's hair and cloth blow with): (grid, (points,
+        2) float32 m/s)."""
+        ids = self.layout.block_ids
+        if len(ids):
+            b = self.grid.block_bounds(ids)
+            bounds = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+        else:  # (no block in the window: the field's own rectangle)
+            o, s = self.grid.origin, self.grid.block_size
+            bounds = (o[0], o[1], o[0] + s * self.grid.blocks_x, o[1] + s * self.grid.blocks_y)
+        grid = wind_map.map_grid(bounds)
+        xy = grid.points()
+        height = 0.5 * float(np.mean(self.layout.cell_length)) if self.layout.n_cells else 0.0
+        points = np.column_stack([xy, np.full(len(xy), height)])
+        return grid, self.sim.wind_at(int(frame), points)
 
     # ------------------------------------------------------------------ LOD
 

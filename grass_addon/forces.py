@@ -314,18 +314,28 @@ class ForcedWind:
 
     def sample_layout(self, t: float, layout) -> np.ndarray:
         out = np.array(self.wind.sample_layout(t, layout), dtype=np.float32)
-        active = self.effectors.at(t)
-        if active and layout.n_cells:
-            points = self._points(layout)
-            for e in active:
-                reach = _reach(e)
-                if reach is None:
-                    out += force(e, points, t, self.turbulence)[:, :2].astype(np.float32)
-                    continue
-                near = _within(points, e.matrix[:3, 3], reach)  # only these cells can feel it
-                if len(near):
-                    out[near] += force(e, points[near], t, self.turbulence)[:, :2].astype(np.float32)
+        if layout.n_cells:
+            self._push(t, self._points(layout), out)
         return out
+
+    def sample_points(self, t: float, points: np.ndarray) -> np.ndarray:
+        """The wind and the effectors' pushes at ``points`` (m, 3) (``wind_map``): (m, 2) float32."""
+        points = np.asarray(points, dtype=np.float64)
+        out = np.array(self.wind.sample(t, points[:, :2]), dtype=np.float32)
+        if len(points):
+            self._push(t, points, out)
+        return out
+
+    def _push(self, t: float, points: np.ndarray, out: np.ndarray) -> None:
+        """``out`` (m, 2) plus the horizontal push of every effector active at ``t`` at ``points``."""
+        for e in self.effectors.at(t):
+            reach = _reach(e)
+            if reach is None:
+                out += force(e, points, t, self.turbulence)[:, :2].astype(np.float32)
+                continue
+            near = _within(points, e.matrix[:3, 3], reach)  # only these points can feel it
+            if len(near):
+                out[near] += force(e, points[near], t, self.turbulence)[:, :2].astype(np.float32)
 
     def _points(self, layout) -> np.ndarray:
         """The cells' centres at half the grass's height (kept for the layout)."""

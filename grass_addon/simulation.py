@@ -197,6 +197,14 @@ class Simulation:
         wind = by_layout(t, self.layout) if by_layout is not None else self.wind.sample(t, self.layout.cell_center)
         return np.ascontiguousarray(wind, dtype=np.float32)
 
+    def wind_at(self, frame: int, points: np.ndarray) -> np.ndarray:
+        """The wind the grass is stepped with at ``frame`` (as ``_sample``, with the force fields),
+        at ``points`` (m, 3): (m, 2) float32 m/s (``wind_map``)."""
+        t = self.time(wind_frame(frame, self.frame_start, self.loop))
+        by_points = getattr(self.wind, "sample_points", None)  # a ForcedWind: the force fields too
+        wind = by_points(t, points) if by_points is not None else self.wind.sample(t, points[:, :2])
+        return np.ascontiguousarray(wind, dtype=np.float32)
+
     def _trajectory(self, k: int, frame: int) -> Trajectory:
         """Trajectory k at a frame <= ``frame`` (restarted or restored when it is past it)."""
         traj = self._trajectories.get(k)

@@ -16,11 +16,13 @@ from . import (
     simulation_reset,
     species_preset,
     track_update,
+    wind_force_add,
     wind_preset,
 )
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
-            species_preset, row_add, row_remove, map_pick, track_update, farm_job, field_duplicate)
+            species_preset, row_add, row_remove, map_pick, track_update, farm_job, field_duplicate,
+            wind_force_add)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

@@ -137,6 +137,14 @@ def draw_section(layout, context, item, section: str) -> None:
             amount = item.lod.viewport_amount
             wrapped(layout, context, f"Drawn now: {drawn:,} blades" + (
                 f" ({amount:.0%} in the viewport; renders draw every blade)" if amount < 1.0 else ""), icon="INFO")
+    if section == "wind":
+        if runtime.wind_force.available():
+            layout.operator("windgrass.wind_force_add", icon="FORCE_WIND")
+            if runtime.wind_force.map_object(item) is not None:
+                wrapped(layout, context, f"Hair Dynamics and Cloth Dynamics blow in this wind with the collection "
+                        f"'{runtime.wind_force.COLLECTION}' as their Effectors Collection", icon="INFO")
+        else:
+            wrapped(layout, context, runtime.wind_force.needs_note(), icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

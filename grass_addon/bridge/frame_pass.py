@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 
 from ..errors import WindgrassError
-from . import bake, builds, materials, owned, paint_look, pools, textures
+from . import bake, builds, materials, owned, paint_look, pools, textures, wind_force
 from . import camera as field_camera
 from .registry import REGISTRY, LiveField, key_of, warn_once
 from .resolve import current, get_runtime
@@ -43,6 +43,8 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         materials.set_gust_offset(*shown.gust, rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
+    if shown.subframe == 0.0:  # (Blender's hair and cloth step whole frames)
+        wind_force.write(item, rt.field, shown.frame)
     rt.written(shown.frame, shown.subframe, field_camera.signature(views), shown.blades_drawn())
 
 

@@ -15,7 +15,7 @@ import bpy
 from .. import memory
 from .. import paint as paint_core
 from ..errors import WindgrassError
-from . import bake, maps, owned, properties
+from . import bake, maps, owned, properties, wind_force
 from . import scene as field_scene
 from .frame_pass import guarded, update_field
 from .registry import REGISTRY, key_of
@@ -161,6 +161,21 @@ def write_read_me() -> None:
         lines += ["Baked fields: they play an Alembic cache beside this file (folder <file>_windgrass)",
                   "in any Blender; keep that folder with the file:"] + [f"  {n}" for n in baked]
     text.from_string("\n".join(lines) + "\n")
+
+
+def blow_physics(scene, item, obj=None) -> tuple[str, int]:
+    """The field's wind for Blender's hair and cloth (``wind_force.py``): its wind map, written for
+    this frame, in the file's Windgrass Wind collection, which becomes the Effectors Collection of
+    ``obj``'s Hair or Cloth Dynamics. Returns (the collection's name, how many dynamics blow)."""
+    if not wind_force.available():
+        raise WindgrassError(wind_force.needs_note())
+    if item.collection is None:
+        build_field(scene, item)
+    winds = wind_force.ensure(item)
+    rt = update_field(scene, item)
+    if rt is not None and rt.field is not None:
+        wind_force.write(item, rt.field, scene.frame_current)
+    return winds.name, (wind_force.link_into(obj, winds) if obj is not None else 0)
 
 
 def remove_field(scene, item) -> None:

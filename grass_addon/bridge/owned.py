@@ -30,6 +30,8 @@ ROLE_PAINT_MAP = "paint_map"
 ROLE_HEAD = "head"  # a species' flower head object (in no scene: the heads' modifier draws it), key "head 003"
 ROLE_HEAD_GROUP = "head_group"  # the node group of the heads' modifier on the blade slots
 ROLE_HEAD_MATERIAL = "head_material"
+ROLE_WIND_MAP = "wind_map"  # the wind the grass feels, for Blender's hair and cloth (in no scene: wind_force.py)
+IN_NO_SCENE = (ROLE_HEAD, ROLE_WIND_MAP)  # objects the field keeps outside its collection
 
 
 # Roles stored in ``wg_role`` of the datablocks of a field.
@@ -102,6 +104,8 @@ def _tagged(item) -> dict:
         found.setdefault(data.get("wg_role"), data)
     for obj in _owned(bpy.data.objects, uid, ROLE_HEAD):  # (in no collection)
         found.setdefault(slot_key(ROLE_HEAD, int(obj.get("wg_slot", -1))), obj)
+    for obj in _owned(bpy.data.objects, uid, ROLE_WIND_MAP):
+        found.setdefault(ROLE_WIND_MAP, obj)
     return found
 
 
@@ -117,8 +121,10 @@ def slot_key(role: str, index: int) -> str:
 
 def field_objects(item) -> list:
     """The field's own objects in its collection (never a user's tagged copies elsewhere; not the
-    flower heads' objects, which are in no scene: ``bridge/heads.py`` makes and removes them)."""
-    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object) and d.get("wg_role") != ROLE_HEAD]
+    flower heads' objects and the wind map, which are in no scene: ``bridge/heads.py`` and
+    ``bridge/wind_force.py`` make and remove them)."""
+    return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)
+            and d.get("wg_role") not in IN_NO_SCENE]
 
 
 def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:

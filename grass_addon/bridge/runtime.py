@@ -25,7 +25,7 @@ from ..clock import Clock
 from ..errors import WindgrassError
 from ..grid import FieldGrid
 from ..simulation import seek_note
-from . import animation, bake, farm_job, maps, owned, properties, tracks
+from . import animation, bake, farm_job, maps, owned, properties, tracks, wind_force
 from .bake import plays_cache
 from .edits import (
     EDIT_SETTLE_S,
@@ -45,6 +45,7 @@ from .lifecycle import (
     apply_settings,
     bake_field,
     bake_status,
+    blow_physics,
     build_field,
     free_bake,
     params_digest,
@@ -87,4 +88,5 @@ __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "prese
            "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest",
            "plays_cache", "refresh_later", "register", "REGISTRY", "remove_field", "reset_field", "resolve",
            "scene_clock", "start_bake", "store_track", "STROKE_GOAL_S", "stroke_seconds", "TERRAIN_COPY_KEY",
-           "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track", "write_read_me"]
+           "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track", "write_read_me",
+           "blow_physics", "wind_force"]

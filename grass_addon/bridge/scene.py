@@ -21,7 +21,7 @@ import bpy
 from .. import atlas, slots, sward
 from .. import kinematics as kin
 from ..grid import FieldGrid
-from . import heads, maps, materials, meshes, owned, paint_look, textures
+from . import heads, maps, materials, meshes, owned, paint_look, textures, wind_force
 
 # --------------------------------------------------------------------------------------------
 # Terrain
@@ -164,7 +164,8 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     _remove_objects([o for o in owned.field_objects(item) if o is not ground])
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key, data in list(owned.registered(item).items()):
-        if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground:
+        if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground \
+                and key != owned.ROLE_WIND_MAP:  # (the artist's trees read the wind map: it stays)
             del item[owned.MADE_KEY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
@@ -326,6 +327,11 @@ def separate_copy(item) -> bool:
     new_tag = owned.unused_tag(tag.split("#")[0])
     coll["wg_uid"] = new_tag
     reg = owned.registered(item)
+    for key, data in list(reg.items()):  # the original's, in no scene (not copied): the copy makes its own
+        if data.get("wg_role") in (*owned.IN_NO_SCENE, owned.ROLE_HEAD_GROUP):
+            if item.get(owned.MADE_KEY) is not None and key in item[owned.MADE_KEY]:
+                del item[owned.MADE_KEY][key]
+            del reg[key]
     copies = {}
     for key, data in reg.items():
         if isinstance(data, (bpy.types.Material, bpy.types.Image)):
@@ -354,6 +360,7 @@ def remove_datablocks(item) -> None:
     reg = owned.registered(item)
     tags = {d.get("wg_uid") for d in reg.values()} | ({coll.get("wg_uid")} if coll is not None else set())
     heads.remove(item)
+    wind_force.remove(item)
     _remove_objects(owned.field_objects(item))
     for tag in tags - {None}:
         _purge_orphan_meshes(tag)  # (they use the materials)

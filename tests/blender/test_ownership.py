@@ -61,6 +61,12 @@ def test_a_full_copy_of_the_scene_is_a_field_of_its_own(bridge):
     original.frame_set(9)
     assert not np.array_equal(before, _positions(blades))
     assert all(m.users > 0 for m in item.collection.objects[0].data.materials if m)
+    # ... and still draws its flowers: the copy made and removed heads of its own, not the original's
+    heads = [m for o in owned.slot_objects(item, owned.ROLE_BLADES).values() for m in o.modifiers
+             if m.name == "Windgrass Heads"]
+    assert heads and all(m.node_group is not None for m in heads)
+    instanced = [i for i in bpy.context.evaluated_depsgraph_get().object_instances if i.is_instance]
+    assert instanced
 
 
 def test_shift_d_copies_are_the_users_own(bridge):

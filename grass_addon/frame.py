@@ -114,8 +114,8 @@ class RoleFrame:
     def attributes(self, index: int, changed: bool) -> dict:
         """{name: per-corner float32 (corners, 2)} of slot object ``index``: blade colours when a
         position of it shows another block than before (``changed``), and then the flower heads'
-        marks per vertex (``HEAD``, (vertices, 4); none where no species carries a head or is a
-        plant: nothing draws them); card opacity always."""
+        marks per vertex (``HEAD``, (vertices, 5); none where no species carries a head or
+        leaves or is a plant: nothing draws them); card opacity always."""
         k = self.shape.k
         local = self.local[index * k:(index + 1) * k]
         if self.role == BLADES:

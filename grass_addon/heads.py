@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import tufts
+
 MESH_SHAPES = ("daisy", "buttercup", "clover")
 PETALS, CENTRE, GREEN = 0, 1, 2
 CENTRES = {"daisy": (0.78, 0.45, 0.02), "buttercup": (0.42, 0.36, 0.03), "clover": (0.30, 0.18, 0.10)}
@@ -197,8 +199,10 @@ def kinds(rows) -> np.ndarray:
 
 
 def carries_any(layout) -> bool:
-    """Whether some species of ``layout`` carries a mesh head or is a plant (``kinds``)."""
-    return bool((kinds(layout.params.species()) != NONE).any())
+    """Whether some species of ``layout`` carries a mesh head, is a plant (``kinds``) or has
+    leaves at its stems' foot (``tufts.leafy``)."""
+    rows = layout.params.species()
+    return bool((kinds(rows) != NONE).any() or tufts.leafy(rows).any())
 
 
 def crowned(rows) -> np.ndarray:
@@ -221,31 +225,34 @@ def strip_flowers(layout, blades=None) -> np.ndarray:
 
 
 def tip_marks(layout, local: np.ndarray) -> np.ndarray:
-    """(positions * verts_per_block, 4) float32 per vertex of the blade slot positions ``local``
+    """(positions * verts_per_block, 5) float32 per vertex of the blade slot positions ``local``
     (FREE: zero), what Blender draws on each stem: on the first vertex of a stem that carries a
-    mesh head (the species + 1, the flower's width in metres, a turn about the stem: the blade's
-    facing, and that vertex's index in its slot object) or is a whole plant (the same, with the
-    stem's length; on every vertex of its strip, which Blender collapses); zero elsewhere. The
-    index lets Blender read the stem's joints from the strip without a pass over every vertex. A
-    stem collapsed onto its root (eq 9) or a free position has no last segment: nothing is drawn
-    there."""
+    mesh head, has leaves at its foot (``tufts``) or is a whole plant: the species + 1, the
+    flower's width in metres (0: no head on this stem; a plant: the stem's length), a turn about
+    the stem (the blade's facing), that vertex's index in its slot object, and the length of the
+    longest leaf at its foot (m; 0: none); a plant's mark on every vertex of its strip (which
+    Blender collapses); zero elsewhere. The index lets Blender read the stem's joints from the
+    strip without a pass over every vertex. A stem collapsed onto its root (eq 9) or a free
+    position has no last segment: nothing is drawn there."""
     n, bpb = layout.segments, layout.blades_per_block
     per_stem = 2 * (n + 1)
-    out = np.zeros((len(local), bpb, per_stem, 4), dtype=np.float32)
+    out = np.zeros((len(local), bpb, per_stem, 5), dtype=np.float32)
     shown = local >= 0
     blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
     kind = kinds(layout.params.species())[layout.blade_species[blades]]
     crown = (kind == HEAD) & (layout.blade_flower[blades] > 0.0)
     plant = kind == PLANT
-    marked = crown | plant
-    size = np.where(plant, layout.blade_length[blades], layout.blade_flower[blades] * layout.blade_width[blades])
+    leaf = tufts.leaf_lengths(layout, blades)
+    marked = crown | plant | (leaf > 0.0)
+    size = np.where(plant, layout.blade_length[blades],
+                    np.where(crown, layout.blade_flower[blades] * layout.blade_width[blades], 0.0))
     first = (np.flatnonzero(shown)[:, None] * bpb + np.arange(bpb)[None, :]) * per_stem  # (objects' positions
     # are their slots' k blocks in order: an object's vertex index is this modulo its vertex count)
-    mark = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), np.where(marked, size, 0.0),
-                     np.where(marked, layout.blade_facing[blades], 0.0), first], axis=-1) * marked[..., None]
+    mark = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), size,
+                     np.where(marked, layout.blade_facing[blades], 0.0), first, leaf], axis=-1) * marked[..., None]
     out[shown, :, 0] = mark
     out[shown] = np.where(plant[..., None, None], mark[:, :, None, :], out[shown])
-    return out.reshape(-1, 4)
+    return out.reshape(-1, 5)
 
 
 def triangles(mesh: HeadMesh) -> np.ndarray:

@@ -9,6 +9,9 @@ Numbers are chosen from what the grass looks like outdoors:
   stems, buttercups and daisies, some dry straw-coloured blades;
 - wild: tall rough grass and reeds, 0.6-1.2 m.
 
+The meadow's grasses grow tufts of short leaves at their stems' foot, its buttercups and daisies
+rosettes (``tufts.py``): seen from above, a hay meadow shows leaves, not soil.
+
 Stiffness: the weight torque at the root grows with the square of the blade length (eqs 2-4,
 lever ~ L/2, weight ~ rho*g*L), while the root stiffness mu_root/x of eq 1 does not depend on
 the length. Tall species therefore get a stiffness multiplier of about (L / 0.32 m)^2 relative to
@@ -35,28 +38,30 @@ SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
         # fine and broad grasses with seed panicles, tall flowering stems, flowers and some dry blades
         {"name": "meadow grass", "weight": 0.56, "length": 0.32, "length_variation": 0.07,
          "width": 0.006, "stiffness": 1.0, "color": (0.10, 0.30, 0.045),
-         "heads": 0.06, "head_color": (0.26, 0.24, 0.13), "head_size": 2.0},
+         "heads": 0.06, "head_color": (0.26, 0.24, 0.13), "head_size": 2.0, "leaves": "tuft", "leaf_size": 0.45},
         {"name": "timothy", "weight": 0.12, "length": 0.6, "length_variation": 0.1,
          "width": 0.005, "stiffness": 3.5, "color": (0.16, 0.34, 0.06),
-         "heads": 0.5, "head_color": (0.24, 0.26, 0.12), "head_size": 2.2},
+         "heads": 0.5, "head_color": (0.24, 0.26, 0.12), "head_size": 2.2, "leaves": "tuft", "leaf_size": 0.3},
         {"name": "cocksfoot", "weight": 0.18, "length": 0.42, "length_variation": 0.09,
          "width": 0.011, "stiffness": 1.8, "color": (0.09, 0.25, 0.07),
-         "heads": 0.1, "head_color": (0.24, 0.22, 0.12), "head_size": 2.2},
+         "heads": 0.1, "head_color": (0.24, 0.22, 0.12), "head_size": 2.2, "leaves": "tuft", "leaf_size": 0.4},
         {"name": "buttercup", "weight": 0.05, "length": 0.4, "length_variation": 0.08,
          "width": 0.004, "stiffness": 1.6, "color": (0.11, 0.29, 0.05),
          "heads": 0.8, "head_color": (0.80, 0.55, 0.02), "head_size": 5.0,
-         "head_shape": "buttercup"},
+         "head_shape": "buttercup", "leaves": "rosette", "leaf_size": 0.35},
         {"name": "ox-eye daisy", "weight": 0.04, "length": 0.45, "length_variation": 0.08,
          "width": 0.004, "stiffness": 2.0, "color": (0.12, 0.30, 0.06),
          "heads": 0.8, "head_color": (0.62, 0.62, 0.56), "head_size": 8.0,
-         "head_shape": "daisy"},
+         "head_shape": "daisy", "leaves": "rosette", "leaf_size": 0.3},
         {"name": "dry grass", "weight": 0.05, "length": 0.4, "length_variation": 0.08,
          "width": 0.006, "stiffness": 1.6, "color": (0.36, 0.30, 0.12),
-         "heads": 0.1, "head_color": (0.34, 0.28, 0.14), "head_size": 2.0},
+         "heads": 0.1, "head_color": (0.34, 0.28, 0.14), "head_size": 2.0, "leaves": "tuft",
+         "leaf_size": 0.35},
     ),
     "wild": (
         {"name": "tall grass", "weight": 0.5, "length": 0.8, "length_variation": 0.15,
-         "width": 0.01, "stiffness": 6.0, "color": (0.13, 0.30, 0.05)},
+         "width": 0.01, "stiffness": 6.0, "color": (0.13, 0.30, 0.05), "leaves": "tuft",
+         "leaf_size": 0.3},
         {"name": "reed", "weight": 0.2, "length": 1.2, "length_variation": 0.15,
          "width": 0.015, "stiffness": 14.0, "color": (0.18, 0.33, 0.08)},
         {"name": "dry stalks", "weight": 0.3, "length": 0.6, "length_variation": 0.12,

@@ -150,6 +150,12 @@ SPECIES_FIELDS: tuple[Param, ...] = (
     _p("", "plant_mode", "enum", "head", "How the species' own collection is drawn: a head riding each flowering "
        "stem's tip, or the whole plant bent along every stem by the wind", choices=("head", "plant"),
        label="Drawn As"),
+    _p("", "leaves", "enum", "none", "Short leaves at the foot of each stem, rocking with it: a grass tuft (narrow "
+       "arching blades), a rosette (broad leaves lying out: plantain, daisy, buttercup) or clover leaves; they "
+       "hide the soil as a real sward does, seen from above", choices=("none", "tuft", "rosette", "clover"),
+       label="Leaves"),
+    _p("", "leaf_size", "float", 0.45, "Length of the longest leaf at a stem's foot, as a share of the stem's "
+       "length", unit="x height", minimum=0.05, maximum=3.0, soft_max=1.5, label="Leaf Size"),
 )
 
 # Columns of one ``[[keep_out.shapes]]`` row: where no grass grows.

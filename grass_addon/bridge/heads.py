@@ -1,11 +1,13 @@
-"""Flowers and the artist's own plants in Blender: a Geometry Nodes modifier on the blade slots.
+"""Flowers, leaves and the artist's own plants in Blender: a Geometry Nodes modifier on the blade slots.
 
 The engine marks each stem that carries something on its first vertex (``heads.tip_marks``: the
-point attributes ``wg_head``: the species + 1, the size in metres, a turn about the stem, and
-``wg_stem``: the vertex's index); the field's node group ``Windgrass Heads`` (``fill_group``)
-makes a point per stem, puts that species' head on the stem's tip, turned to its last segment,
-or bends the species' own plant along the stem, and joins them to the strips. Blender builds them, on its threads, from
-the positions the engine wrote: nothing more is handed over per frame. A species' source is a
+point attributes ``wg_head``: the species + 1, the size in metres, a turn about the stem,
+``wg_stem``: the vertex's index, and ``wg_leaf``: its leaves' length); the field's node group
+``Windgrass Heads`` (``fill_group``) makes a point per stem, puts that species' head on the stem's
+tip, turned to its last segment, its leaves (``grass_addon/tufts.py``) on its root, turned to its
+first, or bends the species' own plant along the stem, and joins them to the strips. Blender
+builds them, on its threads, from the positions the engine wrote: nothing more is handed over per
+frame. A species' source is a
 Windgrass flower (``grass_addon/heads.py``: an object in no scene, coloured per vertex,
 ``wg_color``) or the artist's own collection (the species column ``plant``).
 
@@ -19,13 +21,16 @@ import bpy
 import numpy as np
 
 from .. import heads as shapes
+from .. import tufts
 from . import materials, owned
 from .registry import warn_once
 
 ATTR_HEAD = "wg_head"  # point vector of the blade slots: (species + 1, size m, turn rad) of a stem
 ATTR_STEM = "wg_stem"  # point float of the blade slots: the stem's first vertex (a colour attribute
 # of four read back from an Alembic cache crashed Blender 5.3: two plain attributes instead)
+ATTR_LEAF = "wg_leaf"  # point float of the blade slots: the longest leaf at a stem's foot (m; 0: none)
 ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
+ATTR_FOOT_DIR = "wg_foot_dir"  # (in the tree) the stem's first segment at its root
 ATTR_TIP = "wg_tip"  # (in the tree) the stem's tip
 ATTR_LOCAL = "wg_local"  # (in the tree) a plant's point where it is in its source
 ATTR_COLOR = "wg_color"  # point colour of a head mesh
@@ -153,6 +158,22 @@ class _Tree:
             out = hit if out is None else self.math("MAXIMUM", out, hit)
         return out
 
+    def store(self, geometry, name: str, data_type: str, value):
+        """``geometry`` with the point attribute ``name`` set to ``value`` (a socket)."""
+        n = self.node("GeometryNodeStoreNamedAttribute", data_type=data_type, domain="POINT")
+        n.inputs["Name"].default_value = name
+        self.link(geometry, n.inputs["Geometry"])
+        self.link(value, _socket(n.inputs, "Value", "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE"))
+        return n.outputs[0]
+
+    def sample_value(self, geometry, value, index):
+        """The float ``value`` of point ``index`` (a socket)."""
+        n = self.node("GeometryNodeSampleIndex", data_type="FLOAT", domain="POINT")
+        self.link(geometry, n.inputs["Geometry"])
+        self.link(value, _socket(n.inputs, "Value", "VALUE"))
+        self.link(index, n.inputs["Index"])
+        return _socket(n.outputs, "Value", "VALUE")
+
     def sample(self, geometry, value, index):
         """The position of point ``index`` (a socket)."""
         n = self.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
@@ -171,25 +192,29 @@ def _socket(sockets, name: str, kind: str):
 HEAD, PLANT = "head", "plant"  # how a species' source is drawn: on the tips, or bent along the stems
 
 
-def build_group(name: str, sources: list, segments: int, stems: int) -> bpy.types.GeometryNodeTree:
+def build_group(name: str, sources: list, segments: int, stems: int, leaves: list | None = None
+                ) -> bpy.types.GeometryNodeTree:
     """The node group drawing, for each species k with ``sources[k]`` = (``HEAD`` or ``PLANT``,
     an Object or a Collection) (None: nothing), that source on the stems whose ``wg_head`` species
-    is k + 1 (see ``fill_group``); ``segments``: the stems' n, ``stems``: how many a slot object holds."""
+    is k + 1, and ``leaves[k]`` (an Object, None: none) at their foot (see ``fill_group``);
+    ``segments``: the stems' n, ``stems``: how many a slot object holds."""
     tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    fill_group(tree, sources, segments, stems)
+    fill_group(tree, sources, segments, stems, leaves)
     return tree
 
 
-def fill_group(tree, sources: list, segments: int, stems: int) -> None:
+def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | None = None) -> None:
     """(Re)make ``tree``'s nodes. The strips come in as the engine wrote them: blade b's joint j
     at vertices 2 (n + 1) b + 2 j (left) and + 1 (right); a stem that carries something has
     ``wg_head`` (species + 1, size, turn, its first vertex) on its first vertex (a plant's on all
     of them: ``heads.tip_marks``). A point per stem (``stems``) reads it there, so the fields
     below are evaluated once per stem, never per vertex (a pass over the strip's vertices, Mesh
     to Points, cost 9 ms a frame on the Add-menu field). A ``HEAD`` is put on the stem's tip (the middle of
-    its two vertices), its +Z along the last segment, turned about it, ``size`` wide; a ``PLANT``
+    its two vertices), its +Z along the last segment, turned about it, ``size`` wide (a stem
+    marked for its leaves alone has size 0: no head); ``leaves[k]`` stands on the root, its +Z
+    along the first segment, turned about it, ``wg_leaf`` long; a ``PLANT``
     stands on the stem's root and is bent along it (``_bend_along``) and the stem's own strip
     is collapsed onto its root. Stems collapsed by the LOD (eq 9) have no segment: nothing is
     drawn there."""
@@ -199,43 +224,13 @@ def fill_group(tree, sources: list, segments: int, stems: int) -> None:
     mesh = group_in.outputs[0]
     n = int(segments)
     kind, _size, _turn, first = t.head()  # (per vertex: the plants' strips)
-    # a point per stem of the slot object (a Points node: no pass over the strip's vertices), its
-    # mark read from the stem's first vertex; the stems that carry nothing, or have no segment, go
-    stem = t.node("GeometryNodePoints")
-    stem.inputs["Count"].default_value = int(stems)
-    index = t.node("GeometryNodeInputIndex").outputs[0]
-    base = t.math("MULTIPLY", index, float(2 * (n + 1)))
-    mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
-    t.link(mesh, mark.inputs["Geometry"])
-    t.link(t.attribute(ATTR_HEAD, "FLOAT_VECTOR"), _socket(mark.inputs, "Value", "VECTOR"))
-    t.link(base, mark.inputs["Index"])
-    tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
-    direction = t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2))))
-    marked = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
-    marked.inputs["Name"].default_value = ATTR_HEAD
-    t.link(stem.outputs[0], marked.inputs["Geometry"])
-    t.link(_socket(mark.outputs, "Value", "VECTOR"), _socket(marked.inputs, "Value", "VECTOR"))
-    first_of = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT", domain="POINT")
-    first_of.inputs["Name"].default_value = ATTR_STEM
-    t.link(marked.outputs[0], first_of.inputs["Geometry"])
-    t.link(base, _socket(first_of.inputs, "Value", "VALUE"))
-    marked = first_of
-    store = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
-    store.inputs["Name"].default_value = ATTR_TIP_DIR
-    t.link(marked.outputs[0], store.inputs["Geometry"])
-    t.link(direction, _socket(store.inputs, "Value", "VECTOR"))
-    at_tip = t.node("GeometryNodeStoreNamedAttribute", data_type="FLOAT_VECTOR", domain="POINT")
-    at_tip.inputs["Name"].default_value = ATTR_TIP
-    t.link(store.outputs[0], at_tip.inputs["Geometry"])
-    t.link(tip, _socket(at_tip.inputs, "Value", "VECTOR"))
-    placed = t.node("GeometryNodeSetPosition")  # on its root (the plants stand there)
-    t.link(at_tip.outputs[0], placed.inputs["Geometry"])
-    t.link(t.middle(mesh, base), placed.inputs["Position"])
+    leaves = list(leaves or [])
+    placed = _stem_points(t, mesh, n, stems, any(leaf is not None for leaf in leaves))
     grown = t.math("GREATER_THAN", t.vmath("LENGTH", t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR"), None, out="Value"),
                    1e-6)
     carries = t.math("GREATER_THAN", t.head()[0], 0.5)
     roots = t.node("GeometryNodeDeleteGeometry", domain="POINT")
-    t.link(placed.outputs[0], roots.inputs["Geometry"])
+    t.link(placed, roots.inputs["Geometry"])
     t.link(t.math("LESS_THAN", t.math("MULTIPLY", grown, carries), 0.5), roots.inputs["Selection"])
     radius = t.node("GeometryNodeSetPointRadius")
     t.link(roots.outputs[0], radius.inputs["Points"])
@@ -252,6 +247,9 @@ def fill_group(tree, sources: list, segments: int, stems: int) -> None:
         t.link(t.middle(mesh, first), collapse.inputs["Position"])  # (first: per vertex, its stem's)
         strips = collapse.outputs[0]
     join = t.node("GeometryNodeJoinGeometry")
+    for k, leaf in reversed(list(enumerate(leaves))):
+        if leaf is not None:
+            t.link(_leaves(t, roots.outputs[0], k + 1, leaf), join.inputs[0])
     for k, source in reversed(list(enumerate(sources))):
         if source is None:
             continue
@@ -262,6 +260,36 @@ def fill_group(tree, sources: list, segments: int, stems: int) -> None:
             t.link(_instances(t, heads.outputs[0], k + 1, data), join.inputs[0])
     t.link(strips, join.inputs[0])  # (linked last: joined first, so the strips' vertices keep their ids)
     t.link(join.outputs[0], group_out.inputs[0])
+
+
+def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool):
+    """A point per stem of the slot object (a Points node: no pass over the strip's vertices) on
+    its root, with its mark read from the stem's first vertex (``wg_head``, ``wg_stem``), its tip
+    and last segment (``wg_tip``, ``wg_tip_dir``) and, where some species has ``leafy`` feet, its
+    leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``)."""
+    stem = t.node("GeometryNodePoints")
+    stem.inputs["Count"].default_value = int(stems)
+    index = t.node("GeometryNodeInputIndex").outputs[0]
+    base = t.math("MULTIPLY", index, float(2 * (n + 1)))
+    mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
+    t.link(mesh, mark.inputs["Geometry"])
+    t.link(t.attribute(ATTR_HEAD, "FLOAT_VECTOR"), _socket(mark.inputs, "Value", "VECTOR"))
+    t.link(base, mark.inputs["Index"])
+    tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
+    root = t.middle(mesh, base)
+    points = t.store(stem.outputs[0], ATTR_HEAD, "FLOAT_VECTOR", _socket(mark.outputs, "Value", "VECTOR"))
+    points = t.store(points, ATTR_STEM, "FLOAT", base)
+    if leafy:
+        points = t.store(points, ATTR_LEAF, "FLOAT", t.sample_value(mesh, t.attribute(ATTR_LEAF, "FLOAT"), base))
+        points = t.store(points, ATTR_FOOT_DIR, "FLOAT_VECTOR",
+                         t.vmath("SUBTRACT", t.middle(mesh, t.math("ADD", base, 2.0)), root))
+    points = t.store(points, ATTR_TIP_DIR, "FLOAT_VECTOR",
+                     t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2)))))
+    points = t.store(points, ATTR_TIP, "FLOAT_VECTOR", tip)
+    placed = t.node("GeometryNodeSetPosition")  # on its root (the plants stand there)
+    t.link(points, placed.inputs["Geometry"])
+    t.link(root, placed.inputs["Position"])
+    return placed.outputs[0]
 
 
 def _source_geometry(t: _Tree, source):
@@ -278,9 +306,10 @@ def _source_geometry(t: _Tree, source):
 
 
 def _instances(t: _Tree, points, kind: int, source):
-    """Species ``kind``'s heads: ``source`` on its points, turned to the stem, turned about it."""
-    mine_kind, _size, turn_angle, _first = t.head()
-    mine = t.any_of(mine_kind, [kind])
+    """Species ``kind``'s heads: ``source`` on its points that carry one (a size), turned to the
+    stem, turned about it."""
+    mine_kind, size, turn_angle, _first = t.head()
+    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", size, 0.0))
     direction = t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR")
     align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
     t.link(direction, align.inputs["Vector"])
@@ -297,6 +326,30 @@ def _instances(t: _Tree, points, kind: int, source):
     t.link(_source_geometry(t, source), place.inputs["Instance"])
     t.link(rotate.outputs[0], place.inputs["Rotation"])
     t.link(radius, place.inputs["Scale"])
+    return place.outputs[0]
+
+
+def _leaves(t: _Tree, roots, kind: int, source):
+    """Species ``kind``'s leaves: ``source`` (a unit tuft, ``tufts.leaf_mesh``) on the roots of its
+    stems that have leaves, its +Z along the stem's first segment (the tuft rocks with its
+    tiller), turned about it by the stem's facing, scaled by ``wg_leaf``."""
+    mine_kind, _size, turn_angle, _first = t.head()
+    length = t.attribute(ATTR_LEAF, "FLOAT")
+    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", length, 0.0))
+    align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
+    t.link(t.attribute(ATTR_FOOT_DIR, "FLOAT_VECTOR"), align.inputs["Vector"])
+    turn = t.node("FunctionNodeAxisAngleToRotation")
+    turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
+    t.link(turn_angle, turn.inputs["Angle"])
+    rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
+    t.link(align.outputs[0], rotate.inputs["Rotation"])
+    t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    place = t.node("GeometryNodeInstanceOnPoints")
+    t.link(roots, place.inputs["Points"])
+    t.link(mine, place.inputs["Selection"])
+    t.link(_source_geometry(t, source), place.inputs["Instance"])
+    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(length, place.inputs["Scale"])
     return place.outputs[0]
 
 
@@ -352,6 +405,7 @@ def _bend_along(t: _Tree, strips, roots, kind: int, source, n: int):
 
 
 ROLE_HEAD, ROLE_GROUP, ROLE_MATERIAL = owned.ROLE_HEAD, owned.ROLE_HEAD_GROUP, owned.ROLE_HEAD_MATERIAL
+ROLE_LEAVES = owned.ROLE_LEAVES
 
 
 def _key(k: int) -> str:
@@ -376,7 +430,7 @@ def remove(item) -> None:
     ``scene.remove_datablocks`` deletes the materials)."""
     reg = owned.registered(item)
     for key, data in reg.items():
-        if isinstance(data, bpy.types.Object) and data.get("wg_role") == ROLE_HEAD:
+        if isinstance(data, bpy.types.Object) and data.get("wg_role") in (ROLE_HEAD, ROLE_LEAVES):
             mesh = data.data
             bpy.data.objects.remove(data, do_unlink=True)
             if mesh is not None and mesh.users == 0:
@@ -385,11 +439,20 @@ def remove(item) -> None:
             bpy.data.node_groups.remove(data)
 
 
-def build(item, params, uid: str, base: str, stems: int):
-    """The field's heads and plants made anew (after ``remove``): a head object per species with
-    Windgrass flower meshes, the artist's collections as they are, and the node group that draws
-    them on the stems; None (and nothing made) when no species has any."""
+def build(item, params, uid: str, base: str, stems: int, leaf_material=None):
+    """The field's heads, leaves and plants made anew (after ``remove``): a head object per species
+    with Windgrass flower meshes, a leaves object per species with leaves (``leaf_material``: the
+    blades'), the artist's collections as they are, and the node group that draws them on the
+    stems; None (and nothing made) when no species has any."""
     rows = params.species()
+    leaves: list = [None] * len(rows)
+    for k, row in enumerate(rows):
+        if row.get("leaves", "none") in tufts.LEAF_SHAPES:
+            obj = _leaves_object(f"{base} {row['name'] or 'species'} leaves", row, params, leaf_material)
+            owned.tag(obj, uid, ROLE_LEAVES, k)
+            owned.tag(obj.data, uid, ROLE_LEAVES, k)
+            owned.record(item, owned.slot_key(ROLE_LEAVES, k), obj)
+            leaves[k] = obj
     kind = shapes.kinds(rows)
     sources: list = [None] * len(rows)
     material = None
@@ -404,9 +467,9 @@ def build(item, params, uid: str, base: str, stems: int):
             owned.tag(obj.data, uid, ROLE_HEAD, k)
             owned.record(item, _key(k), obj)
             sources[k] = (HEAD, obj)
-    if all(s is None for s in sources):
+    if all(s is None for s in sources + leaves):
         return None
-    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), stems)
+    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), stems, leaves)
     owned.tag(tree, uid, ROLE_GROUP)
     owned.record(item, ROLE_GROUP, tree)
     return tree
@@ -430,11 +493,47 @@ def _head_object(name: str, row, material) -> bpy.types.Object:
     return bpy.data.objects.new(mesh.name, mesh)
 
 
+def _leaves_object(name: str, row, params, material) -> bpy.types.Object:
+    """An object (in no scene: the modifier instances it) of a species' unit tuft of leaves, with
+    the blade material's UV maps: along the leaf, and its tint and shade (``_write_tints``)."""
+    m = tufts.leaf_mesh(row["leaves"])
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(m.vertices.tolist(), [], m.faces)
+    corners = _corner_vertices(mesh)
+    uv = mesh.uv_layers.new(name="UVMap")
+    uv.data.foreach_set("uv", np.stack([np.full(len(corners), 0.5, np.float32), m.v[corners]], axis=1).ravel())
+    for data_uv in (materials.UV_TINT_RG, materials.UV_TINT_BS):
+        mesh.uv_layers.new(name=data_uv, do_init=False)
+    _write_tints(mesh, m, row["color"], float(params.blade.dry_tips))
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), bool))
+    if material is not None:
+        mesh.materials.append(material)
+    mesh.update()
+    return bpy.data.objects.new(mesh.name, mesh)
+
+
+def _corner_vertices(mesh) -> np.ndarray:
+    corners = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", corners)
+    return corners
+
+
+def _write_tints(mesh, m, colour, dry: float) -> None:
+    """A leaves mesh's ``wg_tint_rg`` and ``wg_tint_bs`` per corner, as the blade strips carry
+    them (``frame.blade_tints``): the species' colour (straw on a dead leaf), each leaf's shade."""
+    corners = _corner_vertices(mesh)
+    rgb = m.tints(colour, dry)[corners]
+    mesh.uv_layers[materials.UV_TINT_RG].data.foreach_set("uv", np.ascontiguousarray(rgb[:, :2]).ravel())
+    bs = np.stack([rgb[:, 2], m.shade[corners]], axis=1).astype(np.float32)
+    mesh.uv_layers[materials.UV_TINT_BS].data.foreach_set("uv", bs.ravel())
+
+
 def write_marks(mesh, marks: np.ndarray) -> None:
-    """The engine's marks (``heads.tip_marks``, (vertices, 4)) into the slot mesh's ``wg_head``
-    (the first three) and ``wg_stem``."""
+    """The engine's marks (``heads.tip_marks``, (vertices, 5)) into the slot mesh's ``wg_head``
+    (the first three), ``wg_stem`` and ``wg_leaf``."""
     for name, kind, field, values in ((ATTR_HEAD, "FLOAT_VECTOR", "vector", marks[:, :3]),
-                                      (ATTR_STEM, "FLOAT", "value", marks[:, 3])):
+                                      (ATTR_STEM, "FLOAT", "value", marks[:, 3]),
+                                      (ATTR_LEAF, "FLOAT", "value", marks[:, 4])):
         attribute = mesh.attributes.get(name)
         if attribute is None or attribute.data_type != kind:
             if attribute is not None:
@@ -450,9 +549,17 @@ def attach(obj, tree) -> None:
 
 
 def update_colours(item, params) -> None:
-    """Each Windgrass head mesh in its species' head colour (a look edit: nothing rebuilt)."""
+    """Each Windgrass head mesh in its species' head colour, each leaves mesh in its species'
+    colour (a look edit: nothing rebuilt)."""
     rows = params.species()
     for obj in owned.registered(item).values():
+        if isinstance(obj, bpy.types.Object) and obj.get("wg_role") == ROLE_LEAVES and obj.data is not None:
+            k = int(obj.get("wg_slot", -1))
+            if 0 <= k < len(rows) and rows[k].get("leaves", "none") in tufts.LEAF_SHAPES:
+                m = tufts.leaf_mesh(rows[k]["leaves"])
+                if len(obj.data.vertices) == len(m.vertices) and materials.UV_TINT_RG in obj.data.uv_layers:
+                    _write_tints(obj.data, m, rows[k]["color"], float(params.blade.dry_tips))
+                    obj.data.update()
         if not isinstance(obj, bpy.types.Object) or obj.get("wg_role") != ROLE_HEAD or obj.data is None:
             continue
         k = int(obj.get("wg_slot", -1))

@@ -30,8 +30,9 @@ ROLE_PAINT_MAP = "paint_map"
 ROLE_HEAD = "head"  # a species' flower head object (in no scene: the heads' modifier draws it), key "head 003"
 ROLE_HEAD_GROUP = "head_group"  # the node group of the heads' modifier on the blade slots
 ROLE_HEAD_MATERIAL = "head_material"
+ROLE_LEAVES = "leaves"  # a species' leaves at its stems' foot (in no scene: the heads' modifier draws it), "leaves 003"
 ROLE_WIND_MAP = "wind_map"  # the wind the grass feels, for Blender's hair and cloth (in no scene: wind_force.py)
-IN_NO_SCENE = (ROLE_HEAD, ROLE_WIND_MAP)  # objects the field keeps outside its collection
+IN_NO_SCENE = (ROLE_HEAD, ROLE_LEAVES, ROLE_WIND_MAP)  # objects the field keeps outside its collection
 
 
 # Roles stored in ``wg_role`` of the datablocks of a field.
@@ -102,8 +103,9 @@ def _tagged(item) -> dict:
             found.setdefault(role if role == ROLE_GROUND else slot_key(role, int(obj.get("wg_slot", -1))), obj)
     for data in _owned(bpy.data.materials, uid) + _owned(bpy.data.images, uid) + _owned(bpy.data.node_groups, uid):
         found.setdefault(data.get("wg_role"), data)
-    for obj in _owned(bpy.data.objects, uid, ROLE_HEAD):  # (in no collection)
-        found.setdefault(slot_key(ROLE_HEAD, int(obj.get("wg_slot", -1))), obj)
+    for role in (ROLE_HEAD, ROLE_LEAVES):  # (in no collection)
+        for obj in _owned(bpy.data.objects, uid, role):
+            found.setdefault(slot_key(role, int(obj.get("wg_slot", -1))), obj)
     for obj in _owned(bpy.data.objects, uid, ROLE_WIND_MAP):
         found.setdefault(ROLE_WIND_MAP, obj)
     return found
@@ -121,7 +123,7 @@ def slot_key(role: str, index: int) -> str:
 
 def field_objects(item) -> list:
     """The field's own objects in its collection (never a user's tagged copies elsewhere; not the
-    flower heads' objects and the wind map, which are in no scene: ``bridge/heads.py`` and
+    flower heads' and leaves' objects and the wind map, which are in no scene: ``bridge/heads.py`` and
     ``bridge/wind_force.py`` make and remove them)."""
     return [d for d in registered(item).values() if isinstance(d, bpy.types.Object)
             and d.get("wg_role") not in IN_NO_SCENE]

@@ -198,7 +198,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
 
     blade_shape = slots.pool_shapes(grid, params)[0]
     stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
-    head_tree = heads.build(item, params, uid, base, stems)  # (None: no species draws a head or a plant)
+    head_tree = heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
     for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
         spec = _SlotTopology(grid, params, role)
         for i in range(spec.shape.objects):  # once per build, not per frame

@@ -49,20 +49,30 @@ def test_a_head_is_placed_on_the_tip_along_the_stem_and_as_wide_as_its_flower():
     assert np.allclose(spread, [0.03 * 0.5, 0.02 * 0.5], rtol=0.03)
 
 
-def test_the_marks_sit_on_the_first_vertex_of_each_stem_that_carries_a_flower_mesh():
+def test_the_marks_sit_on_the_first_vertex_of_each_stem_that_carries_a_flower_mesh_or_leaves():
     """Blender reads each stem's mark on its first vertex: the meadow's flowering daisies and
-    buttercups (their flowers' widths in metres, 1-5 cm), nothing on the grasses or elsewhere,
-    and each mark names that vertex."""
+    buttercups carry their flowers' widths in metres (1-5 cm), every stem of a species with
+    leaves its longest leaf (the species' leaf size times the stem's length), a stem of a species
+    with neither nothing; each mark names that vertex."""
     params = presets.apply_preset(schema.defaults(), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "field.blades_per_cell": 3})
+    rows = [dict(r) for r in params.species()]
+    rows[1]["leaves"] = "none"  # timothy: neither a flower mesh nor leaves
+    params = params.replace({"blade.species": rows})
     layout = build_layout(params)
-    marks = heads.tip_marks(layout, np.arange(layout.n_blocks)).reshape(-1, 2 * (layout.segments + 1), 4)
-    rows = params.species()
-    flowering = np.array([rows[k]["head_shape"] in ("daisy", "buttercup") for k in layout.blade_species]) \
-        & (layout.blade_flower > 0)
-    assert flowering.sum() > 10
-    assert np.array_equal(marks[:, 0, 0] > 0, flowering) and not marks[:, 1:].any()
-    assert np.array_equal(marks[flowering, 0, 0] - 1, layout.blade_species[flowering])
+    marks = heads.tip_marks(layout, np.arange(layout.n_blocks)).reshape(-1, 2 * (layout.segments + 1), 5)
+    kind = layout.blade_species
+    flowering = np.array([rows[k]["head_shape"] in ("daisy", "buttercup") for k in kind]) & (layout.blade_flower > 0)
+    leafy = kind != 1
+    assert flowering.sum() > 10 and (~leafy).sum() > 10
+    assert np.array_equal(marks[:, 0, 0] > 0, flowering | leafy) and not marks[:, 1:].any()
+    assert np.array_equal(marks[leafy, 0, 0] - 1, kind[leafy])
     assert 0.01 < marks[flowering, 0, 1].min() and marks[flowering, 0, 1].max() < 0.05
-    first = np.flatnonzero(flowering) * 2 * (layout.segments + 1)
-    assert np.array_equal(marks[flowering, 0, 3], first)
+    assert not marks[~flowering, 0, 1].any()
+    size = np.array([rows[k]["leaf_size"] for k in kind])
+    assert np.allclose(marks[leafy, 0, 4], size[leafy] * layout.blade_length[leafy], rtol=1e-6)
+    assert 0.03 < marks[leafy, 0, 4].min() and marks[leafy, 0, 4].max() < 0.4
+    first = np.flatnonzero(flowering | leafy) * 2 * (layout.segments + 1)
+    assert np.array_equal(marks[flowering | leafy, 0, 3], first)
+
+

@@ -242,7 +242,8 @@ def tip_marks(layout, local: np.ndarray) -> np.ndarray:
     kind = kinds(layout.params.species())[layout.blade_species[blades]]
     crown = (kind == HEAD) & (layout.blade_flower[blades] > 0.0)
     plant = kind == PLANT
-    leaf = tufts.leaf_lengths(layout, blades)
+    alive = None if layout.blade_alive is None else layout.blade_alive[blades]
+    leaf = tufts.leaf_lengths(layout.params.species(), layout.blade_species[blades], layout.blade_length[blades], alive)
     marked = crown | plant | (leaf > 0.0)
     size = np.where(plant, layout.blade_length[blades],
                     np.where(crown, layout.blade_flower[blades] * layout.blade_width[blades], 0.0))

@@ -36,7 +36,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from . import blade, edit_parts, meadow
+from . import blade, edit_parts, meadow, tufts
 from .blocks import Block, Species, make_block
 from .grid import FieldGrid
 from .schema import Params
@@ -221,16 +221,98 @@ def sward_look(params: Params, slopes) -> np.ndarray:
 def _sward_look(params: Params, slopes) -> np.ndarray:
     """Linear RGB (len(slopes), 3) of the sward as a ray descending with each slope s (rise over
     run, > 0) sees it, not yet scaled by how the scene lights a horizontal plane (see module
-    doc). Layer k between heights z_k < z_k+1 stops the ray with chance exp(-tau(z_k+1) / s) -
-    exp(-tau(z_k) / s); the floor shows where it gets through, exp(-tau(0) / s)."""
+    doc). Above height z the ray crosses D(z) = tau(z) / s + tau_h(z) of leaf and blade: their
+    area a horizontal ray sees (``sward_depth``) over the slope, plus their area a vertical ray
+    sees (``top_depth``: blades bent over, the leaves at the stems' foot lying out), once. Layer
+    k between heights z_k < z_k+1 stops the ray with chance exp(-D(z_k+1)) - exp(-D(z_k)) and
+    shows what it holds, in the colours of each part by how it faces the ray; the floor shows
+    where it gets through, exp(-D(0)). Light from 45 degrees up reaches z through
+    tau(z) / LIGHT_SLOPE + tau_h(z)."""
     slopes = np.maximum(np.atleast_1d(np.asarray(slopes, np.float64)), 1e-6)[:, None]
     edges = np.linspace(0.0, sward_top(params), LOOK_LAYERS + 1)
-    tau = sward_depth(params, edges)
-    colours = _layer_colours(params, edges)
-    meets = np.exp(-tau[1:][None] / slopes) - np.exp(-tau[:-1][None] / slopes)  # (slopes, layers)
-    lit = np.exp(-0.5 * (tau[1:] + tau[:-1]) / LIGHT_SLOPE)
-    floor = np.mean(floor_colours(params), axis=0) * np.exp(-tau[0] / LIGHT_SLOPE)
-    return meets @ (colours * lit[:, None]) + np.exp(-tau[0] / slopes) * floor
+    side, top, side_rgb, top_rgb = _layers(params, edges)
+    depth = side[None] / slopes + top[None]  # (slopes, edges)
+    meets = np.exp(-depth[:, 1:]) - np.exp(-depth[:, :-1])  # (slopes, layers)
+    d_side, d_top = side[:-1] - side[1:], top[:-1] - top[1:]  # (layers,)
+    seen_side, seen_top = d_side[None] / slopes, np.broadcast_to(d_top[None], meets.shape)
+    colours = ((seen_side[..., None] * side_rgb[None] + seen_top[..., None] * top_rgb[None])
+               / np.maximum(seen_side + seen_top, 1e-12)[..., None])  # (slopes, layers, 3)
+    light = side / LIGHT_SLOPE + top
+    lit = np.exp(-0.5 * (light[1:] + light[:-1]))
+    floor = np.mean(floor_colours(params), axis=0) * np.exp(-light[0])
+    return np.einsum("sl,slc->sc", meets * lit[None], colours) + np.exp(-depth[:, :1]) * floor
+
+
+def _layers(params: Params, edges: np.ndarray):
+    """(side (E,), top (E,), side colours (L, 3), top colours (L, 3)) of the sward at the heights
+    ``edges``: the area above each that a horizontal and a vertical ray sees (per square metre of
+    ground: the blades' and the leaves' at the stems' foot, ``leaf_layers``), and the mean colour
+    of what each layer between two edges shows either ray."""
+    side, top = sward_depth(params, edges), top_depth(params, edges)
+    blade_rgb = _layer_colours(params, edges)
+    leaf_side, leaf_top, leaf_side_rgb, leaf_top_rgb = leaf_layers(params, edges)
+
+    def mixed(blade_depth, leaf_depth, leaf_rgb):
+        a, b = blade_depth[:-1] - blade_depth[1:], leaf_depth[:-1] - leaf_depth[1:]
+        rgb = leaf_rgb[:-1] - leaf_rgb[1:]
+        return (a[:, None] * blade_rgb + rgb) / np.maximum(a + b, 1e-12)[:, None]
+
+    return (side + leaf_side, top + leaf_top, mixed(side, leaf_side, leaf_side_rgb),
+            mixed(top, leaf_top, leaf_top_rgb))
+
+
+def top_depth(params: Params, heights: np.ndarray) -> np.ndarray:
+    """tau_h(z): the blades' area above each height z (m) that a vertical ray sees, per square
+    metre of ground: each segment's width times its run (its length times sin tilt) at rest."""
+    z = np.asarray(heights, np.float64)
+    block = sample_blades(params)
+    if block.blade_length.size == 0:
+        return np.zeros_like(z)
+    ground = block.cell_center.shape[0] * float(params.field.cell_size) ** 2
+    low, high, seen = _segment_spans(params, block)
+    tilt = block.blade_rest_tilt.astype(np.float64)
+    run = seen * np.abs(np.tan(np.minimum(tilt, 1.5)))  # width * rise * tan(tilt) = width * run
+    return _area_above(low, high, run, z) * (np.pi / 2.0) / ground  # (_area_above: 2/pi of what it sums)
+
+
+def leaf_layers(params: Params, edges: np.ndarray):
+    """The leaves at the sample stems' foot (``tufts``) as the sward's layers count them: (side
+    (E,), top (E,)) their area above each of ``edges`` that a horizontal and a vertical ray sees
+    per square metre of ground, and (E, 3) each of those areas times its colour (the blade
+    material's: the species' colour, straw on a dead leaf, each leaf's shade), summed."""
+    z = np.asarray(edges, np.float64)
+    out = np.zeros((2, len(z))), np.zeros((2, len(z), 3))
+    block = sample_blades(params)
+    rows = params.species()
+    if block.blade_length.size == 0 or not tufts.leafy(rows).any():
+        return out[0][0], out[0][1], out[1][0], out[1][1]
+    ground = block.cell_center.shape[0] * float(params.field.cell_size) ** 2
+    kind = block.blade_species.astype(np.int64)
+    length = tufts.leaf_lengths(rows, kind, block.blade_length, block.blade_alive).astype(np.float64)
+    dry = min(1.0, 4.0 * float(params.blade.dry_tips))
+    base = np.asarray(BLADE_BASE_COLOUR, np.float64)
+    for k, row in enumerate(rows):
+        mine = (kind == k) & (length > 0.0)
+        if row.get("leaves", "none") not in tufts.LEAF_SHAPES or not mine.any():
+            continue
+        p = tufts.profile(row["leaves"], GRADIENT_END, SHADE_LOW, SHADE_SPAN)
+        size = length[mine]
+        at = z[None, :] / size[:, None]  # (stems, E) in each tuft's unit frame
+        colour = np.asarray(row["color"], np.float64)
+        tips = (colour, colour + (np.asarray(tufts.STRAW) - colour) * dry)
+        for view, (area, part_base, part_tip) in enumerate(((p.side, p.side_base, p.side_tip),
+                                                            (p.top, p.top_base, p.top_tip))):
+            for state in (0, 1):  # live, dead
+                out[0][view] += _summed(area[state], at, p.heights, size) / ground
+                out[1][view] += (_summed(part_base[state], at, p.heights, size)[:, None] * base
+                                 + _summed(part_tip[state], at, p.heights, size)[:, None] * tips[state]) / ground
+    return out[0][0], out[0][1], out[1][0], out[1][1]
+
+
+def _summed(values: np.ndarray, at: np.ndarray, heights: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """(E,) a unit tuft's tabulated ``values`` (above each of ``heights``) at the heights ``at``
+    (stems, E) of each stem's frame, scaled to its tuft (areas grow with its size squared), summed."""
+    return (np.interp(at, heights, values, right=0.0) * (size * size)[:, None]).sum(axis=0)
 
 
 def _layer_colours(params: Params, edges: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ times the stem's length (``marks``). The strips' level of detail (eq 9) takes a 
 stem.
 
 Shapes, after the plants of a hay meadow:
-  * ``tuft``: a grass tussock's basal leaves, 8 narrow pointed blades arching out and over all
+  * ``tuft``: a grass tussock's basal leaves, 10 narrow pointed blades arching out and over all
     round the root (Poa, Festuca, Dactylis); one of them straw-coloured where the meadow's tips are
     dry (``blade.dry_tips``): the dead leaves at a tussock's foot;
   * ``rosette``: broad spoon-shaped leaves lying out flat (plantain, ox-eye daisy, buttercup's
@@ -43,6 +43,7 @@ class LeafMesh:
     v: np.ndarray  # (V,) float32: 0 at the leaf's foot .. 1 at its tip
     dead: np.ndarray  # (V,) bool: a dead (straw) leaf
     shade: np.ndarray  # (V,) float32: 0..1, the leaf's hue and value shade
+    leaf: np.ndarray  # (V,) int32: which leaf (a clover's stalk and its leaflets are one)
 
     def tints(self, colour, dry: float) -> np.ndarray:
         """(V, 3) float32 linear RGB: ``colour`` (the species'), straw on the dead leaves where the
@@ -59,11 +60,14 @@ class _Builder:
         self.v: list = []
         self.dead: list = []
         self.shade: list = []
+        self.leaf: list = []
+        self.leaves = 0  # the leaf being built is number leaves - 1
 
     def strip(self, centre: np.ndarray, side: np.ndarray, widths: np.ndarray, v: np.ndarray, dead: bool,
               shade: float) -> None:
         """A leaf as a strip: joints ``centre`` (m + 1, 3), unit ``side`` vectors (m + 1, 3), full
         ``widths`` (m + 1,); a joint of width 0 is one vertex (a pointed tip)."""
+        self.leaves += 1
         base = len(self.verts)
         left = centre - 0.5 * widths[:, None] * side
         right = centre + 0.5 * widths[:, None] * side
@@ -82,7 +86,8 @@ class _Builder:
         assert len(self.verts) > base
 
     def fan(self, centre: np.ndarray, rim: np.ndarray, v_centre: float, v_rim, shade: float, shade_rim) -> None:
-        """A flat leaflet: triangles from ``centre`` (3,) to consecutive points of ``rim`` (k, 3)."""
+        """A flat leaflet of the last leaf: triangles from ``centre`` (3,) to consecutive points of
+        ``rim`` (k, 3)."""
         base = len(self.verts)
         self.verts.append(centre)
         self._per_vertex(1, v_centre, False, shade)
@@ -96,10 +101,12 @@ class _Builder:
         self.v += [float(v)] * count
         self.dead += [bool(dead)] * count
         self.shade += [float(shade)] * count
+        self.leaf += [self.leaves - 1] * count
 
     def mesh(self) -> LeafMesh:
         return LeafMesh(np.asarray(self.verts, np.float32).reshape(-1, 3), self.faces,
-                        np.asarray(self.v, np.float32), np.asarray(self.dead, bool), np.asarray(self.shade, np.float32))
+                        np.asarray(self.v, np.float32), np.asarray(self.dead, bool), np.asarray(self.shade, np.float32),
+                        np.asarray(self.leaf, np.int32))
 
 
 def _arched(azimuth: float, length: float, tilt0: float, tilt1: float, segments: int, foot=(0.0, 0.0, 0.0)):
@@ -113,7 +120,7 @@ def _arched(azimuth: float, length: float, tilt0: float, tilt1: float, segments:
     return joints, np.array([-np.sin(azimuth), np.cos(azimuth), 0.0])
 
 
-def tuft(leaves: int = 8, segments: int = 4) -> LeafMesh:
+def tuft(leaves: int = 10, segments: int = 4) -> LeafMesh:
     """A grass tussock's basal leaves: narrow (5 % of the longest leaf's length), pointed, rising
     15-40 degrees from the vertical and arching over to 70-110 degrees, their feet up to 6 % out
     from the root (a tussock's tillers), all round it; the last one dead."""
@@ -190,16 +197,15 @@ def leafy(rows) -> np.ndarray:
     return np.array([r.get("leaves", "none") in LEAF_SHAPES for r in rows], dtype=bool)
 
 
-def leaf_lengths(layout, blades: np.ndarray) -> np.ndarray:
-    """(blades,) float32: the longest leaf of each stem's tuft (m): ``leaf_size`` times the stem's
-    length; 0 where its species has none or the blade does not grow (paint)."""
-    rows = layout.params.species()
-    kind = layout.blade_species[blades]
+def leaf_lengths(rows, kind: np.ndarray, length: np.ndarray, alive: np.ndarray | None = None) -> np.ndarray:
+    """(blades,) float32: the longest leaf of each stem's tuft (m): its species' (``kind`` into the
+    table ``rows``) ``leaf_size`` times the stem's ``length``; 0 where its species has none or the
+    blade does not grow (``alive`` false: paint)."""
     size = np.array([r.get("leaf_size", 0.0) if r.get("leaves", "none") in LEAF_SHAPES else 0.0 for r in rows],
                     np.float32)
-    out = size[kind] * layout.blade_length[blades]
-    if layout.blade_alive is not None:
-        out = np.where(layout.blade_alive[blades], out, np.float32(0.0))
+    out = size[np.asarray(kind, np.int64)] * np.asarray(length, np.float32)
+    if alive is not None:
+        out = np.where(alive, out, np.float32(0.0))
     return out.astype(np.float32)
 
 
@@ -214,3 +220,53 @@ def area_from_above(mesh: LeafMesh) -> float:
     tri = mesh.vertices[triangles(mesh)].astype(np.float64)
     a, b = tri[:, 1, :2] - tri[:, 0, :2], tri[:, 2, :2] - tri[:, 0, :2]
     return float(0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum())
+
+
+# --------------------------------------------------------------------------------------------
+# The leaves as the far grass's look counts them (sward.py)
+
+PROFILE_HEIGHTS = 129  # heights of the unit tuft at which ``profile`` tabulates what lies above
+
+
+@dataclass(frozen=True)
+class LeafProfile:
+    """What lies above each of ``heights`` (the unit tuft's frame, 0 .. its top) of a shape's
+    leaves, live ``[0]`` and dead ``[1]``: ``side`` the leaf area a horizontal ray sees (averaged
+    over its directions: |n_xy| 2/pi of each triangle's area, as ``sward.sward_depth`` counts a
+    blade's), ``top`` the area a vertical ray sees (|n_z| of it); each with the blade material's
+    colour split as ``base`` and ``tip`` shares (its colour is base_colour * base + tip_colour *
+    tip: ``sward.colour_ramp`` at the vertices' v, times their value shade)."""
+
+    heights: np.ndarray  # (H,)
+    side: np.ndarray  # (2, H)
+    top: np.ndarray  # (2, H)
+    side_base: np.ndarray
+    side_tip: np.ndarray
+    top_base: np.ndarray
+    top_tip: np.ndarray
+
+
+def profile(shape: str, ramp_end: float, shade_low: float, shade_span: float) -> LeafProfile:
+    """The unit tuft of ``shape`` tabulated for the far grass (``LeafProfile``); ``ramp_end``,
+    ``shade_low`` and ``shade_span``: the blade material's gradient and value shade
+    (``sward.GRADIENT_END``, ``SHADE_LOW``, ``SHADE_SPAN``). Each triangle's area above a height
+    is its share above it (between its lowest and highest corners, evenly)."""
+    m = leaf_mesh(shape)
+    ids = triangles(m)
+    tri = m.vertices[ids].astype(np.float64)
+    cross = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    side = np.hypot(cross[:, 0], cross[:, 1]) * (2.0 / np.pi)
+    top = np.abs(cross[:, 2])
+    u = np.clip(m.v[ids].astype(np.float64) / ramp_end, 0.0, 1.0)
+    tip = (u * u * (3.0 - 2.0 * u) * (shade_low + shade_span * m.shade[ids])).mean(axis=1)
+    base = (shade_low + shade_span * m.shade[ids]).mean(axis=1) - tip
+    low, high = tri[:, :, 2].min(axis=1), tri[:, :, 2].max(axis=1)
+    heights = np.linspace(0.0, float(high.max()), PROFILE_HEIGHTS)
+    above = np.clip((high[None] - heights[:, None]) / np.maximum(high - low, 1e-9)[None], 0.0, 1.0)  # (H, T)
+    dead = m.dead[ids[:, 0]]
+
+    def split(weights):
+        return np.stack([above[:, ~dead] @ weights[~dead], above[:, dead] @ weights[dead]])
+
+    return LeafProfile(heights, split(side), split(top), split(side * base), split(side * tip), split(top * base),
+                       split(top * tip))

@@ -439,6 +439,15 @@ def remove(item) -> None:
             bpy.data.node_groups.remove(data)
 
 
+def sources_key(params) -> str:
+    """What the heads' modifier draws for each species (its kind, head shape, Own Plant and how
+    it is drawn, leaves): the field's heads are made again when it changes."""
+    rows = params.species()
+    kind = shapes.kinds(rows)
+    return repr([(int(kind[k]), r["head_shape"], r["plant"], r["plant_mode"], r.get("leaves", "none"))
+                 for k, r in enumerate(rows)])
+
+
 def build(item, params, uid: str, base: str, stems: int, leaf_material=None):
     """The field's heads, leaves and plants made anew (after ``remove``): a head object per species
     with Windgrass flower meshes, a leaves object per species with leaves (``leaf_material``: the

@@ -55,6 +55,8 @@ def apply_settings(scene, item, force: bool = False) -> None:
             forget_slots(scene, item)
         field_scene.leave_out_of_files(field_scene.slot_blocks(item))  # (and so are copies of them)
         refill_ground(scene, item, params)  # and its painted ground grid emptied
+        if field_scene.refresh_heads(item, params):  # a head shape, leaves or an Own Plant edited
+            forget_slots(scene, item)
         field_scene.update_field_materials(item, params, scene)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:

@@ -196,9 +196,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
         if "wg_terrain" in coll and heightfield is None and maps.terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    blade_shape = slots.pool_shapes(grid, params)[0]
-    stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
-    head_tree = heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
+    head_tree = _build_heads(item, params, uid, base, blade_mat)
     for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
         spec = _SlotTopology(grid, params, role)
         for i in range(spec.shape.objects):  # once per build, not per frame
@@ -216,6 +214,36 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     coll[owned.TOPOLOGY] = topology(params, heightfield, painted)
     update_field_materials(item, params, scene)
     return coll
+
+
+HEADS_KEY = "wg_heads"  # the collection's custom property: heads.sources_key its heads' modifier draws
+
+
+def _build_heads(item, params, uid: str, base: str, blade_mat):
+    """The heads' and leaves' objects and node group for ``params`` (None: no species has any)."""
+    blade_shape = slots.pool_shapes(FieldGrid.of(params), params)[0]
+    stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
+    item.collection[HEADS_KEY] = heads.sources_key(params)
+    return heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
+
+
+def refresh_heads(item, params) -> bool:
+    """Make the field's heads, leaves and plants again when what its species carry changed (a
+    head shape, leaves, an Own Plant: ``heads.sources_key``), its slot objects kept; returns
+    whether it did."""
+    coll = item.collection
+    if coll is None or coll.get(HEADS_KEY) == heads.sources_key(params):
+        return False
+    blades = owned.slot_objects(item, owned.ROLE_BLADES).values()
+    for obj in blades:
+        for mod in [m for m in obj.modifiers if m.type == "NODES" and m.name == heads.MODIFIER]:
+            obj.modifiers.remove(mod)
+    heads.remove(item)
+    tree = _build_heads(item, params, coll["wg_uid"], coll.name, owned.registered(item).get(owned.ROLE_BLADE_MATERIAL))
+    if tree is not None:
+        for obj in blades:
+            heads.attach(obj, tree)
+    return True
 
 
 def topology(params, heightfield, painted: bool) -> str:

@@ -4,7 +4,7 @@ sward's."""
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import atlas, heads, meadow, presets, schema, sward
+from windgrass.grass_addon import atlas, heads, meadow, presets, schema, sward, tufts
 from windgrass.grass_addon.grid import FieldGrid
 
 
@@ -180,11 +180,30 @@ def test_the_sward_looks_darker_the_steeper_it_is_seen(params):
     assert np.all(look[0] <= 1.3 * palette.max(axis=0))
     assert np.all(look[0] >= 0.5 * np.minimum(tip, palette.min(axis=0)))
     floor = 0.5 * (np.asarray(sward.THATCH_COLOUR) + np.asarray(sward.LITTER_COLOUR))
-    assert np.all(look[-1] <= floor)  # straight down: the floor, in the blades' shade
+    if not tufts.leafy(params.species()).any():  # straight down: mostly the floor, in the blades' shade
+        assert np.all(look[-1] <= 1.25 * floor) and look[-1][0] < look[0][0]
+    else:  # straight down: the leaves at the stems' foot, in the blades' shade, green
+        assert look[-1][1] > max(look[-1][0], look[-1][2]) and look[-1][1] > floor[1]
     assert luminance[2] < 0.75 * luminance[0]  # a tenth's slope already sees much deeper
     # more blades per cell hide more of the floor and the depths: a denser sward looks lighter
     dense = sward.sward_look(params.replace({"field.blades_per_cell": 2 * params.field.blades_per_cell}), [0.3])
     assert dense[0] @ np.array([0.2126, 0.7152, 0.0722]) > luminance[3]
+
+
+def test_from_above_a_meadow_with_leaves_at_its_stems_foot_shows_them_not_its_floor():
+    """The floor's share in the look straight down through the far canopy (what the leaves and
+    blades above it leave of it): the meadow preset with its tufts and rosettes under 15 % (12 %;
+    its field rendered from 1.3 m: 12 %, tests/blender/test_leaves.py); the same sward without
+    leaves over half (92 %; rendered: 81 %); the leaves make the view from above greener."""
+    leafy = presets.apply_preset(schema.defaults(), "meadow")
+    bare = leafy.replace({"blade.species": [dict(r, leaves="none") for r in leafy.species()]})
+    shares = []
+    for p in (bare, leafy):
+        side, top, _, _ = sward._layers(p, np.linspace(0.0, sward.sward_top(p), sward.LOOK_LAYERS + 1))
+        shares.append(float(np.exp(-top[0] - side[0] / 1e4)))
+    assert shares[1] < 0.15 and shares[0] > 0.5, shares
+    green = [sward.sward_look(p, [2.0])[0] for p in (bare, leafy)]
+    assert green[1][1] > green[0][1] and green[1][1] / green[1][0] > green[0][1] / green[0][0]
 
 
 def _ray_blocked(params, exit_z: float, slope: float, rays: int, rng) -> float:
@@ -348,7 +367,8 @@ def test_sward_look_is_what_rays_from_above_meet(params, slope):
     themselves; each takes the blade material's colour where it first meets a blade (with the
     blade's shade), lit by the light that reaches that height (exp(-tau(z) / LIGHT_SLOPE)), or
     the floor's where it meets none. Their mean is ``sward_look``'s colour."""
-    params = params.replace({"field.cells_per_block": 4})
+    params = params.replace({"field.cells_per_block": 4,  # (the blades alone: their leaves are not traced)
+                             "blade.species": [dict(r, leaves="none") for r in params.species()]})
     rng = np.random.default_rng(11)
     stopped, z, blade, v = _trace(params, 0.0, slope, 1600, rng)  # (heads make the colours vary more)
     block = sward.sample_blades(params)

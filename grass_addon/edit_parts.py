@@ -44,7 +44,7 @@ _PART_OF: dict[str, str] = {
     **{f"simulation.{k}": PHYSICS for k in ("sub_steps", "preroll", "epoch")},
     **{f"interaction.{k}": PHYSICS for k in ("recovery", "tolerance")},
     **{f"lod.{k}": LOD for k in ("blade_near", "blade_far", "card_near", "card_far", "card_width",
-                                  "viewport_amount")},
+                                  "viewport_amount", "screen_size")},
     "field.floor": LOOK,
     **{f"render.{k}": LOOK for k in ("sun_elevation", "sun_azimuth", "haze_distance", "haze_color")},
     **{f"render.{k}": RENDER for k in ("engine", "samples", "resolution_x", "resolution_y", "frame_end",

@@ -32,7 +32,7 @@ from .errors import ParameterError
 from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
-from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, views
+from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, screen_scale, views
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
@@ -105,6 +105,7 @@ class GrassField:
             self.notice = (f"the field has {cells:,} cells, too many to simulate whole without a camera; "
                            f"the blocks within lod.card_far ({params.lod.card_far:g} m) of its centre are used")
         self._viewed = self.whole
+        self._scale = 1.0  # the views' screen scale of the LOD distances (``lod_scale``)
         self.layout: FieldLayout = layout
         self.wind = WindField(layout, params, keys=wind_keys)
         self._wind_keys = wind_keys
@@ -222,7 +223,7 @@ class GrassField:
         found = []
         for cam in cams:
             eye = camera_eye(cam)
-            ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far + reach + margin)
+            ids = self.grid.blocks_near(eye[:2], self.params.lod.card_far * self._scale + reach + margin)
             if ids.size == 0:
                 continue
             z = self._z_ranges(ids)
@@ -247,6 +248,7 @@ class GrassField:
         every needed block and is not much larger, so a moving camera changes it every few frames.
         ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
         self._viewed = True
+        self._scale = self.lod_scale(camera)
         needed = self.blocks_for(camera)
         current = self.layout.block_ids
         if np.array_equal(needed, current):
@@ -491,7 +493,7 @@ class GrassField:
         if self.interaction is None or not self.params.lod.enabled:
             return None
         eyes = [camera_eye(cam) for cam in views(cameras)]
-        return self.interaction.trail_map(frame, eyes, float(self.params.lod.card_near))
+        return self.interaction.trail_map(frame, eyes, float(self.params.lod.card_near) * self._scale)
 
     def wind_map(self, frame: int) -> tuple[wind_map.MapGrid, np.ndarray]:
         """The wind the grass feels at ``frame`` on a grid over the window of blocks, at half the
@@ -514,8 +516,48 @@ class GrassField:
 
     def lod(self, camera) -> LodWeights:
         """Eqs 7-11 per cell and culling per block for one camera or several (all geometry when
-        camera is None)."""
-        return lod_weights(self.layout, camera, self.params)
+        camera is None), the distances scaled for their screens (``lod_scale``, found by ``view``)."""
+        return lod_weights(self.layout, camera, self.params, self._scale)
+
+    def lod_scale(self, camera) -> float:
+        """The views' screen scale of the LOD distances (``lod.screen_scale``), lowered until the
+        blocks they see within the scaled blade and card ranges fit the pools' positions and the
+        window the block cache: the detail a person sees, at a bounded cost. Depends on the views
+        and the settings alone."""
+        cams = views(camera)
+        scale = screen_scale(cams, self.params)
+        if scale <= 1.0:
+            return 1.0
+        lod, reach = self.params.lod, block_reach(self.params)[0]
+        distance = self._seen_distances(cams, lod.card_far * scale + reach)
+        room = self.cache.capacity() // 2  # (the window's margin and the blocks kept around it)
+        for far, positions in ((lod.blade_far, self.shapes[BLADES].positions),
+                               (lod.card_far, min(self.shapes[CARDS].positions, room))):
+            if far > 0.0 and len(distance) > positions and distance[positions] < far * scale:
+                scale = float(distance[positions]) / far  # (the nearest ``positions`` blocks: those nearer)
+        return max(1.0, scale)
+
+    def _seen_distances(self, cams, radius: float) -> np.ndarray:
+        """(m,) ascending: the distance from the nearest eye to each block some view sees within
+        ``radius`` of its eye (its ground box's nearest point, as ``lod._block_distance``)."""
+        found_ids, found_d = [np.zeros(0, np.int64)], [np.zeros(0)]
+        for cam in cams:
+            eye = camera_eye(cam)
+            ids = self.grid.blocks_near(eye[:2], radius)
+            if ids.size == 0:
+                continue
+            ids = ids[block_visible(self.grid.block_bounds(ids), self._z_ranges(ids), cam, self.params)]
+            b, z = self.grid.block_bounds(ids), self._z_ranges(ids)
+            found_ids.append(ids)
+            found_d.append(np.sqrt((np.clip(eye[0], b[:, 0], b[:, 2]) - eye[0]) ** 2
+                                   + (np.clip(eye[1], b[:, 1], b[:, 3]) - eye[1]) ** 2
+                                   + (np.clip(eye[2], z[:, 0], z[:, 1]) - eye[2]) ** 2))
+        ids, d = np.concatenate(found_ids), np.concatenate(found_d)
+        if len(cams) > 1 and ids.size:  # a block several views see: its nearest eye's
+            order = np.lexsort((d, ids))
+            ids, d = ids[order], d[order]
+            d = d[np.concatenate([[True], ids[1:] != ids[:-1]])]
+        return np.sort(d)
 
     def all_blocks(self) -> np.ndarray:
         """Every block of the window, as local ids 0 .. n_blocks-1."""

@@ -20,6 +20,12 @@ to the tallest blade or card standing on its highest ground, so culling is conse
 
 Several views at once (the 3D views an artist has open): a cell's distance is that to the nearest
 eye, a block is visible when any view sees it (``views``).
+
+The distances are chosen by how large a blade is on screen (``screen_scale``): those of the
+settings are right for an image REFERENCE_PIXELS wide at REFERENCE_FOV (a blade of the schema's
+width is about a pixel wide at blade_near); a view with more pixels per radian (a 4K frame, a long
+lens) scales all four by its focal length in pixels over the reference's, up to SCREEN_SCALE_MAX
+and never below 1 (``GrassField`` lowers it further to what its pools hold).
 """
 
 from __future__ import annotations
@@ -33,6 +39,9 @@ from .blocks import Species
 from .errors import ParameterError
 
 PERSPECTIVE, ORTHOGRAPHIC, PANORAMIC = "PERSP", "ORTHO", "PANO"
+REFERENCE_PIXELS, REFERENCE_FOV = 960, math.radians(55.0)  # the image the LOD distances are set for
+REFERENCE_FOCAL = 0.5 * REFERENCE_PIXELS / math.tan(0.5 * REFERENCE_FOV)  # its focal length in pixels (922)
+SCREEN_SCALE_MAX = 4.0  # the LOD distances grow with the screen at most this much
 
 
 @dataclass
@@ -43,7 +52,8 @@ class Camera:
     fov_x: horizontal field of view in radians; aspect: image width / height. ``projection``:
     PERSP (a pinhole), ORTHO (``ortho_width``: the image's width in metres; LOD distances are taken
     from ``position``) or PANO (every direction: nothing is culled by direction). ``shift``: the
-    lens shift (x, y) as Blender gives it, in units of the image's larger side.
+    lens shift (x, y) as Blender gives it, in units of the image's larger side. ``pixels``: the
+    image's width in pixels (0: not known; the LOD distances are then the settings').
     """
 
     position: np.ndarray
@@ -54,13 +64,22 @@ class Camera:
     projection: str = PERSPECTIVE
     ortho_width: float = 0.0
     shift: tuple[float, float] = (0.0, 0.0)
+    pixels: float = 0.0
 
     @classmethod
-    def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0)) -> Camera:
+    def look_at(cls, position, target, fov_x: float, aspect: float = 16.0 / 9.0, up=(0.0, 0.0, 1.0),
+                pixels: float = 0.0) -> Camera:
         """Camera at ``position`` looking at ``target`` (headless scripts and tests)."""
         position = np.asarray(position, dtype=np.float64)
         return cls(position, np.asarray(target, dtype=np.float64) - position,
-                   np.asarray(up, dtype=np.float64), float(fov_x), float(aspect))
+                   np.asarray(up, dtype=np.float64), float(fov_x), float(aspect), pixels=float(pixels))
+
+    def focal_pixels(self) -> float:
+        """Pixels per radian at the image's centre (its width over 2 tan(fov_x / 2)); 0 when the
+        width is not known or the view is not a pinhole's."""
+        if self.projection != PERSPECTIVE or not self.pixels > 0.0 or not 0.0 < self.fov_x < math.pi:
+            return 0.0
+        return 0.5 * float(self.pixels) / math.tan(0.5 * self.fov_x)
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Orthonormal (forward, right, up) of the view."""
@@ -118,6 +137,7 @@ class LodWeights:
     blade_count: np.ndarray  # (n_cells,) int32: N, eq 9
     block_visible: np.ndarray  # (n_blocks,) bool: the block's box meets the view frustum
     block_distance: np.ndarray  # (n_blocks,) float32: eye to the nearest point of the block's ground box
+    scale: float = 1.0  # the screen's scale of the LOD distances (``screen_scale``)
 
 
 def lod_fewer(lod: LodWeights, amount: float) -> LodWeights:
@@ -126,6 +146,25 @@ def lod_fewer(lod: LodWeights, amount: float) -> LodWeights:
     eq 7 weighs by distance, not by N, are those of the full field."""
     count = np.floor(lod.blade_count * np.float32(amount) + np.float32(0.5)).astype(np.int32)
     return replace(lod, blade_count=count)
+
+
+def screen_scale(camera, params) -> float:
+    """How much the views' screens scale the LOD distances: the largest focal length in pixels of
+    ``camera`` (one ``Camera``, several or None) over REFERENCE_FOCAL, within 1 ..
+    SCREEN_SCALE_MAX; 1 with ``lod.screen_size`` off, LOD off or no known image width."""
+    if not (params.lod.enabled and params.lod.screen_size):
+        return 1.0
+    focal = max((cam.focal_pixels() for cam in views(camera)), default=0.0)
+    return float(min(SCREEN_SCALE_MAX, max(1.0, focal / REFERENCE_FOCAL)))
+
+
+def scaled(params, scale: float):
+    """``params`` with the four LOD distances times ``scale`` (itself when 1)."""
+    if scale == 1.0:
+        return params
+    lod = params.lod
+    return params.replace({f"lod.{k}": float(getattr(lod, k)) * scale
+                           for k in ("blade_near", "blade_far", "card_near", "card_far")})
 
 
 def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:
@@ -164,15 +203,16 @@ def views(camera) -> list[Camera]:
     return list(camera)
 
 
-def lod_weights(layout, camera, params=None) -> LodWeights:
+def lod_weights(layout, camera, params=None, scale: float = 1.0) -> LodWeights:
     """Eqs 7-11 for every cell of ``layout`` and culling of its blocks (vectorised).
 
     ``camera``: a ``Camera``, several (their nearest eye sets each cell's distance, a block is
     visible when one of them sees it) or None. No camera or ``lod.enabled`` false: every blade is
     geometry (K_g = 1, N = num, K_b = K_t = 0) and every block is visible. Each cell's and block's
-    values depend on it and the cameras alone.
+    values depend on it and the cameras alone. ``scale``: the distances' screen scale
+    (``screen_scale``, or less).
     """
-    params = params if params is not None else layout.params
+    params = scaled(params if params is not None else layout.params, scale)
     lod = params.lod
     num = layout.blades_per_cell
     n_cells, n_blocks = layout.n_cells, layout.n_blocks
@@ -202,7 +242,7 @@ def lod_weights(layout, camera, params=None) -> LodWeights:
         visible |= block_visible(layout.block_bounds, layout.block_z_range, cam, params)
     return LodWeights(k_geometry=k_g.astype(np.float32, copy=False), k_billboard=k_card,
                       k_texture=k_t, blade_count=blade_count, block_visible=visible,
-                      block_distance=block_distance)
+                      block_distance=block_distance, scale=float(scale))
 
 
 def _nearest(distances):

@@ -345,6 +345,10 @@ PARAMS: tuple[Param, ...] = (
        unit="m", minimum=0.0, maximum=10000.0, soft_max=300.0, label="Cards Fade"),
     _p("lod", "card_far", "float", 40.0, "Distance beyond which no card is drawn (d_s2, eq 10)", unit="m", minimum=0.0,
        maximum=10000.0, soft_max=300.0, label="Cards End"),
+    _p("lod", "screen_size", "bool", True, "Scale the four distances by how large a blade is on screen: they are "
+       "right for an image 960 pixels wide at 55 degrees; a larger image or a longer lens draws blades and cards "
+       "further out (up to 4 times, as far as the field's pools hold), so a 4K frame or a telephoto shot keeps the "
+       "detail a person sees", label="By Screen Size"),
     _p("lod", "viewport_amount", "float", 1.0, "Share of the near blades the 3D viewport draws (as Blender's "
        "particle Viewport Display Amount): fewer keep playback smooth on a large field; renders always draw every "
        "blade", unit="fraction", minimum=0.01, maximum=1.0, label="Viewport"),

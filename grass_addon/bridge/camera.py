@@ -41,8 +41,9 @@ def _fov_x(angle_larger_side: float, aspect: float) -> float:
     return 2.0 * math.atan(math.tan(0.5 * angle_larger_side) * aspect)
 
 
-def _camera_object(cam, aspect: float, to_field=None, depsgraph=None) -> Camera | None:
-    """``lod.Camera`` of a camera object (its lens, sensor fit, shift, projection)."""
+def _camera_object(cam, aspect: float, to_field=None, depsgraph=None, pixels: float = 0.0) -> Camera | None:
+    """``lod.Camera`` of a camera object (its lens, sensor fit, shift, projection) for an image
+    ``pixels`` wide."""
     if cam is None or cam.type != "CAMERA":
         return None
     if depsgraph is not None:
@@ -66,7 +67,13 @@ def _camera_object(cam, aspect: float, to_field=None, depsgraph=None) -> Camera 
     else:
         fov_x = 2.0 * math.atan(math.tan(0.5 * data.angle_y) * aspect)
     fov_x = min(max(fov_x, 1e-3), math.radians(179.0))
-    return Camera(position, forward, up, float(fov_x), float(aspect), shift=shift)
+    return Camera(position, forward, up, float(fov_x), float(aspect), shift=shift, pixels=float(pixels))
+
+
+def render_pixels(scene) -> float:
+    """The rendered image's width in pixels (the resolution at its percentage)."""
+    r = scene.render
+    return float(r.resolution_x) * float(r.resolution_percentage) / 100.0
 
 
 def render_aspect(scene) -> float:
@@ -78,7 +85,7 @@ def blender_camera(scene, to_field=None, depsgraph=None) -> Camera | None:
     """``lod.Camera`` of the scene camera in the field's frame, or None without a camera.
 
     With ``depsgraph`` the evaluated camera is used (its animation at this frame)."""
-    return _camera_object(scene.camera, render_aspect(scene), to_field, depsgraph)
+    return _camera_object(scene.camera, render_aspect(scene), to_field, depsgraph, render_pixels(scene))
 
 
 def _view3d_camera(space, region, r3d, scene, to_field, depsgraph) -> Camera | None:
@@ -86,7 +93,7 @@ def _view3d_camera(space, region, r3d, scene, to_field, depsgraph) -> Camera | N
     aspect = region.width / max(region.height, 1)
     if r3d.view_perspective == "CAMERA":
         cam = space.camera if space.use_local_camera and space.camera is not None else scene.camera
-        return _camera_object(cam, render_aspect(scene), to_field, depsgraph)
+        return _camera_object(cam, render_aspect(scene), to_field, depsgraph, float(region.width))
     matrix = r3d.view_matrix.inverted()
     if to_field is not None:
         matrix = to_field @ matrix
@@ -97,7 +104,7 @@ def _view3d_camera(space, region, r3d, scene, to_field, depsgraph) -> Camera | N
         return Camera(position, forward, up, 0.0, aspect, projection=ORTHOGRAPHIC, ortho_width=float(width))
     fov = 2.0 * math.atan(0.5 * VIEWPORT_SENSOR / space.lens)
     return Camera(position, forward, up, float(min(_fov_x(fov, aspect), math.radians(179.0))), float(aspect),
-                  projection=PERSPECTIVE)
+                  projection=PERSPECTIVE, pixels=float(region.width))
 
 
 def viewport_views(context, scene, to_field=None, depsgraph=None) -> list[Camera]:
@@ -153,4 +160,4 @@ def signature(views) -> tuple:
         views = [views]
     return tuple((tuple(np.round(v.position, 6)), tuple(np.round(v.forward, 6)), tuple(np.round(v.up, 6)),
                   round(v.fov_x, 6), round(v.aspect, 6), v.projection, round(v.ortho_width, 6),
-                  tuple(np.round(v.shift, 6))) for v in views)
+                  tuple(np.round(v.shift, 6)), round(float(v.pixels), 3)) for v in views)

@@ -38,6 +38,10 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     rt.blades.write(item, shown.blades)
     rt.cards.write(item, shown.cards)
+    if shown.lod is not None and shown.lod.scale != 1.0 or rt.lod_scale != 1.0:  # (the screen's LOD scale)
+        scale = 1.0 if shown.lod is None else shown.lod.scale
+        materials.set_lod_scale(rt.params, owned.registered(item).get(owned.ROLE_CANOPY_MATERIAL), scale)
+        rt.lod_scaled(scale)
     if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
         reg = owned.registered(item)
         materials.set_gust_offset(*shown.gust, rt.params, reg.get(owned.ROLE_CARD_MATERIAL),

@@ -101,6 +101,9 @@ SWARD_LIGHT = 0.55
 LOOK_KNEE = 0.1
 LOOK_POINTS = 33
 VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slope (eye height / distance)
+# Solid shading draws a card as its whole quad (no texture): see-through, the cards of a cell and its
+# neighbours overlap into a grassy layer over the canopy; opaque, they read as shards (issue #59)
+CARD_VIEWPORT_ALPHA = 0.4
 # A trampled trail seen from afar (materials._trailed): where a ray meets its flattened floor the
 # sward is TRAIL_FLOOR as bright, the standing grass just before it TRAIL_WALL (all-geometry
 # renders of a ball's trail 41 m from a 6 m eye: 0.65-0.73 and 1.18-1.29).
@@ -918,17 +921,19 @@ def set_paint_map(canopy, image, field_extent=None, map_extent=None) -> None:
 
 def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy=None) -> None:
     """The colours Solid shading draws (``Material.diffuse_color``; it shows no node tree and no
-    texture): the blades' mean tip colour, the cards and the far canopy in the sward's colour seen
-    from afar, the meadow floor under them; matte, so the field reads as a green meadow."""
+    texture): the blades' mean tip colour, the cards (see-through: CARD_VIEWPORT_ALPHA) and the far
+    canopy in the sward's colour seen from afar, the meadow floor under them; matte, so the field
+    reads as a green meadow."""
     species = np.asarray([row["color"] for row in params.species()], dtype=np.float64)
     weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
     tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
     far = SWARD_LIGHT * sward.sward_look(params, [VIEWPORT_SLOPE])[0]
     floor = sward.floor_colours(params)
-    for mat, rgb in ((blades, 0.85 * tips), (cards, far), (canopy, far), (ground, floor[0])):
+    for mat, rgb, alpha in ((blades, 0.85 * tips, 1.0), (cards, far, CARD_VIEWPORT_ALPHA), (canopy, far, 1.0),
+                            (ground, floor[0], 1.0)):
         if mat is None:
             continue
-        mat.diffuse_color = (*[float(c) for c in rgb], 1.0)
+        mat.diffuse_color = (*[float(c) for c in rgb], alpha)
         mat.roughness = 0.9
         mat.metallic = 0.0
 
@@ -1003,17 +1008,25 @@ def set_gust_offset(displacement, speed: float, other, weights, params, *mats) -
 LOOK_DIGEST = "wg_look"  # the canopy material's custom property: the settings its sward look was written for
 
 
+def set_lod_scale(params, canopy, scale: float = 1.0) -> None:
+    """d_s1/d_s2 of eq 10 in the far grass, times the views' screen ``scale`` (``lod.screen_scale``:
+    the frame's); written only when they change (a render's camera keeps them)."""
+    kt = canopy.node_tree.nodes.get(NODE_KT) if canopy is not None and canopy.node_tree is not None else None
+    if kt is None:
+        return
+    near, far = params.lod.card_near * scale, params.lod.card_far * scale
+    if not params.lod.enabled:
+        near, far = FAR_AWAY, 2.0 * FAR_AWAY  # LOD off: geometry everywhere, K_t = 0
+    far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
+    for value, names in ((near, ("From Min", "From_Min_FLOAT3")), (far, ("From Max", "From_Max_FLOAT3"))):
+        if abs(float(_socket(kt.inputs, *names).default_value) - value) > 1e-6:
+            _set(kt, value, names[0])
+
+
 def update_materials(params, canopy=None) -> None:
     """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the far grass's colour."""
     if canopy is not None and canopy.node_tree is not None:
-        kt = canopy.node_tree.nodes.get(NODE_KT)
-        if kt is not None:
-            near, far = params.lod.card_near, params.lod.card_far
-            if not params.lod.enabled:
-                near, far = FAR_AWAY, 2.0 * FAR_AWAY  # LOD off: geometry everywhere, K_t = 0
-            far = max(far, near + 1e-3)  # d_s1 == d_s2: a hard switch
-            _set(kt, near, "From Min")
-            _set(kt, far, "From Max")
+        set_lod_scale(params, canopy)
         look_digest = edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK))
         if canopy.get(LOOK_DIGEST) == look_digest:
             return  # (the sward's look reads only these settings: a wind or LOD edit leaves it)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from .. import meadow
+from ..grid import FieldGrid
 from . import materials
 
 # The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
@@ -46,23 +48,38 @@ def fill_quads(mesh, n_verts: int, faces: np.ndarray, uvs: np.ndarray, attribute
     mesh.update(calc_edges=True)
 
 
+def thinning_edge(params):
+    """(width m, scale) of the field's thinning edge for the ground mesh (``meshes.ground_mesh``):
+    ``meadow.edge_scale`` in the ground's frame (the field centred on its origin); None without one."""
+    if float(params.field.edge) <= 0.0:
+        return None
+    grid = FieldGrid.of(params)
+    half = 0.5 * np.asarray(grid.size, np.float64)
+    return float(params.field.edge), lambda xy: meadow.edge_scale(xy, -half, grid.size, params)
+
+
 def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0,
-                top: float = 0.0) -> bpy.types.Mesh:
+                top: float = 0.0, edge=None) -> bpy.types.Mesh:
     """Two layers covering the field, centred on the origin: the ground (material 0) and, ``canopy``
     metres above it, the plane of the far grass (material 1, ``materials.canopy_material``), with
     a fringe rising to ``top`` metres above the ground along the field's edge (material 1 too,
     where the tallest tips stand against the sky). The UV map ``wg_sward_z`` gives the canopy's
     height above the ground at each corner and marks the fringe (1, on the plane 0). Flat
-    ground: one quad per layer; over a terrain (``heightfield``, in the field's frame) a grid of one
-    quad per heightfield cell following its heights."""
+    ground: one quad per layer (3 x 3 with a thinning edge); over a terrain (``heightfield``, in
+    the field's frame) a grid of one quad per heightfield cell following its heights. ``edge``:
+    (width m, scale): the field's thinning edge (``meadow.edge_scale``, a function of (n, 2)
+    points), which brings the canopy and the fringe down towards the field's boundary as it does
+    the blades, so the edge seen from outside is no wall."""
     mesh = bpy.data.meshes.new(name)
-    fill_ground(mesh, size, heightfield, canopy, top)
+    fill_ground(mesh, size, heightfield, canopy, top, edge)
     return mesh
 
 
-def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float = 0.0, top: float = 0.0) -> None:
+def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float = 0.0, top: float = 0.0,
+                edge=None) -> None:
     """Give an empty mesh the ground's two layers and fringe (``ground_mesh``); its materials are
     kept (a painted field's ground grid is emptied before a save and made again after it)."""
+    width, scale = edge if edge is not None else (0.0, None)
     if heightfield is not None:
         nx, ny = heightfield.nx, heightfield.ny
         u, v = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
@@ -70,22 +87,29 @@ def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float
         floor = np.empty((ny + 1, nx + 1, 3), np.float32)
         floor[..., :2] = xy
         floor[..., 2] = heightfield.sample(xy) + np.float32(GROUND_LIFT + heightfield.rise)
-        floor = floor.reshape(-1, 3)
-        corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
-        faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
-        uv_of_vertex = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float32)
         smooth = True
-    else:
+    else:  # a quad, or with a thinning edge a ring of quads round the inner one
         hx, hy = 0.5 * size[0], 0.5 * size[1]
-        floor = np.array([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], dtype=np.float32)
-        faces = np.array([[0, 1, 2, 3]])
-        uv_of_vertex = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=np.float32)
-        nx = ny = 1
+        inset = width if scale is not None and 0.0 < width < min(hx, hy) else 0.0
+        xs = np.array([-hx, -hx + inset, hx - inset, hx] if inset else [-hx, hx])
+        ys = np.array([-hy, -hy + inset, hy - inset, hy] if inset else [-hy, hy])
+        nx, ny = len(xs) - 1, len(ys) - 1
+        gx, gy = np.meshgrid(xs, ys)
+        floor = np.stack([gx, gy, np.zeros_like(gx)], axis=-1).astype(np.float32)
+        u, v = (gx + hx) / size[0], (gy + hy) / size[1]
         smooth = False
-    ring = edge_ring(nx, ny) if heightfield is not None else np.array([0, 1, 2, 3])
+    floor = floor.reshape(-1, 3)
+    corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
+    faces = np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=1)
+    uv_of_vertex = np.stack([np.ravel(u), np.ravel(v)], axis=1).astype(np.float32)
+    ring = edge_ring(nx, ny)
     top = max(top, canopy)
-    plane = floor + np.array([0.0, 0.0, canopy], dtype=np.float32)
-    rim = floor[ring] + np.array([0.0, 0.0, top], dtype=np.float32)
+    thin = np.ones(len(floor)) if scale is None else np.asarray(scale(floor[:, :2]), np.float64)
+    plane_lift, rim_lift = (canopy * thin).astype(np.float32), (top * thin[ring]).astype(np.float32)
+    plane = floor.copy()
+    plane[:, 2] += plane_lift
+    rim = floor[ring].copy()
+    rim[:, 2] += rim_lift
     n = len(floor)
     verts = np.concatenate([floor, plane, rim])
     following = np.roll(np.arange(len(ring)), -1)
@@ -95,17 +119,17 @@ def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float
     skirt_uv = uv_of_vertex[np.stack([ring, ring[following], ring[following], ring], axis=1).ravel()]
     uvs = np.concatenate([uv_of_vertex[faces.ravel()]] * 2 + [skirt_uv])
     fill_quads(mesh, len(verts), layer_faces, uvs, {}, (materials.UV_SWARD_Z,))
+    lift = np.concatenate([np.zeros(n, np.float32), plane_lift, rim_lift])
     height = np.zeros((len(layer_faces), 4, 2), np.float32)
-    height[len(faces):, :, 1] = canopy
+    height[len(faces):, :, 1] = lift[layer_faces[len(faces):]]  # each corner's height over the ground
     height[2 * len(faces):, :, 0] = 1.0  # the fringe
-    height[2 * len(faces):, 2:, 1] = top  # its top corners
     mesh.uv_layers[materials.UV_SWARD_Z].data.foreach_set("uv", height.ravel())
     mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
     index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
     mesh.polygons.foreach_set("material_index", index)
     mesh.attributes["position"].data.foreach_set("vector", verts.ravel())
-    # floor vertices, heights, grid (0, 0: one quad) for update_paint_look
-    mesh["wg_layers"] = [n, canopy, top, nx, ny] if heightfield is not None else [n, canopy, top, 0, 0]
+    # floor vertices, heights, grid, whether it is a heightfield's (update_paint_look, clear_ground)
+    mesh["wg_layers"] = [n, canopy, top, nx, ny, int(heightfield is not None)]
     mesh.update()
 
 

@@ -10,7 +10,7 @@ from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
 from . import materials
-from .meshes import edge_ring
+from .meshes import edge_ring, thinning_edge
 from .owned import MADE_KEY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
 
 # The ground of a painted field on flat ground is a grid of this many cells along its longer side,
@@ -87,13 +87,16 @@ def update_paint_look(item, params, paint) -> None:
     if ground is None or ground.data.get("wg_layers") is None:
         return
     mesh = ground.data
-    n, canopy, top, nx, ny = (float(v) for v in mesh["wg_layers"])
+    n, canopy, top, nx, ny = (float(v) for v in list(mesh["wg_layers"])[:5])
     n, nx, ny = int(n), int(nx), int(ny)
     co: np.ndarray = np.empty(len(mesh.vertices) * 3, np.float32)
     mesh.attributes["position"].data.foreach_get("vector", co)
     co = co.reshape(-1, 3)
     floor_z = co[:n, 2]
     scale = np.ones(len(co)) if paint is None else paint.length_at(co[:, :2])
+    edge = thinning_edge(params)
+    if edge is not None:  # (the field's thinning edge brings the canopy down as it does the blades)
+        scale = scale * edge[1](co[:, :2])
     lift = np.zeros(len(co))
     lift[n:2 * n] = canopy * scale[n:2 * n]
     # the fringe's top vertices stand over the edge's floor vertices (the ring, in order)

@@ -67,6 +67,7 @@ class LiveField:
     paint_shown: str | None = None  # paint.fingerprint of the paint the ground and paint map show
     trail: Any = None  # the trail map the far canopy shows (interaction.TrailMap | None)
     trail_written: bool = False  # the canopy's trail image and mapping were written for ``trail``
+    lod_scale: float = 1.0  # the screen's scale of the LOD distances its far canopy shows (lod.screen_scale)
     # inputs sampled from Blender and kept
     terrain: tuple | None = None  # (terrain key, heightfield, centre) as sampled
     paint: tuple | None = None  # (what it was read from, paint.Paint | None)
@@ -184,6 +185,10 @@ class LiveField:
     def unwritten(self) -> None:
         """Its objects show no frame of it now (hidden, or rebuilt): the next update writes one."""
         self.frame = None
+
+    def lod_scaled(self, scale: float) -> None:
+        """The far canopy shows the LOD distances times ``scale`` (the frame's screen scale)."""
+        self.lod_scale = scale
 
     def trail_shown(self, trail) -> None:
         """The far canopy's trail image and mapping show ``trail`` (None: no trails)."""

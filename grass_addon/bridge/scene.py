@@ -170,7 +170,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, sward.canopy_height(params),
-                              sward.fringe_top(params))
+                              sward.fringe_top(params), meshes.thinning_edge(params))
     paint_look.paint_map(item, uid, base, grid if painted else None, canopy_mat)
     if ground is None:
         ground = bpy.data.objects.new(f"{base} ground", mesh)
@@ -302,7 +302,7 @@ def clear_ground(scene, item, params) -> bool:
     whether it emptied it."""
     ground = owned.ground_object(item)
     layers = ground.data.get("wg_layers") if ground is not None else None
-    if layers is None or not int(layers[3]) or not len(ground.data.vertices):
+    if layers is None or not int(layers[5] if len(layers) > 5 else layers[3]) or not len(ground.data.vertices):
         return False
     if maps.terrain_object(scene, item) is not None or params.terrain.heightmap:
         return False
@@ -318,7 +318,7 @@ def fill_ground(item, params) -> bool:
     if ground is None or not ground.data.get(GROUND_REFILL) or len(ground.data.vertices):
         return False
     meshes.fill_ground(ground.data, FieldGrid.of(params).size, paint_look.paint_ground(params, None),
-                       sward.canopy_height(params), sward.fringe_top(params))
+                       sward.canopy_height(params), sward.fringe_top(params), meshes.thinning_edge(params))
     del ground.data[GROUND_REFILL]
     return True
 

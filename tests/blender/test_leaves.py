@@ -78,6 +78,7 @@ def test_tufts_go_with_their_stems_beyond_the_blades_range(runtime, stems):
     cam.location = (-9.0, 0.0, 1.1)
     cam.rotation_euler = (np.radians(80.0), 0.0, np.radians(-90.0))
     scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = 960, 540  # (the LOD distances as set)
     scene.frame_set(3)
     shown = stems(item)
     total = item.field.blocks_x * item.field.blocks_y * 256 * item.field.blades_per_cell

@@ -208,3 +208,60 @@ def test_a_camera_that_sees_no_block_simulates_nothing():
     # turning to the grass fills the window again
     field.seek(6, Camera.look_at((0.0, 0.0, 1.6), (10.0, 0.0, 0.0), 1.0))
     assert field.layout.n_blocks > 0
+
+
+def test_the_distances_scale_with_how_large_a_blade_is_on_screen():
+    """A blade is as large on screen at distance k d in an image of k times the focal length in
+    pixels: the LOD distances are the settings' for a 960-pixel image at 55 degrees (or less), k
+    times them for a wider image or a longer lens, up to 4 times; an orthographic view, an
+    unknown width or the setting off keeps them."""
+    from windgrass.grass_addon.lod import screen_scale
+
+    params = schema.defaults()
+    fov = math.radians(55.0)
+
+    def at(pixels, lens=fov, **kw):
+        return screen_scale(Camera.look_at((0, 0, 1), (5, 0, 0), lens, pixels=pixels, **kw), params)
+
+    assert at(960) == pytest.approx(1.0) and at(400) == 1.0 and at(0) == 1.0
+    assert at(1920) == pytest.approx(2.0) and at(3840) == pytest.approx(4.0) and at(7680) == 4.0
+    # a 20 degree lens at 960 pixels: tan(27.5) / tan(10) times the focal length
+    assert at(960, math.radians(20.0)) == pytest.approx(math.tan(math.radians(27.5)) / math.tan(math.radians(10.0)))
+    ortho = Camera(np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), 0.0, 1.5, projection="ORTHO",
+                   ortho_width=10.0, pixels=3840)
+    assert screen_scale(ortho, params) == 1.0
+    assert screen_scale(Camera.look_at((0, 0, 1), (5, 0, 0), fov, pixels=3840),
+                        params.replace({"lod.screen_size": False})) == 1.0
+    # the weights at k: cell 8 (8.544 m) is geometry at k = 2.5 (bands 5-10 m), not at k = 1
+    layout = row_layout()
+    cam = eye_over_cell0(layout)
+    assert lod_weights(layout, cam, layout.params).blade_count[8] == 0
+    assert lod_weights(layout, cam, layout.params, 2.5).blade_count[8] == 1  # floor(4 (1 - 3.544 / 5))
+
+
+def test_a_4k_frame_draws_blades_further_out_within_the_pools():
+    """The default field seen at eye level: a 1920-pixel frame draws blades to twice the distance
+    of a 960-pixel one (the pools hold them); a 3840-pixel one would need four times, more than
+    the pools hold: the scale is lowered until every block that needs blades or cards has a
+    position in its pool, so no block is left with neither."""
+    from windgrass.grass_addon.field import GrassField
+
+    params = schema.defaults().replace({"field.blocks_x": 64, "field.blocks_y": 64})
+    field = GrassField(params)
+
+    def frame(pixels):
+        cam = Camera.look_at((0.0, 0.0, 1.2), (20.0, 0.0, 0.0), math.radians(55.0), pixels=pixels)
+        shown = field.frame(1, views=cam)
+        lod = shown.lod
+        wanted = [int(needs(role, field.layout, lod).sum()) for role in (BLADES, CARDS)]
+        far = lod.block_distance[(lod.blade_count[field.layout.block_cells] > 0).any(axis=1)].max()
+        return lod.scale, wanted, [shown.blades.count, shown.cards.count], far
+
+    s1, want1, got1, far1 = frame(960)
+    s2, want2, got2, far2 = frame(1920)
+    s4, want4, got4, far4 = frame(3840)
+    assert s1 == 1.0 and s2 == pytest.approx(2.0) and 2.0 < s4 < 4.0
+    assert far1 < params.lod.blade_far < far2 < 2 * params.lod.blade_far and far4 > 1.2 * far2
+    assert want2[0] > 2 * want1[0] and got2 == want2 and got4 == want4
+    positions = [field.shapes[role].positions for role in (BLADES, CARDS)]
+    assert all(w <= p for w, p in zip(want4, positions))

@@ -54,7 +54,7 @@ NODE_TRAIL_DEPTH = "wg_trail_depth"
 NODE_PATCH_IMAGE = "wg_patch_image"
 NODE_PATCH_MAPPING = "wg_patch_mapping"
 GUST_SHADE = 1.0  # brightness swing of the far grass per unit of wind.gust_waves (stronger wind: lighter)
-SHEEN_SLOPES, SHEEN_ABOVE = (0.1, 0.8), 3.0  # the canopy's gust swing, 1x at grazing slopes to 3x from above
+SHEEN_SLOPES, SHEEN_ABOVE = (0.1, 0.8), 2.0  # the canopy's gust swing, 1x at grazing slopes to 2x from above
 GUST_REFERENCE_SPEED = 5.0  # m/s: the swing is full from this mean wind on, as (speed / it)^2 below (the bend)
 
 # Node names that ``update_materials`` looks up.
@@ -73,6 +73,8 @@ NODE_SPECKLE_GAIN = "wg_speckle_gain"  # Value: 1 / the blades' mean brightness
 NODE_FLOOR = "wg_floor"  # the ground's two floor colours in noise (sward.floor_colours)
 NODE_TUSSOCKS = "wg_tussocks"
 NODE_TUSSOCK_SPREAD = "wg_tussock_spread"
+TUSSOCK_VALUE, TUSSOCK_RELIEF = 0.6, 0.8  # a tussock's brightness: its own value, its relief (``_tussocked``)
+TUSSOCK_SMOOTHNESS = 1.0  # neighbouring tussocks merge over this share of a cell (Voronoi Smooth F1)
 NODE_TUSSOCK_SEEN = "wg_tussock_seen"  # Float Curve: the share of the grain a ray's slope shows
 NODE_SWARD_PROFILE = "wg_sward_profile"  # Float Curve: sward.sward_depth / its value at the ground
 NODE_SWARD_TOP = "wg_sward_top"  # Map Range: height -> 0..1 along the profile (sward.sward_top)
@@ -125,7 +127,7 @@ TRANSLUCENCY = 0.3  # share of light a thin blade lets through (Translucent BSDF
 # Beyond this distance nothing is ever drawn: K_t of eq 10 stays 0 when the LOD is off.
 FAR_AWAY = 1.0e9
 # Raised whenever a material's nodes change: a field saved with older materials gets new ones.
-MATERIALS_VERSION = 18
+MATERIALS_VERSION = 19
 
 
 def _socket(sockets, *names: str):
@@ -648,7 +650,13 @@ def _tussocked(t: _Tree, coord, colour_node, along, x: float, y: float):
     """The colour brightened tussock by tussock (NODE_TUSSOCKS, NODE_TUSSOCK_SPREAD), by the share
     of that grain a pixel at the ray's slope shows (NODE_TUSSOCK_SEEN over ``along``, the slope's
     s / (s + LOOK_KNEE): ``sward.grain_seen``): mean 1."""
-    cells = t.add("ShaderNodeTexVoronoi", x, y, name=NODE_TUSSOCKS)
+    # Each tussock a mound: its random brightness (the cell's value) and its relief, lighter over
+    # its middle (where its tips stand tallest, in the sun) and darker down its sides to the gaps
+    # between tussocks (the Voronoi distance to its centre: about 0.5 of a cell on average). Flat
+    # cells alone read from above as a camouflage pattern (issue #59); the two parts keep the grain's
+    # spread (its standard deviation: 0.6 / sqrt 3 and 0.8 times that of 2 (0.5 - d), 0.26 each).
+    cells = t.add("ShaderNodeTexVoronoi", x, y, name=NODE_TUSSOCKS, feature="SMOOTH_F1")
+    _set(cells, TUSSOCK_SMOOTHNESS, "Smoothness")  # (mounds that merge, not cells with creases)
     t.link(coord, "Object", cells, "Vector")
     spread = t.add("ShaderNodeValue", x, y - 250, name=NODE_TUSSOCK_SPREAD)
     spread.outputs[0].default_value = 0.0
@@ -656,11 +664,14 @@ def _tussocked(t: _Tree, coord, colour_node, along, x: float, y: float):
     t.link(along, "Value", seen, "Value")
     u = t.add("ShaderNodeSeparateXYZ", x + 200, y)
     t.link(cells, "Color", u, "Vector")
-    swing = t.math("MULTIPLY_ADD", (u, "X"), 2.0, x + 350, y)
-    swing.inputs[2].default_value = -1.0
+    swing = t.math("MULTIPLY_ADD", (u, "X"), 2.0 * TUSSOCK_VALUE, x + 350, y)
+    swing.inputs[2].default_value = -TUSSOCK_VALUE
+    relief = t.math("MULTIPLY_ADD", (cells, "Distance"), -2.0 * TUSSOCK_RELIEF, x + 350, y + 200)
+    relief.inputs[2].default_value = TUSSOCK_RELIEF
+    both = t.math("ADD", (swing, "Value"), (relief, "Value"), x + 450, y + 100)
     shown = t.math("MULTIPLY", (spread, "Value"), (seen, "Value"), x + 200, y - 300)
     amount = t.math("MULTIPLY", (shown, "Value"), 3.0 ** 0.5, x + 350, y - 250)
-    gain = t.math("MULTIPLY_ADD", (swing, "Value"), (amount, "Value"), x + 500, y)
+    gain = t.math("MULTIPLY_ADD", (both, "Value"), (amount, "Value"), x + 500, y)
     gain.inputs[2].default_value = 1.0
     out = t.mix_rgb(x + 650, y, blend="MULTIPLY")
     t.link(colour_node, "Result_Color", out, "A_Color")

@@ -66,7 +66,7 @@ def paint_card_image(image, params) -> None:
     image[DIGEST_KEY] = digest
 
 
-GUST_KEY = "wg_gusts"  # custom property of the gust image: the seed it was painted from
+GUST_KEY = "wg_gusts"  # custom property of the gust image: the seed and wind direction it was painted from
 
 
 def ensure_gust_image(name: str):
@@ -107,12 +107,14 @@ def _write_grey(image, values: np.ndarray, alpha: np.ndarray | None = None) -> N
 
 
 def paint_gust_image(image, params) -> None:
-    """Write the gust pattern of the field's seed into ``image`` unless it already holds it."""
-    seed = int(params.field.seed)
-    if image.get(GUST_KEY) == seed:
+    """Write the gust pattern of the field's seed and wind direction into ``image`` unless it
+    already holds it."""
+    seed, direction = int(params.field.seed), float(params.wind.direction)
+    key = f"{seed} {direction!r} {gusts.STRETCH!r}"
+    if image.get(GUST_KEY) == key:
         return
-    _write_grey(image, gusts.pattern(seed))  # row 0 is y = 0, as Blender's pixel rows
-    image[GUST_KEY] = seed
+    _write_grey(image, gusts.pattern(seed, direction))  # row 0 is y = 0, as Blender's pixel rows
+    image[GUST_KEY] = key
 
 
 PATCH_KEY = "wg_patches"  # custom property of the patch image: the settings it was painted from

@@ -53,7 +53,7 @@ def _far_shading(p, gust, points):
     ``gust`` (materials.gusted: 1 + sum of weight (2 g - 1) over the loop's two patterns)."""
     from windgrass.grass_addon import gusts
 
-    tile, metres = gusts.pattern(int(p.field.seed)), gusts.tile_metres(p)
+    tile, metres = gusts.pattern(int(p.field.seed), float(p.wind.direction)), gusts.tile_metres(p)
     shift, _, other, (a, b) = gust
     return 1.0 + a * (2.0 * gusts.sample(tile, points, metres, shift) - 1.0) + \
         b * (2.0 * gusts.sample(tile, points, metres, other) - 1.0)

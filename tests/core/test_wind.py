@@ -366,28 +366,28 @@ def test_gust_waves_travel_downwind_at_the_mean_wind_and_scale_it():
     assert np.allclose(np.hypot(*plain.sample(t, xy).T), 6.0)
 
 
+def _half_reach(corr: np.ndarray, dx: float, dy: float) -> float:
+    """Pixels along (dx, dy) until the (periodic) autocorrelation ``corr`` falls to a half."""
+    n = corr.shape[0]
+    for r in np.arange(0.25, n / 2, 0.25):
+        x, y = r * dx, r * dy
+        i, j = int(np.floor(y)) % n, int(np.floor(x)) % n
+        fy, fx = y - np.floor(y), x - np.floor(x)
+        c = (corr[i, j] * (1 - fx) * (1 - fy) + corr[i, (j + 1) % n] * fx * (1 - fy)
+             + corr[(i + 1) % n, j] * (1 - fx) * fy + corr[(i + 1) % n, (j + 1) % n] * fx * fy)
+        if c < 0.5:
+            return float(r)
+    return n / 2
+
+
 def test_a_gust_wave_is_a_band_across_the_wind():
     """Seen from above a gust runs over a meadow as a band across the wind: the pattern's patches
     are about gusts.STRETCH times longer across the wind than along it, whichever way it blows
     (the pattern's autocorrelation falls to a half that many times further across than along)."""
-    n = gusts.TILE_PIXELS
     for direction in (0.0, 60.0, 135.0):
         tile = gusts.pattern(7, direction).astype(np.float64) - 0.5
-        spectrum = np.abs(np.fft.fft2(tile)) ** 2
-        corr = np.real(np.fft.ifft2(spectrum))
+        corr = np.real(np.fft.ifft2(np.abs(np.fft.fft2(tile)) ** 2))
         corr /= corr[0, 0]
         a = np.radians(direction)
-
-        def reach(dx, dy):  # pixels along (dx, dy) until the correlation falls to a half
-            for r in np.arange(0.25, n / 2, 0.25):
-                x, y = r * dx, r * dy
-                i, j = int(np.floor(y)) % n, int(np.floor(x)) % n
-                fy, fx = y - np.floor(y), x - np.floor(x)
-                c = (corr[i, j] * (1 - fx) * (1 - fy) + corr[i, (j + 1) % n] * fx * (1 - fy)
-                     + corr[(i + 1) % n, j] * (1 - fx) * fy + corr[(i + 1) % n, (j + 1) % n] * fx * fy)
-                if c < 0.5:
-                    return r
-            return n / 2
-
-        along, across = reach(math.cos(a), math.sin(a)), reach(-math.sin(a), math.cos(a))
+        along, across = _half_reach(corr, math.cos(a), math.sin(a)), _half_reach(corr, -math.sin(a), math.cos(a))
         assert 0.6 * gusts.STRETCH < across / along < 1.6 * gusts.STRETCH, (direction, along, across)

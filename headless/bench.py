@@ -4,7 +4,8 @@
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
     python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
     python headless/bench.py --edits [--json]     (an edit of a setting against a frame change: bench_edits.py)
-    python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py)
+    python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py,
+                                                                 and from every camera: bench_cameras.py)
     python headless/bench.py --farm [--blender PATH] [--json]   (farm chunks against one process: bench_farm.py)
 
 Field: blocks of 16 x 16 cells x 2 blades (the paper's layout), as many blocks as give about
@@ -207,6 +208,26 @@ def run_peers_json() -> dict:
         os.close(saved)
 
 
+def realism(args) -> int:
+    """bench_realism.py's figures and bench_cameras.py's (every camera; with Blender), as one JSON
+    object: the cameras' under "cameras"."""
+    import json
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    parts = []
+    for script, extra in (("bench_realism.py", ["--image", args.image] if args.image else []),
+                          ("bench_cameras.py", [])):
+        done = subprocess.run([sys.executable, str(here / script), "--json", *extra], capture_output=True, text=True)
+        if done.returncode != 0:
+            print(done.stdout[-2000:] + done.stderr[-4000:], file=sys.stderr)
+            return done.returncode
+        parts.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    result = {**parts[0], "cameras": parts[1]}
+    print(json.dumps(result, separators=(",", ":")) if args.json else json.dumps(result, indent=2), flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
     parser = common.parser(__doc__)
     parser.add_argument("--blades", type=int, default=524_288, help="about this many blades (default 524288)")
@@ -235,7 +256,8 @@ def main(argv=None) -> int:
                              "frame rendered again (bench_render.py); other flags ignored")
     parser.add_argument("--realism", action="store_true",
                         help="how much the default scene reads as a meadow: clumps, each species' sway peak, the "
-                             "gust waves' speed; with --image PNG, a rendered frame's colours (bench_realism.py)")
+                             "gust waves' speed; with --image PNG, a rendered frame's colours (bench_realism.py); "
+                             "and from every camera (close-up, eye level, straight down, a drone: bench_cameras.py)")
     parser.add_argument("--image", help="with --realism: a rendered frame of scenes/default.toml")
     parser.add_argument("--farm", action="store_true",
                         help="a farm job in chunks of 4 and 1 under openjd against one process (bench_farm.py; "
@@ -248,10 +270,7 @@ def main(argv=None) -> int:
         return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_farm.py")), "--blender",
                                 args.blender] + (["--json"] if args.json else []))
     if args.realism:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_realism.py"))]
-                               + (["--json"] if args.json else []) + (["--image", args.image] if args.image else []))
+        return realism(args)
     if args.edits:
         import subprocess
 

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # (Blender's -P does not put the script's folder on the path)
+import bench_cameras  # noqa: E402
 import common  # noqa: E402
 
 HEADLESS = Path(__file__).resolve().parent
@@ -27,13 +28,9 @@ ANIMATION_WIDTH = 640
 REPO = HEADLESS.parent
 
 
-# (name, render_field.py options) of the cameras beside the eye-level still (issue #59's shots)
-CAMERAS = (
-    ("close-up", ["--camera-position", "0", "0", "0.35", "--camera-target", "2", "1", "0.25"]),
-    ("top-down", ["--camera-position", "0", "0", "1.3", "--camera-target", "0.01", "0", "0"]),
-    ("drone", ["--field-blocks-x", "64", "--field-blocks-y", "64", "--camera-position", "-40", "-40", "20",
-               "--camera-target", "0", "0", "0"]),
-)
+# (name, render_field.py options) of the cameras beside the eye-level still (issue #59's shots, as
+# bench_cameras.py measures them)
+CAMERAS = tuple(c for c in bench_cameras.CAMERAS if c[0] != "eye level")
 
 
 def render_cameras(resolution: str) -> list[Path] | None:

@@ -247,9 +247,8 @@ def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | No
         t.link(t.middle(mesh, first), collapse.inputs["Position"])  # (first: per vertex, its stem's)
         strips = collapse.outputs[0]
     join = t.node("GeometryNodeJoinGeometry")
-    for k, leaf in reversed(list(enumerate(leaves))):
-        if leaf is not None:
-            t.link(_leaves(t, roots.outputs[0], k + 1, leaf), join.inputs[0])
+    if any(leaf is not None for leaf in leaves):
+        t.link(_leaves(t, roots.outputs[0], leaves), join.inputs[0])
     for k, source in reversed(list(enumerate(sources))):
         if source is None:
             continue
@@ -329,13 +328,22 @@ def _instances(t: _Tree, points, kind: int, source):
     return place.outputs[0]
 
 
-def _leaves(t: _Tree, roots, kind: int, source):
-    """Species ``kind``'s leaves: ``source`` (a unit tuft, ``tufts.leaf_mesh``) on the roots of its
-    stems that have leaves, its +Z along the stem's first segment (the tuft rocks with its
-    tiller), turned about it by the stem's facing, scaled by ``wg_leaf``."""
+def _leaves(t: _Tree, roots, leaves: list):
+    """The leaves of every species ``k`` with ``leaves[k]`` (an Object: a unit tuft,
+    ``tufts.leaf_mesh``; None: none) on the roots of its stems that have leaves (``wg_leaf`` > 0),
+    each tuft's +Z along its stem's first segment (the tuft rocks with its tiller), turned about it
+    by the stem's facing, scaled by ``wg_leaf``: one Instance on Points picking each stem's tuft
+    from the species' (a node per species cost a pass over every stem each)."""
+    kinds = [k + 1 for k, leaf in enumerate(leaves) if leaf is not None]
+    sources = t.node("GeometryNodeGeometryToInstance")
+    for k in reversed(kinds):  # (a multi-input socket lists its links last linked first: species order)
+        t.link(_source_geometry(t, leaves[k - 1]), sources.inputs[0])
     mine_kind, _size, turn_angle, _first = t.head()
+    which = None  # the stem's tuft: how many leafy species come before its own (its kind among them)
+    for k in kinds[1:]:
+        past = t.math("GREATER_THAN", mine_kind, k - 0.5)
+        which = past if which is None else t.math("ADD", which, past)
     length = t.attribute(ATTR_LEAF, "FLOAT")
-    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", length, 0.0))
     align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
     t.link(t.attribute(ATTR_FOOT_DIR, "FLOAT_VECTOR"), align.inputs["Vector"])
     turn = t.node("FunctionNodeAxisAngleToRotation")
@@ -346,8 +354,13 @@ def _leaves(t: _Tree, roots, kind: int, source):
     t.link(turn.outputs[0], rotate.inputs["Rotate By"])
     place = t.node("GeometryNodeInstanceOnPoints")
     t.link(roots, place.inputs["Points"])
-    t.link(mine, place.inputs["Selection"])
-    t.link(_source_geometry(t, source), place.inputs["Instance"])
+    t.link(t.math("GREATER_THAN", length, 0.0), place.inputs["Selection"])
+    t.link(sources.outputs[0], place.inputs["Instance"])
+    place.inputs["Pick Instance"].default_value = True
+    if which is not None:
+        t.link(which, place.inputs["Instance Index"])
+    else:
+        place.inputs["Instance Index"].default_value = 0
     t.link(rotate.outputs[0], place.inputs["Rotation"])
     t.link(length, place.inputs["Scale"])
     return place.outputs[0]

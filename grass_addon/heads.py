@@ -30,8 +30,11 @@ import numpy as np
 from . import tufts
 
 MESH_SHAPES = ("daisy", "buttercup", "clover")
+SEED_SHAPES = ("spike", "panicle")  # grasses' seed heads as meshes over the stem's top two segments
+SPAN_SCALED = ("panicle",)  # seed heads Blender scales evenly by that span (a spike: its width across)
 PETALS, CENTRE, GREEN = 0, 1, 2
-CENTRES = {"daisy": (0.78, 0.45, 0.02), "buttercup": (0.42, 0.36, 0.03), "clover": (0.30, 0.18, 0.10)}
+CENTRES = {"daisy": (0.78, 0.45, 0.02), "buttercup": (0.42, 0.36, 0.03), "clover": (0.30, 0.18, 0.10),
+           "spike": (0.30, 0.20, 0.30), "panicle": (0.20, 0.24, 0.10)}
 GREEN_RGB = (0.08, 0.22, 0.04)
 
 
@@ -162,16 +165,65 @@ def clover(sides: int = 10, rings: int = 7) -> HeadMesh:
     return _mesh(b)
 
 
+def spike(rings: int = 14, sides: int = 8) -> HeadMesh:
+    """A grass's dense cylindrical spike (timothy, Phleum pratense) over the stem's top segment:
+    from z = 0 (its joint n - 1) to z = 1 (its tip), 1 wide (the seed head's width), rounded at
+    both ends; its surface lumpy with spikelets in spirals, their purple anthers (the centre's
+    colour) on a fifth of them."""
+    b = _Builder([], [], [], [])
+    z = np.linspace(0.0, 1.0, rings)
+    ends = np.sqrt(np.clip(np.minimum(z / 0.08, (1.0 - z) / 0.12), 0.0, 1.0))  # rounded base and tip
+    a = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    zz, aa = np.meshgrid(z, a, indexing="ij")
+    lump = 1.0 + 0.18 * np.cos(3.0 * aa + 23.0 * zz)  # spikelets in spirals
+    r = 0.5 * ends[:, None] * lump
+    pts = np.stack([r * np.cos(aa), r * np.sin(aa), zz], axis=-1).reshape(-1, 3)
+    faces = [(i * sides + j, i * sides + (j + 1) % sides, (i + 1) * sides + (j + 1) % sides, (i + 1) * sides + j)
+             for i in range(rings - 1) for j in range(sides)]
+    part = np.where((np.arange(len(pts)) * 7) % 5 == 0, CENTRE, PETALS)
+    b.add(pts, faces, part, 0.7)
+    return _mesh(b)
+
+
+def panicle(whorls: int = 5, branches: int = 3) -> HeadMesh:
+    """An open grass panicle (meadow grass, Poa; cocksfoot's is denser) over the stem's top two
+    segments, in units of that span (Blender scales it evenly: z 0 at the stem's joint n - 2, 1
+    at its tip): a thin axis to the tip, whorls of branches spreading 35-60 degrees from it
+    (longest at the bottom: a pyramid about 0.6 of its length across), each with four lozenge
+    spikelets 4 % of the span long (the head's colour) along its outer part; the axis and
+    branches the centre's green-straw."""
+    b = _Builder([], [], [], [])
+    b.add([(-0.005, 0, 0), (0.005, 0, 0), (0.002, 0, 1.0), (-0.002, 0, 1.0)], [(0, 1, 2, 3)], CENTRE, 0.7)
+    rng = np.random.default_rng(13)
+    for w in range(whorls):
+        z0 = 0.08 + 0.7 * w / max(1, whorls - 1)
+        length = 0.36 * (1.0 - 0.7 * w / max(1, whorls - 1))  # the lowest branches longest
+        for k in range(branches):
+            azimuth = 2.0 * np.pi * (k + 0.3 * w + 0.2 * rng.random()) / branches
+            lift = np.radians(35.0 + 25.0 * rng.random())  # from the axis
+            out = np.array([np.sin(lift) * np.cos(azimuth), np.sin(lift) * np.sin(azimuth), np.cos(lift)])
+            side = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0]) * 0.002
+            foot = np.array([0.0, 0.0, z0])
+            end = foot + length * out
+            b.add([foot - side, foot + side, end + side, end - side], [(0, 1, 2, 3)], CENTRE, 0.7)
+            across = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0]) * 0.008
+            for t in np.linspace(0.45, 1.0, 4):  # spikelets along the branch's outer part
+                c = foot + t * length * out
+                up = 0.04 * out
+                b.add([c, c + 0.5 * up + across, c + up, c + 0.5 * up - across], [(0, 1, 2, 3)], PETALS, 0.6)
+    return _mesh(b)
+
+
 def _mesh(b: _Builder) -> HeadMesh:
     return HeadMesh(np.asarray(b.verts, dtype=np.float32), list(b.faces), np.asarray(b.part, dtype=np.int8),
                     np.asarray(b.rough, dtype=np.float32))
 
 
-_BUILD = {"daisy": daisy, "buttercup": buttercup, "clover": clover}
+_BUILD = {"daisy": daisy, "buttercup": buttercup, "clover": clover, "spike": spike, "panicle": panicle}
 
 
 def head_mesh(shape: str) -> HeadMesh:
-    """The unit mesh of ``shape`` (one of ``MESH_SHAPES``)."""
+    """The unit mesh of ``shape`` (one of ``MESH_SHAPES`` or ``SEED_SHAPES``)."""
     return _BUILD[shape]()
 
 
@@ -182,18 +234,23 @@ def colours(mesh: HeadMesh, shape: str, petals) -> np.ndarray:
     return table[mesh.part.astype(np.int64)]
 
 
-NONE, HEAD, PLANT = 0, 1, 2  # what a species' stems carry: nothing more, a mesh head, a whole plant
+NONE, HEAD, PLANT, SEED = 0, 1, 2, 3  # what a species' stems carry: nothing more, a mesh head, a whole
+# plant, a seed head as a mesh over the top two segments
 
 
 def kinds(rows) -> np.ndarray:
     """(species,) int8 of the species table's rows: ``HEAD`` where its flowers are meshes (a
     Windgrass shape, or the artist's own collection drawn as a head), ``PLANT`` where its stems
-    are the artist's own plant bent along them, ``NONE`` else."""
+    are the artist's own plant bent along them, ``SEED`` where its seed heads are meshes (a spike
+    or a panicle over the stem's top two segments, which the strip draws unwidened), ``NONE``
+    else."""
     def kind(r) -> int:
         if r.get("plant") and r.get("plant_mode") == "plant":
             return PLANT
         if (r.get("plant") or r["head_shape"] in MESH_SHAPES) and r["heads"] > 0.0:
             return HEAD
+        if r["head_shape"] in SEED_SHAPES and r["heads"] > 0.0:
+            return SEED
         return NONE
     return np.array([kind(r) for r in rows], dtype=np.int8)
 
@@ -218,6 +275,15 @@ def crowned_blades(layout, blades=None) -> np.ndarray:
     return (flower > 0.0) & crowned(layout.params.species())[kind]
 
 
+def strip_heads(layout, blades=None) -> np.ndarray:
+    """``blade_head`` of the blades as their strips draw it: 0 where the seed head is a mesh
+    (``SEED``: the strip stays a stem; its top two segments keep the head's colour, and the far
+    grass and the cards still draw the spindle the mesh stands for)."""
+    kind = layout.blade_species if blades is None else layout.blade_species[blades]
+    head = layout.blade_head if blades is None else layout.blade_head[blades]
+    return np.where(kinds(layout.params.species())[kind] == SEED, np.float32(0.0), head).astype(np.float32)
+
+
 def strip_flowers(layout, blades=None) -> np.ndarray:
     """``blade_flower`` of the blades as their strips draw it: 0 where the flower is a mesh."""
     flower = layout.blade_flower if blades is None else layout.blade_flower[blades]
@@ -227,8 +293,9 @@ def strip_flowers(layout, blades=None) -> np.ndarray:
 def tip_marks(layout, local: np.ndarray) -> np.ndarray:
     """(positions * verts_per_block, 5) float32 per vertex of the blade slot positions ``local``
     (FREE: zero), what Blender draws on each stem: on the first vertex of a stem that carries a
-    mesh head, has leaves at its foot (``tufts``) or is a whole plant: the species + 1, the
-    flower's width in metres (0: no head on this stem; a plant: the stem's length), a turn about
+    mesh head or seed head, has leaves at its foot (``tufts``) or is a whole plant: the species +
+    1, the flower's or seed head's width in metres (0: no head on this stem; a plant: the stem's
+    length), a turn about
     the stem (the blade's facing), that vertex's index in its slot object, and the length of the
     longest leaf at its foot (m; 0: none); a plant's mark on every vertex of its strip (which
     Blender collapses); zero elsewhere. The index lets Blender read the stem's joints from the
@@ -241,12 +308,14 @@ def tip_marks(layout, local: np.ndarray) -> np.ndarray:
     blades = local[shown, None].astype(np.int64) * bpb + np.arange(bpb)[None, :]
     kind = kinds(layout.params.species())[layout.blade_species[blades]]
     crown = (kind == HEAD) & (layout.blade_flower[blades] > 0.0)
+    seed = (kind == SEED) & (layout.blade_head[blades] > 0.0)
     plant = kind == PLANT
     alive = None if layout.blade_alive is None else layout.blade_alive[blades]
     leaf = tufts.leaf_lengths(layout.params.species(), layout.blade_species[blades], layout.blade_length[blades], alive)
-    marked = crown | plant | (leaf > 0.0)
+    marked = crown | seed | plant | (leaf > 0.0)
     size = np.where(plant, layout.blade_length[blades],
-                    np.where(crown, layout.blade_flower[blades] * layout.blade_width[blades], 0.0))
+                    np.where(crown, layout.blade_flower[blades] * layout.blade_width[blades],
+                             np.where(seed, layout.blade_head[blades] * layout.blade_width[blades], 0.0)))
     first = (np.flatnonzero(shown)[:, None] * bpb + np.arange(bpb)[None, :]) * per_stem  # (objects' positions
     # are their slots' k blocks in order: an object's vertex index is this modulo its vertex count)
     mark = np.stack([np.where(marked, layout.blade_species[blades] + 1.0, 0.0), size,

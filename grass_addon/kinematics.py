@@ -128,8 +128,8 @@ class _Constants:
         w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
         self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
         # a seed head widens the strip at its last joint but one, a flower its top two joints (meadow.py)
-        # (a flower that is a mesh rides the tip: its stem is not widened, heads.py)
-        for joint, width in meadow.widened_joints(n, layout.blade_head, heads.strip_flowers(layout)):
+        # (a flower or seed head that is a mesh rides the tip: its stem is not widened, heads.py)
+        for joint, width in meadow.widened_joints(n, heads.strip_heads(layout), heads.strip_flowers(layout)):
             if width.any():
                 widening = meadow.head_widening(width, layout.params.blade.tip_width, n, joint)
                 self.w_side[..., joint] *= widening.reshape(nb, bpb)

@@ -140,10 +140,11 @@ SPECIES_FIELDS: tuple[Param, ...] = (
        maximum=1.0, size=3, label="Head Color"),
     _p("", "head_size", "float", 3.0, "Width of a head as a multiple of the stem's width", unit="x width",
        minimum=1.0, maximum=30.0, soft_max=12.0, label="Head Size"),
-    _p("", "head_shape", "enum", "seed", "A seed head is a spindle over the stem's top two segments; a flower "
+    _p("", "head_shape", "enum", "seed", "A seed head is a spindle over the stem's top two segments, a spike "
+       "(timothy's dense cylinder) or a panicle (meadow grass's open branches of spikelets) a mesh there; a flower "
        "opens at the tip of its top segment (a cup of the strip); a daisy (white rays round a yellow disc), a "
        "buttercup (five glossy cupped petals) or a clover head is a flower as a mesh riding the stem's tip",
-       choices=("seed", "flower", "daisy", "buttercup", "clover"), label="Head Shape"),
+       choices=("seed", "flower", "daisy", "buttercup", "clover", "spike", "panicle"), label="Head Shape"),
     _p("", "plant", "str", "", "A collection of your own (a flower, a fern, a clover clump) drawn for this "
        "species: on its flowering stems' tips as their heads, or, as a Plant, bent along each of its stems (its "
        "lowest point on the root, its height the stem's length). Empty: Windgrass's own", label="Own Plant"),

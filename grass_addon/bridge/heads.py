@@ -31,6 +31,8 @@ ATTR_STEM = "wg_stem"  # point float of the blade slots: the stem's first vertex
 ATTR_LEAF = "wg_leaf"  # point float of the blade slots: the longest leaf at a stem's foot (m; 0: none)
 ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
 ATTR_FOOT_DIR = "wg_foot_dir"  # (in the tree) the stem's first segment at its root
+ATTR_SEED_BASE = "wg_seed_base"  # (in the tree) the stem's joint n - 2: where its seed head's spindle starts
+ATTR_SPIKE_BASE = "wg_spike_base"  # (in the tree) the stem's joint n - 1: where a spike starts
 ATTR_TIP = "wg_tip"  # (in the tree) the stem's tip
 ATTR_LOCAL = "wg_local"  # (in the tree) a plant's point where it is in its source
 ATTR_COLOR = "wg_color"  # point colour of a head mesh
@@ -189,7 +191,9 @@ def _socket(sockets, name: str, kind: str):
     return found[0] if found else sockets[name]
 
 
-HEAD, PLANT = "head", "plant"  # how a species' source is drawn: on the tips, or bent along the stems
+HEAD, PLANT, SEED, SEED_SPAN = "head", "plant", "seed", "seed span"  # how a species' source is drawn: on
+# the tips, bent along the stems, or over their top two segments (a seed head as wide as the spindle, or
+# scaled evenly by the span: shapes.SPAN_SCALED)
 
 
 def build_group(name: str, sources: list, segments: int, stems: int, leaves: list | None = None
@@ -225,7 +229,8 @@ def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | No
     n = int(segments)
     kind, _size, _turn, first = t.head()  # (per vertex: the plants' strips)
     leaves = list(leaves or [])
-    placed = _stem_points(t, mesh, n, stems, any(leaf is not None for leaf in leaves))
+    seeded = any(src is not None and src[0] in (SEED, SEED_SPAN) for src in sources) and n >= 2
+    placed = _stem_points(t, mesh, n, stems, any(leaf is not None for leaf in leaves), seeded)
     grown = t.math("GREATER_THAN", t.vmath("LENGTH", t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR"), None, out="Value"),
                    1e-6)
     carries = t.math("GREATER_THAN", t.head()[0], 0.5)
@@ -255,17 +260,20 @@ def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | No
         mode, data = source
         if mode == PLANT:
             t.link(_bend_along(t, mesh, roots.outputs[0], k + 1, data, n), join.inputs[0])
+        elif mode in (SEED, SEED_SPAN):
+            t.link(_seed_heads(t, roots.outputs[0], k + 1, data, mode == SEED_SPAN), join.inputs[0])
         else:
             t.link(_instances(t, heads.outputs[0], k + 1, data), join.inputs[0])
     t.link(strips, join.inputs[0])  # (linked last: joined first, so the strips' vertices keep their ids)
     t.link(join.outputs[0], group_out.inputs[0])
 
 
-def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool):
+def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool, seeded: bool = False):
     """A point per stem of the slot object (a Points node: no pass over the strip's vertices) on
     its root, with its mark read from the stem's first vertex (``wg_head``, ``wg_stem``), its tip
-    and last segment (``wg_tip``, ``wg_tip_dir``) and, where some species has ``leafy`` feet, its
-    leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``)."""
+    and last segment (``wg_tip``, ``wg_tip_dir``), where some species has ``leafy`` feet its
+    leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``), and where some has its seed
+    heads as meshes (``seeded``) its joint n - 2 (``wg_seed_base``)."""
     stem = t.node("GeometryNodePoints")
     stem.inputs["Count"].default_value = int(stems)
     index = t.node("GeometryNodeInputIndex").outputs[0]
@@ -285,6 +293,9 @@ def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool):
     points = t.store(points, ATTR_TIP_DIR, "FLOAT_VECTOR",
                      t.vmath("SUBTRACT", tip, t.middle(mesh, t.math("ADD", base, float(2 * n - 2)))))
     points = t.store(points, ATTR_TIP, "FLOAT_VECTOR", tip)
+    if seeded:  # (a spike over the top segment, a panicle over the top two: ``shapes.SPAN_SCALED``)
+        points = t.store(points, ATTR_SEED_BASE, "FLOAT_VECTOR", t.middle(mesh, t.math("ADD", base, float(2 * n - 4))))
+        points = t.store(points, ATTR_SPIKE_BASE, "FLOAT_VECTOR", t.middle(mesh, t.math("ADD", base, float(2 * n - 2))))
     placed = t.node("GeometryNodeSetPosition")  # on its root (the plants stand there)
     t.link(points, placed.inputs["Geometry"])
     t.link(root, placed.inputs["Position"])
@@ -325,6 +336,40 @@ def _instances(t: _Tree, points, kind: int, source):
     t.link(_source_geometry(t, source), place.inputs["Instance"])
     t.link(rotate.outputs[0], place.inputs["Rotation"])
     t.link(radius, place.inputs["Scale"])
+    return place.outputs[0]
+
+
+def _seed_heads(t: _Tree, roots, kind: int, source, even: bool = False):
+    """Species ``kind``'s seed heads: ``source`` (``shapes.SEED_SHAPES``: z 0..1 its span, 1 wide)
+    scaled to its span on each stem: a panicle (``even``, scaled evenly by the span) the top two
+    segments (from the joint n - 2 to the tip, the spindle the far grass draws), a spike the top
+    one, as wide as the seed head (``size``); turned about the stem by its facing."""
+    mine_kind, size, turn_angle, _first = t.head()
+    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", size, 0.0))
+    base = t.attribute(ATTR_SEED_BASE if even else ATTR_SPIKE_BASE, "FLOAT_VECTOR")
+    span = t.vmath("SUBTRACT", t.attribute(ATTR_TIP, "FLOAT_VECTOR"), base)
+    moved = t.node("GeometryNodeSetPosition")
+    t.link(roots, moved.inputs["Geometry"])
+    t.link(base, moved.inputs["Position"])
+    align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
+    t.link(span, align.inputs["Vector"])
+    turn = t.node("FunctionNodeAxisAngleToRotation")
+    turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
+    t.link(turn_angle, turn.inputs["Angle"])
+    rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
+    t.link(align.outputs[0], rotate.inputs["Rotation"])
+    t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    scale = t.node("ShaderNodeCombineXYZ")
+    length = t.vmath("LENGTH", span, None, out="Value")
+    t.link(length if even else size, scale.inputs["X"])
+    t.link(length if even else size, scale.inputs["Y"])
+    t.link(length, scale.inputs["Z"])
+    place = t.node("GeometryNodeInstanceOnPoints")
+    t.link(moved.outputs[0], place.inputs["Points"])
+    t.link(mine, place.inputs["Selection"])
+    t.link(_source_geometry(t, source), place.inputs["Instance"])
+    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(scale.outputs[0], place.inputs["Scale"])
     return place.outputs[0]
 
 
@@ -418,6 +463,7 @@ def _bend_along(t: _Tree, strips, roots, kind: int, source, n: int):
 
 
 ROLE_HEAD, ROLE_GROUP, ROLE_MATERIAL = owned.ROLE_HEAD, owned.ROLE_HEAD_GROUP, owned.ROLE_HEAD_MATERIAL
+_SHAPES = shapes.MESH_SHAPES + shapes.SEED_SHAPES  # Windgrass's own head meshes
 ROLE_LEAVES = owned.ROLE_LEAVES
 
 
@@ -482,13 +528,14 @@ def build(item, params, uid: str, base: str, stems: int, leaf_material=None):
         own = own_collection(row) if kind[k] != shapes.NONE else None
         if own is not None:
             sources[k] = (PLANT if kind[k] == shapes.PLANT else HEAD, own)
-        elif kind[k] == shapes.HEAD and row["head_shape"] in shapes.MESH_SHAPES:
+        elif kind[k] in (shapes.HEAD, shapes.SEED) and row["head_shape"] in _SHAPES:
             material = material or _material(item, uid, base)
             obj = _head_object(f"{base} {row['name'] or 'species'} head", row, material)
             owned.tag(obj, uid, ROLE_HEAD, k)
             owned.tag(obj.data, uid, ROLE_HEAD, k)
             owned.record(item, _key(k), obj)
-            sources[k] = (HEAD, obj)
+            seed = SEED_SPAN if row["head_shape"] in shapes.SPAN_SCALED else SEED
+            sources[k] = (seed if kind[k] == shapes.SEED else HEAD, obj)
     if all(s is None for s in sources + leaves):
         return None
     tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), stems, leaves)
@@ -585,7 +632,7 @@ def update_colours(item, params) -> None:
         if not isinstance(obj, bpy.types.Object) or obj.get("wg_role") != ROLE_HEAD or obj.data is None:
             continue
         k = int(obj.get("wg_slot", -1))
-        if not 0 <= k < len(rows) or rows[k]["head_shape"] not in shapes.MESH_SHAPES:
+        if not 0 <= k < len(rows) or rows[k]["head_shape"] not in _SHAPES:
             continue
         mesh, m = obj.data, shapes.head_mesh(rows[k]["head_shape"])
         if len(mesh.vertices) != len(m.vertices) or ATTR_COLOR not in mesh.attributes:

@@ -44,3 +44,35 @@ def test_a_larger_frame_draws_blades_further_out_and_the_canopy_further_back(run
     scene.frame_set(3)
     roots = stems(item)[:, 0].mean(axis=1)
     assert float(np.percentile(np.hypot(roots[:, 0], roots[:, 1]), 99)) < 1.2 * reach[960]
+
+
+def test_the_fields_edge_seen_from_outside_comes_down_to_the_ground(runtime):
+    """Add Grass Field's meadow thins out over its edge (0.8 m): the far canopy's plane and the
+    fringe along the boundary come down with it, so from outside (the elevated viewport, a drone)
+    the edge reads as grass thinning out, not a wall: on the boundary the canopy and its fringe stand
+    at most 15 % of the tallest stem (the blades there: 12 % of their length), the plane a quarter
+    of its height inside or less; in Solid shading the cards are drawn see-through (overlapping into
+    a grassy layer, not shards)."""
+    from windgrass.grass_addon.bridge import owned
+
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    item = bpy.context.scene.windgrass.fields[0]
+    assert item.field.edge > 0.5
+    ground = owned.ground_object(item).evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = ground.data
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    floor = {i for p in mesh.polygons if p.material_index == 0 for i in p.vertices}
+    canopy = sorted({i for p in mesh.polygons if p.material_index == 1 for i in p.vertices} - floor)
+    top = co[canopy]
+    half = 0.5 * np.array([item.field.blocks_x, item.field.blocks_y]) * item.field.cells_per_block \
+        * item.field.cell_size
+    inside = np.abs(top[:, :2]).max(axis=1) < half.min() - item.field.edge - 1e-3
+    boundary = np.abs(np.abs(top[:, :2]) - half).min(axis=1) < 1e-3
+    assert inside.any() and boundary.sum() >= 4
+    tallest = max(row.length + 4.0 * row.length_variation for row in item.blade.species)
+    assert top[boundary, 2].max() <= 0.15 * tallest, (top[boundary, 2].max(), tallest)  # (blades there: 12 %)
+    assert top[inside, 2].min() > 4.0 * top[boundary, 2].min()  # (the canopy's plane comes down)
+    cards = owned.registered(item)[owned.ROLE_CARD_MATERIAL]
+    assert cards.diffuse_color[3] < 0.6

@@ -245,3 +245,38 @@ def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the
         np.testing.assert_allclose(along, segments, rtol=0.02)
         tips.append(rings[np.argsort(order), -1])
     assert np.percentile(np.linalg.norm(tips[1] - tips[0], axis=1), 90) > 0.002
+
+
+def test_grass_seed_heads_are_spikes_and_panicles_over_their_stems_tops(runtime, stems):
+    """Add Grass Field's meadow: timothy's seed heads are spikes over its stems' top segments and
+    the other grasses' panicles over their top two (the spindle the far grass and the cards draw):
+    each spike Blender draws starts at a drawn stem's joint n - 1 and reaches its tip (within 0.1
+    mm), as wide as its spindle (0.5-4 cm); each panicle starts at a joint n - 2, its axis to the
+    tip, scaled evenly by that span; the stems under them stay thin (their strips unwidened)."""
+    assert bpy.ops.windgrass.field_add(blocks_x=4, blocks_y=4) == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    n = item.blade.segments
+    shapes = {row.name: row.head_shape for row in item.blade.species}
+    assert shapes["timothy"] == "spike" and shapes["meadow grass"] == shapes["cocksfoot"] == "panicle"
+    scene.frame_set(5)
+    shown = stems(item)
+    centre = shown.mean(axis=2)
+    found = _instances(item)
+    for name, joint in (("timothy", n - 1), ("meadow grass", n - 2), ("cocksfoot", n - 2)):
+        m = found[name]
+        assert len(m) > 3, name
+        at = m[:, :3, 3]
+        nearest = np.argmin(((at[:, None, :] - centre[None, :, joint]) ** 2).sum(axis=2), axis=1)
+        assert np.abs(at - centre[nearest, joint]).max() < 1e-4, name
+        span = centre[nearest, n] - centre[nearest, joint]
+        axis = m[:, :3, 2]  # the instance's z: the span, scaled
+        assert np.abs(axis - span).max() < 1e-4, name
+        width = np.linalg.norm(m[:, :3, 0], axis=1)
+        if shapes[name] == "spike":
+            assert 0.005 < width.min() and width.max() < 0.04, name
+        else:
+            assert np.allclose(width, np.linalg.norm(span, axis=1), rtol=1e-4), name
+        top = np.linalg.norm(shown[nearest, n - 1, 1] - shown[nearest, n - 1, 0], axis=1)
+        root = np.linalg.norm(shown[nearest, 0, 1] - shown[nearest, 0, 0], axis=1)
+        assert np.all(top < root), name  # the stem tapers under its seed head, unwidened

@@ -35,6 +35,28 @@ def test_a_buttercup_is_a_cup_of_five_glossy_petals():
     assert m.vertices[m.part == heads.GREEN, 2].max() < 0.0
 
 
+def test_a_timothy_spike_is_a_lumpy_cylinder_over_the_stems_top_and_a_panicle_a_pyramid_of_spikelets():
+    """Seed heads as meshes over the stem's top (z 0 at its joint n - 1 or n - 2, 1 at its tip):
+    timothy's spike is a dense cylinder over the top segment, the seed head 1 wide (its middle 0.35-0.65
+    from the axis, lumpy with spikelets, rounded at both ends); a meadow grass's panicle, in units
+    of the span, is an open pyramid: a thin axis to the tip, whorls of branches whose spikelets
+    (the head's colour, 4 % of the span long) reach further out the lower they are."""
+    m = heads.head_mesh("spike")
+    z, r = m.vertices[:, 2], np.hypot(m.vertices[:, 0], m.vertices[:, 1])
+    assert z.min() == 0.0 and z.max() == 1.0
+    middle = (z > 0.2) & (z < 0.8)
+    assert 0.35 < r[middle].min() and r[middle].max() < 0.65 and np.ptp(r[middle]) > 0.1  # lumpy
+    assert r[(z < 0.01) | (z > 0.99)].max() < 0.1  # rounded ends
+    p = heads.head_mesh("panicle")
+    z, r = p.vertices[:, 2], np.hypot(p.vertices[:, 0], p.vertices[:, 1])
+    spikelets = p.part == heads.PETALS
+    assert spikelets.sum() == 5 * 3 * 4 * 4  # 5 whorls of 3 branches of 4 spikelets (lozenges)
+    assert z.max() <= 1.0 and z[p.part == heads.CENTRE].max() >= 0.99  # the axis to the tip
+    low, high = spikelets & (z < 0.4), spikelets & (z > 0.8)
+    assert 0.2 < r[low].max() < 0.4 and r[low].max() > 2.0 * r[high].max()  # a pyramid
+    assert np.allclose(heads.colours(p, "panicle", (0.3, 0.25, 0.1))[spikelets], (0.3, 0.25, 0.1))
+
+
 def test_a_head_is_placed_on_the_tip_along_the_stem_and_as_wide_as_its_flower():
     """``placed``: the head's axis (+Z) onto the stem's last segment, its centre on the tip, its
     width scaled to the flower's; the turn about the axis keeps its width."""
@@ -51,24 +73,28 @@ def test_a_head_is_placed_on_the_tip_along_the_stem_and_as_wide_as_its_flower():
 
 def test_the_marks_sit_on_the_first_vertex_of_each_stem_that_carries_a_flower_mesh_or_leaves():
     """Blender reads each stem's mark on its first vertex: the meadow's flowering daisies and
-    buttercups carry their flowers' widths in metres (1-5 cm), every stem of a species with
-    leaves its longest leaf (the species' leaf size times the stem's length), a stem of a species
-    with neither nothing; each mark names that vertex."""
+    buttercups carry their flowers' widths in metres (1-5 cm), its grasses' seed heads (panicles,
+    timothy's spikes) their spindles' widths (0.5-4 cm), every stem of a species with leaves its
+    longest leaf (the species' leaf size times the stem's length), a stem of a species with none
+    of these nothing; each mark names that vertex."""
     params = presets.apply_preset(schema.defaults(), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "field.blades_per_cell": 3})
     rows = [dict(r) for r in params.species()]
-    rows[1]["leaves"] = "none"  # timothy: neither a flower mesh nor leaves
+    rows[1].update(leaves="none", head_shape="seed")  # timothy: neither a mesh head nor leaves
     params = params.replace({"blade.species": rows})
     layout = build_layout(params)
     marks = heads.tip_marks(layout, np.arange(layout.n_blocks)).reshape(-1, 2 * (layout.segments + 1), 5)
     kind = layout.blade_species
     flowering = np.array([rows[k]["head_shape"] in ("daisy", "buttercup") for k in kind]) & (layout.blade_flower > 0)
+    seeding = np.array([rows[k]["head_shape"] in heads.SEED_SHAPES for k in kind]) & (layout.blade_head > 0)
     leafy = kind != 1
-    assert flowering.sum() > 10 and (~leafy).sum() > 10
+    assert flowering.sum() > 10 and seeding.sum() > 10 and (~leafy).sum() > 10
     assert np.array_equal(marks[:, 0, 0] > 0, flowering | leafy) and not marks[:, 1:].any()
     assert np.array_equal(marks[leafy, 0, 0] - 1, kind[leafy])
     assert 0.01 < marks[flowering, 0, 1].min() and marks[flowering, 0, 1].max() < 0.05
-    assert not marks[~flowering, 0, 1].any()
+    assert np.allclose(marks[seeding, 0, 1], layout.blade_head[seeding] * layout.blade_width[seeding])
+    assert 0.005 < marks[seeding, 0, 1].min() and marks[seeding, 0, 1].max() < 0.04
+    assert not marks[~(flowering | seeding), 0, 1].any()
     size = np.array([rows[k]["leaf_size"] for k in kind])
     assert np.allclose(marks[leafy, 0, 4], size[leafy] * layout.blade_length[leafy], rtol=1e-6)
     assert 0.03 < marks[leafy, 0, 4].min() and marks[leafy, 0, 4].max() < 0.6  # (basal leaves, 3-60 cm)

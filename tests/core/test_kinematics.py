@@ -370,15 +370,16 @@ def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_
     at joint n - 1; a flower of the strip (head shape "flower") that wide at joint n - 1 and 0.6 of
     it at the tip (its rim), its two top segments together 0.7 times its width long, the stem's
     other segments equal and the blade its whole length; the other joints keep the linear taper,
-    and so does the whole stem of a flower that is a mesh (a daisy: heads.py), its top segments as
-    short. Checked by hand against the width vector of every joint, untwisted and unbent, and the
+    and so does the whole stem of a flower or a seed head that is a mesh (a daisy, timothy's spike:
+    heads.py), a flower's top segments as short. Checked by hand against the width vector of every joint, untwisted and unbent, and the
     joints' distances."""
     from windgrass.grass_addon import presets
 
     params = presets.apply_preset(schema.defaults(), "meadow")
     rows = [dict(r) for r in params.blade.species]
     rows[3]["head_shape"] = "flower"  # the buttercups a cup of the strip, the daisies meshes
-    assert rows[4]["head_shape"] == "daisy"
+    rows[0]["head_shape"] = "seed"  # the meadow grass's seed heads spindles of the strip, timothy's spikes
+    assert rows[4]["head_shape"] == "daisy" and rows[1]["head_shape"] == "spike"
     params = params.replace({"field.blocks_x": 2, "field.blocks_y": 2, "field.cells_per_block": 4,
                              "field.blades_per_cell": 3, "blade.species": tuple(rows)})
     layout = build_layout(params)
@@ -388,7 +389,9 @@ def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_
     width = np.linalg.norm(np.diff(strips(layout, cells_of(layout)), axis=2)[:, :, 0], axis=2)
     taper = 1.0 + (params.blade.tip_width - 1.0) * np.arange(n + 1) / n
     expected = layout.blade_width[:, None] * taper[None, :]
-    expected[:, n - 1] = np.where(layout.blade_head > 0, layout.blade_width * layout.blade_head, expected[:, n - 1])
+    spindle = (layout.blade_head > 0) & (layout.blade_species == 0)  # (a spike's stem stays a thin strip)
+    assert spindle.any() and ((layout.blade_head > 0) & (layout.blade_species == 1)).any()
+    expected[:, n - 1] = np.where(spindle, layout.blade_width * layout.blade_head, expected[:, n - 1])
     flower = layout.blade_flower > 0
     expected[cup, n - 1] = layout.blade_width[cup] * layout.blade_flower[cup]
     expected[cup, n] = 0.6 * layout.blade_width[cup] * layout.blade_flower[cup]

@@ -14,8 +14,8 @@ averages out. ``wind.gust_waves`` adds a large, smooth pattern that scales the m
 The pattern is one tile of ``TILE_PIXELS`` squared values (a Gaussian random field of the seed,
 low-pass filtered in Fourier space so it tiles), ``TILE_SIZES`` gust sizes wide; it is sampled
 bilinearly between pixel centres and wraps, exactly as Blender's Linear / Repeat image texture.
-Its patches are ``STRETCH`` times longer across the wind (``wind.direction``) than along it: a
-gust over a field runs as a band across it, its front broad and its depth short, as the waves
+Its patches are ``wind.gust_stretch`` times longer across the wind (``wind.direction``) than along
+it: a gust over a field runs as a band across it, its front broad and its depth short, as the waves
 seen sweeping over a meadow from above.
 """
 
@@ -26,14 +26,13 @@ import numpy as np
 TILE_PIXELS = 64
 TILE_SIZES = 8.0  # a tile spans this many gust sizes (wind.gust_wave_size)
 GUST_PURPOSE = 29  # np.random.default_rng([seed, 29]) draws the pattern
-STRETCH = 2.5  # a gust's patch is this many times longer across the wind than along it
 
 
 def tile_metres(params) -> float:
     return TILE_SIZES * float(params.wind.gust_wave_size)
 
 
-def pattern(seed: int, direction: float = 0.0, stretch: float = STRETCH) -> np.ndarray:
+def pattern(seed: int, direction: float = 0.0, stretch: float = 1.0) -> np.ndarray:
     """(TILE_PIXELS, TILE_PIXELS) float32 in [0, 1], mean 0.5: smooth patches about
     TILE_PIXELS / TILE_SIZES pixels deep along the wind blowing towards ``direction`` (degrees
     from +X, counter-clockwise) and ``stretch`` times that across it, tiling without a seam (row 0

@@ -121,12 +121,13 @@ EDGE_GRAIN = 0.4  # ... over this many metres (value noise)
 EDGE_CHANNEL = 7
 
 
-def edge_scale(xy: np.ndarray, origin, size, params) -> np.ndarray:
+def edge_scale(xy: np.ndarray, origin, size, params, ragged: bool = True) -> np.ndarray:
     """(n,) the field's edge's scale of the blades' length at ``xy`` (1 without ``field.edge``):
     from EDGE_FLOOR on the field's boundary (``origin``, ``size``: its rectangle) up to 1 at
     ``field.edge`` metres inside it, a smoothstep along a ragged line (the distance in wanders by
-    EDGE_RAGGED of the width, value noise of EDGE_GRAIN m), so the edge seen from outside thins out
-    as a meadow's does instead of standing as a wall."""
+    EDGE_RAGGED of the width, value noise of EDGE_GRAIN m; ``ragged`` False: a straight one, the
+    far grass's mean), so the edge seen from outside thins out as a meadow's does instead of
+    standing as a wall."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     width = float(params.field.edge)
     if width <= 0.0 or not len(xy):
@@ -134,7 +135,8 @@ def edge_scale(xy: np.ndarray, origin, size, params) -> np.ndarray:
     x0, y0 = float(origin[0]), float(origin[1])
     x1, y1 = x0 + float(size[0]), y0 + float(size[1])
     inside = np.minimum(np.minimum(xy[:, 0] - x0, x1 - xy[:, 0]), np.minimum(xy[:, 1] - y0, y1 - xy[:, 1]))
-    wander = EDGE_RAGGED * width * (2.0 * value_noise(xy, int(params.field.seed), EDGE_CHANNEL, EDGE_GRAIN) - 1.0)
+    wander = (EDGE_RAGGED * width * (2.0 * value_noise(xy, int(params.field.seed), EDGE_CHANNEL, EDGE_GRAIN) - 1.0)
+              if ragged else 0.0)
     u = np.clip((inside + wander) / width, 0.0, 1.0)
     return EDGE_FLOOR + (1.0 - EDGE_FLOOR) * u * u * (3.0 - 2.0 * u)
 
@@ -142,8 +144,8 @@ def edge_scale(xy: np.ndarray, origin, size, params) -> np.ndarray:
 def species_weights(xy: np.ndarray, params, weights: np.ndarray) -> np.ndarray | None:
     """(n, species) each species' share at ``xy``, changed patch by patch (every species its own
     noise), or None without patches or with one species. Flowers grow in drifts: a species whose
-    heads are flowers (``drifts``) varies FLOWER_DRIFT times as much, divided by how much more that
-    raises its mean over the field (``_mean_gain``), so its share of the whole field stays."""
+    heads are flowers (``drifts``) varies ``field.flower_drift`` times as much, divided by how much
+    more that raises its mean over the field (``_mean_gain``), so its share of the whole field stays."""
     f = params.field
     if f.patchiness <= 0.0 or len(weights) < 2:
         return None
@@ -151,13 +153,12 @@ def species_weights(xy: np.ndarray, params, weights: np.ndarray) -> np.ndarray |
     out = np.empty((len(xy), len(weights)))
     base = PATCH_SHARE * float(f.patchiness)
     for k, (w, drift) in enumerate(zip(weights, drifts(params.species()))):
-        contrast = base * (FLOWER_DRIFT if drift else 1.0)
+        contrast = base * (float(f.flower_drift) if drift else 1.0)
         gain = _mean_gain(base) / _mean_gain(contrast)
         out[:, k] = w * gain * np.exp(contrast * patches(xy, int(f.seed), k + 1, float(f.patch_size)))
     return out
 
 
-FLOWER_DRIFT = 1.6  # a flowering species' patches vary this many times as much as a grass's (drifts)
 FLOWER_SHAPES = ("flower", "daisy", "buttercup", "clover")  # head shapes that are flowers (heads.MESH_SHAPES)
 
 

@@ -255,6 +255,9 @@ PARAMS: tuple[Param, ...] = (
        "changes (0: the same everywhere)", unit="fraction", minimum=0.0, maximum=1.0, label="Patches"),
     _p("field", "patch_size", "float", 8.0, "Size of a patch", unit="m", minimum=0.5, maximum=1000.0,
        soft_max=50.0, label="Patch Size"),
+    _p("field", "flower_drift", "float", 1.6, "How much more a flowering species' share changes from patch to patch "
+       "than a grass's: flowers grow in drifts of yellow and white (1: as the grasses; the field's share of each "
+       "species stays)", minimum=1.0, maximum=4.0, advanced=True, label="Flower Drifts"),
     _p("field", "edge", "float", 0.0, "How far in from the field's edge its grass grows to full height, along a ragged "
        "line (0: a hard edge, for fields laid side by side): a meadow's edge thins out instead of standing as a wall",
        unit="m", minimum=0.0, maximum=20.0, soft_max=3.0, label="Edge"),
@@ -333,6 +336,9 @@ PARAMS: tuple[Param, ...] = (
        label="Gust Waves"),
     _p("wind", "gust_wave_size", "float", 30.0, "Size of a gust wave's patch", unit="m", minimum=2.0,
        maximum=1000.0, soft_max=200.0, advanced=True, label="Wave Size"),
+    _p("wind", "gust_stretch", "float", 2.5, "How many times longer a gust wave's patch is across the wind than along "
+       "it: 1, round patches; more, bands across the wind, as gusts are seen sweeping over a meadow", minimum=1.0,
+       maximum=10.0, soft_max=5.0, advanced=True, label="Wave Stretch"),
     _p("wind", "keys", "table_list", (), "Changes of the mean wind's speed and direction over time",
        fields=WIND_KEY_FIELDS, label="Keys"),
     # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------
@@ -453,7 +459,7 @@ SECTIONS: tuple[str, ...] = tuple(dict.fromkeys(p.section for p in PARAMS))
 # The layout of the settings a .blend keeps (its fields' properties): raised when a setting changes
 # its meaning or unit, with an entry in ``bridge.properties.UPGRADES`` that brings an older file's
 # settings to it, so a file saved by an earlier Windgrass opens with its grass as it was.
-SETTINGS_VERSION = 1
+SETTINGS_VERSION = 2
 BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
 
 

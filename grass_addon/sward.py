@@ -74,6 +74,21 @@ def floor_colours(params: Params) -> tuple[tuple[float, float, float], tuple[flo
     return FLOOR_COLOURS[str(params.field.floor)]
 
 
+def ground_colours(params: Params) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The two linear RGB colours the ground material shows under the grass drawn: the floor
+    (``floor_colours``) under the leaves at the stems' foot, which are drawn only with their stems
+    (``tufts.py``): where cards or the far canopy stand for the blades, the ground stands for the
+    leaves, each floor colour mixed towards their mean colour seen from above by the share of the
+    ground they cover (1 - exp(-tau_h) of their area seen from above, ``leaf_layers``)."""
+    floor = floor_colours(params)
+    _, top, _, top_rgb = leaf_layers(params, np.zeros(1))
+    if top[0] <= 0.0:
+        return floor
+    leaf, cover = top_rgb[0] / top[0], 1.0 - float(np.exp(-top[0]))
+    a, b = (tuple(float(c) for c in np.asarray(f) + (leaf - np.asarray(f)) * cover) for f in floor)
+    return a, b
+
+
 def sample_blades(params: Params) -> Block:
     """The field's own blades as one block. Without patches every block is drawn from the same law
     and block 0 stands for them all (its 768 blades by default); a meadow's patches (metres wide:

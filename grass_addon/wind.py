@@ -184,7 +184,8 @@ class WindField:
         self.vortex_period = tuple(min(v, PATTERN_PERIOD_MAX) for v in self.size)
         # Gust waves (gusts.py): a large pattern scaling the mean wind, carried downwind with it.
         self.gust_waves = float(w.gust_waves)
-        self.gust_tile = gusts.pattern(self.seed, float(w.direction)) if self.gust_waves > 0.0 else None
+        self.gust_tile = (gusts.pattern(self.seed, float(w.direction), float(w.gust_stretch)) if self.gust_waves > 0.0
+                          else None)
         self.gust_metres = gusts.tile_metres(params)
         self._block_grid_of: tuple[Any, tuple[np.ndarray, np.ndarray] | None] | None = None
         self.loop = loop.loop_seconds(params)  # L (s): the wind repeats after it (loop.py); 0: never

@@ -939,7 +939,7 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
     weights = np.asarray([row["weight"] for row in params.species()], dtype=np.float64)
     tips = (weights[:, None] * species).sum(axis=0) / max(weights.sum(), 1e-9)
     far = SWARD_LIGHT * sward.sward_look(params, [VIEWPORT_SLOPE])[0]
-    floor = sward.floor_colours(params)
+    floor = sward.ground_colours(params)
     for mat, rgb, alpha in ((blades, 0.85 * tips, 1.0), (cards, far, CARD_VIEWPORT_ALPHA), (canopy, far, 1.0),
                             (ground, floor[0], 1.0)):
         if mat is None:
@@ -950,10 +950,11 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
 
 
 def update_floor(params, ground) -> None:
-    """The ground's floor colours: a meadow's thatch and litter, or a lawn's turf (``field.floor``)."""
+    """The ground's floor colours: a meadow's thatch and litter, or a lawn's turf (``field.floor``),
+    under the leaves at the stems' foot (``sward.ground_colours``)."""
     node = ground.node_tree.nodes.get(NODE_FLOOR) if ground is not None and ground.node_tree is not None else None
     if node is not None:
-        for name, colour in zip(("A_Color", "B_Color"), sward.floor_colours(params)):
+        for name, colour in zip(("A_Color", "B_Color"), sward.ground_colours(params)):
             _set(node, (*colour, 1.0), name)
 
 

@@ -49,13 +49,15 @@ def fill_quads(mesh, n_verts: int, faces: np.ndarray, uvs: np.ndarray, attribute
 
 
 def thinning_edge(params):
-    """(width m, scale) of the field's thinning edge for the ground mesh (``meshes.ground_mesh``):
-    ``meadow.edge_scale`` in the ground's frame (the field centred on its origin); None without one."""
+    """(width m, scale) of the field's thinning edge for the ground mesh (``ground_mesh``):
+    ``meadow.edge_scale`` in the ground's frame (the field centred on its origin), its line straight
+    (the far grass stands for the blades' mean; a few ground vertices on a ragged line rose as
+    walls); None without one."""
     if float(params.field.edge) <= 0.0:
         return None
     grid = FieldGrid.of(params)
     half = 0.5 * np.asarray(grid.size, np.float64)
-    return float(params.field.edge), lambda xy: meadow.edge_scale(xy, -half, grid.size, params)
+    return float(params.field.edge), lambda xy: meadow.edge_scale(xy, -half, grid.size, params, ragged=False)
 
 
 def ground_mesh(name: str, size: tuple[float, float], heightfield=None, canopy: float = 0.0,

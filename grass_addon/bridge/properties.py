@@ -488,9 +488,18 @@ def add_field(scene: bpy.types.Scene, params: schema.Params | None = None, name:
 # Fields saved before it existed hold version 1 (the settings as they were until versions began).
 SETTINGS_VERSION_KEY = "wg_settings_version"
 
-# version -> a function bringing a field item's settings from that version to the next (none yet:
-# version 1 is the first); ``upgrade`` runs them in order when a file is opened.
-UPGRADES: dict[int, Callable[[Any], None]] = {}
+def _from_version_1(item: Any) -> None:
+    """Version 2 added settings whose defaults change what a field of version 1 drew: its LOD by
+    screen size, its gust waves' stretch across the wind, its flowers' drifts. A field of version 1
+    keeps what it drew: none of them."""
+    item.lod.screen_size = False
+    item.wind.gust_stretch = 1.0
+    item.field.flower_drift = 1.0
+
+
+# version -> a function bringing a field item's settings from that version to the next; ``upgrade``
+# runs them in order when a file is opened.
+UPGRADES: dict[int, Callable[[Any], None]] = {1: _from_version_1}
 
 
 def upgrade(item: Any) -> str | None:
@@ -501,8 +510,12 @@ def upgrade(item: Any) -> str | None:
     if saved > schema.SETTINGS_VERSION:
         return (f"field '{item.name}' was saved by a newer Windgrass (settings version {saved}; this one reads up "
                 f"to {schema.SETTINGS_VERSION}): its grass may differ; install the newer Windgrass to edit it")
-    for version in range(saved, schema.SETTINGS_VERSION):
-        UPGRADES[version](item)
+    REGISTRY.batch_depth += 1  # (no edit to follow: the file's load brings every field to its settings next)
+    try:
+        for version in range(saved, schema.SETTINGS_VERSION):
+            UPGRADES[version](item)
+    finally:
+        REGISTRY.batch_depth -= 1
     item[SETTINGS_VERSION_KEY] = schema.SETTINGS_VERSION
     return None
 

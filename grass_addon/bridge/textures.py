@@ -107,13 +107,13 @@ def _write_grey(image, values: np.ndarray, alpha: np.ndarray | None = None) -> N
 
 
 def paint_gust_image(image, params) -> None:
-    """Write the gust pattern of the field's seed and wind direction into ``image`` unless it
-    already holds it."""
-    seed, direction = int(params.field.seed), float(params.wind.direction)
-    key = f"{seed} {direction!r} {gusts.STRETCH!r}"
+    """Write the gust pattern of the field's seed, wind direction and stretch into ``image`` unless
+    it already holds it."""
+    seed, direction, stretch = int(params.field.seed), float(params.wind.direction), float(params.wind.gust_stretch)
+    key = f"{seed} {direction!r} {stretch!r}"
     if image.get(GUST_KEY) == key:
         return
-    _write_grey(image, gusts.pattern(seed, direction))  # row 0 is y = 0, as Blender's pixel rows
+    _write_grey(image, gusts.pattern(seed, direction, stretch))  # row 0 is y = 0, as Blender's pixel rows
     image[GUST_KEY] = key
 
 

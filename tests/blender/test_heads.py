@@ -41,14 +41,15 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
     n = item.blade.segments
     blades = [o for o in item.collection.objects if o.get("wg_role") == "blades"]
     assert blades and all(o.modifiers.get("Windgrass Heads") is not None for o in blades)
-    assert set(_head_objects(item)) == {"buttercup", "ox-eye daisy"}
+    assert set(_head_objects(item)) == {"buttercup", "ox-eye daisy", "meadow grass", "timothy", "cocksfoot",
+                                        "dry grass"}  # (the grasses' seed heads: their own test)
     where = {}
     for frame in (1, 9, 17):
         scene.frame_set(frame)
         shown = stems(item)
         centre = shown.mean(axis=2)
         tips, last = centre[:, n], centre[:, n] - centre[:, n - 1]
-        found = _instances(item)
+        found = {name: m for name, m in _instances(item).items() if name in ("buttercup", "ox-eye daisy")}
         total = sum(len(m) for m in found.values())
         assert 0.01 * len(shown) < total < 0.25 * len(shown), (total, len(shown))
         for name, m in found.items():

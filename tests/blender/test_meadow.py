@@ -44,13 +44,15 @@ def test_flowers_and_seed_heads_ride_their_stems_tips_every_frame(runtime, settl
     that at the tip, where a plain blade tapers to a sixth); seed heads are widest at the joint
     below the tip and close at it. Over frames of wind the widened joints stay the strip's own
     joints: every segment keeps its length (the heads ride the solver's tips, no second body) and
-    the tips sway. (Flowers that are meshes: test_heads.py.)"""
+    the tips sway. (Flowers and seed heads that are meshes: test_heads.py.)"""
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
     scene = bpy.context.scene
     item = scene.windgrass.fields[0]
     for row in item.blade.species:
         if row.head_shape in ("daisy", "buttercup"):
             row.head_shape = "flower"
+        elif row.head_shape in ("spike", "panicle"):
+            row.head_shape = "seed"
     settle()
     n = item.blade.segments
     tips, lengths = [], None

@@ -1,8 +1,9 @@
 """Files last: a .blend saved by an earlier Windgrass opens with its grass as it was.
 
-``tests/data/field-v1.blend`` was saved by Windgrass at settings version 1 (``make_saved_field.py``)
-with what its blades drew at the frame it was saved at; opened here, the field draws those
-vertices again, and its settings carry their version."""
+``tests/data/field-vN.blend`` was saved by Windgrass at settings version N (``make_saved_field.py``,
+one file a version: 1 before LOD by screen size, the gust waves' stretch and the flowers' drifts, 2
+with them) with what its blades drew at the frame it was saved at; opened here, the field draws
+those vertices again, and its settings carry this version."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+import pytest
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 
@@ -19,12 +21,13 @@ def _open(path: Path):
     return bpy.context.scene
 
 
-def test_a_file_of_settings_version_1_draws_its_grass_as_saved(with_bridge, drawn, tmp_path):
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_file_of_each_settings_version_draws_its_grass_as_saved(with_bridge, drawn, tmp_path, version):
     from windgrass.grass_addon import schema
     from windgrass.grass_addon.bridge import properties, runtime
 
-    copy = tmp_path / "field-v1.blend"
-    copy.write_bytes((DATA / "field-v1.blend").read_bytes())  # (opened from a copy: the data stays as it is)
+    copy = tmp_path / f"field-v{version}.blend"
+    copy.write_bytes((DATA / copy.name).read_bytes())  # (opened from a copy: the data stays as it is)
     scene = _open(copy)
     item = scene.windgrass.fields[0]
     scene.frame_set(int(scene["wg_drawn_frame"]))

@@ -371,8 +371,8 @@ def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_
     it at the tip (its rim), its two top segments together 0.7 times its width long, the stem's
     other segments equal and the blade its whole length; the other joints keep the linear taper,
     and so does the whole stem of a flower or a seed head that is a mesh (a daisy, timothy's spike:
-    heads.py), a flower's top segments as short. Checked by hand against the width vector of every joint, untwisted and unbent, and the
-    joints' distances."""
+    heads.py), a flower's top segments as short. Checked by hand against the width vector of every
+    joint, untwisted and unbent, and the joints' distances."""
     from windgrass.grass_addon import presets
 
     params = presets.apply_preset(schema.defaults(), "meadow")

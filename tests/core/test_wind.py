@@ -382,12 +382,12 @@ def _half_reach(corr: np.ndarray, dx: float, dy: float) -> float:
 
 def test_a_gust_wave_is_a_band_across_the_wind():
     """Seen from above a gust runs over a meadow as a band across the wind: the pattern's patches
-    are about gusts.STRETCH times longer across the wind than along it, whichever way it blows
+    are about ``wind.gust_stretch`` times longer across the wind than along it, whichever way it blows
     (the pattern's autocorrelation falls to a half that many times further across than along)."""
     for direction in (0.0, 60.0, 135.0):
-        tile = gusts.pattern(7, direction).astype(np.float64) - 0.5
+        tile = gusts.pattern(7, direction, 2.5).astype(np.float64) - 0.5
         corr = np.real(np.fft.ifft2(np.abs(np.fft.fft2(tile)) ** 2))
         corr /= corr[0, 0]
         a = np.radians(direction)
         along, across = _half_reach(corr, math.cos(a), math.sin(a)), _half_reach(corr, -math.sin(a), math.cos(a))
-        assert 0.6 * gusts.STRETCH < across / along < 1.6 * gusts.STRETCH, (direction, along, across)
+        assert 0.6 * 2.5 < across / along < 1.6 * 2.5, (direction, along, across)

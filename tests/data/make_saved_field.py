@@ -1,5 +1,5 @@
-"""Make ``field-v1.blend``: a small field as Windgrass of settings version 1 saves it, with what
-its blades drew at frame 12 (every 53rd vertex of Blender's evaluated meshes, world space) kept in
+"""Make ``field-vN.blend`` (N: this Windgrass's settings version): a small field as Windgrass of
+that version saves it, with what its blades drew at frame 12 (every 53rd vertex of Blender's evaluated meshes, world space) kept in
 the scene's ``wg_drawn_at_save``. ``tests/blender/test_saved_files.py`` opens it and checks that
 this Windgrass draws the same. Run it again only when a new settings version is made, as a new
 file beside this one (``field-v2.blend``): the old files stay, each a promise kept.
@@ -36,7 +36,7 @@ def drawn_sample(item) -> np.ndarray:
 
 def main() -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    load_addon()
+    addon = load_addon()
     scene = bpy.context.scene
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
@@ -49,7 +49,8 @@ def main() -> None:
     scene.frame_set(FRAME)
     scene["wg_drawn_at_save"] = drawn_sample(item).ravel().tolist()
     scene["wg_drawn_frame"] = FRAME
-    bpy.ops.wm.save_as_mainfile(filepath=str(HERE / "field-v1.blend"), compress=True)
+    version = sys.modules[addon.__name__ + ".grass_addon.schema"].SETTINGS_VERSION
+    bpy.ops.wm.save_as_mainfile(filepath=str(HERE / f"field-v{version}.blend"), compress=True)
 
 
 if __name__ == "__main__":

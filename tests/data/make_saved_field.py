@@ -1,8 +1,9 @@
 """Make ``field-vN.blend`` (N: this Windgrass's settings version): a small field as Windgrass of
-that version saves it, with what its blades drew at frame 12 (every 53rd vertex of Blender's evaluated meshes, world space) kept in
-the scene's ``wg_drawn_at_save``. ``tests/blender/test_saved_files.py`` opens it and checks that
-this Windgrass draws the same. Run it again only when a new settings version is made, as a new
-file beside this one (``field-v2.blend``): the old files stay, each a promise kept.
+that version saves it, with what its blades drew at frame 12 (every 53rd vertex of Blender's
+evaluated meshes, world space) kept in the scene's ``wg_drawn_at_save``.
+``tests/blender/test_saved_files.py`` opens it and checks that this Windgrass draws the same. Run it
+again only when a new settings version is made: it writes a new file beside the others
+(``field-v3.blend``); the old files stay, each a promise kept.
 
     .venv/bin/python tests/data/make_saved_field.py
 """

@@ -185,13 +185,14 @@ def spike(rings: int = 14, sides: int = 8) -> HeadMesh:
     return _mesh(b)
 
 
-def panicle(whorls: int = 5, branches: int = 3) -> HeadMesh:
+def panicle(whorls: int = 5, branches: int = 4, spikelets: int = 5) -> HeadMesh:
     """An open grass panicle (meadow grass, Poa; cocksfoot's is denser) over the stem's top two
     segments, in units of that span (Blender scales it evenly: z 0 at the stem's joint n - 2, 1
     at its tip): a thin axis to the tip, whorls of branches spreading 35-60 degrees from it
-    (longest at the bottom: a pyramid about 0.6 of its length across), each with four lozenge
-    spikelets 4 % of the span long (the head's colour) along its outer part; the axis and
-    branches the centre's green-straw."""
+    (longest at the bottom: a pyramid about 0.6 of its length across), each with five lozenge
+    spikelets 5 % of the span long (the head's colour) along its outer part, as much of them as the
+    spindle the far grass and the cards draw for it (half the seed head's width times the span);
+    the axis and branches the centre's green-straw."""
     b = _Builder([], [], [], [])
     b.add([(-0.005, 0, 0), (0.005, 0, 0), (0.002, 0, 1.0), (-0.002, 0, 1.0)], [(0, 1, 2, 3)], CENTRE, 0.7)
     rng = np.random.default_rng(13)
@@ -206,10 +207,10 @@ def panicle(whorls: int = 5, branches: int = 3) -> HeadMesh:
             foot = np.array([0.0, 0.0, z0])
             end = foot + length * out
             b.add([foot - side, foot + side, end + side, end - side], [(0, 1, 2, 3)], CENTRE, 0.7)
-            across = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0]) * 0.008
-            for t in np.linspace(0.45, 1.0, 4):  # spikelets along the branch's outer part
+            across = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0]) * 0.01
+            for t in np.linspace(0.4, 1.0, spikelets):  # spikelets along the branch's outer part
                 c = foot + t * length * out
-                up = 0.04 * out
+                up = 0.05 * out
                 b.add([c, c + 0.5 * up + across, c + up, c + 0.5 * up - across], [(0, 1, 2, 3)], PETALS, 0.6)
     return _mesh(b)
 

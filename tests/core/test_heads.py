@@ -40,7 +40,7 @@ def test_a_timothy_spike_is_a_lumpy_cylinder_over_the_stems_top_and_a_panicle_a_
     timothy's spike is a dense cylinder over the top segment, the seed head 1 wide (its middle 0.35-0.65
     from the axis, lumpy with spikelets, rounded at both ends); a meadow grass's panicle, in units
     of the span, is an open pyramid: a thin axis to the tip, whorls of branches whose spikelets
-    (the head's colour, 4 % of the span long) reach further out the lower they are."""
+    (the head's colour, 5 % of the span long) reach further out the lower they are."""
     m = heads.head_mesh("spike")
     z, r = m.vertices[:, 2], np.hypot(m.vertices[:, 0], m.vertices[:, 1])
     assert z.min() == 0.0 and z.max() == 1.0
@@ -50,7 +50,7 @@ def test_a_timothy_spike_is_a_lumpy_cylinder_over_the_stems_top_and_a_panicle_a_
     p = heads.head_mesh("panicle")
     z, r = p.vertices[:, 2], np.hypot(p.vertices[:, 0], p.vertices[:, 1])
     spikelets = p.part == heads.PETALS
-    assert spikelets.sum() == 5 * 3 * 4 * 4  # 5 whorls of 3 branches of 4 spikelets (lozenges)
+    assert spikelets.sum() == 5 * 4 * 5 * 4  # 5 whorls of 4 branches of 5 spikelets (lozenges)
     assert z.max() <= 1.0 and z[p.part == heads.CENTRE].max() >= 0.99  # the axis to the tip
     low, high = spikelets & (z < 0.4), spikelets & (z > 0.8)
     assert 0.2 < r[low].max() < 0.4 and r[low].max() > 2.0 * r[high].max()  # a pyramid
@@ -80,7 +80,8 @@ def test_the_marks_sit_on_the_first_vertex_of_each_stem_that_carries_a_flower_me
     params = presets.apply_preset(schema.defaults(), "meadow").replace(
         {"field.blocks_x": 2, "field.blocks_y": 2, "field.blades_per_cell": 3})
     rows = [dict(r) for r in params.species()]
-    rows[1].update(leaves="none", head_shape="seed")  # timothy: neither a mesh head nor leaves
+    rows[1].update(leaves="none")  # timothy: neither a mesh head (a spindle of its strip) nor leaves
+    rows[0]["head_shape"], rows[2]["head_shape"] = "panicle", "spike"  # seed heads as meshes
     params = params.replace({"blade.species": rows})
     layout = build_layout(params)
     marks = heads.tip_marks(layout, np.arange(layout.n_blocks)).reshape(-1, 2 * (layout.segments + 1), 5)

@@ -85,8 +85,12 @@ def ground_colours(params: Params) -> tuple[tuple[float, float, float], tuple[fl
     if top[0] <= 0.0:
         return floor
     leaf, cover = top_rgb[0] / top[0], 1.0 - float(np.exp(-top[0]))
-    a, b = (tuple(float(c) for c in np.asarray(f) + (leaf - np.asarray(f)) * cover) for f in floor)
-    return a, b
+
+    def under(f) -> tuple[float, float, float]:
+        r, g, b = (float(c) for c in np.asarray(f) + (leaf - np.asarray(f)) * cover)
+        return r, g, b
+
+    return under(floor[0]), under(floor[1])
 
 
 def sample_blades(params: Params) -> Block:

@@ -38,8 +38,8 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     rt.blades.write(item, shown.blades)
     rt.cards.write(item, shown.cards)
-    if shown.lod is not None and shown.lod.scale != 1.0 or rt.lod_scale != 1.0:  # (the screen's LOD scale)
-        scale = 1.0 if shown.lod is None else shown.lod.scale
+    scale = float(getattr(shown.lod, "scale", 1.0))  # the screen's scale of the LOD distances (no LOD: 1)
+    if scale != 1.0 or rt.lod_scale != 1.0:
         materials.set_lod_scale(rt.params, owned.registered(item).get(owned.ROLE_CANOPY_MATERIAL), scale)
         rt.lod_scaled(scale)
     if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
@@ -89,7 +89,15 @@ def update_field(scene, item, depsgraph=None, camera_moved_only: bool = False, w
             return rt  # same views, same frame: nothing to do (cheap: no parameter read)
     if not wait:
         views = field_camera.field_views(scene, item, depsgraph)
-    rt = current(scene, item, wait, views)
+    try:
+        rt = current(scene, item, wait, views)
+    except builds.BuildPending:
+        rt = REGISTRY.live(key_of(scene, item))
+        if rt.engine is None or item.collection.get(owned.TOPOLOGY) != rt.engine.topology:
+            raise  # (nothing of it fits the objects as they are: they are collapsed until it is built)
+        # The engine of the settings before stays shown while the new one is made (a stiffness or
+        # a seed edit: its objects still fit): a slider dragged keeps its grass in view, and the
+        # grass catches up with it when the build is done.
     if item.collection.get(owned.TOPOLOGY) != rt.topology:
         # Windgrass rebuilds the objects whenever the settings ask for it (apply_settings); only a
         # change made around it (objects edited by hand, settings written as raw ID properties)

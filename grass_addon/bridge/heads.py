@@ -625,9 +625,9 @@ def update_colours(item, params) -> None:
         if isinstance(obj, bpy.types.Object) and obj.get("wg_role") == ROLE_LEAVES and obj.data is not None:
             k = int(obj.get("wg_slot", -1))
             if 0 <= k < len(rows) and rows[k].get("leaves", "none") in tufts.LEAF_SHAPES:
-                m = tufts.leaf_mesh(rows[k]["leaves"])
-                if len(obj.data.vertices) == len(m.vertices) and materials.UV_TINT_RG in obj.data.uv_layers:
-                    _write_tints(obj.data, m, rows[k]["color"], float(params.blade.dry_tips))
+                tuft = tufts.leaf_mesh(rows[k]["leaves"])
+                if len(obj.data.vertices) == len(tuft.vertices) and materials.UV_TINT_RG in obj.data.uv_layers:
+                    _write_tints(obj.data, tuft, rows[k]["color"], float(params.blade.dry_tips))
                     obj.data.update()
         if not isinstance(obj, bpy.types.Object) or obj.get("wg_role") != ROLE_HEAD or obj.data is None:
             continue

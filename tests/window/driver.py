@@ -240,6 +240,14 @@ class Driver:
             bpy.ops.ed.undo_push(message=f"{attr} = {value}")  # as the window does after an edit
         return getattr(owner, attr), (None if bpy.app.background else UI_EDIT_SETTLE_S)
 
+    def do_drag(self, path: str, step: dict):
+        """One step of a slider dragged with the mouse: the value set as the slider sets it while
+        the mouse moves (its update runs; no undo step: the window pushes one when the drag
+        ends, a ``set``), then ``wait`` s (default 0.1) before the next step, as a hand moves on."""
+        owner, attr = _resolve_path(path)
+        setattr(owner, attr, step["value"])
+        return getattr(owner, attr), float(step.get("wait", 0.1))
+
     def do_key(self, keys: str, step: dict):
         if bpy.app.background:  # the operator the key is bound to
             return self.do_undo(1, step) if keys == "ctrl+z" else self.do_redo(1, step)
@@ -320,6 +328,14 @@ class Driver:
                 out[item.name] = None if rt is None else {"blade_blocks": [int(b) for b in rt.blades.blocks],
                                                           "card_blocks": [int(b) for b in rt.cards.blocks],
                                                           "blades_drawn": rt.blades_drawn}
+            return out
+        if what == "engine":  # what each field's engine runs now: its wind speed and stiffness
+            runtime = bridge("runtime")
+            out = {}
+            for item in scene.windgrass.fields:
+                rt = runtime.get_runtime(scene, item)
+                out[item.name] = None if rt is None or not rt.built else {
+                    "wind_speed": rt.params.wind.speed, "root_stiffness": rt.params.blade.root_stiffness}
             return out
         if what == "objects":
             return sorted(o.name for o in scene.objects)

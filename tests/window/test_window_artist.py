@@ -9,6 +9,7 @@ distances by default (blades to 12 m, cards to 40 m). The startup file's camera 
 import math
 
 import numpy as np
+import pytest
 from PIL import Image
 
 BLOCKS, BLOCK = 32, 1.6
@@ -509,3 +510,63 @@ def test_material_preview_reads_as_green_grass_without_the_floor_grid_over_it(re
     # (the axis is a green line, brighter than the grass: with the floor off no column stands out so;
     # one a little darker than the meadow's pale flowers beside it, -5 of 255, is no axis)
     assert shown > 20.0 and hidden < 5.0
+
+
+def _drag(path: str, values, shots: str, every: int = 2) -> list[dict]:
+    """A slider dragged through ``values`` (0.12 s a step, as a hand moves it), what the engine runs
+    and a screenshot every ``every`` steps while the mouse is still down, then the release (the
+    window's undo step)."""
+    steps: list[dict] = []
+    for i, value in enumerate(values):
+        steps.append({"drag": path, "value": value, "wait": 0.12})
+        if i % every == every - 1:
+            steps += [{"probe": "engine"}, {"shot": f"{shots}{i}"}]
+    return [*steps, {"set": path, "value": values[-1]}]
+
+
+def test_dragging_the_wind_and_the_stiffness_the_grass_follows_while_the_mouse_is_down(real_blender):
+    """Issue #58: an edit of the wind speed or the stiffness retunes the field in place and follows
+    a drag while the mouse is still down (every FOLLOW_S, 0.3 s: the engine runs a value the slider
+    passed before the drag ends, the wind's rising with it, the stiffness falling); the viewport's
+    grass moves from one screenshot to the next as the wind rises and the blades soften (the lower
+    third of a low view, mean change over 0.5 %; looked at: the blades lean further each time)."""
+    speeds, softer = [1.0, 2.5, 4.0, 5.5, 7.0, 8.5, 10.0, 11.5], [0.95, 0.85, 0.75, 0.65, 0.55, 0.45]
+    steps = [*FIELD[:1], {"op": "windgrass.field_add"}, {"view": {"look": [[0.0, -7.0, 1.2], [0.0, 4.0, 0.1]]}},
+             {"shading": "SOLID"}, {"wait": 1.5}, {"shot": "still"},
+             *_drag("windgrass.fields[0].wind.speed", speeds, "wind"),
+             {"set": "windgrass.fields[0].wind.speed", "value": 6.0}, {"wait": 1.0},
+             *_drag("windgrass.fields[0].blade.stiffness", softer, "soft")]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    engine = [next(iter(r.values())) for r in run.results("probe")]
+    wind, soft = engine[:4], engine[4:7]
+    assert [e["wind_speed"] for e in wind] == sorted(e["wind_speed"] for e in wind)
+    assert wind[0]["wind_speed"] >= speeds[1] and wind[-1]["wind_speed"] >= speeds[5]  # followed while dragging
+    assert soft[-1]["root_stiffness"] < soft[-2]["root_stiffness"]  # (the first may be the stiffness before)
+    changes = {}
+    for shots in (["still"] + [f"wind{i}" for i in (1, 3, 5, 7)], [f"soft{i}" for i in (1, 3, 5)]):
+        images = [np.asarray(Image.open(run.shots / f"{name}.png").convert("L"), dtype=np.float64) / 255.0
+                  for name in shots]
+        h = images[0].shape[0]
+        changes.update({b: float(np.abs(y - x)[int(0.6 * h):int(0.9 * h)].mean())
+                        for a, b, x, y in zip(shots, shots[1:], images, images[1:])})
+    assert min(changes.values()) > 0.005, changes
+
+
+@pytest.mark.xfail(strict=True, reason="issue #58 (open): a stiffness edit simulates the warm-up again in the "
+                   "window's thread (2.4-2.9 s a drag step on the Add-menu field here) and a density edit "
+                   "rebuilds the slot objects in it (5-11 s)")
+def test_no_step_of_a_drag_holds_the_window_for_a_second(real_blender):
+    """Issue #58: dragging the wind speed, the stiffness and the density, the window answers the
+    mouse throughout: no step of a drag (the value set, its update, 0.12 s) comes more than a
+    second after the one before (the driver's steps run on the window's timer: a step late is the
+    window held)."""
+    steps = [*FIELD[:1], {"op": "windgrass.field_add"}, {"shading": "SOLID"}, {"wait": 1.5},
+             *[{"drag": "windgrass.fields[0].wind.speed", "value": v, "wait": 0.12} for v in (2.0, 4.0, 6.0, 8.0)],
+             *[{"drag": "windgrass.fields[0].blade.stiffness", "value": v, "wait": 0.12} for v in (0.9, 0.7, 0.5)],
+             *[{"drag": "windgrass.fields[0].field.density", "value": v, "wait": 0.12} for v in (400.0, 600.0, 800.0)]]
+    run = real_blender.run(steps)
+    run.assert_clean()
+    gaps = {f"{b['step']['drag']} = {b['step']['value']}": round(b["at"] - a["at"], 2)
+            for a, b in zip(run.steps, run.steps[1:]) if "drag" in a["step"] and "drag" in b["step"]}
+    assert len(gaps) == 9 and max(gaps.values()) < 1.0, gaps

@@ -55,6 +55,7 @@ TURF_SHADE = (0.034, 0.085, 0.019)
 TURF_LIT = (0.050, 0.118, 0.026)
 FLOOR_COLOURS = {"thatch": (THATCH_COLOUR, LITTER_COLOUR), "turf": (TURF_SHADE, TURF_LIT)}
 GRADIENT_END = 0.7  # the blade material darkens the lower 70 % of the blade towards the root
+LEAF_FLOOR_LIGHT = 0.55  # the leaves the ground stands for, in the sward's shade (``ground_colours``)
 CANOPY_SHARE = 0.75  # a grazing view sees the sward down to three quarters of the tips' mean height
 PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``sward_profile`` gives the depth
 # Sun and sky reach height z inside the sward through tau(z) / LIGHT_SLOPE of blades, as light
@@ -78,13 +79,15 @@ def ground_colours(params: Params) -> tuple[tuple[float, float, float], tuple[fl
     """The two linear RGB colours the ground material shows under the grass drawn: the floor
     (``floor_colours``) under the leaves at the stems' foot, which are drawn only with their stems
     (``tufts.py``): where cards or the far canopy stand for the blades, the ground stands for the
-    leaves, each floor colour mixed towards their mean colour seen from above by the share of the
-    ground they cover (1 - exp(-tau_h) of their area seen from above, ``leaf_layers``)."""
+    leaves, each floor colour mixed towards their mean colour seen from above (LEAF_FLOOR_LIGHT of
+    it: they lie in the sward's shade, which a viewport without the cards' shadows does not draw)
+    by the share of the ground they cover (1 - exp(-tau_h) of their area seen from above,
+    ``leaf_layers``)."""
     floor = floor_colours(params)
     _, top, _, top_rgb = leaf_layers(params, np.zeros(1))
     if top[0] <= 0.0:
         return floor
-    leaf, cover = top_rgb[0] / top[0], 1.0 - float(np.exp(-top[0]))
+    leaf, cover = LEAF_FLOOR_LIGHT * top_rgb[0] / top[0], 1.0 - float(np.exp(-top[0]))
 
     def under(f) -> tuple[float, float, float]:
         r, g, b = (float(c) for c in np.asarray(f) + (leaf - np.asarray(f)) * cover)

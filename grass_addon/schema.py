@@ -338,7 +338,7 @@ PARAMS: tuple[Param, ...] = (
        maximum=1000.0, soft_max=200.0, advanced=True, label="Wave Size"),
     _p("wind", "gust_stretch", "float", 2.5, "How many times longer a gust wave's patch is across the wind than along "
        "it: 1, round patches; more, bands across the wind, as gusts are seen sweeping over a meadow", minimum=1.0,
-       maximum=10.0, soft_max=5.0, advanced=True, label="Wave Stretch"),
+       maximum=10.0, soft_max=5.0, advanced=True, label="Stretch"),
     _p("wind", "keys", "table_list", (), "Changes of the mean wind's speed and direction over time",
        fields=WIND_KEY_FIELDS, label="Keys"),
     # --- [lod] paper III.D, eqs 7-11 -------------------------------------------------------------
@@ -355,7 +355,7 @@ PARAMS: tuple[Param, ...] = (
     _p("lod", "screen_size", "bool", True, "Scale the four distances by how large a blade is on screen: they are "
        "right for an image 960 pixels wide at 55 degrees; a larger image or a longer lens draws blades and cards "
        "further out (up to 4 times, as far as the field's pools hold), so a 4K frame or a telephoto shot keeps the "
-       "detail a person sees", label="By Screen Size"),
+       "detail a person sees", label="Screen Size"),
     _p("lod", "viewport_amount", "float", 1.0, "Share of the near blades the 3D viewport draws (as Blender's "
        "particle Viewport Display Amount): fewer keep playback smooth on a large field; renders always draw every "
        "blade", unit="fraction", minimum=0.01, maximum=1.0, label="Viewport"),

@@ -118,3 +118,25 @@ def stems(drawn):
         return strips[np.ptp(strips.reshape(len(strips), -1, 3), axis=1).max(axis=1) > 0]
 
     return read
+
+
+@pytest.fixture
+def nearest_in_plane():
+    """``nearest_in_plane(points, roots)`` -> for each point (n, 3) the index of the root (m, 3)
+    nearest it in the ground plane, among the roots within 1 mm of it in x (the roots sorted by x: a
+    few candidates a point, not every pair of 30,000)."""
+
+    def nearest(points: np.ndarray, roots: np.ndarray, reach: float = 1e-3) -> np.ndarray:
+        order = np.argsort(roots[:, 0], kind="stable")
+        xs = roots[order, 0]
+        first = np.searchsorted(xs, points[:, 0] - reach)
+        count = np.searchsorted(xs, points[:, 0] + reach, side="right") - first
+        best, best_d = np.zeros(len(points), np.int64), np.full(len(points), np.inf)
+        for k in range(int(count.max(initial=0))):
+            idx = order[np.minimum(first + k, len(xs) - 1)]
+            d = ((points[:, :2] - roots[idx, :2]) ** 2).sum(axis=1)
+            better = (k < count) & (d < best_d)
+            best[better], best_d[better] = idx[better], d[better]
+        return best
+
+    return nearest

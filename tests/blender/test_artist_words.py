@@ -170,8 +170,9 @@ def test_add_grass_field_thins_out_at_its_edge(with_bridge, drawn):
 def test_a_colour_change_reaches_the_cards_in_solid_shading(with_bridge):
     """Issue #63 item 4: in Solid shading (Blender draws each material's viewport colour, no node
     tree) a species colour change reached the near blades but the cards kept their grey-green.
-    Every species made red: the blades' and the cards' viewport colours turn red (red over green),
-    the ground's floor stays as it was."""
+    Every species made red: the blades' and the cards' viewport colours turn red (red over green);
+    so does the ground's, which stands for the leaves at the stems' foot where cards are drawn
+    (``sward.ground_colours``), darker than the blades (the leaves lie in the sward's shade)."""
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
     item = bpy.context.scene.windgrass.fields[0]
 
@@ -184,6 +185,7 @@ def test_a_colour_change_reaches_the_cards_in_solid_shading(with_bridge):
     for species in item.blade.species:
         species.color = (0.6, 0.05, 0.05)
     after = colours()
-    for part in ("blades", "cards", "canopy"):
+    for part in ("blades", "cards", "canopy", "ground"):
         assert after[part][0] > after[part][1], (part, after[part])
-    np.testing.assert_allclose(after["ground"], before["ground"])
+    assert before["ground"][1] > before["ground"][0]  # (the green leaves' floor before)
+    assert after["ground"][0] < after["blades"][0]

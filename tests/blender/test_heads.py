@@ -27,7 +27,7 @@ def _instances(item) -> dict:
 
 
 
-def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, stems):
+def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, stems, nearest_in_plane):
     """Add Grass Field's meadow: its blade slots carry the Windgrass Heads modifier, and Blender
     draws a daisy or a buttercup head on a share of the stems it draws (1-25 % of them: the
     species table gives 5 % buttercups and 4 % daisies, eight in ten in flower, and the mix varies
@@ -54,7 +54,7 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
         for name, m in found.items():
             assert len(m) > 10, name
             at = m[:, :3, 3]
-            nearest = np.argmin(((at[:, None, :2] - tips[None, :, :2]) ** 2).sum(axis=2), axis=1)
+            nearest = nearest_in_plane(at, tips)
             assert np.abs(at - tips[nearest]).max() < 1e-4, name
             axis = m[:, :3, 2] / np.linalg.norm(m[:, :3, 2], axis=1, keepdims=True)
             along = last[nearest] / np.linalg.norm(last[nearest], axis=1, keepdims=True)

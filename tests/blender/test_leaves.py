@@ -27,7 +27,7 @@ def _leaf_instances(item) -> dict:
     return {name: np.array(m).reshape(-1, 4, 4) for name, m in out.items()}
 
 
-def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime, stems):
+def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime, stems, nearest_in_plane):
     """Add Grass Field's meadow: its grasses carry tufts and its flowers rosettes. Over frames of
     wind Blender draws one tuft on every stem it draws (none on stems the level of detail
     collapsed), on the stem's root (within 0.1 mm), its axis along the stem's first segment (within
@@ -54,7 +54,7 @@ def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime
         for name, m in found.items():
             assert len(m) > 10, name
             at = m[:, :3, 3]
-            nearest = np.argmin(((at[:, None, :2] - roots[None, :, :2]) ** 2).sum(axis=2), axis=1)
+            nearest = nearest_in_plane(at, roots)
             assert np.abs(at - roots[nearest]).max() < 1e-4, name
             axis = m[:, :3, 2] / np.linalg.norm(m[:, :3, 2], axis=1, keepdims=True)
             along = first[nearest] / np.linalg.norm(first[nearest], axis=1, keepdims=True)

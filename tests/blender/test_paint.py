@@ -318,8 +318,9 @@ def _mesh_positions(obj) -> np.ndarray:
 
 def test_a_painted_lawn_saves_small_and_reopens_identical(bridge, drawn, tmp_path):
     """A 12.8 m lawn (the first click's field) painted by a 128 px PNG: its ground is a 256 x 256
-    grid (133,000 vertices) made from the settings, so the saved file stays under 2 MB; reopened,
-    the ground and the grass are the same to the bit."""
+    grid (133,000 vertices) made from the settings, so the saved file stays under 3 MB (0.33 MB on
+    Blender 5.2; 4.5 writes the node trees larger: 2.1 MB); reopened, the ground and the grass are
+    the same to the bit."""
     from windgrass.grass_addon import images
     from windgrass.grass_addon.bridge import owned
 
@@ -336,7 +337,7 @@ def test_a_painted_lawn_saves_small_and_reopens_identical(bridge, drawn, tmp_pat
     assert len(ground) > 100_000 and len(grass) > 0
     path = tmp_path / "lawn.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
-    assert path.stat().st_size < 2_000_000, path.stat().st_size
+    assert path.stat().st_size < 3_000_000, path.stat().st_size
     assert np.array_equal(_mesh_positions(owned.ground_object(item)), ground)  # (made again after the save)
     bpy.ops.wm.open_mainfile(filepath=str(path))
     scene, item = bpy.context.scene, bpy.context.scene.windgrass.fields[-1]

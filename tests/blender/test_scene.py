@@ -594,7 +594,9 @@ def test_a_live_field_saves_its_settings_not_its_slot_meshes(bridge, tmp_path):
     assert slot_vertices > 300_000  # tens of MB of geometry in memory
     path = tmp_path / "lawn.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))  # uncompressed, as Blender saves by default
-    assert path.stat().st_size < 2_000_000
+    # (what is saved: 0.33 MB on Blender 5.2; 2.1 MB on 4.5, which writes the field's node trees,
+    # the materials' and the heads', 1.4 MB of it, larger; the slot meshes would be tens of MB)
+    assert path.stat().st_size < 3_000_000, path.stat().st_size
     for name, pos in _all_positions(item).items():  # still drawn after the save
         np.testing.assert_array_equal(pos, expected[name], err_msg=name)
     item = _reopened(path, expected)

@@ -315,26 +315,32 @@ def _source_geometry(t: _Tree, source):
     return info.outputs["Geometry"]
 
 
-def _instances(t: _Tree, points, kind: int, source):
-    """Species ``kind``'s heads: ``source`` on its points that carry one (a size), turned to the
-    stem, turned about it."""
-    mine_kind, size, turn_angle, _first = t.head()
-    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", size, 0.0))
-    direction = t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR")
+def _along(t: _Tree, vector, turn_angle):
+    """The rotation that takes an instance's +Z along ``vector`` (a stem's segment), turned about
+    it by ``turn_angle`` (the stem's facing)."""
     align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
-    t.link(direction, align.inputs["Vector"])
+    t.link(vector, align.inputs["Vector"])
     turn = t.node("FunctionNodeAxisAngleToRotation")
     turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
     t.link(turn_angle, turn.inputs["Angle"])
     rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
     t.link(align.outputs[0], rotate.inputs["Rotation"])
     t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    return rotate.outputs[0]
+
+
+def _instances(t: _Tree, points, kind: int, source):
+    """Species ``kind``'s heads: ``source`` on its points that carry one (a size), turned to the
+    stem, turned about it."""
+    mine_kind, size, turn_angle, _first = t.head()
+    mine = t.math("MULTIPLY", t.any_of(mine_kind, [kind]), t.math("GREATER_THAN", size, 0.0))
+    rotation = _along(t, t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR"), turn_angle)
     radius = t.node("GeometryNodeInputRadius").outputs[0]
     place = t.node("GeometryNodeInstanceOnPoints")
     t.link(points, place.inputs["Points"])
     t.link(mine, place.inputs["Selection"])
     t.link(_source_geometry(t, source), place.inputs["Instance"])
-    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(rotation, place.inputs["Rotation"])
     t.link(radius, place.inputs["Scale"])
     return place.outputs[0]
 
@@ -351,14 +357,7 @@ def _seed_heads(t: _Tree, roots, kind: int, source, even: bool = False):
     moved = t.node("GeometryNodeSetPosition")
     t.link(roots, moved.inputs["Geometry"])
     t.link(base, moved.inputs["Position"])
-    align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
-    t.link(span, align.inputs["Vector"])
-    turn = t.node("FunctionNodeAxisAngleToRotation")
-    turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
-    t.link(turn_angle, turn.inputs["Angle"])
-    rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
-    t.link(align.outputs[0], rotate.inputs["Rotation"])
-    t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    rotation = _along(t, span, turn_angle)
     scale = t.node("ShaderNodeCombineXYZ")
     length = t.vmath("LENGTH", span, None, out="Value")
     t.link(length if even else size, scale.inputs["X"])
@@ -368,7 +367,7 @@ def _seed_heads(t: _Tree, roots, kind: int, source, even: bool = False):
     t.link(moved.outputs[0], place.inputs["Points"])
     t.link(mine, place.inputs["Selection"])
     t.link(_source_geometry(t, source), place.inputs["Instance"])
-    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(rotation, place.inputs["Rotation"])
     t.link(scale.outputs[0], place.inputs["Scale"])
     return place.outputs[0]
 
@@ -389,14 +388,7 @@ def _leaves(t: _Tree, roots, leaves: list):
         past = t.math("GREATER_THAN", mine_kind, k - 0.5)
         which = past if which is None else t.math("ADD", which, past)
     length = t.attribute(ATTR_LEAF, "FLOAT")
-    align = t.node("FunctionNodeAlignRotationToVector", axis="Z")
-    t.link(t.attribute(ATTR_FOOT_DIR, "FLOAT_VECTOR"), align.inputs["Vector"])
-    turn = t.node("FunctionNodeAxisAngleToRotation")
-    turn.inputs["Axis"].default_value = (0.0, 0.0, 1.0)
-    t.link(turn_angle, turn.inputs["Angle"])
-    rotate = t.node("FunctionNodeRotateRotation", rotation_space="LOCAL")
-    t.link(align.outputs[0], rotate.inputs["Rotation"])
-    t.link(turn.outputs[0], rotate.inputs["Rotate By"])
+    rotation = _along(t, t.attribute(ATTR_FOOT_DIR, "FLOAT_VECTOR"), turn_angle)
     place = t.node("GeometryNodeInstanceOnPoints")
     t.link(roots, place.inputs["Points"])
     t.link(t.math("GREATER_THAN", length, 0.0), place.inputs["Selection"])
@@ -406,7 +398,7 @@ def _leaves(t: _Tree, roots, leaves: list):
         t.link(which, place.inputs["Instance Index"])
     else:
         place.inputs["Instance Index"].default_value = 0
-    t.link(rotate.outputs[0], place.inputs["Rotation"])
+    t.link(rotation, place.inputs["Rotation"])
     t.link(length, place.inputs["Scale"])
     return place.outputs[0]
 

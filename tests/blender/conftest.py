@@ -140,3 +140,34 @@ def nearest_in_plane():
         return best
 
     return nearest
+
+
+class _Parts:
+    """What the heads' modifier draws of a field besides its strips, by species: ``objects(item,
+    role)`` -> {species name: its object} (role "head" or "leaves": the objects in no scene it
+    instances) and ``instances(item, role)`` -> {species name: (n, 4, 4) world matrices} of the
+    instances of them the evaluated depsgraph holds now."""
+
+    @staticmethod
+    def objects(item, role: str) -> dict:
+        from windgrass.grass_addon.bridge import owned
+
+        rows = list(item.blade.species)
+        return {rows[int(o["wg_slot"])].name: o for o in owned.registered(item).values()
+                if isinstance(o, bpy.types.Object) and o.get("wg_role") == role}
+
+    @staticmethod
+    def instances(item, role: str) -> dict:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        by_mesh = {obj.data.name: name for name, obj in _Parts.objects(item, role).items()}
+        out: dict = {name: [] for name in by_mesh.values()}
+        for inst in depsgraph.object_instances:
+            if inst.is_instance and inst.object.type == "MESH" and inst.object.data.name in by_mesh:
+                out[by_mesh[inst.object.data.name]].append(np.array(inst.matrix_world, dtype=np.float64))
+        return {name: np.array(m).reshape(-1, 4, 4) for name, m in out.items()}
+
+
+@pytest.fixture
+def parts(with_bridge):
+    """``parts.objects(item, role)``, ``parts.instances(item, role)``: see ``_Parts``."""
+    return _Parts

@@ -6,28 +6,8 @@ import bpy
 import numpy as np
 
 
-def _head_objects(item) -> dict:
-    """{species name: its head object} of the field (what the modifier instances)."""
-    from windgrass.grass_addon.bridge import heads, owned
-
-    rows = list(item.blade.species)
-    return {rows[int(o["wg_slot"])].name: o for o in owned.registered(item).values()
-            if isinstance(o, bpy.types.Object) and o.get("wg_role") == heads.ROLE_HEAD}
-
-
-def _instances(item) -> dict:
-    """{species name: (heads, 4, 4) world matrices} of the heads Blender draws now."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    by_mesh = {obj.data.name: name for name, obj in _head_objects(item).items()}
-    out: dict = {name: [] for name in by_mesh.values()}
-    for inst in depsgraph.object_instances:
-        if inst.is_instance and inst.object.type == "MESH" and inst.object.data.name in by_mesh:
-            out[by_mesh[inst.object.data.name]].append(np.array(inst.matrix_world, dtype=np.float64))
-    return {name: np.array(m).reshape(-1, 4, 4) for name, m in out.items()}
-
-
-
-def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, stems, nearest_in_plane):
+def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_frame(runtime, stems, nearest_in_plane,
+                                                                                     parts):
     """Add Grass Field's meadow: its blade slots carry the Windgrass Heads modifier, and Blender
     draws a daisy or a buttercup head on a share of the stems it draws (1-25 % of them: the
     species table gives 5 % buttercups and 4 % daisies, eight in ten in flower, and the mix varies
@@ -41,14 +21,14 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
     n = item.blade.segments
     blades = [o for o in item.collection.objects if o.get("wg_role") == "blades"]
     assert blades and all(o.modifiers.get("Windgrass Heads") is not None for o in blades)
-    assert set(_head_objects(item)) == {"buttercup", "ox-eye daisy"}
+    assert set(parts.objects(item, "head")) == {"buttercup", "ox-eye daisy"}
     where = {}
     for frame in (1, 9, 17):
         scene.frame_set(frame)
         shown = stems(item)
         centre = shown.mean(axis=2)
         tips, last = centre[:, n], centre[:, n] - centre[:, n - 1]
-        found = _instances(item)
+        found = parts.instances(item, "head")
         total = sum(len(m) for m in found.values())
         assert 0.01 * len(shown) < total < 0.25 * len(shown), (total, len(shown))
         for name, m in found.items():
@@ -73,7 +53,8 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
         assert np.percentile(moved, 90) > 0.002, name
 
 
-def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_petals(runtime, tmp_path, settle):
+def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_petals(runtime, tmp_path, settle,
+                                                                                      parts):
     """Looked at straight down from 0.6 m over a field of ox-eye daisies in flower (Cycles): the
     frame holds white ray florets and yellow discs, about as much white as the rays' share of a
     head gives (2-20 times the disc's), and around each yellow disc white on every side (in each
@@ -94,7 +75,7 @@ def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_
     row.heads = 1.0
     item.field.blocks_x = item.field.blocks_y = 2
     settle()
-    head = _head_objects(item)["ox-eye daisy"]
+    head = parts.objects(item, "head")["ox-eye daisy"]
     cam_data = bpy.data.cameras.new("top")
     cam = bpy.data.objects.new("top", cam_data)
     scene.collection.objects.link(cam)
@@ -134,7 +115,7 @@ def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_
     row.head_color = (0.8, 0.3, 0.5)
     settle()
     scene.frame_set(1)
-    assert _head_objects(item)["ox-eye daisy"] == head  # the same object, its colours rewritten
+    assert parts.objects(item, "head")["ox-eye daisy"] == head  # the same object, its colours rewritten
     px = render("pink")
     pink = (px[..., 0] > 0.4) & (px[..., 2] > px[..., 1] + 0.04) & (px[..., 0] - px[..., 1] > 0.12)
     white, yellow = _white(px), _yellow(px)
@@ -169,11 +150,11 @@ def _blobs(mask: np.ndarray, reach: float = 8.0, least: int = 6) -> list:
     return out
 
 
-def test_removing_a_field_removes_its_heads(runtime):
+def test_removing_a_field_removes_its_heads(runtime, parts):
     """Remove Field takes the head objects, their meshes and the heads' node group with it."""
     assert bpy.ops.windgrass.field_add() == {"FINISHED"}
     item = bpy.context.scene.windgrass.fields[0]
-    names = [o.data.name for o in _head_objects(item).values()]
+    names = [o.data.name for o in parts.objects(item, "head").values()]
     assert names and any(g.name.endswith("windgrass heads") for g in bpy.data.node_groups)
     assert bpy.ops.windgrass.field_remove() == {"FINISHED"}
     assert not any(m.name in names for m in bpy.data.meshes)
@@ -247,7 +228,7 @@ def test_an_artists_own_plant_stands_on_each_root_and_bends_with_its_stem_in_the
     assert np.percentile(np.linalg.norm(tips[1] - tips[0], axis=1), 90) > 0.002
 
 
-def test_grass_seed_heads_are_spikes_and_panicles_over_their_stems_tops(runtime, settle, stems):
+def test_grass_seed_heads_are_spikes_and_panicles_over_their_stems_tops(runtime, settle, stems, parts):
     """Add Grass Field's meadow with timothy's seed heads as spikes over its stems' top segments and
     the other grasses' as panicles over their top two (the spindle the far grass and the cards
     draw): each spike Blender draws starts at a drawn stem's joint n - 1 and reaches its tip
@@ -266,7 +247,7 @@ def test_grass_seed_heads_are_spikes_and_panicles_over_their_stems_tops(runtime,
     scene.frame_set(5)
     shown = stems(item)
     centre = shown.mean(axis=2)
-    found = _instances(item)
+    found = parts.instances(item, "head")
     for name, joint in (("timothy", n - 1), ("meadow grass", n - 2), ("cocksfoot", n - 2)):
         m = found[name]
         assert len(m) > 3, name

@@ -7,27 +7,7 @@ import bpy
 import numpy as np
 
 
-def _leaf_objects(item) -> dict:
-    """{species name: its leaves object} of the field (what the modifier instances)."""
-    from windgrass.grass_addon.bridge import heads, owned
-
-    rows = list(item.blade.species)
-    return {rows[int(o["wg_slot"])].name: o for o in owned.registered(item).values()
-            if isinstance(o, bpy.types.Object) and o.get("wg_role") == heads.ROLE_LEAVES}
-
-
-def _leaf_instances(item) -> dict:
-    """{species name: (tufts, 4, 4) world matrices} of the leaves Blender draws now."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    by_mesh = {obj.data.name: name for name, obj in _leaf_objects(item).items()}
-    out: dict = {name: [] for name in by_mesh.values()}
-    for inst in depsgraph.object_instances:
-        if inst.is_instance and inst.object.type == "MESH" and inst.object.data.name in by_mesh:
-            out[by_mesh[inst.object.data.name]].append(np.array(inst.matrix_world, dtype=np.float64))
-    return {name: np.array(m).reshape(-1, 4, 4) for name, m in out.items()}
-
-
-def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime, stems, nearest_in_plane):
+def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime, stems, nearest_in_plane, parts):
     """Add Grass Field's meadow: its grasses carry tufts and its flowers rosettes. Over frames of
     wind Blender draws one tuft on every stem it draws (none on stems the level of detail
     collapsed), on the stem's root (within 0.1 mm), its axis along the stem's first segment (within
@@ -40,7 +20,7 @@ def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime
     assert {row.name: row.leaves for row in item.blade.species} == {
         "meadow grass": "tuft", "timothy": "tuft", "cocksfoot": "tuft", "buttercup": "rosette",
         "ox-eye daisy": "rosette", "dry grass": "tuft"}
-    assert set(_leaf_objects(item)) == set(size)
+    assert set(parts.objects(item, "leaves")) == set(size)
     axes = []
     for frame in (1, 9):
         scene.frame_set(frame)
@@ -48,7 +28,7 @@ def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime
         centre = shown.mean(axis=2)
         roots, first = centre[:, 0], centre[:, 1] - centre[:, 0]
         length = np.linalg.norm(np.diff(centre, axis=1), axis=2).sum(axis=1)
-        found = _leaf_instances(item)
+        found = parts.instances(item, "leaves")
         assert sum(len(m) for m in found.values()) == len(shown)  # one tuft a drawn stem, no more
         axis_now = []
         for name, m in found.items():
@@ -67,7 +47,7 @@ def test_add_grass_field_grows_leaves_at_the_foot_of_every_stem_it_draws(runtime
     assert np.percentile(turned, 90) > 0.3, np.percentile(turned, 90)
 
 
-def test_tufts_go_with_their_stems_beyond_the_blades_range(runtime, stems):
+def test_tufts_go_with_their_stems_beyond_the_blades_range(runtime, stems, parts):
     """Looking along a long field, the level of detail collapses the far stems (eq 9): Blender
     draws a tuft on each stem it still draws and on no other."""
     assert bpy.ops.windgrass.field_add(blocks_x=12, blocks_y=4) == {"FINISHED"}
@@ -83,7 +63,7 @@ def test_tufts_go_with_their_stems_beyond_the_blades_range(runtime, stems):
     shown = stems(item)
     total = item.field.blocks_x * item.field.blocks_y * 256 * item.field.blades_per_cell
     assert len(shown) < 0.6 * total  # (the far blocks' stems collapsed or not drawn)
-    assert sum(len(m) for m in _leaf_instances(item).values()) == len(shown)
+    assert sum(len(m) for m in parts.instances(item, "leaves").values()) == len(shown)
 
 
 def _floor_share(scene, item, path) -> float:
@@ -109,7 +89,7 @@ def _floor_share(scene, item, path) -> float:
     return float((alpha < 0.5).mean())
 
 
-def test_from_straight_above_the_meadow_hides_its_floor(runtime, settle, tmp_path):
+def test_from_straight_above_the_meadow_hides_its_floor(runtime, settle, tmp_path, parts):
     """Straight down from 1.3 m over Add Grass Field's meadow (Cycles, the frame 0.9 m wide): a
     hay meadow at its height covers its ground, so the floor shows in at most 15 % of the frame;
     the same field with no leaves at its stems' foot showed it in over half (73 % in the default
@@ -135,21 +115,21 @@ def test_from_straight_above_the_meadow_hides_its_floor(runtime, settle, tmp_pat
         row.leaves = "none"
     settle()
     scene.frame_set(5)
-    assert not _leaf_objects(item)
+    assert not parts.objects(item, "leaves")
     bare = _floor_share(scene, item, tmp_path / "bare.png")
     assert leafy < 0.15 and bare > 0.5 and leafy < bare / 3.0, (leafy, bare)
 
 
-def test_a_colour_edit_retints_the_same_leaves_and_remove_field_takes_them(runtime, settle):
+def test_a_colour_edit_retints_the_same_leaves_and_remove_field_takes_them(runtime, settle, parts):
     """A species' colour edit reaches its leaves (their tint, the blade material's, read back
     from the leaves mesh) on the same object, not rebuilt; Remove Field deletes them."""
     assert bpy.ops.windgrass.field_add(blocks_x=2, blocks_y=2) == {"FINISHED"}
     item = bpy.context.scene.windgrass.fields[0]
-    leaves = _leaf_objects(item)["meadow grass"]
+    leaves = parts.objects(item, "leaves")["meadow grass"]
     row = next(r for r in item.blade.species if r.name == "meadow grass")
     row.color = (0.3, 0.1, 0.6)
     settle()
-    assert _leaf_objects(item)["meadow grass"] == leaves
+    assert parts.objects(item, "leaves")["meadow grass"] == leaves
     mesh = leaves.data
     rg = np.empty(len(mesh.loops) * 2, np.float32)
     bs = np.empty(len(mesh.loops) * 2, np.float32)
@@ -158,7 +138,7 @@ def test_a_colour_edit_retints_the_same_leaves_and_remove_field_takes_them(runti
     tint = np.stack([rg[0::2], rg[1::2], bs[0::2]], axis=1)
     green = np.all(np.abs(tint - (0.3, 0.1, 0.6)) < 1e-6, axis=1)
     assert green.mean() > 0.8  # (the dead leaf is straw)
-    names = [o.data.name for o in _leaf_objects(item).values()]
+    names = [o.data.name for o in parts.objects(item, "leaves").values()]
     assert bpy.ops.windgrass.field_remove() == {"FINISHED"}
     assert not any(m.name in names for m in bpy.data.meshes)
     assert not any(o.get("wg_role") == "leaves" for o in bpy.data.objects)

@@ -168,21 +168,14 @@ class _Tree:
         self.link(value, _socket(n.inputs, "Value", "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE"))
         return n.outputs[0]
 
-    def sample_value(self, geometry, value, index):
-        """The float ``value`` of point ``index`` (a socket)."""
-        n = self.node("GeometryNodeSampleIndex", data_type="FLOAT", domain="POINT")
+    def sample(self, geometry, value, index, data_type: str = "FLOAT_VECTOR"):
+        """The ``value`` of point ``index`` (a socket): a position, or a float (``data_type`` FLOAT)."""
+        kind = "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE"
+        n = self.node("GeometryNodeSampleIndex", data_type=data_type, domain="POINT")
         self.link(geometry, n.inputs["Geometry"])
-        self.link(value, _socket(n.inputs, "Value", "VALUE"))
+        self.link(value, _socket(n.inputs, "Value", kind))
         self.link(index, n.inputs["Index"])
-        return _socket(n.outputs, "Value", "VALUE")
-
-    def sample(self, geometry, value, index):
-        """The position of point ``index`` (a socket)."""
-        n = self.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
-        self.link(geometry, n.inputs["Geometry"])
-        self.link(value, _socket(n.inputs, "Value", "VECTOR"))
-        self.link(index, n.inputs["Index"])
-        return _socket(n.outputs, "Value", "VECTOR")
+        return _socket(n.outputs, "Value", kind)
 
 
 def _socket(sockets, name: str, kind: str):
@@ -287,7 +280,7 @@ def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool, seeded: bool =
     points = t.store(stem.outputs[0], ATTR_HEAD, "FLOAT_VECTOR", _socket(mark.outputs, "Value", "VECTOR"))
     points = t.store(points, ATTR_STEM, "FLOAT", base)
     if leafy:
-        points = t.store(points, ATTR_LEAF, "FLOAT", t.sample_value(mesh, t.attribute(ATTR_LEAF, "FLOAT"), base))
+        points = t.store(points, ATTR_LEAF, "FLOAT", t.sample(mesh, t.attribute(ATTR_LEAF, "FLOAT"), base, "FLOAT"))
         points = t.store(points, ATTR_FOOT_DIR, "FLOAT_VECTOR",
                          t.vmath("SUBTRACT", t.middle(mesh, t.math("ADD", base, 2.0)), root))
     points = t.store(points, ATTR_TIP_DIR, "FLOAT_VECTOR",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import meadow
+from . import edit_parts, meadow
 from .blocks import Species
 from .schema import Params
 from .sward import colour_ramp, sample_blades, shade_value
@@ -29,6 +29,7 @@ OVERLAP_TRIES = 32  # ... tried in order of their miss
 OVERLAP_PIXELS = 64  # ... drawn this large to tell
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK, edit_parts.LOD))
 def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
     """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
     row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of

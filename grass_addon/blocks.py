@@ -10,6 +10,7 @@ blocks within a memory budget.
 
 from __future__ import annotations
 
+import copy
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -280,6 +281,13 @@ class BlockCache:
 
     def __len__(self) -> int:
         return len(self._blocks)
+
+    def fork(self) -> BlockCache:
+        """A cache of its own holding the blocks this one holds now (shared: a block never changes
+        once made), for a field's ``twin`` on another thread."""
+        other = copy.copy(self)
+        other._blocks = OrderedDict(self._blocks)
+        return other
 
     def block_bytes(self) -> int:
         """Bytes one block takes (every block has the same shapes)."""

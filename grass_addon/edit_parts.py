@@ -22,10 +22,15 @@ A parameter not named below is ``layout``: the safe part (everything is made aga
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
-from collections.abc import Iterable, Mapping
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
+
+import numpy as np
 
 from . import schema
 
@@ -105,3 +110,60 @@ def digest_of(params: schema.Params, parts: Iterable[str]) -> str:
             elif part_of(name) in wanted:
                 values[name] = value
     return hashlib.sha1(json.dumps(values, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def remembered(parts: Iterable[str], keep: int = 8) -> Callable:
+    """Decorate ``f(params, *args)``, a function of the settings of ``parts`` alone (and small
+    arguments: numbers, arrays): its answers are kept for the ``keep`` settings last asked, so
+    an edit of another part costs nothing, and work done ahead (``look.prepare``, on a thread)
+    is not done again. Each call gets its own copy of the answer's arrays (callers may write to
+    them); thread-safe."""
+    wanted = tuple(parts)
+
+    def wrap(compute: Callable) -> Callable:
+        answers: OrderedDict[tuple, Any] = OrderedDict()
+        lock = threading.Lock()
+
+        def key_of(params, args) -> tuple:
+            return digest_of(params, wanted), tuple(_argument_key(a) for a in args)
+
+        @functools.wraps(compute)
+        def call(params, *args):
+            key = key_of(params, args)
+            with lock:
+                found = answers.get(key)
+            if found is None:
+                found = compute(params, *args)
+                with lock:
+                    answers[key] = found
+                    while len(answers) > keep:
+                        answers.popitem(last=False)
+            return _fresh(found)
+
+        def known(params, *args) -> bool:
+            """The answer for these settings and arguments is kept (no work to ask for it)."""
+            with lock:
+                return key_of(params, args) in answers
+
+        call.known = known  # type: ignore[attr-defined]
+        return call
+
+    return wrap
+
+
+def _argument_key(value) -> Any:
+    if isinstance(value, (list, tuple, np.ndarray)):
+        array = np.asarray(value, dtype=np.float64)
+        return array.shape, array.tobytes()
+    return repr(value)
+
+
+def _fresh(value):
+    """``value`` with its arrays copied (tuples and lists of them too)."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, tuple):
+        return tuple(_fresh(v) for v in value)
+    if isinstance(value, list):
+        return [_fresh(v) for v in value]
+    return value

@@ -19,6 +19,7 @@ only writes. ``blade_vertices`` and ``card_vertices`` give any blocks' vertices 
 
 from __future__ import annotations
 
+import copy
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -112,6 +113,7 @@ class GrassField:
         self.interaction: interaction.Interaction | None = None
         self.effectors = None
         self._progress = progress  # (done, total) of a long seek, or None
+        self._twin = False  # a twin not yet retuned: it shares its simulation with its original
         self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
@@ -169,17 +171,38 @@ class GrassField:
         """``params`` changes no block of this field (``edit_parts``): ``retune`` takes it in place."""
         return edit_parts.LAYOUT not in edit_parts.changed_parts(self.params, params)
 
+    def reruns(self, params: Params, wind_keys=None) -> bool:
+        """``retune`` to ``params`` (and the animated wind ``wind_keys``) simulates again: the wind or
+        the solver changed (the costly edits in place: ``twin`` does them elsewhere)."""
+        return bool(edit_parts.changed_parts(self.params, params) & edit_parts.SIMULATED) \
+            or wind_keys is not self._wind_keys
+
+    def twin(self, progress=None) -> GrassField:
+        """A twin to ``retune`` with a new run on another thread (``bridge/builds.py``) while this
+        field goes on showing its frames: it shares the blocks made so far (never changed once
+        made) and its own cache, frame buffers and, once retuned, window, wind and simulation; this
+        field is left as it is. ``progress``: the twin's long seeks report to it."""
+        twin = copy.copy(self)
+        twin.cache = self.cache.fork()
+        twin._buffers, twin._recent = {}, OrderedDict()
+        twin.cells, twin._cells_frame = None, None
+        twin._progress = progress
+        twin._twin = True
+        return twin
+
     def retune(self, params: Params, wind_keys=None, colliders=None, effectors=None) -> frozenset[str]:
         """Take the settings ``params`` (``can_retune``) in place: the blocks are kept; the wind
         and the solver's run are made again only when the wind, the solver or the animated wind
-        (``wind_keys``, a new object) changed; a colour or LOD edit keeps the run. Frames are then
-        the bits a new ``GrassField`` of these settings gives. ``colliders`` and ``effectors`` as
-        in ``__init__`` (the effectors are taken only with a new run). Returns the parts changed."""
+        (``wind_keys``, a new object) changed (always for a ``twin``); a colour or LOD edit keeps
+        the run. Frames are then the bits a new ``GrassField`` of these settings gives.
+        ``colliders`` and ``effectors`` as in ``__init__`` (the effectors are taken only with a
+        new run). Returns the parts changed."""
         parts = edit_parts.changed_parts(self.params, params)
         if edit_parts.LAYOUT in parts:
             raise ValueError("retune: these settings change the field's blocks; make a new GrassField")
         self._check_budget(params)  # (before anything changes)
-        rerun = bool(parts & edit_parts.SIMULATED) or wind_keys is not self._wind_keys
+        rerun = self._twin or self.reruns(params, wind_keys)
+        self._twin = False  # (its own run from here on)
         old_shapes = self.shapes
         self.model = FieldModel.of(params)
         self.cache.params, self.cache.species = params, Species(params)

@@ -32,7 +32,6 @@ the materials.
 from __future__ import annotations
 
 import dataclasses
-from collections import OrderedDict
 
 import numpy as np
 
@@ -64,6 +63,11 @@ PROFILE_POINTS = 33  # heights from the ground to the tallest tip at which ``swa
 # headless/lod_compare.py --views strip).
 LIGHT_SLOPE = 1.0
 LOOK_LAYERS = 48  # height layers over which ``sward_look`` sums what a ray meets
+# The canopy's colour curve runs over x = s / (s + LOOK_KNEE) of the ray's slope s (0: grazing,
+# 1: straight down), which spends most of its points on the low views where the look changes most.
+LOOK_KNEE = 0.1
+LOOK_POINTS = 33
+VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slope (eye height / distance)
 SAMPLE_SIDE = 6  # ``sample_blades`` draws 6 x 6 of the field's blocks (36 patches of a meadow: its mean)
 PATCH_PIXELS = 256  # side of the image of the meadow's patches over the whole field (``patch_tint``)
 PATCH_SAMPLES = 2  # ... each pixel the mean of 2 x 2 samples (patches a third of a pixel wide blur, not alias)
@@ -75,6 +79,7 @@ def floor_colours(params: Params) -> tuple[tuple[float, float, float], tuple[flo
     return FLOOR_COLOURS[str(params.field.floor)]
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def ground_colours(params: Params) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """The two linear RGB colours the ground material shows under the grass drawn: the floor
     (``floor_colours``) under the leaves at the stems' foot, which are drawn only with their stems
@@ -157,6 +162,7 @@ def tip_heights(params: Params) -> np.ndarray:
     return blade.tip_height(block.blade_length, block.blade_rest_tilt, shares)
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def canopy_height(params: Params) -> float:
     """Height (m) of the plane that the far texture lies on."""
     return _canopy(tip_heights(params))
@@ -167,6 +173,7 @@ def sward_top(params: Params) -> float:
     return float(max(1e-3, tip_heights(params).max()))
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def fringe_top(params: Params) -> float:
     """Height (m) of the fringe along the field's edge: ``sward_top`` in the field's tallest patch
     (``patch_stands``; its profile is read over the local stand's height there)."""
@@ -224,20 +231,20 @@ def _spans(params: Params, block):
     return np.minimum(joint[:, :-1], joint[:, 1:]), np.maximum(joint[:, :-1], joint[:, 1:]), seen
 
 
-_LOOKS: OrderedDict[tuple, np.ndarray] = OrderedDict()  # sward_look's recent answers (an edit of the wind keeps them)
+def look_slopes() -> tuple[np.ndarray, np.ndarray]:
+    """(x, slopes s) of the canopy's curves over the ray's slope: x = s / (s + LOOK_KNEE) in
+    LOOK_POINTS steps, the last straight down."""
+    along = np.linspace(0.0, 1.0, LOOK_POINTS)
+    slopes = LOOK_KNEE * along / np.maximum(1.0 - along, 1e-9)
+    slopes[-1] = 1e6
+    return along, slopes
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def sward_look(params: Params, slopes) -> np.ndarray:
     """``_sward_look``, kept for the few settings of the field's layout and look last asked (it
     reads no other setting: an edit of the wind or of the solver costs no new look)."""
-    slopes = np.atleast_1d(np.asarray(slopes, np.float64))
-    key = (edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK)), slopes.tobytes())
-    found = _LOOKS.get(key)
-    if found is None:
-        found = _LOOKS[key] = _sward_look(params, slopes)
-        while len(_LOOKS) > 8:
-            _LOOKS.popitem(last=False)
-    return found.copy()
+    return _sward_look(params, np.atleast_1d(np.asarray(slopes, np.float64)))
 
 
 def _sward_look(params: Params, slopes) -> np.ndarray:
@@ -368,6 +375,7 @@ def _segment_colours(params: Params, block, at) -> np.ndarray:
     return colour_ramp(tip, (np.arange(n) + at) / n) * shade_value(block.blade_shade)[:, None, None]
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def fringe_colour(params: Params) -> tuple[float, float, float]:
     """Mean linear RGB of the blades' parts above the canopy plane, weighted by the area that a
     horizontal ray sees (width times rise), in the blade material's colours with each blade's
@@ -395,6 +403,7 @@ def _fringe(params: Params, block) -> tuple[np.ndarray, np.ndarray]:
     return weight, _segment_colours(params, block, 1.0 - 0.5 * above)
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def sward_profile(params: Params, points: int = PROFILE_POINTS) -> tuple[np.ndarray, np.ndarray]:
     """(heights from the ground to ``sward_top``, ``sward_depth`` at each): what the canopy
     material interpolates (``materials.canopy_material``)."""
@@ -444,6 +453,7 @@ def species_looks(params: Params) -> tuple[np.ndarray, np.ndarray]:
     return colours, areas
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     """(pixels, pixels, 3) float32 over the whole field (row 0 at its low-y edge, as Blender's pixel
     rows): how the meadow's patches tint the far grass there. The look of the local species mix
@@ -455,6 +465,7 @@ def patch_tint(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     return _patch_maps(params, pixels)[0]  # (ones with one species: ``_paint_patches``)
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def patch_stands(params: Params, pixels: int = PATCH_PIXELS) -> np.ndarray:
     """(pixels, pixels) float32 over the whole field (rows as ``patch_tint``'s): the stand there
     as the far canopy's edge draws it, L in L tau(z / L) (``materials._sward_edge_opacity``: the
@@ -641,6 +652,7 @@ def _over_field(params: Params, pixels: int, values) -> np.ndarray:
     return rows[:, lo] * (1.0 - f) + rows[:, lo + 1] * f
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def grain_seen(params: Params, slopes) -> np.ndarray:
     """(len(slopes),) the share of the tussocks' grain (``tussock_grain``'s contrast) that a pixel
     of rays descending with each slope s shows. Such a ray crosses the sward from its top and is
@@ -680,6 +692,7 @@ GRAIN_PURPOSE = 41  # np.random.default_rng([seed, 41]) lays it out
 GRAIN_MAX = 0.5  # the grain's contrast is at most this (a bound on odd settings)
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def tussock_grain(params: Params) -> tuple[float, float]:
     """(size (m), contrast) of the grain that the field's tussocks give the far grass. A tussock
     (the blades whose roots share a clump centre, ``meadow.clump_centres``; a cell of an even
@@ -722,6 +735,7 @@ SPECKLE_SLOPES = (0.15, 0.45)  # the ray's slope over which the canopy's flowers
 # at lower, grazing slopes the sward's look, ``sward_look``, holds the flowers' share in its colour)
 
 
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
 def flower_speckles(params: Params) -> tuple[float, float, list[tuple[float, tuple]]]:
     """What the far canopy draws of the field's flowers (and seed heads) seen from above, each
     flower a disc of its own: (flowers per m² of ground, their radius in m (the mean over their

@@ -9,6 +9,12 @@ Until it is done the field's grass is hidden and its panel says how far it is; a
 An edit made while one runs waits for it (one build at a time per field, never a queue): the next
 update starts one more for the settings then, and a finished build whose settings are no longer
 the field's is dropped. Scripts, background renders and renders in the UI build at once (``wait``).
+
+An edit of the wind or the solver keeps the field's blocks but simulates again (seconds on a large
+field): in the UI that run is a ``Build`` too, of the engine's ``twin`` retuned (``base``: the
+engine it was made from, which goes on showing its frames meanwhile). A finished one is taken even
+when the settings moved on while it ran (a slider still dragged): the grass follows the drag, one
+run behind.
 """
 
 from __future__ import annotations
@@ -30,12 +36,15 @@ class Build:
     failure: BaseException | None = None
     done: threading.Event = field(default_factory=threading.Event)
     progress: tuple[int, int] = (0, 0)  # (frames simulated, of) the first seek
+    inputs: object = None  # resolve.Inputs it is made for (a retune: ``base`` is set)
+    base: object = None  # registry.Engine whose twin it retunes, else None (a new engine)
+    painted: str = ""  # paint.fingerprint of the paint the base grew when its twin was made
 
     def start(self, make) -> Build:
         """Run ``make(report) -> GrassField`` on a thread, then the first seek."""
         def run() -> None:
             try:
-                engine = make(self._report)
+                engine = make(self.report)
                 engine.view(self.views, self.at_frame)
                 engine.seek(self.at_frame)
                 self.made = engine
@@ -47,7 +56,7 @@ class Build:
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()
         return self
 
-    def _report(self, done: int, total: int) -> None:
+    def report(self, done: int, total: int) -> None:
         self.progress = (done, total)
 
     def wait(self) -> None:

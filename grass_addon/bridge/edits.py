@@ -16,6 +16,7 @@ import bpy
 
 from ..errors import WindgrassError
 from . import bake, maps, properties, tracks
+from . import scene as field_scene
 from .frame_pass import guarded, update_field
 from .lifecycle import apply_settings
 from .registry import REGISTRY, key_of
@@ -43,11 +44,12 @@ def mark_dirty(scene, item, defer: bool | None = None) -> None:
         return
     live = REGISTRY.live(key_of(scene, item))
     live.edited()
-    guarded(apply_settings, scene, item)
+    deferred = defer if defer is not None else not bpy.app.background
+    guarded(apply_settings, scene, item, look_later=deferred)  # (in the UI a slow look is worked out on a thread)
     if item.collider_collection is not None or item.effector_collection is not None \
             or tracks.TRACK_KEY in item.collection:
         live.motion_edited()
-    if not (defer if defer is not None else not bpy.app.background):
+    if not deferred:
         if live.moved:
             live.motion_looked_at()
             guarded(update_track, scene, item)
@@ -97,17 +99,27 @@ def flush_pending() -> float | None:
         stroke, started = state.stroked, time.perf_counter()
         guarded(update_field, scene, item, wait=stroke)  # (a new engine on a thread; a stroke shows at once)
         state.stroke_shown(time.perf_counter() - started if stroke else None)
-    if any(s.building is not None for s in REGISTRY.states.values()) and not bpy.app.timers.is_registered(poll_builds):
+    if any(s.building is not None or s.look_waiting for s in REGISTRY.states.values()) \
+            and not bpy.app.timers.is_registered(poll_builds):
         bpy.app.timers.register(poll_builds, first_interval=BUILD_POLL_S)
     return PAINT_MODE_POLL_S if waiting else None
 
 
 def poll_builds() -> float | None:
-    """Timer: write the fields whose background build (``builds.Build``) is done; run again
-    while one is not."""
+    """Timer: write the fields whose background build (``builds.Build``) is done, and the
+    materials whose look was worked out on a thread (``show_look``); run again while one is not."""
     running = False
     scenes = {s.session_uid: s for s in bpy.data.scenes}
     for key, state in list(REGISTRY.states.items()):
+        if state.look_waiting:
+            scene, item = _field_of(scenes, key)
+            if item is None or item.collection is None:
+                state.look_waits(False)
+            else:
+                guarded(show_look, scene, item)
+                running = running or state.look_waiting
+                if not state.look_waiting:
+                    _redraw()
         job = state.building
         if job is None:
             continue
@@ -122,6 +134,17 @@ def poll_builds() -> float | None:
         running = running or state.building is not None
         _redraw()
     return BUILD_POLL_S if running else None
+
+
+def show_look(scene, item, later: bool = True) -> None:
+    """Write the field's materials for its settings once their look is worked out (``later``:
+    asked for on a thread, ``look.ask``; else at once: a render is about to start)."""
+    params = properties.params_from_settings(item, scene)
+    shown = field_scene.update_field_materials(item, params, scene, later=later)
+    live = REGISTRY.live(key_of(scene, item))
+    live.look_waits(not shown)
+    if shown and field_scene.refit_ground(item, params, terrain_of(scene, item, params)[0]):
+        live.paint_look_lost()
 
 
 def _field_of(scenes: dict, key) -> tuple:

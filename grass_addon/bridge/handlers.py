@@ -23,7 +23,7 @@ from bpy.app.handlers import persistent
 from . import bake, floor, owned, properties
 from . import camera as field_camera
 from . import scene as field_scene
-from .edits import flush_pending, mark_dirty, painting, poll_builds, refresh_later
+from .edits import flush_pending, mark_dirty, painting, poll_builds, refresh_later, show_look
 from .frame_pass import guarded, update_field, update_scene
 from .lifecycle import apply_settings, refill_ground
 from .registry import REGISTRY, key_of, warn_once
@@ -54,6 +54,9 @@ def on_render_pre(scene, *_args):
     """A render follows the scene camera, whatever the viewport showed: write every field of the
     rendered scene for it before Blender syncs the scene (a still has no frame change)."""
     REGISTRY.rendering = True
+    for item in owned.scene_fields(scene):  # (an edit's look still worked out on a thread: now, for the render)
+        if REGISTRY.live(key_of(scene, item)).look_waiting:
+            guarded(show_look, scene, item, later=False)
     update_scene(scene, camera_moved_only=True)
 
 

@@ -22,12 +22,13 @@ from .registry import REGISTRY, key_of
 from .resolve import resolve, terrain_of, topology_of
 
 
-def apply_settings(scene, item, force: bool = False) -> None:
+def apply_settings(scene, item, force: bool = False, look_later: bool = False) -> None:
     """Bring the field's datablocks to its settings now: the objects are rebuilt when their
     topology changed (always with ``force``: Rebuild, which also re-samples the terrain and frees
     a bake), the materials' values refreshed. A baked field is left as baked (an edit makes its
     bake stale, see bake.status); a field without objects (never built, deleted by hand) gets
-    none. Raises WindgrassError on bad settings (nothing is changed then)."""
+    none. ``look_later`` (an edit in the UI): a look that takes time to work out is written when it
+    is ready (``edits.show_look``). Raises WindgrassError on bad settings (nothing is changed then)."""
     if bake.is_baked(item):
         if not force:
             return
@@ -48,7 +49,7 @@ def apply_settings(scene, item, force: bool = False) -> None:
     field_scene.separate_copy(item)
     coll = item.collection
     if force or missing or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
-        field_scene.build_slots(scene, item, params, heightfield, centre)
+        shown = field_scene.build_slots(scene, item, params, heightfield, centre, look_later)
         forget_slots(scene, item, rebuilt=True)
     else:
         if field_scene.fill_slots(item, params):  # a file of an earlier version: its slots saved empty
@@ -57,7 +58,8 @@ def apply_settings(scene, item, force: bool = False) -> None:
         refill_ground(scene, item, params)  # and its painted ground grid emptied
         if field_scene.refresh_heads(item, params):  # a head shape, leaves or an Own Plant edited
             forget_slots(scene, item)
-        field_scene.update_field_materials(item, params, scene)
+        shown = field_scene.update_field_materials(item, params, scene, later=look_later)
+    REGISTRY.live(key_of(scene, item)).look_waits(not shown)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True

@@ -98,11 +98,7 @@ LITTER_COLOUR = (*sward.LITTER_COLOUR, 1.0)
 # lit on their sides: its colour is SWARD_LIGHT times what rays see of the sward (sward.sward_look;
 # fitted with sward.LIGHT_SLOPE to all-geometry renders, sun and overcast: headless/lod_compare.py).
 SWARD_LIGHT = 0.55
-# The canopy's colour curve runs over x = s / (s + LOOK_KNEE) of the ray's slope s (0: grazing,
-# 1: straight down), which spends most of its points on the low views where the look changes most.
-LOOK_KNEE = 0.1
-LOOK_POINTS = 33
-VIEWPORT_SLOPE = 0.05  # Solid shading shows the far grass as seen from this slope (eye height / distance)
+LOOK_KNEE, VIEWPORT_SLOPE = sward.LOOK_KNEE, sward.VIEWPORT_SLOPE  # (the canopy's curves over the slope)
 # Solid shading draws a card as its whole quad (no texture): see-through, the cards of a cell and its
 # neighbours overlap into a grassy layer over the canopy; opaque, they read as shards (issue #59)
 CARD_VIEWPORT_ALPHA = 0.4
@@ -1047,7 +1043,7 @@ def update_materials(params, canopy=None) -> None:
         if depth is not None:
             depth.outputs[0].default_value = TRAIL_SINK * sward.canopy_height(params)
         look = canopy.node_tree.nodes.get(NODE_SWARD_LOOK)
-        along, slopes = _look_slopes()
+        along, slopes = sward.look_slopes()
         if look is not None:
             colours = SWARD_LIGHT * sward.sward_look(params, slopes)
             for channel in range(3):
@@ -1066,15 +1062,6 @@ def update_materials(params, canopy=None) -> None:
             _set_curve(seen.mapping.curves[0], along, sward.grain_seen(params, slopes))
             seen.mapping.update()
         update_sward_profile(params, canopy)
-
-
-def _look_slopes() -> tuple[np.ndarray, np.ndarray]:
-    """(x, slopes s) of the canopy's curves over the ray's slope: x = s / (s + LOOK_KNEE) in
-    LOOK_POINTS steps, the last straight down."""
-    along = np.linspace(0.0, 1.0, LOOK_POINTS)
-    slopes = LOOK_KNEE * along / np.maximum(1.0 - along, 1e-9)
-    slopes[-1] = 1e6
-    return along, slopes
 
 
 def update_sward_profile(params, canopy) -> None:

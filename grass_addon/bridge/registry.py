@@ -83,6 +83,7 @@ class LiveField:
     moved: bool = False  # its colliders or force fields were edited: look at their stored motion
     hidden_for_paint: bool | None = None  # hidden in the viewport while its terrain is painted (None: not yet set)
     building: Any = None  # builds.Build of its new engine on a thread (UI edits), else None
+    look_waiting: bool = False  # its materials wait for their look, worked out on a thread (look.ask)
 
     @property
     def built(self) -> bool:
@@ -221,6 +222,10 @@ class LiveField:
         self.stroked = False
         if seconds is not None:
             self.stroke_s = seconds
+
+    def look_waits(self, waiting: bool) -> None:
+        """Its materials wait for the look of its settings (``look.ask``), or show it."""
+        self.look_waiting = waiting
 
     def edit_waits(self, now: float) -> None:
         """An edit in the UI waits to be shown (at ``now``): shown once the edits settle, or while

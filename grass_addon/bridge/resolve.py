@@ -156,10 +156,13 @@ def resolve(scene, item, wait: bool = True, views=None) -> LiveField:
         REGISTRY.forget_missing({key_of(s, f) for s in bpy.data.scenes for f in owned.scene_fields(s)})
         live = REGISTRY.live(key)
     inputs = read_inputs(scene, item, live.engine)
+    _take_retuned(live, inputs, wait, item.name)
     engine = live.engine
     kept = engine is not None and engine.digest == inputs.digest
     retuned = not kept and engine is not None and engine.ground == inputs.ground and \
         engine.field.can_retune(inputs.params)
+    if retuned and not wait and engine is not None and engine.field.reruns(inputs.params, inputs.wind_keys):
+        _retune_later(live, engine, inputs, item.name, views)  # (a new run: on a thread, BuildPending)
     if kept or retuned:
         live.build_dropped()  # (a background build for other settings, no longer wanted: its result is let go)
         if retuned and engine is not None:
@@ -214,11 +217,57 @@ def _retune(live: LiveField, engine: Engine, inputs: Inputs) -> None:
     wind, solver, LOD or colour edit); its pools are kept while its objects' topology holds."""
     field = engine.field
     field.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders, effectors=inputs.effectors)
-    same = engine.topology == inputs.topology
-    blades, cards = (engine.blades, engine.cards) if same else _pools(field)
+    _retuned(live, engine, field, inputs, live.painted)
+
+
+def _retuned(live: LiveField, base: Engine, field: GrassField, inputs: Inputs, painted: str) -> None:
+    """``field``, the engine ``base``'s field retuned to ``inputs`` (or its twin), becomes the
+    record's engine; the pools of ``base`` are kept while the objects' topology holds."""
+    same = base.topology == inputs.topology
+    blades, cards = (base.blades, base.cards) if same else _pools(field)
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
                             inputs.wind_keys, inputs.terrain_key, inputs.topology, blades=blades, cards=cards),
-                     live.painted, inputs.track, kept=True)
+                     painted, inputs.track, kept=True)
+
+
+def _retune_later(live: LiveField, engine: Engine, inputs: Inputs, name: str, views) -> None:
+    """Start the run of a wind or solver edit in the UI on a thread: the engine's ``twin`` retuned
+    and seeked for ``views`` (``builds.Build``), while the engine goes on showing its frames; one
+    at a time (a build running is waited for). Raises ``BuildPending``."""
+    if live.building is None:
+        job = builds.Build(inputs.digest, inputs.frame, views, inputs=inputs, base=engine, painted=live.painted)
+        twin = engine.field.twin(progress=job.report)  # (here: the blocks as they are now)
+
+        def make(_report) -> GrassField:
+            twin.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders,
+                        effectors=inputs.effectors)
+            return twin
+
+        live.build_started(job.start(make))
+    raise builds.BuildPending(name)
+
+
+def _take_retuned(live: LiveField, inputs: Inputs, wait: bool, name: str) -> None:
+    """A retune run on a thread (``_retune_later``) that is done becomes the engine, even when the
+    settings moved on while it ran (a slider dragged on: the grass follows one run behind), while
+    its objects' topology is the settings' now and its base is still the engine; ``wait`` (a frame
+    or a render) waits for one made for the settings now."""
+    job = live.building
+    if job is None or job.base is None:
+        return
+    if wait and job.digest == inputs.digest:
+        job.wait()
+    if not job.done.is_set():
+        return
+    live.build_dropped()
+    if job.failure is not None:
+        if job.digest == inputs.digest:
+            raise job.failure
+        return
+    made_for = job.inputs
+    if live.engine is job.base and made_for.topology == inputs.topology and made_for.ground == inputs.ground:
+        job.made.report_progress(_seek_progress(name))
+        _retuned(live, job.base, job.made, made_for, job.painted)
 
 
 def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import bpy
 
-from .. import atlas, slots, sward
+from .. import atlas, look, slots, sward
 from .. import kinematics as kin
 from ..grid import FieldGrid
 from . import heads, maps, materials, meshes, owned, paint_look, textures, wind_force
@@ -89,10 +89,12 @@ def field_materials(item):
 MATERIALS_DIGEST = "wg_materials"  # the collection's custom property: what its materials show
 
 
-def update_field_materials(item, params, scene=None) -> None:
+def update_field_materials(item, params, scene=None, later: bool = False) -> bool:
     """Refresh the parameter-dependent values (eq 10 distances, colours, the card atlas) of the
     materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles); nothing
-    when they already show these."""
+    when they already show these. ``later`` (an edit in the UI): when the look of ``params`` takes
+    time to work out (``look.ask``), it is worked out on a thread and nothing is written yet (False:
+    ask again). True: the materials show ``params``."""
     cycles = getattr(scene, "cycles", None)
     bounces = cycles.transparent_max_bounces if cycles is not None else -1
     reg = owned.registered(item)
@@ -100,7 +102,9 @@ def update_field_materials(item, params, scene=None) -> None:
                                                                if isinstance(d, (bpy.types.Material, bpy.types.Image))))
     coll = item.collection
     if coll is not None and coll.get(MATERIALS_DIGEST) == digest:
-        return
+        return True
+    if later and not look.ask(params):
+        return False
     materials.update_materials(params, reg.get(owned.ROLE_CANOPY_MATERIAL))
     mats = [reg.get(role) for role in (owned.ROLE_BLADE_MATERIAL, owned.ROLE_CARD_MATERIAL, owned.ROLE_GROUND_MATERIAL,
                                        owned.ROLE_CANOPY_MATERIAL)]
@@ -123,6 +127,7 @@ def update_field_materials(item, params, scene=None) -> None:
     materials.update_patches(params, reg.get(owned.ROLE_CARD_MATERIAL), reg.get(owned.ROLE_CANOPY_MATERIAL))
     if coll is not None:
         coll[MATERIALS_DIGEST] = digest
+    return True
 
 
 def _link(coll, obj, parent) -> None:
@@ -146,12 +151,13 @@ def _remove_objects(objects) -> None:
             bpy.data.meshes.remove(mesh)
 
 
-def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> bpy.types.Collection:
+def build_slots(scene, item, params, heightfield=None, terrain_centre=None, look_later: bool = False) -> bool:
     """(Re)create the ground and the blade/card slot objects of the field of ``params``
     (``slots.pool_shapes``); idempotent. ``heightfield``: its terrain in the field's frame (None:
     flat), ``terrain_centre``: the world XY the field is centred on over it. The collection records
     ``slots.topology_key``. Called by ``runtime.apply_settings`` only (datablocks change inside the
-    operator or edit that asked for them, never between undo steps)."""
+    operator or edit that asked for them, never between undo steps). Returns whether the
+    materials show ``params`` (``update_field_materials``: ``look_later``, else always)."""
     grid = FieldGrid.of(params)
     coll = ensure_collection(scene, item)
     uid = coll["wg_uid"]
@@ -169,8 +175,9 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
             del item[owned.MADE_KEY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
-    mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, sward.canopy_height(params),
-                              sward.fringe_top(params), meshes.thinning_edge(params))
+    heights = _sward_heights(params, ground, look_later)
+    mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, *heights, meshes.thinning_edge(params))
+    mesh[GROUND_HEIGHTS] = heights
     paint_look.paint_map(item, uid, base, grid if painted else None, canopy_mat)
     if ground is None:
         ground = bpy.data.objects.new(f"{base} ground", mesh)
@@ -199,9 +206,14 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
     head_tree = _build_heads(item, params, uid, base, blade_mat)
     for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
         spec = _SlotTopology(grid, params, role)
+        first = None
         for i in range(spec.shape.objects):  # once per build, not per frame
-            mesh = meshes.quad_mesh(f"{base} {role} {i:03d}", spec.shape.verts_per_object, spec.faces, spec.uvs,
-                                    material, spec.attributes, spec.data_uvs)
+            if first is None:
+                mesh = first = meshes.quad_mesh(f"{base} {role} {i:03d}", spec.shape.verts_per_object, spec.faces,
+                                                spec.uvs, material, spec.attributes, spec.data_uvs)
+            else:  # (every slot of a role has the same quads: a copy is a tenth of the time)
+                mesh = first.copy()
+                mesh.name = f"{base} {role} {i:03d}"
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
             if head_tree is not None and role == owned.ROLE_BLADES:
@@ -212,8 +224,39 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None) -> b
             _link(coll, obj, ground)
             owned.record(item, owned.slot_key(role, i), obj)
     coll[owned.TOPOLOGY] = topology(params, heightfield, painted)
-    update_field_materials(item, params, scene)
-    return coll
+    return update_field_materials(item, params, scene, later=look_later)
+
+
+GROUND_HEIGHTS = "wg_sward_heights"  # the ground mesh's custom property: (canopy, fringe top) it was made with
+
+
+def _sward_heights(params, ground, look_later: bool) -> tuple[float, float]:
+    """(canopy height, fringe top) of the ground mesh of ``params``: with ``look_later`` (an edit
+    in the UI) while the sward's look is still to be worked out, those the ground had (``refit_ground``
+    makes it again once the look is ready)."""
+    if look_later and not (sward.canopy_height.known(params) and sward.fringe_top.known(params)):
+        old = ground.data.get(GROUND_HEIGHTS) if ground is not None and ground.data is not None else None
+        return (float(old[0]), float(old[1])) if old is not None and len(old) == 2 else (0.0, 0.0)
+    return sward.canopy_height(params), sward.fringe_top(params)
+
+
+def refit_ground(item, params, heightfield) -> bool:
+    """Make the ground mesh again when it was made with other sward heights than those of
+    ``params`` (``_sward_heights``: built while its look was worked out); returns whether it did
+    (the paint's look on it is then to be written again)."""
+    ground = owned.ground_object(item)
+    if ground is None or ground.data is None:
+        return False
+    heights = (sward.canopy_height(params), sward.fringe_top(params))
+    old = ground.data.get(GROUND_HEIGHTS)
+    if old is not None and tuple(float(h) for h in old) == heights:
+        return False
+    surface = paint_look.paint_ground(params, heightfield) if paint_look.painted_settings(params, item) \
+        else heightfield
+    ground.data.clear_geometry()
+    meshes.fill_ground(ground.data, FieldGrid.of(params).size, surface, *heights, meshes.thinning_edge(params))
+    ground.data[GROUND_HEIGHTS] = heights
+    return True
 
 
 HEADS_KEY = "wg_heads"  # the collection's custom property: heads.sources_key its heads' modifier draws

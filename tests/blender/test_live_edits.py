@@ -189,3 +189,107 @@ def test_an_edit_back_while_a_build_runs_drops_it(with_bridge, drawn):
     scene.frame_set(FRAME)
     for a, b in zip(_drawn(drawn, item), before):
         np.testing.assert_array_equal(a, b)
+
+
+def _edit_in_the_ui(scene, item, setter):
+    """An edit as the UI applies it: the property set (its update deferred), then the edits'
+    timer once they settle."""
+    import time
+
+    from windgrass.grass_addon.bridge import edits
+    from windgrass.grass_addon.bridge.registry import REGISTRY
+
+    REGISTRY.batch_depth += 1  # (the property's own update would apply it at once in a script)
+    setter(item)
+    REGISTRY.batch_depth -= 1
+    edits.mark_dirty(scene, item, defer=True)
+    time.sleep(edits.EDIT_SETTLE_S + 0.01)
+    edits.flush_pending()
+
+
+def _until_shown(live):
+    """Run the edits' poll timer until no build and no look waits."""
+    import time
+
+    from windgrass.grass_addon.bridge import edits
+
+    while live.building is not None or live.look_waiting:
+        if live.building is not None:
+            live.building.wait()
+        time.sleep(0.02)
+        edits.poll_builds()
+
+
+def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
+    """Issue #58: a wind edit in the UI simulates its new run on a thread: when the edits' timer
+    returns, the grass of the settings before is still drawn (not hidden, not the new run); an
+    edit made while it runs (a slider dragged on) is not queued beside it, and the field ends
+    drawing what a fresh build of the last value draws."""
+    import threading
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 8, "field.blocks_y": 8})
+    scene, item = _build(base)
+    before = drawn(item, "blades")
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 9.0))
+    assert live.building is not None, "the new run was made in the window's thread"
+    now = drawn(item, "blades")
+    assert np.any(now) and np.array_equal(now, before), "the grass was hidden or changed before its run was done"
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 11.0))
+    assert sum(t.name.startswith("windgrass build") and t.is_alive() for t in threading.enumerate()) <= 1
+    _until_shown(live)
+    assert runtime.field_error(scene, item) is None
+    scene.frame_set(FRAME)
+    got = _drawn(drawn, item)
+    _, want_item = _build(base.replace({"wind.speed": 11.0}))
+    for a, b in zip(got, _drawn(drawn, want_item)):
+        np.testing.assert_array_equal(a, b)
+
+
+def _look_drawn(item):
+    """What a field's materials and ground show of its look: the evaluated ground mesh's vertices,
+    the card atlas's pixels and the far canopy's curves (the sward's colours, depth and grain)."""
+    from windgrass.grass_addon.bridge import owned
+
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    ground = owned.ground_object(item).evaluated_get(depsgraph).data
+    co = np.empty(len(ground.vertices) * 3, np.float32)
+    ground.vertices.foreach_get("co", co)
+    reg = owned.registered(item)
+    image = reg[owned.ROLE_CARD_IMAGE]
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    curves = [[tuple(p.location) for c in node.mapping.curves for p in c.points]
+              for node in sorted(reg[owned.ROLE_CANOPY_MATERIAL].node_tree.nodes, key=lambda n: n.name)
+              if hasattr(node, "mapping") and hasattr(node.mapping, "curves")]
+    return co, pixels, curves
+
+
+def test_a_density_edit_in_the_ui_works_its_look_out_on_a_thread(with_bridge):
+    """Issue #58: a density edit in the UI rebuilds the field's objects in the edit, but the far
+    grass's look (seconds of work: the sward's colours, the card atlas, the canopy's heights) is
+    worked out on a thread: the edit leaves the materials as they were, and once it is ready the
+    timer writes it: the ground, the card atlas and the canopy's curves are then those a fresh
+    build of the settings shows."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.seed": 4057, "lod.card_width": 1.13})  # (a look no test asked)
+    scene, item = _build(base)
+    before = _look_drawn(item)
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.field, "blades_per_cell", 5))
+    assert live.look_waiting, "the look was worked out in the window's thread"
+    np.testing.assert_array_equal(_look_drawn(item)[1], before[1])  # (the atlas as it was, meanwhile)
+    _until_shown(live)
+    got = _look_drawn(item)
+    _, want_item = _build(base.replace({"field.blades_per_cell": 5}))
+    want = _look_drawn(want_item)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert got[2] == want[2]
+    assert not np.array_equal(got[1], before[1]), "more blades a cell, and the cards look the same"

@@ -108,3 +108,43 @@ def test_a_wind_edit_keeps_the_blocks_and_a_shape_edit_needs_a_new_field():
     assert not field.can_retune(base_params().replace({"field.seed": 3}))
     assert edit_parts.changed_parts(base_params(), base_params().replace({"blade.root_stiffness": 0.004})) \
         == {edit_parts.LAYOUT}
+
+
+RERUNS = [(name, params) for name, params in EDITS if GrassField(base_params()).reruns(params)]
+assert {"wind.speed", "blade.air_damping"} <= {name for name, _ in RERUNS}
+
+
+@pytest.mark.parametrize("views", [None, CAMERA], ids=["whole", "camera"])
+@pytest.mark.parametrize("name,params", RERUNS, ids=[e[0] for e in RERUNS])
+def test_a_twin_retuned_on_a_thread_draws_a_fresh_build_and_leaves_its_original(name, params, views):
+    """A wind or solver edit in the UI runs on a thread (``GrassField.twin``): the twin retuned
+    there draws what a fresh build draws, while the field it came from goes on drawing its own
+    frames, its window moving meanwhile, untouched by the twin."""
+    import threading
+
+    field = GrassField(base_params())
+    before = drawn(field, 30, views)
+    twin = field.twin()
+    worker = threading.Thread(target=lambda: (twin.retune(params), twin.seek(31)))
+    worker.start()
+    again = drawn(field, 30, views)  # (the original, stepped meanwhile)
+    worker.join()
+    for a, b in zip(again, before):
+        np.testing.assert_array_equal(a, b)
+    want = drawn(GrassField(params), 31, views)
+    for a, b in zip(drawn(twin, 31, views), want):
+        np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def test_an_edit_of_another_part_keeps_a_remembered_look():
+    """The sward's look and the card atlas are kept by the settings they read (``remembered``): a
+    wind edit asks for nothing new, an edit of the look does; each call gets its own copy."""
+    from windgrass.grass_addon import atlas, look, sward
+
+    params = base_params().replace({"field.seed": 9071})
+    look.prepare(params)
+    assert look.ready(params) and look.ready(params.replace({"wind.speed": 2.0, "blade.air_damping": 0.7}))
+    assert not look.ready(params.replace({"render.sun_elevation": 20.0}))
+    first = atlas.card_atlas(params)
+    first[...] = 0.0  # (a caller writes into its copy)
+    assert np.any(atlas.card_atlas(params)) and sward.canopy_height.known(params)

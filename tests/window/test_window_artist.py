@@ -536,9 +536,10 @@ def _drag(path: str, values, shots: str, every: int = 2) -> list[dict]:
 
 
 def test_dragging_the_wind_and_the_stiffness_the_grass_follows_while_the_mouse_is_down(real_blender):
-    """Issue #58: an edit of the wind speed or the stiffness retunes the field in place and follows
-    a drag while the mouse is still down (every FOLLOW_S, 0.3 s: the engine runs a value the slider
-    passed before the drag ends, the wind's rising with it, the stiffness falling); the viewport's
+    """Issue #58: an edit of the wind speed or the stiffness retunes the field (its new run on a
+    thread, the grass of the value before shown meanwhile) and follows a drag while the mouse is
+    still down (every FOLLOW_S, 0.3 s, one run behind: the engine runs a value the slider passed
+    before the drag ends, the wind's rising with it, the stiffness falling); the viewport's
     grass moves from one screenshot to the next as the wind rises and the blades soften (the lower
     third of a low view, mean change over 0.5 %; looked at: the blades lean further each time)."""
     speeds, softer = [1.0, 2.5, 4.0, 5.5, 7.0, 8.5, 10.0, 11.5], [0.95, 0.85, 0.75, 0.65, 0.55, 0.45]
@@ -551,8 +552,9 @@ def test_dragging_the_wind_and_the_stiffness_the_grass_follows_while_the_mouse_i
     run.assert_clean()
     engine = [next(iter(r.values())) for r in run.results("probe")]
     wind, soft = engine[:4], engine[4:7]
-    assert [e["wind_speed"] for e in wind] == sorted(e["wind_speed"] for e in wind)
-    assert wind[0]["wind_speed"] >= speeds[1] and wind[-1]["wind_speed"] >= speeds[5]  # followed while dragging
+    # (each value runs on a thread while the grass of the one before shows: the first probe may be the speed before)
+    assert [e["wind_speed"] for e in wind[1:]] == sorted(e["wind_speed"] for e in wind[1:])
+    assert wind[1]["wind_speed"] >= speeds[1] and wind[-1]["wind_speed"] >= speeds[5]  # followed while dragging
     assert soft[-1]["root_stiffness"] < soft[-2]["root_stiffness"]  # (the first may be the stiffness before)
     changes = {}
     for shots in (["still"] + [f"wind{i}" for i in (1, 3, 5, 7)], [f"soft{i}" for i in (1, 3, 5)]):
@@ -564,9 +566,6 @@ def test_dragging_the_wind_and_the_stiffness_the_grass_follows_while_the_mouse_i
     assert min(changes.values()) > 0.005, changes
 
 
-@pytest.mark.xfail(strict=True, reason="issue #58 (open): a stiffness edit simulates the warm-up again in the "
-                   "window's thread (2.4-2.9 s a drag step on the Add-menu field here) and a density edit "
-                   "rebuilds the slot objects in it (5-11 s)")
 def test_no_step_of_a_drag_holds_the_window_for_a_second(real_blender):
     """Issue #58: dragging the wind speed, the stiffness and the density, the window answers the
     mouse throughout: no step of a drag (the value set, its update, 0.12 s) comes more than a

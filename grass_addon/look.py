@@ -1,0 +1,79 @@
+"""The field's look worked out from its settings: the values its materials show that take time to
+compute (numpy only): the far sward's colours over the rays' slopes, its depth profile and grain
+(``sward``), the card atlas (``atlas``), the meadow's patch maps, the floor's colours.
+
+Each is kept by the settings it reads (``edit_parts.remembered``): ``prepare(params)`` computes
+them all, and the bridge's writes into the materials afterwards take milliseconds. An edit in
+Blender's UI asks for them on a thread (``ask``), so a slider dragged never holds the window while
+a look of a second or two is worked out: one thread at a time, and the settings asked for last are
+the next it works on (never a queue); the bridge writes the materials when ``ask`` says they are
+ready.
+"""
+
+from __future__ import annotations
+
+import threading
+
+from . import atlas, sward
+from .schema import Params
+
+
+def _parts(params: Params) -> list[tuple]:
+    """(function, arguments) of every part of the look, as the bridge asks for them."""
+    slopes = sward.look_slopes()[1]
+    return [(sward.sward_look, (params, slopes)), (sward.sward_look, (params, [sward.VIEWPORT_SLOPE])),
+            (sward.grain_seen, (params, slopes)), (sward.ground_colours, (params,)),
+            (sward.canopy_height, (params,)), (sward.fringe_top, (params,)), (sward.fringe_colour, (params,)),
+            (sward.sward_profile, (params,)), (sward.tussock_grain, (params,)), (sward.flower_speckles, (params,)),
+            (sward.patch_tint, (params,)), (sward.patch_stands, (params,)), (atlas.card_atlas, (params,))]
+
+
+def ready(params: Params) -> bool:
+    """Every part of the look of ``params`` is kept (writing it is quick)."""
+    return all(part.known(*args) for part, args in _parts(params))
+
+
+def prepare(params: Params) -> None:
+    """Work out every part of the look of ``params`` (kept for the writes that follow)."""
+    for part, args in _parts(params):
+        part(*args)
+
+
+class _Worker:
+    """The one thread that works out looks asked for (``ask``)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.thread: threading.Thread | None = None
+        self.wanted: Params | None = None  # the settings asked for last, not yet taken
+
+    def ask(self, params: Params) -> None:
+        with self.lock:
+            self.wanted = params
+            if self.thread is None:
+                self.thread = threading.Thread(target=self._run, name="windgrass look", daemon=True)
+                self.thread.start()
+
+    def _run(self) -> None:
+        while True:
+            with self.lock:
+                params, self.wanted = self.wanted, None
+                if params is None:
+                    self.thread = None
+                    return
+            try:
+                prepare(params)
+            except Exception:  # noqa: BLE001 (the bridge's own write works it out again and reports it)
+                pass
+
+
+_WORKER = _Worker()
+
+
+def ask(params: Params) -> bool:
+    """True when the look of ``params`` is ready to write; else it is worked out on a thread
+    (the settings asked for last first) and a later ``ask`` says when it is."""
+    if ready(params):
+        return True
+    _WORKER.ask(params)
+    return False

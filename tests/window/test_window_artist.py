@@ -9,7 +9,6 @@ distances by default (blades to 12 m, cards to 40 m). The startup file's camera 
 import math
 
 import numpy as np
-import pytest
 from PIL import Image
 
 BLOCKS, BLOCK = 32, 1.6

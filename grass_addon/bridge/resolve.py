@@ -264,10 +264,11 @@ def _take_retuned(live: LiveField, inputs: Inputs, wait: bool, name: str) -> Non
         if job.digest == inputs.digest:
             raise job.failure
         return
-    made_for = job.inputs
-    if live.engine is job.base and made_for.topology == inputs.topology and made_for.ground == inputs.ground:
+    made_for, base = job.inputs, live.engine
+    if base is not None and base is job.base and made_for.topology == inputs.topology \
+            and made_for.ground == inputs.ground:
         job.made.report_progress(_seek_progress(name))
-        _retuned(live, job.base, job.made, made_for, job.painted)
+        _retuned(live, base, job.made, made_for, job.painted)
 
 
 def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:

@@ -21,6 +21,9 @@ import os
 import shutil
 import subprocess
 import sys
+import time
+import typing
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -228,23 +231,34 @@ def run_tests(python: Path, args: list[str], env: dict, also_oldest: bool = True
         oldest = subprocess.call(oldest_command(blender, options), cwd=ROOT, env=env)
         return latest or (0 if oldest == 5 else oldest)  # (5: no test collected: none of them a Blender test)
     # The 4.5 LTS run starts first; the window's root is made (first time: minutes of downloads)
-    # and its tests start beside it; the 5.2 LTS run follows the 4.5 one.
-    oldest = subprocess.Popen(oldest_command(["tests/blender"], options), cwd=ROOT, env=env) if also_oldest else None
+    # and its tests start beside it; the 5.3 run starts when either of them ends (the two cores
+    # kept busy), and the 5.2 LTS run, in two processes, when all three have ended.
+    oldest_run = subprocess.Popen(oldest_command(["tests/blender"], options), cwd=ROOT, env=env) \
+        if also_oldest else None
+    window: Beside | None = None
+    window_failed = False
     try:
         env = with_window_root(env)
-        window = run_beside(python, ["tests/window", *options], env) if "WINDGRASS_WINDOW_ROOT" in env else None
+        if "WINDGRASS_WINDOW_ROOT" in env:
+            window = run_beside([str(python), "-m", "pytest", "-p", "no:cacheprovider", "tests/window", *options],
+                                env, "window", "the real-Blender window tests (tests/window)")
     except subprocess.CalledProcessError as exc:  # (the root could not be made: the suite has not passed)
         print(f"dev.py: the window tests' root could not be made ({exc}); they did not run", flush=True)
-        window = lambda: 1  # noqa: E731
-    oldest_status = oldest.wait() if oldest is not None else 0
-    current_status = 0
+        window_failed = True
+    current: Beside | None = None
     if also_oldest and find_python(CURRENT[2]) is not None:  # (without CPython 3.13 there is no 5.3 line here)
-        current_status = subprocess.call(current_command(options), cwd=ROOT, env=env)
+        command = current_command(options)  # (its venv made now, beside the runs)
+        while all(p is not None and p.poll() is None for p in (oldest_run, window.proc if window else None)):
+            time.sleep(2.0)
+        current = run_beside(command, env, "current",
+                             "the Blender tests of the APIs that move, on Blender 5.3 (.venv-5.3)")
+    oldest_status = oldest_run.wait() if oldest_run is not None else 0
+    window_status = 1 if window_failed else (0 if window is None else window.wait())
+    current_status = 0 if current is None else current.wait()
     print("dev.py: tests/core and tests/blender on Blender 5.2 LTS, in two processes", flush=True)
     # (the LOD comparisons first: their renders of minutes start at once, the rest fills in beside them)
     latest = subprocess.call([str(python), "-m", "pytest", *PARALLEL, *options, "tests/blender/test_lod_fidelity.py",
                               "tests/blender", "tests/core"], cwd=ROOT, env=env)
-    window_status = 0 if window is None else window()
     return latest or window_status or oldest_status or current_status
 
 
@@ -271,7 +285,27 @@ SAME_ON_EVERY_LINE = ("tests/blender/test_lod_fidelity.py",
                       "tests/blender/test_motion_blur.py::test_render_farm_splits_are_pixel_identical_with_blur",
                       *(f"tests/blender/test_farm.py::test_workers_on_real_blender_5_2_{name}" for name in (
                           "render_a_scene_file_job_as_one_process_does",
-                          "without_windgrass_render_a_saved_blends_job")))
+                          "without_windgrass_render_a_saved_blends_job")),
+                      # The engine's look and its determinism in renders of a few seconds each, the same
+                      # numpy on every line (7 min of the 4.5 run; the Blender API they use, materials,
+                      # Geometry Nodes, renders, the CLI, is tested on 4.5 by the rest): pressed grass,
+                      # the screen size's LOD, meadows' and lawns' far looks, splits, farm chunks, memory.
+                      *(f"tests/blender/{name}" for name in (
+                          "test_farm.py::test_a_scene_file_job_renders_in_chunks_what_one_process_renders",
+                          "test_meadow.py::test_pressed_grass_lies_along_the_track_and_stays_green",
+                          "test_meadow.py::test_the_far_canopy_seen_from_above_shows_the_flowers_at_their_share",
+                          "test_meadow.py::test_the_far_canopy_is_yellower_where_more_buttercups_grow",
+                          "test_meadow.py::test_a_lawn_reads_as_green_turf_not_bare_ground",
+                          "test_meadow.py::test_the_cards_carry_each_of_the_fields_flowers",
+                          "test_cameras.py::test_a_larger_frame_draws_blades_further_out_and_the_canopy_further_back",
+                          "test_render_field.py::test_memory_estimate_bounds_what_a_render_takes",
+                          "test_render_field.py::test_a_field_of_no_blades_renders_bare_ground",
+                          "test_render_field.py::test_a_scene_files_colliders_render_split_the_same_and_show_their_balls",
+                          "test_render_field.py::test_a_painted_path_on_a_heightmap_renders_bare_and_splits_the_same",
+                          "test_render_field.py::test_past_a_small_field_lies_meadow_to_hills_not_a_ruler_line",
+                          "test_render_field.py::test_variants_get_own_folders_seeds_and_wind",
+                          "test_scene.py::test_gust_waves_run_across_the_far_field",
+                          "test_terrain.py::test_grass_field_on_selected_mesh_covers_the_mesh_or_says_how_much[300.0]")))
 
 
 def oldest_command(blender: list[str], options: list[str]) -> list[str]:
@@ -287,27 +321,33 @@ def current_command(options: list[str]) -> list[str]:
     """The Blender tests of the APIs that move (CURRENT_LINE_TESTS) on Blender 5.3 (.venv-5.3, made
     if needed)."""
     current_python = ensure_venv(*CURRENT)
-    print("dev.py: the Blender tests of the APIs that move, on Blender 5.3 (.venv-5.3)", flush=True)
     return [str(current_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *CURRENT_LINE_TESTS]
 
 
-def run_beside(python: Path, args: list[str], env: dict):
-    """pytest ``args`` started now in the background, its output kept in a file; the function
-    returned waits for it, prints that output and gives its exit status."""
-    log = open(ROOT / ".window-tests.log", "w+")  # (gitignored)
-    print(f"dev.py: the real-Blender window tests ({args[0]}) run beside, their output follows when they end",
-          flush=True)
-    proc = subprocess.Popen([str(python), "-m", "pytest", "-p", "no:cacheprovider", *args], cwd=ROOT, env=env,
-                            stdout=log, stderr=subprocess.STDOUT)
+@dataclass
+class Beside:
+    """A test run started in the background, its output kept in a file (``run_beside``)."""
 
-    def wait() -> int:
-        status = proc.wait()
-        log.seek(0)
-        print(f"dev.py: the window tests ended ({status}):\n{log.read()}", flush=True)
-        log.close()
+    proc: subprocess.Popen
+    log: typing.TextIO
+    label: str
+
+    def wait(self) -> int:
+        """Wait for it, print its output and give its exit status."""
+        status = self.proc.wait()
+        self.log.seek(0)
+        print(f"dev.py: {self.label} ended ({status}):\n{self.log.read()}", flush=True)
+        self.log.close()
         return status
 
-    return wait
+
+def run_beside(command: list[str], env: dict, name: str, label: str) -> Beside:
+    """``command`` started now in the background, its output kept in ``.<name>-tests.log``
+    (gitignored) and printed when it is waited for."""
+    log = open(ROOT / f".{name}-tests.log", "w+")
+    print(f"dev.py: {label} run beside, their output follows when they end", flush=True)
+    proc = subprocess.Popen(command, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+    return Beside(proc, log, label)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ import subprocess
 import sys
 import time
 import typing
-from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -324,13 +323,11 @@ def current_command(options: list[str]) -> list[str]:
     return [str(current_python), "-m", "pytest", "-p", "no:cacheprovider", *options, *CURRENT_LINE_TESTS]
 
 
-@dataclass
 class Beside:
     """A test run started in the background, its output kept in a file (``run_beside``)."""
 
-    proc: subprocess.Popen
-    log: typing.TextIO
-    label: str
+    def __init__(self, proc: subprocess.Popen, log: typing.TextIO, label: str) -> None:
+        self.proc, self.log, self.label = proc, log, label
 
     def wait(self) -> int:
         """Wait for it, print its output and give its exit status."""

@@ -114,6 +114,7 @@ class GrassField:
         self.effectors = None
         self._progress = progress  # (done, total) of a long seek, or None
         self._twin = False  # a twin not yet retuned: it shares its simulation with its original
+        self._colours: tuple[object, dict] = (None, {})  # (window, its blade slots' colours: RoleFrame.colours)
         self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
@@ -184,7 +185,7 @@ class GrassField:
         field is left as it is. ``progress``: the twin's long seeks report to it."""
         twin = copy.copy(self)
         twin.cache = self.cache.fork()
-        twin._buffers, twin._recent = {}, OrderedDict()
+        twin._buffers, twin._recent, twin._colours = {}, OrderedDict(), (None, {})
         twin.cells, twin._cells_frame = None, None
         twin._progress = progress
         twin._twin = True
@@ -499,7 +500,17 @@ class GrassField:
             fill(frame, self.cells, vertices[:rows])
         vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
         buffers.rows = rows
-        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity)
+        if self._colours[0] is not layout or len(self._colours[1]) > 4 * shape.objects:
+            self._colours = (layout, {})  # (kept while the window and its blocks' slots hold)
+        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity,
+                         colours=self._colours[1] if role == BLADES else None)
+
+    def prepare_frame(self, frame: int, views=None) -> None:
+        """Work out ``frame`` seen from ``views`` ahead (a background build, ``bridge/builds.py``):
+        its state and the colours of every blade slot, so that writing it after is quick."""
+        blades = self.frame(frame, 0.0, views).blades
+        for index in range(blades.shape.objects):
+            blades.attributes(index, True)
 
     def _role_buffers(self, role: str) -> _RoleBuffers:
         """``role``'s frame arrays (made at first use)."""

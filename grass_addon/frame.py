@@ -105,6 +105,7 @@ class RoleFrame:
     count: int
     vertices: np.ndarray
     velocity: np.ndarray | None
+    colours: dict | None = None  # the blades' colours and marks of a slot's blocks, kept by them (``attributes``)
 
     def object_rows(self, index: int) -> slice:
         """The rows of ``vertices`` that slot object ``index`` holds."""
@@ -121,9 +122,14 @@ class RoleFrame:
         if self.role == BLADES:
             if not changed:
                 return {}
-            out = blade_tints(self.layout, local)
-            if heads.carries_any(self.layout):
-                out[HEAD] = heads.tip_marks(self.layout, local)
+            key = local.tobytes()
+            out = self.colours.get(key) if self.colours is not None else None
+            if out is None:
+                out = blade_tints(self.layout, local)
+                if heads.carries_any(self.layout):
+                    out[HEAD] = heads.tip_marks(self.layout, local)
+                if self.colours is not None:
+                    self.colours[key] = out
             return out
         return card_fade(self.layout, local, self.lod)
 

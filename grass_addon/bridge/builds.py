@@ -46,7 +46,7 @@ class Build:
             try:
                 engine = make(self.report)
                 engine.view(self.views, self.at_frame)
-                engine.seek(self.at_frame)
+                engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
                 self.made = engine
             except BaseException as exc:  # (handed to the main thread, which reports it)
                 self.failure = exc

@@ -54,5 +54,7 @@ def test_every_test_left_to_one_blender_line_exists():
     for entry in dev.SAME_ON_EVERY_LINE:
         path, _, name = entry.partition("::")
         assert (REPO / path).is_file(), entry
-        if name:
-            assert re.search(rf"^def {name}\(", (REPO / path).read_text(), re.M), entry
+        if name:  # (a parametrized test's one case by its id: test_name[id])
+            function, _, case = name.partition("[")
+            assert re.search(rf"^def {function}\(", (REPO / path).read_text(), re.M), entry
+            assert not case or f"{case.rstrip(']')}" in (REPO / path).read_text(), entry

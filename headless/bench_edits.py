@@ -122,7 +122,7 @@ def _ui_edit(scene, item, edit, i: int) -> tuple[float, float]:
     t0 = clock()
     edits.flush_pending()
     held = max(held, clock() - t0)
-    while live.building is not None or live.look_waiting:
+    while live.building is not None or getattr(live, "look_waiting", False):  # (the code before it had none)
         time.sleep(POLL_S)
         t0 = clock()
         edits.poll_builds()

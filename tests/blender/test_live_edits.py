@@ -293,3 +293,28 @@ def test_a_density_edit_in_the_ui_works_its_look_out_on_a_thread(with_bridge):
     np.testing.assert_array_equal(got[1], want[1])
     assert got[2] == want[2]
     assert not np.array_equal(got[1], before[1]), "more blades a cell, and the cards look the same"
+
+
+def test_a_render_right_after_an_edit_in_the_ui_shows_its_look(with_bridge):
+    """Issue #58: F12 pressed while an edit's look is still worked out on a thread: Blender's
+    render_pre handler writes it first (the render never shows the look of the settings before)."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import handlers
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.seed": 4061, "lod.card_width": 1.17})  # (a look no test asked)
+    scene, item = _build(base)
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.blade, "root_stiffness", 0.0011))
+    assert live.look_waiting
+    handlers.on_render_pre(scene)
+    try:
+        assert not live.look_waiting
+        got = _look_drawn(item)
+    finally:
+        handlers.on_render_post(scene)
+    _, want_item = _build(base.replace({"blade.root_stiffness": 0.0011}))
+    want = _look_drawn(want_item)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert got[2] == want[2]

@@ -193,7 +193,9 @@ class Driver:
         delay = None
         try:
             kind = next(k for k in step if k not in ("args", "value", "note", "optional"))
+            began = time.monotonic()
             result = getattr(self, f"do_{kind}")(step[kind], step)
+            record["took"] = round(time.monotonic() - began, 3)  # (s the step itself held the window)
             if isinstance(result, tuple):
                 result, delay = result
             record["result"] = result

@@ -567,10 +567,16 @@ def test_dragging_the_wind_and_the_stiffness_the_grass_follows_while_the_mouse_i
 
 def test_no_step_of_a_drag_holds_the_window_for_a_second(real_blender):
     """Issue #58: dragging the wind speed, the stiffness and the density, the window answers the
-    mouse throughout: no step of a drag (the value set, its update, 0.12 s) comes more than a
-    second after the one before (the driver's steps run on the window's timer: a step late is the
-    window held)."""
+    mouse throughout: each step's update (the value set: Windgrass's work in it, objects rebuilt
+    for a density) holds the window at most 0.5 s, and no step of a drag (the value set, its
+    update, 0.12 s) comes more than 1.5 s after the one before, or, on a machine loaded beside it,
+    a second more than the slowest step of a drag of the render's resolution (which Windgrass
+    draws nothing for: the window's own redraw of the field, software GL). The driver's steps run
+    on the window's timer: a step late is the window held (the new run, the look and the new field
+    are worked out on threads; before, a stiffness step held it 1.7-2.9 s, a density step 4-11 s)."""
+    floor_path = "render.resolution_percentage"
     steps = [*FIELD[:1], {"op": "windgrass.field_add"}, {"shading": "SOLID"}, {"wait": 1.5},
+             *[{"drag": floor_path, "value": v, "wait": 0.12} for v in (90, 80, 70, 60)],
              *[{"drag": "windgrass.fields[0].wind.speed", "value": v, "wait": 0.12} for v in (2.0, 4.0, 6.0, 8.0)],
              *[{"drag": "windgrass.fields[0].blade.stiffness", "value": v, "wait": 0.12} for v in (0.9, 0.7, 0.5)],
              *[{"drag": "windgrass.fields[0].field.density", "value": v, "wait": 0.12} for v in (400.0, 600.0, 800.0)]]
@@ -578,4 +584,9 @@ def test_no_step_of_a_drag_holds_the_window_for_a_second(real_blender):
     run.assert_clean()
     gaps = {f"{b['step']['drag']} = {b['step']['value']}": round(b["at"] - a["at"], 2)
             for a, b in zip(run.steps, run.steps[1:]) if "drag" in a["step"] and "drag" in b["step"]}
-    assert len(gaps) == 9 and max(gaps.values()) < 1.0, gaps
+    floor = max(g for name, g in gaps.items() if name.startswith(floor_path))
+    edits = {name: g for name, g in gaps.items() if not name.startswith(floor_path)}
+    took = {f"{s['step']['drag']} = {s['step']['value']}": s["took"] for s in run.steps
+            if "drag" in s["step"] and not s["step"]["drag"].startswith(floor_path)}
+    assert len(edits) == 10 and max(edits.values()) < max(1.5, floor + 1.0), (floor, edits, took)
+    assert max(took.values()) < 0.5, took

@@ -33,6 +33,7 @@ from .edits import (
     STROKE_GOAL_S,
     flush_pending,
     mark_dirty,
+    poll_builds,
     refresh_later,
     store_track,
     stroke_seconds,
@@ -77,6 +78,19 @@ def blades_drawn(scene, item) -> int | None:
     return None if state is None else state.blades_drawn
 
 
+def shown_when_done(scene, item) -> None:
+    """Wait for the field's work on threads (a new run, a new field, its look: ``builds``,
+    ``look``) and write it (the timer's work, for scripts that made an edit as the UI does)."""
+    import time
+
+    state = REGISTRY.states.get(key_of(scene, item))
+    while state is not None and (state.building is not None or state.look_waiting):
+        if state.building is not None:
+            state.building.wait()
+        time.sleep(0.01)
+        poll_builds()
+
+
 def scene_clock(scene) -> Clock:
     """The scene's clock (frame rate with its ``fps_base``, first frame), as every field reads it."""
     return Clock.of_scene(scene)
@@ -86,7 +100,7 @@ __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "prese
            "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
            "blades_drawn", "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error", "LiveField",
            "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest",
-           "plays_cache", "refresh_later", "register", "REGISTRY", "remove_field", "reset_field", "resolve",
-           "scene_clock", "start_bake", "store_track", "STROKE_GOAL_S", "stroke_seconds", "TERRAIN_COPY_KEY",
-           "terrain_of", "topology_of", "unregister", "update_field", "update_scene", "update_track", "write_read_me",
-           "blow_physics", "wind_force"]
+           "plays_cache", "poll_builds", "refresh_later", "register", "REGISTRY", "remove_field", "reset_field",
+           "resolve", "scene_clock", "shown_when_done", "start_bake", "store_track", "STROKE_GOAL_S",
+           "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of", "topology_of", "unregister", "update_field",
+           "update_scene", "update_track", "write_read_me", "blow_physics", "wind_force"]

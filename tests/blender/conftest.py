@@ -101,6 +101,9 @@ def settle(runtime):
         for _ in range(20):
             time.sleep(runtime.EDIT_SETTLE_S + 0.05)
             if runtime.flush_pending() is None:
+                for scene in bpy.data.scenes:  # (and the work they started on threads)
+                    for item in scene.windgrass.fields:
+                        runtime.shown_when_done(scene, item)
                 return
         raise AssertionError("the edits did not settle")
 

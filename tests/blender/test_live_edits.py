@@ -207,17 +207,6 @@ def _edit_in_the_ui(scene, item, setter):
     edits.flush_pending()
 
 
-def _until_shown(live):
-    """Run the edits' poll timer until no build and no look waits."""
-    import time
-
-    from windgrass.grass_addon.bridge import edits
-
-    while live.building is not None or live.look_waiting:
-        if live.building is not None:
-            live.building.wait()
-        time.sleep(0.02)
-        edits.poll_builds()
 
 
 def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
@@ -241,7 +230,7 @@ def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
     assert np.any(now) and np.array_equal(now, before), "the grass was hidden or changed before its run was done"
     _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 11.0))
     assert sum(t.name.startswith("windgrass build") and t.is_alive() for t in threading.enumerate()) <= 1
-    _until_shown(live)
+    runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None
     scene.frame_set(FRAME)
     got = _drawn(drawn, item)
@@ -276,6 +265,7 @@ def test_a_density_edit_in_the_ui_works_its_look_out_on_a_thread(with_bridge):
     timer writes it: the ground, the card atlas and the canopy's curves are then those a fresh
     build of the settings shows."""
     from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     base = schema.defaults().replace({**SMALL, "field.seed": 4057, "lod.card_width": 1.13})  # (a look no test asked)
@@ -285,7 +275,7 @@ def test_a_density_edit_in_the_ui_works_its_look_out_on_a_thread(with_bridge):
     _edit_in_the_ui(scene, item, lambda it: setattr(it.field, "blades_per_cell", 5))
     assert live.look_waiting, "the look was worked out in the window's thread"
     np.testing.assert_array_equal(_look_drawn(item)[1], before[1])  # (the atlas as it was, meanwhile)
-    _until_shown(live)
+    runtime.shown_when_done(scene, item)
     got = _look_drawn(item)
     _, want_item = _build(base.replace({"field.blades_per_cell": 5}))
     want = _look_drawn(want_item)

@@ -113,8 +113,8 @@ def digest_of(params: schema.Params, parts: Iterable[str]) -> str:
 
 
 def remembered(parts: Iterable[str], keep: int = 8) -> Callable:
-    """Decorate ``f(params, *args)``, a function of the settings of ``parts`` alone (and small
-    arguments: numbers, arrays): its answers are kept for the ``keep`` settings last asked, so
+    """Decorate ``f(params, *args, **kwargs)``, a function of the settings of ``parts`` alone (and
+    small arguments: numbers, arrays): its answers are kept for the ``keep`` settings last asked, so
     an edit of another part costs nothing, and work done ahead (``look.prepare``, on a thread)
     is not done again. Each call gets its own copy of the answer's arrays (callers may write to
     them); thread-safe."""
@@ -124,26 +124,27 @@ def remembered(parts: Iterable[str], keep: int = 8) -> Callable:
         answers: OrderedDict[tuple, Any] = OrderedDict()
         lock = threading.Lock()
 
-        def key_of(params, args) -> tuple:
-            return digest_of(params, wanted), tuple(_argument_key(a) for a in args)
+        def key_of(params, args, kwargs) -> tuple:
+            return (digest_of(params, wanted), tuple(_argument_key(a) for a in args),
+                    tuple((k, _argument_key(v)) for k, v in sorted(kwargs.items())))
 
         @functools.wraps(compute)
-        def call(params, *args):
-            key = key_of(params, args)
+        def call(params, *args, **kwargs):
+            key = key_of(params, args, kwargs)
             with lock:
                 found = answers.get(key)
             if found is None:
-                found = compute(params, *args)
+                found = compute(params, *args, **kwargs)
                 with lock:
                     answers[key] = found
                     while len(answers) > keep:
                         answers.popitem(last=False)
             return _fresh(found)
 
-        def known(params, *args) -> bool:
+        def known(params, *args, **kwargs) -> bool:
             """The answer for these settings and arguments is kept (no work to ask for it)."""
             with lock:
-                return key_of(params, args) in answers
+                return key_of(params, args, kwargs) in answers
 
         call.known = known  # type: ignore[attr-defined]
         return call

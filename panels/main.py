@@ -106,9 +106,9 @@ class WINDGRASS_PT_main(bpy.types.Panel):
                 box.alert = True
                 wrapped(box, context, "Grass hidden: this field cannot be simulated", icon="ERROR")
                 wrapped(box, context, error)
-            building = runtime.building_percent(context.scene, item)
-            if building is not None:
-                wrapped(layout, context, f"Building the field for its new settings: {building} %", icon="SORTTIME")
+            working = runtime.background_work(context.scene, item)
+            if working is not None:
+                wrapped(layout, context, working, icon="SORTTIME")
             f = item.field
             grid = FieldGrid(f.blocks_x, f.blocks_y, f.cells_per_block, f.cell_size, f.blades_per_cell)
             size_x, size_y = (length_text(context.scene, v) for v in grid.size)

@@ -71,6 +71,21 @@ def building_percent(scene, item) -> int | None:
     return None if state is None else state.building_percent()
 
 
+def background_work(scene, item) -> str | None:
+    """What of the field is being worked out on a thread after an edit, in a sentence for the
+    panel (a new field, a new run of the wind or the solver, the far grass's look), None when
+    nothing is."""
+    state = REGISTRY.states.get(key_of(scene, item))
+    if state is None:
+        return None
+    percent = state.building_percent()
+    if percent is not None:
+        what = "Simulating the new settings" if state.building.base is not None \
+            else "Building the field for its new settings"
+        return f"{what}: {percent} %"
+    return "Working out the far grass's look for the new settings" if state.look_waiting else None
+
+
 def blades_drawn(scene, item) -> int | None:
     """How many blades the field's objects draw now (the viewport's share, a render's all), None
     before a frame is written."""
@@ -98,9 +113,9 @@ def scene_clock(scene) -> Clock:
 
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
            "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
-           "blades_drawn", "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error", "LiveField",
-           "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S", "params_digest",
-           "plays_cache", "poll_builds", "refresh_later", "register", "REGISTRY", "remove_field", "reset_field",
-           "resolve", "scene_clock", "shown_when_done", "start_bake", "store_track", "STROKE_GOAL_S",
+           "background_work", "blades_drawn", "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error",
+           "LiveField", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S",
+           "params_digest", "plays_cache", "poll_builds", "refresh_later", "register", "REGISTRY", "remove_field",
+           "reset_field", "resolve", "scene_clock", "shown_when_done", "start_bake", "store_track", "STROKE_GOAL_S",
            "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of", "topology_of", "unregister", "update_field",
            "update_scene", "update_track", "write_read_me", "blow_physics", "wind_force"]

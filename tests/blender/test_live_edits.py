@@ -226,6 +226,7 @@ def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
     live = REGISTRY.live(key_of(scene, item))
     _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 9.0))
     assert live.building is not None, "the new run was made in the window's thread"
+    assert runtime.background_work(scene, item).startswith("Simulating the new settings: ")  # (the panel's line)
     now = drawn(item, "blades")
     assert np.any(now) and np.array_equal(now, before), "the grass was hidden or changed before its run was done"
     _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 11.0))
@@ -274,6 +275,7 @@ def test_a_density_edit_in_the_ui_works_its_look_out_on_a_thread(with_bridge):
     live = REGISTRY.live(key_of(scene, item))
     _edit_in_the_ui(scene, item, lambda it: setattr(it.field, "blades_per_cell", 5))
     assert live.look_waiting, "the look was worked out in the window's thread"
+    assert runtime.background_work(scene, item).startswith("Building the field for its new settings: ")
     np.testing.assert_array_equal(_look_drawn(item)[1], before[1])  # (the atlas as it was, meanwhile)
     runtime.shown_when_done(scene, item)
     got = _look_drawn(item)
@@ -308,3 +310,19 @@ def test_a_render_right_after_an_edit_in_the_ui_shows_its_look(with_bridge):
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], want[1])
     assert got[2] == want[2]
+
+
+def test_a_look_edit_in_the_ui_says_its_look_is_worked_out(with_bridge):
+    """The sun's elevation (a look setting: the far grass's colours) edited in the UI keeps the
+    field's run; the panel's line says the far grass's look is worked out meanwhile, and nothing
+    once it is written."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import runtime
+
+    base = schema.defaults().replace({**SMALL, "field.seed": 4073})  # (a look no test asked)
+    scene, item = _build(base)
+    assert runtime.background_work(scene, item) is None
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.render, "sun_elevation", 23.0))
+    assert runtime.background_work(scene, item) == "Working out the far grass's look for the new settings"
+    runtime.shown_when_done(scene, item)
+    assert runtime.background_work(scene, item) is None

@@ -16,9 +16,8 @@ import bpy
 
 from ..errors import WindgrassError
 from . import bake, maps, properties, tracks
-from . import scene as field_scene
 from .frame_pass import guarded, update_field
-from .lifecycle import apply_settings
+from .lifecycle import apply_settings, write_look
 from .registry import REGISTRY, key_of
 from .resolve import terrain_of
 
@@ -140,11 +139,7 @@ def show_look(scene, item, later: bool = True) -> None:
     """Write the field's materials for its settings once their look is worked out (``later``:
     asked for on a thread, ``look.ask``; else at once: a render is about to start)."""
     params = properties.params_from_settings(item, scene)
-    shown = field_scene.update_field_materials(item, params, scene, later=later)
-    live = REGISTRY.live(key_of(scene, item))
-    live.look_waits(not shown)
-    if shown and field_scene.refit_ground(item, params, terrain_of(scene, item, params)[0]):
-        live.paint_look_lost()
+    write_look(scene, item, params, terrain_of(scene, item, params)[0], later)
 
 
 def _field_of(scenes: dict, key) -> tuple:

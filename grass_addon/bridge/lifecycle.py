@@ -50,6 +50,7 @@ def apply_settings(scene, item, force: bool = False, look_later: bool = False) -
     coll = item.collection
     if force or missing or coll is None or coll.get(owned.TOPOLOGY) != topology_of(params, heightfield, item):
         shown = field_scene.build_slots(scene, item, params, heightfield, centre, look_later)
+        REGISTRY.live(key_of(scene, item)).look_waits(not shown)
         forget_slots(scene, item, rebuilt=True)
     else:
         if field_scene.fill_slots(item, params):  # a file of an earlier version: its slots saved empty
@@ -58,11 +59,21 @@ def apply_settings(scene, item, force: bool = False, look_later: bool = False) -
         refill_ground(scene, item, params)  # and its painted ground grid emptied
         if field_scene.refresh_heads(item, params):  # a head shape, leaves or an Own Plant edited
             forget_slots(scene, item)
-        shown = field_scene.update_field_materials(item, params, scene, later=look_later)
-    REGISTRY.live(key_of(scene, item)).look_waits(not shown)
+        write_look(scene, item, params, heightfield, look_later)
     # The frame handler edits meshes while a render runs: keep the interface locked then.
     if not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
+
+
+def write_look(scene, item, params, heightfield, later: bool = False) -> None:
+    """Write the field's materials and its ground's canopy heights (``scene.refit_ground``) for
+    ``params``; ``later`` (an edit in the UI): once their look is worked out on a thread
+    (``look.ask``; the record says it waits, ``edits.show_look`` writes it then)."""
+    shown = field_scene.update_field_materials(item, params, scene, later=later)
+    live = REGISTRY.live(key_of(scene, item))
+    live.look_waits(not shown)
+    if shown and field_scene.refit_ground(item, params, heightfield):
+        live.paint_look_lost()
 
 
 def refill_ground(scene, item, params) -> None:

@@ -242,8 +242,9 @@ def _sward_heights(params, ground, look_later: bool) -> tuple[float, float]:
 
 def refit_ground(item, params, heightfield) -> bool:
     """Make the ground mesh again when it was made with other sward heights than those of
-    ``params`` (``_sward_heights``: built while its look was worked out); returns whether it did
-    (the paint's look on it is then to be written again)."""
+    ``params`` (an edit that changes the blades' rest shapes but not the objects, a stiffness; or
+    ``_sward_heights``: built while its look was worked out); returns whether it did (the paint's
+    look on it is then to be written again)."""
     ground = owned.ground_object(item)
     if ground is None or ground.data is None:
         return False

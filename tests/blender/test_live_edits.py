@@ -326,3 +326,24 @@ def test_a_look_edit_in_the_ui_says_its_look_is_worked_out(with_bridge):
     assert runtime.background_work(scene, item) == "Working out the far grass's look for the new settings"
     runtime.shown_when_done(scene, item)
     assert runtime.background_work(scene, item) is None
+
+
+def test_a_stiffness_edit_in_a_script_lifts_the_far_canopy_as_a_fresh_build_does(with_bridge):
+    """A root stiffness edit keeps the field's objects (their topology holds) but changes how far
+    the blades droop at rest, so the far canopy's height over the ground: the ground mesh, the card
+    atlas and the canopy's curves are those a fresh build of the settings shows."""
+    from windgrass.grass_addon import schema
+
+    base = schema.defaults().replace({**SMALL, "field.seed": 4079})
+    scene, item = _build(base)
+    objects = {o.name for o in item.collection.objects}
+    before = _look_drawn(item)
+    item.blade.root_stiffness = 0.0002  # (a script's edit: applied at once)
+    got = _look_drawn(item)
+    assert {o.name for o in item.collection.objects} == objects
+    _, want_item = _build(base.replace({"blade.root_stiffness": 0.0002}))
+    want = _look_drawn(want_item)
+    assert not np.array_equal(want[0], before[0]), "the canopy stands as high for blades this soft"
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert got[2] == want[2]

@@ -37,6 +37,7 @@ from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
+from .wind_map import FieldMap, MapGrid, most_common, nearest_points, point_mean
 
 RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
 WHOLE_FIELD_CELLS = 1 << 18  # without a camera (or with LOD off) fields this small (51 m) are simulated whole
@@ -115,6 +116,7 @@ class GrassField:
         self._progress = progress  # (done, total) of a long seek, or None
         self._twin = False  # a twin not yet retuned: it shares its simulation with its original
         self._colours: tuple[object, dict] = (None, {})  # (window, its blade slots' colours: RoleFrame.colours)
+        self._map_kept: tuple | None = None  # (window, map grid, the field map's parts: _map_static)
         self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
@@ -185,7 +187,7 @@ class GrassField:
         field is left as it is. ``progress``: the twin's long seeks report to it."""
         twin = copy.copy(self)
         twin.cache = self.cache.fork()
-        twin._buffers, twin._recent, twin._colours = {}, OrderedDict(), (None, {})
+        twin._buffers, twin._recent, twin._colours, twin._map_kept = {}, OrderedDict(), (None, {}), None
         twin.cells, twin._cells_frame = None, None
         twin._progress = progress
         twin._twin = True
@@ -204,6 +206,7 @@ class GrassField:
         self._check_budget(params)  # (before anything changes)
         rerun = self._twin or self.reruns(params, wind_keys)
         self._twin = False  # (its own run from here on)
+        self._map_kept = None
         old_shapes = self.shapes
         self.model = FieldModel.of(params)
         self.cache.params, self.cache.species = params, Species(params)
@@ -545,6 +548,50 @@ class GrassField:
         height = 0.5 * float(np.mean(self.layout.cell_length)) if self.layout.n_cells else 0.0
         points = np.column_stack([xy, np.full(len(xy), height)])
         return grid, self.sim.wind_at(int(frame), points)
+
+    def field_map(self, frame: int) -> FieldMap:
+        """What an artist's node trees read of the field at ``frame`` on the wind map's grid
+        (``wind_map.FieldMap``): the wind there, and the height, bend, flatness, tops and species
+        of the simulated cells nearest each point."""
+        frame = int(frame)
+        grid, wind = self.wind_map(frame)
+        lay = self.layout
+        cells = self.cells if self.cells is not None and self._cells_frame == frame else self.cells_at(frame)
+        ground, height, species, at, grows, base = self._map_static(grid)
+        bend_sum = np.add.reduce(cells.bend_t, axis=0)  # (2, C): eq 33's summed bend vector
+        omega = np.hypot(bend_sum[0], bend_sum[1])
+        flat = np.zeros(grid.count)
+        if self.interaction is not None:
+            omega2, damping = self.sim.solver.recovery_oscillator()
+            flat = point_mean(grid, at, self.interaction.flatness(frame, lay, omega2, damping), grows)
+        tip = base + point_mean(grid, at, cells.card_offset, grows)  # eq 34: the cards' tops M' on their feet
+        return FieldMap(grid, ground, wind, height, point_mean(grid, at, omega, grows).astype(np.float32),
+                                 flat.astype(np.float32), tip.astype(np.float32), species)
+
+    def _map_static(self, grid: MapGrid):
+        """The field map's parts that hold while the window and its grid do: (the ground's height,
+        the grass's height, the main species at each point, each cell's nearest point, each cell's
+        weight: the share of its blades that grow, the cards' feet at each point: the ground where
+        none grows)."""
+        lay = self.layout
+        kept = self._map_kept
+        if kept is not None and kept[0] is lay and kept[1] == grid:
+            return kept[2]
+        xy = grid.points()
+        ground = lay.terrain.sample(xy).astype(np.float64) if lay.terrain is not None else np.zeros(grid.count)
+        at = nearest_points(grid, lay.cell_center)
+        grows = (lay.cell_density.astype(np.float64) if lay.cell_density is not None else np.ones(lay.n_cells))
+        height = point_mean(grid, at, lay.card_height, grows).astype(np.float32)  # (a card stands as tall as its cell)
+        alive = lay.blade_alive if lay.blade_alive is not None else slice(None)
+        blade_at = nearest_points(grid, lay.blade_root[alive, :2])
+        species = most_common(grid, blade_at, lay.blade_species[alive].astype(np.int64), len(lay.species_color))
+        feet = np.column_stack([lay.cell_center, lay.cell_ground + lay.card_height])
+        base = point_mean(grid, at, feet, grows)
+        none = np.bincount(at, grows, minlength=grid.count) <= 0
+        base[none] = np.column_stack([xy, ground])[none]
+        parts = (ground, height, species, at, grows, base)
+        self._map_kept = (lay, grid, parts)
+        return parts
 
     # ------------------------------------------------------------------ LOD
 

@@ -504,6 +504,15 @@ class Interaction:
         best[cells] = 0.0
         return out
 
+    def flatness(self, frame: int, layout, omega2: np.ndarray, damping: np.ndarray) -> np.ndarray:
+        """(n_cells,) how flat the window's cells are trampled at ``frame`` (``trample``), 0..1."""
+        if self._window is None or self._window[0] is not layout:
+            self._window = (layout, WindowCells(layout, self.grid))
+        local, flat, _ = self.trample(frame, self._window[1], omega2, damping)
+        out = np.zeros(layout.n_cells)
+        out[local] = flat
+        return out
+
     def trail_map(self, frame: int, eyes=(), hidden_within: float = 0.0) -> TrailMap | None:
         """The trails of the recovery window before ``frame`` as a map for the far canopy, None
         when no cell is trampled: per cell the strongest press of each chunk (``recent``) times

@@ -8,6 +8,7 @@ from . import (
     field_bake,
     field_bake_free,
     field_duplicate,
+    field_map_add,
     field_rebuild,
     field_remove,
     map_pick,
@@ -22,7 +23,7 @@ from . import (
 
 _MODULES = (field_add, field_rebuild, field_remove, field_bake, field_bake_free, simulation_reset, wind_preset,
             species_preset, row_add, row_remove, map_pick, track_update, farm_job, field_duplicate,
-            wind_force_add)
+            wind_force_add, field_map_add)
 CLASSES = tuple(cls for module in _MODULES for cls in module.CLASSES)
 
 

@@ -145,6 +145,10 @@ def draw_section(layout, context, item, section: str) -> None:
                         f"'{runtime.wind_force.COLLECTION}' as their Effectors Collection", icon="INFO")
         else:
             wrapped(layout, context, runtime.wind_force.needs_note(), icon="INFO")
+        layout.operator("windgrass.field_map_add", icon="GEOMETRY_NODES")
+        shared = runtime.wind_force.map_object(item)
+        if shared is not None:
+            wrapped(layout, context, f"Node trees read this field from '{shared.name}' (Object Info)", icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

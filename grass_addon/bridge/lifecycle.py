@@ -178,18 +178,27 @@ def write_read_me() -> None:
     text.from_string("\n".join(lines) + "\n")
 
 
-def blow_physics(scene, item, obj=None) -> tuple[str, int]:
-    """The field's wind for Blender's hair and cloth (``wind_force.py``): its wind map, written for
-    this frame, in the file's Windgrass Wind collection, which becomes the Effectors Collection of
-    ``obj``'s Hair or Cloth Dynamics. Returns (the collection's name, how many dynamics blow)."""
-    if not wind_force.available():
-        raise WindgrassError(wind_force.needs_note())
+def share_map(scene, item) -> bpy.types.Object:
+    """The field's map (``wind_force.py``: the wind and ``FIELD_ATTRIBUTES`` on a grid on its
+    ground, for an artist's node trees and Blender's hair and cloth), made on any Blender and
+    written for this frame; each frame writes it from then on. Returns the map's object."""
     if item.collection is None:
         build_field(scene, item)
-    winds = wind_force.ensure(item)
+    wind_force.ensure(item)
     rt = update_field(scene, item)
     if rt is not None and rt.field is not None:
         wind_force.write(item, rt.field, scene.frame_current)
+    return wind_force.map_object(item)
+
+
+def blow_physics(scene, item, obj=None) -> tuple[str, int]:
+    """The field's wind for Blender's hair and cloth (``wind_force.py``): its map (``share_map``)
+    in the file's Windgrass Wind collection, which becomes the Effectors Collection of ``obj``'s
+    Hair or Cloth Dynamics. Returns (the collection's name, how many dynamics blow)."""
+    if not wind_force.available():
+        raise WindgrassError(wind_force.needs_note())
+    share_map(scene, item)
+    winds = bpy.data.collections[wind_force.COLLECTION]
     return winds.name, (wind_force.link_into(obj, winds) if obj is not None else 0)
 
 

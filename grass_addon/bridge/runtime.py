@@ -52,6 +52,7 @@ from .lifecycle import (
     params_digest,
     remove_field,
     reset_field,
+    share_map,
     start_bake,
     write_read_me,
 )
@@ -118,4 +119,4 @@ __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "prese
            "params_digest", "plays_cache", "poll_builds", "refresh_later", "register", "REGISTRY", "remove_field",
            "reset_field", "resolve", "scene_clock", "shown_when_done", "start_bake", "store_track", "STROKE_GOAL_S",
            "stroke_seconds", "TERRAIN_COPY_KEY", "terrain_of", "topology_of", "unregister", "update_field",
-           "update_scene", "update_track", "write_read_me", "blow_physics", "wind_force"]
+           "update_scene", "update_track", "write_read_me", "blow_physics", "share_map", "wind_force"]

@@ -14,7 +14,9 @@ Dynamics assets) and ship no wind. Windgrass gives them the meadow's:
 * the maps are in the collection Windgrass Wind (in no scene), which Hair Dynamics' and Cloth
   Dynamics' Effectors Collection takes: ``link_into`` sets it on an object's dynamics.
 
-An artist's own node trees can read the maps too (Collection Info of Windgrass Wind).
+The map is also what an artist's own node trees read of the field (Object Info of the map, or
+Collection Info of Windgrass Wind; Map for Node Trees makes it, on any Blender): its points lie on
+the field's ground, each with the attributes ``FIELD_ATTRIBUTES`` names (``wind_map.FieldMap``).
 """
 
 from __future__ import annotations
@@ -32,6 +34,15 @@ EFFECTOR_GROUP = "Windgrass Wind Effector"  # the map's modifier: its Force set 
 COLLECTION = "Windgrass Wind"  # the fields' maps: what the dynamics' Effectors Collection takes
 MODIFIER = "Windgrass Wind"
 ATTR_WIND, ATTR_SPEED = "wind", "wind_speed"
+FIELD_ATTRIBUTES = {  # the map's point attributes (world space, metres) and what each is
+    "wind": "the wind there (m/s, a vector)",
+    "wind_speed": "its speed (m/s)",
+    "height": "how high the grass's tops stand at rest (m; 0 where none grows)",
+    "bend": "how far wind and colliders bend the grass from its rest shape (radians)",
+    "flat": "how flat colliders trampled it (0 standing .. 1 flat)",
+    "tip": "where the grass's tops are (a position)",
+    "species": "which species most of its blades are (0, 1, ..; -1: none grows)",
+}
 ROLE_MAP = owned.ROLE_WIND_MAP
 ASSET_FILE = ("assets", "nodes", "geometry_nodes_dynamics_assets.blend")
 ASSETS = ("Custom Force", "Set Effector")  # Blender's own, appended from its bundled file once
@@ -62,8 +73,8 @@ def map_object(item):
 
 
 def ensure(item) -> bpy.types.Collection:
-    """The field's wind map (made once; ``write`` fills it each frame) with its effector modifier,
-    in the file's Windgrass Wind collection; returns that collection."""
+    """The field's wind map (made once; ``write`` fills it each frame) with its effector modifier
+    (Blender 5.2+), in the file's Windgrass Wind collection; returns that collection."""
     obj = map_object(item)
     if obj is None:
         coll = item.collection
@@ -73,7 +84,7 @@ def ensure(item) -> bpy.types.Collection:
         owned.tag(obj, uid, ROLE_MAP)
         owned.tag(mesh, uid, ROLE_MAP)
         owned.record(item, ROLE_MAP, obj)
-    if obj.modifiers.get(MODIFIER) is None:
+    if obj.modifiers.get(MODIFIER) is None and available():  # (an effector: Blender 5.2+'s physics)
         obj.modifiers.new(MODIFIER, "NODES").node_group = _effector_group()
     winds = bpy.data.collections.get(COLLECTION)
     if winds is None:
@@ -96,32 +107,44 @@ def remove(item) -> None:
 
 
 def write(item, field, frame: int) -> None:
-    """The wind the field's grass feels at ``frame`` into its map (a no-op without one)."""
+    """The wind the field's grass feels at ``frame``, and the rest of ``FIELD_ATTRIBUTES``, into
+    its map (a no-op without one)."""
     obj = map_object(item)
     if obj is None:
         return
-    grid, wind = field.wind_map(frame)
+    found = field.field_map(frame)
+    grid = found.grid
     ground = owned.ground_object(item)
     place = np.array(ground.matrix_world if ground is not None else np.eye(4), dtype=np.float64)
     mesh = obj.data
-    key = [grid.x0, grid.y0, grid.spacing, grid.nx, grid.ny, *place.ravel().tolist()]
+    key = [grid.x0, grid.y0, grid.spacing, grid.nx, grid.ny, float(found.ground.sum()), *place.ravel().tolist()]
     if list(mesh.get(MAP_KEY, [])) != key:
-        _make_grid(mesh, grid, place)
+        _make_grid(mesh, grid, found.ground, place)
         mesh[MAP_KEY] = key
     turn = place[:3, :3] / np.maximum(np.linalg.norm(place[:3, :3], axis=0), 1e-12)  # (the ground's rotation)
-    vectors = (wind.astype(np.float64) @ turn[:, :2].T).astype(np.float32)
-    pools.write_point_vectors(mesh, ATTR_WIND, vectors)
-    speed = mesh.attributes.get(ATTR_SPEED)
-    if speed is None:
-        speed = mesh.attributes.new(ATTR_SPEED, "FLOAT", "POINT")
-    speed.data.foreach_set("value", np.ascontiguousarray(np.hypot(wind[:, 0], wind[:, 1]), dtype=np.float32))
+    wind = found.wind.astype(np.float64)
+    pools.write_point_vectors(mesh, ATTR_WIND, wind @ turn[:, :2].T)
+    pools.write_point_vectors(mesh, "tip", found.tip.astype(np.float64) @ place[:3, :3].T + place[:3, 3])
+    for name, values, kind in ((ATTR_SPEED, np.hypot(wind[:, 0], wind[:, 1]), "FLOAT"),
+                               ("height", found.height * _scale(place), "FLOAT"), ("bend", found.bend, "FLOAT"),
+                               ("flat", found.flat, "FLOAT"), ("species", found.species, "INT")):
+        attribute = mesh.attributes.get(name)
+        if attribute is None:
+            attribute = mesh.attributes.new(name, kind, "POINT")
+        attribute.data.foreach_set("value", np.ascontiguousarray(values, np.float32 if kind == "FLOAT" else np.int32))
     mesh.update_tag()
 
 
-def _make_grid(mesh, grid: engine_map.MapGrid, place: np.ndarray) -> None:
-    """The map's grid of quads in world space (``place``: the field's ground's matrix)."""
+def _scale(place: np.ndarray) -> float:
+    """The ground's scale along its up axis (heights in world metres)."""
+    return float(np.linalg.norm(place[:3, 2]))
+
+
+def _make_grid(mesh, grid: engine_map.MapGrid, heights: np.ndarray, place: np.ndarray) -> None:
+    """The map's grid of quads on the ground (``heights``) in world space (``place``: the field's
+    ground's matrix)."""
     mesh.clear_geometry()
-    points = np.column_stack([grid.points(), np.zeros(grid.count)]) @ place[:3, :3].T + place[:3, 3]
+    points = np.column_stack([grid.points(), heights]) @ place[:3, :3].T + place[:3, 3]
     quads = grid.quads()
     mesh.vertices.add(grid.count)
     mesh.vertices.foreach_set("co", points.astype(np.float32).ravel())

@@ -16,7 +16,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 OPERATORS = ("field_add", "field_rebuild", "field_remove", "simulation_reset", "wind_preset",
              "species_preset", "row_add", "row_remove", "field_bake", "field_bake_free", "map_pick",
-             "track_update", "farm_job", "field_duplicate", "wind_force_add")
+             "track_update", "farm_job", "field_duplicate", "wind_force_add", "field_map_add")
 
 
 def _blender_ext() -> Path:

@@ -11,6 +11,7 @@
     python3.11 dev.py bench [bench.py options]           # benchmark JSON
     python3.11 dev.py lod [lod_compare.py options]       # LOD against all-geometry renders (JSON)
     python3.11 dev.py docs [docs_media.py options]       # the README's still, animation, LOD pictures
+    python3.11 dev.py params                             # grass_addon/params_typed.py from the schema
 """
 
 from __future__ import annotations
@@ -120,6 +121,7 @@ def main(argv: list[str]) -> int:
         "bench": ["headless/bench.py"],
         "lod": ["headless/lod_compare.py"],
         "docs": ["headless/docs_media.py"],
+        "params": ["headless/typed_params.py"],
         "test": ["-m", "pytest", "tests"],
     }
     if argv[:1] in (["-h"], ["--help"]):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import edit_parts, meadow
+from . import edit_parts, meadow, plants
 from .blocks import Species
 from .schema import Params
 from .sward import colour_ramp, sample_blades, shade_value
@@ -30,7 +30,8 @@ OVERLAP_PIXELS = 64  # ... drawn this large to tell
 
 
 @edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK, edit_parts.LOD))
-def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS) -> np.ndarray:
+def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_PIXELS,
+               own: plants.Plants | None = None) -> np.ndarray:
     """RGBA atlas of the cards (paper III.B), (size, variants * size, 4) float32, straight alpha,
     row 0 at the bottom (Blender's pixel order): variant k is the view along a card's normal of
     the blades of the k-th cell ``atlas_cells`` picks from the sample (``sward.sample_blades``),
@@ -47,27 +48,33 @@ def card_atlas(params: Params, variants: int = CARD_VARIANTS, size: int = CARD_P
     or a root pulled into a tussock carries past one edge comes in at the other, and the
     variant's strips are widened only to make up where blades overlap (1.04-1.42 times in the
     default scene; widened 4 times for droops they were straw-coloured verticals). The variant's
-    height spans its card's height (``card_height``)."""
+    height spans its card's height (``card_height``). A species drawn as the artist's own plant
+    (``own``, ``plants.py``) shows that plant on its stems, as Blender bends it along them."""
     block = sample_blades(params)
     if block.blade_root.shape[0] == 0:  # (no blades: field.density 0, cards of nothing, bare ground)
         return np.zeros((size, variants * size, 4), np.float32)
     image = np.empty((size, variants * size, 4), np.float32)
     for k, cell in enumerate(atlas_cells(params, variants)):
-        rgb, alpha = draw_card(params, block, int(cell), size)
+        rgb, alpha = draw_card(params, block, int(cell), size, own)
         image[:, k * size:(k + 1) * size, :3] = rgb
         image[:, k * size:(k + 1) * size, 3] = alpha
     return image
 
 
-def draw_card(params: Params, block, cell: int, size: int = CARD_PIXELS) -> tuple[np.ndarray, np.ndarray]:
+def draw_card(params: Params, block, cell: int, size: int = CARD_PIXELS,
+              own: plants.Plants | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(rgb (size, size, 3), alpha (size, size)) the card of ``block``'s cell ``cell`` as the atlas
-    draws it: its blades, their strips widened until the card covers their whole area."""
+    draws it: its blades, their strips widened until the card covers their whole area (the own
+    plants, ``own``, drawn as they are)."""
     num = int(params.field.blades_per_cell)
     blades = list(range(cell * num, (cell + 1) * num))
-    target = _blade_share(params, block, cell, blades)
+    drawn = [b for b in blades if own is None or own.of_species(int(block.blade_species[b])) is None]
+    target = _blade_share(params, block, cell, drawn) if drawn else 0.0
+    if len(drawn) < len(blades):  # (the plants cover what they cover: their own area, not widened)
+        target += float(_draw_variant(params, block, cell, blades, size, 1.0, own, strips=False)[1].mean())
     widen = 1.0
     for _ in range(3):  # coverage is about linear in the width: converges in a step or two
-        rgb, alpha = _draw_variant(params, block, cell, blades, size, widen)
+        rgb, alpha = _draw_variant(params, block, cell, blades, size, widen, own)
         covered = float(alpha.mean())
         if covered <= 0.0 or abs(covered - target) <= 0.02 * target:
             break
@@ -221,8 +228,10 @@ def _blade_share(params: Params, block, cell: int, blades) -> float:
     return float(area) / (_card_width(params) * float(block.card_height[cell]))
 
 
-def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float):
-    """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another."""
+def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: float,
+                  own: plants.Plants | None = None, strips: bool = True):
+    """(rgb (size, size, 3), alpha (size, size)) of one card: its blades drawn over one another
+    (a species of ``own``: its plant; ``strips`` False: the plants alone)."""
     card_w = _card_width(params)
     rgb = np.zeros((size, size, 3), np.float64)
     alpha = np.zeros((size, size), np.float64)
@@ -233,7 +242,7 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
     blades = np.asarray(blades, dtype=np.int64)  # (their parts alone: a block holds thousands)
     widths, colours, segs = _strip_parts(params, block, blades)
     head, flower = block.blade_head[blades], block.blade_flower[blades]
-    strips = []
+    drawn = []
     for i, b in enumerate(blades):
         facing = float(block.blade_facing[b])
         lean = 1.0 if float(np.array([np.cos(facing), np.sin(facing)]) @ a) >= 0.0 else -1.0
@@ -242,13 +251,22 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
         along = np.concatenate([[0.0], np.cumsum(seg * np.sin(tilt))]) * lean
         up = np.concatenate([[0.0], np.cumsum(seg * np.cos(tilt))])
         root = float((block.blade_root[b, :2] - block.card_center[cell]) @ a)
-        strips.append((i, (root + along) / card_w + 0.5, up))  # u: 0 .. 1 across the card
+        drawn.append((i, (root + along) / card_w + 0.5, up))  # u: 0 .. 1 across the card
     # The card is periodic across (``_draw_strip``), so where its blades stand along it is free:
     # its largest head or flower is put in the middle, not split over the two edges.
-    heads = [float(max(head[i], flower[i])) for i, _, _ in strips]
-    shift = 0.5 - strips[int(np.argmax(heads))][1][-1] if heads and max(heads) > 0.0 else 0.0
-    for i, u, up in strips:
-        _draw_strip(rgb, alpha, ys, u + shift, up / height, 0.5 * widen * widths[i] / card_w, colours[i])
+    heads = [float(max(head[i], flower[i])) for i, _, _ in drawn]
+    shift = 0.5 - drawn[int(np.argmax(heads))][1][-1] if heads and max(heads) > 0.0 else 0.0
+    for i, u, up in drawn:
+        b = int(blades[i])
+        shape = own.of_species(int(block.blade_species[b])) if own is not None else None
+        if shape is None:
+            if strips:
+                _draw_strip(rgb, alpha, ys, u + shift, up / height, 0.5 * widen * widths[i] / card_w, colours[i])
+            continue
+        facing = float(block.blade_facing[b])
+        side, normal = np.array([-np.sin(facing), np.cos(facing)]), -np.array([np.cos(facing), np.sin(facing)])
+        plants.draw(rgb, alpha, shape, float(u[0]) + shift, (float(side @ a), float(normal @ a)), u - u[0],
+                    up / height, float(segs[i].sum()) / card_w)
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
     # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of

@@ -237,7 +237,7 @@ def _local_shares(params: Params, species: Species, paint: Paint | None, xy: np.
     return patched if local is None else local * patched
 
 
-def _cell_blades(params, species, cell_rng, P: int, num: int, length, width, stiffness, rest_tilt) -> tuple:
+def _cell_blades(params: Params, species, cell_rng, P: int, num: int, length, width, stiffness, rest_tilt) -> tuple:
     """(length, width, root stiffness, rest tilt) of each cell's representative blade (paper V.B:
     blades of a cell share the cell's bend and twist): the mean of its blades, or a virtual blade
     drawn from ``cell_rng`` when cells hold no blades."""

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .schema import Params
+
 
 @dataclass(frozen=True)
 class Clock:
@@ -20,7 +22,7 @@ class Clock:
     fps_base: float = 1.0
 
     @classmethod
-    def of(cls, params) -> Clock:
+    def of(cls, params: Params) -> Clock:
         """The clock of a field's parameters (``render.fps``, ``fps_base``, ``frame_start``)."""
         r = params.render
         return cls(int(r.fps), int(r.frame_start), float(r.fps_base))

@@ -32,6 +32,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .interaction import nearest_sample
+from .schema import Params
 
 NOISE_RATE = 4.0  # Hz: how fast an effector's noise changes
 
@@ -128,7 +129,7 @@ def join(*sources):
     return None if not found else found[0] if len(found) == 1 else JoinedEffectors(*found)
 
 
-def effectors_from_params(params) -> FixedEffectors | None:
+def effectors_from_params(params: Params) -> FixedEffectors | None:
     rows = params.interaction.effectors
     return FixedEffectors([from_row(r) for r in rows]) if rows else None
 

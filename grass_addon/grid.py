@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .schema import Params
+
 
 @dataclass(frozen=True)
 class FieldGrid:
@@ -39,7 +41,7 @@ class FieldGrid:
         return bx, by
 
     @classmethod
-    def of(cls, params) -> FieldGrid:
+    def of(cls, params: Params) -> FieldGrid:
         f = params.field
         return cls(int(f.blocks_x), int(f.blocks_y), int(f.cells_per_block), float(f.cell_size),
                    int(f.blades_per_cell), int(params.blade.segments))

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .schema import Params
+
 TILE_PIXELS = 64
 TILE_SIZES = 8.0  # a tile spans this many gust sizes (wind.gust_wave_size)
 GUST_PURPOSE = 29  # np.random.default_rng([seed, 29]) draws the pattern
 
 
-def tile_metres(params) -> float:
+def tile_metres(params: Params) -> float:
     return TILE_SIZES * float(params.wind.gust_wave_size)
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from .blade import GROUND_TILT
 from .clock import Clock
 from .errors import ParameterError
+from .schema import Params
 
 FLAT_TILT = 1.45  # rad (83 deg): how far a fully trampled blade leans
 HOLD = 0.6  # share of interaction.recovery a trampled blade spends rising slowly before its release
@@ -162,7 +163,7 @@ def nearest_sample(times: np.ndarray, t: float) -> int:
     return k
 
 
-def check_work(colliders, params, top: float) -> None:
+def check_work(colliders, params: Params, top: float) -> None:
     """Refuse, before anything is computed, colliders whose remembered contacts a frame alone
     would take too long to weigh: spheres at an instant times the recovery's frames (``top``: the
     grass's height, m)."""
@@ -180,7 +181,7 @@ def check_work(colliders, params, top: float) -> None:
             "with these colliders (or fewer colliders)")
 
 
-def check_scene(params) -> None:
+def check_scene(params: Params) -> None:
     """A scene file's colliders checked as the engine will (``check_work``), before a scene is
     built for them (render_field.py built 10,000 for minutes before the engine refused them)."""
     colliders = colliders_from_params(params)
@@ -188,7 +189,7 @@ def check_scene(params) -> None:
         check_work(colliders, params, max(float(sp["length"]) for sp in params.species()))
 
 
-def colliders_from_params(params) -> list[PathCollider]:
+def colliders_from_params(params: Params) -> list[PathCollider]:
     """The ``[[colliders]]`` of a scene file (validated by the schema)."""
     out = []
     for row in params.interaction.colliders:
@@ -426,7 +427,7 @@ class Interaction:
     ``colliders``: objects with ``at(t) -> Spheres``; ``grid``: the field's ``FieldGrid``;
     ``ground(xy) -> z``; ``top``: the grass's height (m)."""
 
-    def __init__(self, colliders, params, grid, ground, top: float):
+    def __init__(self, colliders, params: Params, grid, ground, top: float):
         self.colliders = list(colliders)
         self.params = params
         self.recovery = float(params.interaction.recovery)

@@ -37,6 +37,7 @@ import numpy as np
 
 from .blocks import Species
 from .errors import ParameterError
+from .schema import Params
 
 PERSPECTIVE, ORTHOGRAPHIC, PANORAMIC = "PERSP", "ORTHO", "PANO"
 REFERENCE_PIXELS, REFERENCE_FOV = 960, math.radians(55.0)  # the image the LOD distances are set for
@@ -148,7 +149,7 @@ def lod_fewer(lod: LodWeights, amount: float) -> LodWeights:
     return replace(lod, blade_count=count)
 
 
-def screen_scale(camera, params) -> float:
+def screen_scale(camera, params: Params) -> float:
     """How much the views' screens scale the LOD distances: the largest focal length in pixels of
     ``camera`` (one ``Camera``, several or None) over REFERENCE_FOCAL, within 1 ..
     SCREEN_SCALE_MAX; 1 with ``lod.screen_size`` off, LOD off or no known image width."""
@@ -158,7 +159,7 @@ def screen_scale(camera, params) -> float:
     return float(min(SCREEN_SCALE_MAX, max(1.0, focal / REFERENCE_FOCAL)))
 
 
-def scaled(params, scale: float):
+def scaled(params: Params, scale: float):
     """``params`` with the four LOD distances times ``scale`` (itself when 1)."""
     if scale == 1.0:
         return params
@@ -175,7 +176,7 @@ def _ramp(d: np.ndarray, near: float, far: float) -> np.ndarray:
     return (d >= np.float32(near)).astype(np.float32)
 
 
-def block_reach(params) -> tuple[float, float]:
+def block_reach(params: Params) -> tuple[float, float]:
     """(sideways reach, height) of anything standing in a block, from the parameters alone (the
     same for every block and every window): blades bend up to their length in any direction and
     cards stick out half their width plus their height past the cell."""
@@ -203,7 +204,7 @@ def views(camera) -> list[Camera]:
     return list(camera)
 
 
-def lod_weights(layout, camera, params=None, scale: float = 1.0) -> LodWeights:
+def lod_weights(layout, camera, params: Params | None = None, scale: float = 1.0) -> LodWeights:
     """Eqs 7-11 for every cell of ``layout`` and culling of its blocks (vectorised).
 
     ``camera``: a ``Camera``, several (their nearest eye sets each cell's distance, a block is
@@ -275,7 +276,7 @@ def _block_distance(layout, eye: np.ndarray) -> np.ndarray:
     return np.sqrt(nx * nx + ny * ny + nz * nz).astype(np.float32)
 
 
-def block_visible(bounds, z_range, camera: Camera, params, margin: float = 0.0) -> np.ndarray:
+def block_visible(bounds, z_range, camera: Camera, params: Params, margin: float = 0.0) -> np.ndarray:
     """Box-vs-view-volume test of blocks (bounds (m, 4), z_range (m, 2)): a box is out when all 8
     corners lie outside one of the camera's half-spaces. ``margin`` widens every box by that many
     metres.

@@ -18,25 +18,28 @@ from . import atlas, sward
 from .schema import Params
 
 
-def _parts(params: Params) -> list[tuple]:
-    """(function, arguments) of every part of the look, as the bridge asks for them."""
+def _parts(params: Params, own=None) -> list[tuple]:
+    """(function, arguments, keywords) of every part of the look, as the bridge asks for them
+    (``own``: the artist's plants the cards draw, ``plants.Plants``; none: not passed)."""
     slopes = sward.look_slopes()[1]
-    return [(sward.sward_look, (params, slopes)), (sward.sward_look, (params, [sward.VIEWPORT_SLOPE])),
-            (sward.grain_seen, (params, slopes)), (sward.ground_colours, (params,)),
-            (sward.canopy_height, (params,)), (sward.fringe_top, (params,)), (sward.fringe_colour, (params,)),
-            (sward.sward_profile, (params,)), (sward.tussock_grain, (params,)), (sward.flower_speckles, (params,)),
-            (sward.patch_tint, (params,)), (sward.patch_stands, (params,)), (atlas.card_atlas, (params,))]
+    parts: list[tuple] = [
+        (sward.sward_look, (params, slopes)), (sward.sward_look, (params, [sward.VIEWPORT_SLOPE])),
+        (sward.grain_seen, (params, slopes)), (sward.ground_colours, (params,)), (sward.canopy_height, (params,)),
+        (sward.fringe_top, (params,)), (sward.fringe_colour, (params,)), (sward.sward_profile, (params,)),
+        (sward.tussock_grain, (params,)), (sward.flower_speckles, (params,)), (sward.patch_tint, (params,)),
+        (sward.patch_stands, (params,))]
+    return [(f, args, {}) for f, args in parts] + [(atlas.card_atlas, (params,), {"own": own} if own else {})]
 
 
-def ready(params: Params) -> bool:
+def ready(params: Params, own=None) -> bool:
     """Every part of the look of ``params`` is kept (writing it is quick)."""
-    return all(part.known(*args) for part, args in _parts(params))
+    return all(part.known(*args, **keywords) for part, args, keywords in _parts(params, own))
 
 
-def prepare(params: Params) -> None:
+def prepare(params: Params, own=None) -> None:
     """Work out every part of the look of ``params`` (kept for the writes that follow)."""
-    for part, args in _parts(params):
-        part(*args)
+    for part, args, keywords in _parts(params, own):
+        part(*args, **keywords)
 
 
 class _Worker:
@@ -45,11 +48,11 @@ class _Worker:
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.thread: threading.Thread | None = None
-        self.wanted: Params | None = None  # the settings asked for last, not yet taken
+        self.wanted: tuple | None = None  # (the settings, plants) asked for last, not yet taken
 
-    def ask(self, params: Params) -> None:
+    def ask(self, params: Params, own=None) -> None:
         with self.lock:
-            self.wanted = params
+            self.wanted = (params, own)
             if self.thread is None:
                 self.thread = threading.Thread(target=self._run, name="windgrass look", daemon=True)
                 self.thread.start()
@@ -57,12 +60,12 @@ class _Worker:
     def _run(self) -> None:
         while True:
             with self.lock:
-                params, self.wanted = self.wanted, None
-                if params is None:
+                wanted, self.wanted = self.wanted, None
+                if wanted is None:
                     self.thread = None
                     return
             try:
-                prepare(params)
+                prepare(*wanted)
             except Exception:  # noqa: BLE001 (the bridge's own write works it out again and reports it)
                 pass
 
@@ -70,10 +73,10 @@ class _Worker:
 _WORKER = _Worker()
 
 
-def ask(params: Params) -> bool:
-    """True when the look of ``params`` is ready to write; else it is worked out on a thread
-    (the settings asked for last first) and a later ``ask`` says when it is."""
-    if ready(params):
+def ask(params: Params, own=None) -> bool:
+    """True when the look of ``params`` (and the plants ``own``) is ready to write; else it is
+    worked out on a thread (the settings asked for last first) and a later ``ask`` says when it is."""
+    if ready(params, own):
         return True
-    _WORKER.ask(params)
+    _WORKER.ask(params, own)
     return False

@@ -26,15 +26,16 @@ import math
 import numpy as np
 
 from .clock import Clock
+from .schema import Params
 
 
-def loop_frames(params) -> int:
+def loop_frames(params: Params) -> int:
     """P: the loop's length in frames (0: no loop)."""
     seconds = float(params.simulation.loop)
     return Clock.of(params).frames(seconds) if seconds > 0.0 else 0
 
 
-def loop_seconds(params) -> float:
+def loop_seconds(params: Params) -> float:
     """L: the loop's length in seconds, a whole number of frames (0.0: no loop)."""
     frames = loop_frames(params)
     return frames / Clock.of(params).rate if frames else 0.0
@@ -75,7 +76,7 @@ def blend(now: np.ndarray, now_mean: np.ndarray, before: np.ndarray, before_mean
     return now
 
 
-def notes(params, keyed: bool = False, colliders=(), effectors=None) -> list[str]:
+def notes(params: Params, keyed: bool = False, colliders=(), effectors=None) -> list[str]:
     """What keeps the frames from repeating with the loop (empty without a loop or when all
     repeats): ``keyed``, the mean wind changes over time (keys, an animated wind)."""
     if not loop_frames(params):

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import blade, wind
+from .schema import Params
 
 RNG_MEADOW = 3  # purpose of the meadow's random stream (blocks.RNG_BLADES = 1, RNG_CELLS = 2)
 STRAW = np.array([0.42, 0.34, 0.15], dtype=np.float32)  # linear RGB of a dry tip
@@ -107,7 +108,7 @@ def clumped(xy: np.ndarray, seed: int, clumping: float, size: float) -> np.ndarr
     return centre + (p - centre) * (1.0 - float(clumping))
 
 
-def length_scale(xy: np.ndarray, params) -> np.ndarray:
+def length_scale(xy: np.ndarray, params: Params) -> np.ndarray:
     """(n,) the patches' scale of the blades' length at ``xy`` (1 without patches)."""
     f = params.field
     if f.patchiness <= 0.0:
@@ -121,7 +122,7 @@ EDGE_GRAIN = 0.4  # ... over this many metres (value noise)
 EDGE_CHANNEL = 7
 
 
-def edge_scale(xy: np.ndarray, origin, size, params, ragged: bool = True) -> np.ndarray:
+def edge_scale(xy: np.ndarray, origin, size, params: Params, ragged: bool = True) -> np.ndarray:
     """(n,) the field's edge's scale of the blades' length at ``xy`` (1 without ``field.edge``):
     from EDGE_FLOOR on the field's boundary (``origin``, ``size``: its rectangle) up to 1 at
     ``field.edge`` metres inside it, a smoothstep along a ragged line (the distance in wanders by
@@ -141,7 +142,7 @@ def edge_scale(xy: np.ndarray, origin, size, params, ragged: bool = True) -> np.
     return EDGE_FLOOR + (1.0 - EDGE_FLOOR) * u * u * (3.0 - 2.0 * u)
 
 
-def species_weights(xy: np.ndarray, params, weights: np.ndarray) -> np.ndarray | None:
+def species_weights(xy: np.ndarray, params: Params, weights: np.ndarray) -> np.ndarray | None:
     """(n, species) each species' share at ``xy``, changed patch by patch (every species its own
     noise), or None without patches or with one species. Flowers grow in drifts: a species whose
     heads are flowers (``drifts``) varies ``field.flower_drift`` times as much, divided by how much
@@ -181,7 +182,7 @@ def _mean_gain(contrast: float) -> float:
     return _GAINS[key]
 
 
-def heads_and_dryness(rng: np.random.Generator, kind: np.ndarray, species, params) -> tuple:
+def heads_and_dryness(rng: np.random.Generator, kind: np.ndarray, species, params: Params) -> tuple:
     """(head, flower, dry) per blade: the width of a seed head at the stem's last joint but one and
     of a flower at its tip, as multiples of the stem's root width (0: none; ``head_size`` of the
     species on its ``heads`` share of stems, by its ``head_shape``), and how dry its tip is (0..1;

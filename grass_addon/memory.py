@@ -27,6 +27,7 @@ from .clock import Clock
 from .errors import ParameterError
 from .grid import FieldGrid
 from .lod import block_reach
+from .schema import Params
 from .simulation import CHECKPOINT_FRAMES, MAX_CHECKPOINT_BYTES, seek_cost_bound
 
 SLOT_BYTES_PER_VERTEX = 430  # a slot mesh's vertex in Blender (about 160 B) and in the renderer (about 270 B)
@@ -50,13 +51,13 @@ class Estimate:
         return BASE_BYTES + self.meshes + self.buffers + self.simulation + self.maps
 
 
-def map_files(params) -> list[tuple[str, str]]:
+def map_files(params: Params) -> list[tuple[str, str]]:
     """(setting, path) of every PNG file the field reads (maps and the heightmap)."""
     named = paint.map_settings(params) + [("terrain.heightmap", params.terrain.heightmap)]
     return [(name, path) for name, path in named if path and not path.startswith(paint.BLENDER_SOURCES)]
 
 
-def maps_bytes(params, resolve=str) -> tuple[int, str | None]:
+def maps_bytes(params: Params, resolve=str) -> tuple[int, str | None]:
     """(bytes, setting) of the largest PNG map to decode (``resolve``: a path as the file system
     knows it, e.g. Blender's ``//`` paths made absolute); (0, None) without maps."""
     largest, name = 0, None
@@ -67,7 +68,7 @@ def maps_bytes(params, resolve=str) -> tuple[int, str | None]:
     return largest, name
 
 
-def estimate(params, grid: FieldGrid | None = None, resolve=str) -> Estimate:
+def estimate(params: Params, grid: FieldGrid | None = None, resolve=str) -> Estimate:
     """What a field of ``params`` takes in Blender at most (bytes), from its parameters and the
     headers of its PNG maps (``resolve``: see ``maps_bytes``)."""
     grid = grid or FieldGrid.of(params)
@@ -100,7 +101,7 @@ def _mb(n: float) -> str:
     return f"{n / 2**20:,.0f} MB"
 
 
-def longest_card_far(params, allowed: int) -> float:
+def longest_card_far(params: Params, allowed: int) -> float:
     """The longest ``lod.card_far`` (m, at least ``lod.card_near``) whose estimate fits ``allowed``
     bytes; ``lod.card_near`` itself when even that does not fit."""
     low, high = float(params.lod.card_near), float(params.lod.card_far)
@@ -115,7 +116,7 @@ def longest_card_far(params, allowed: int) -> float:
     return low
 
 
-def check(params, resolve=str) -> Estimate:
+def check(params: Params, resolve=str) -> Estimate:
     """The field's estimate, or ParameterError (naming ``lod.card_far``) when it needs more than
     ``simulation.memory_mb`` allows or this machine has; the message suggests only values that
     fit the machine."""

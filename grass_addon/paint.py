@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ParameterError
-from .schema import BLENDER_SOURCES
+from .schema import BLENDER_SOURCES, Params
 
 LENGTH_RANGE = 2.0  # a length map's white: blades twice their length
 MIN_LENGTH_SCALE = 0.02  # below this a blade is mown to nothing: it does not grow
@@ -249,7 +249,7 @@ def fingerprint(paint: Paint | None) -> str:
     return "" if paint is None or paint.empty else paint.fingerprint()
 
 
-def field_extent(params) -> tuple[float, float, float, float]:
+def field_extent(params: Params) -> tuple[float, float, float, float]:
     """The field's rectangle in its own frame (centred on the origin)."""
     from .grid import FieldGrid
 
@@ -258,7 +258,7 @@ def field_extent(params) -> tuple[float, float, float, float]:
     return float(x0), float(y0), float(x0 + w), float(y0 + h)
 
 
-def map_extent(params, extent, name: str) -> tuple[float, float, float, float]:
+def map_extent(params: Params, extent, name: str) -> tuple[float, float, float, float]:
     """``extent`` as given ([x0, y0, x1, y1]), or the field's when it is all zeros."""
     if not any(float(c) for c in extent):
         return field_extent(params)
@@ -267,7 +267,7 @@ def map_extent(params, extent, name: str) -> tuple[float, float, float, float]:
     return x0, y0, x1, y1
 
 
-def keep_out_shapes(params) -> np.ndarray:
+def keep_out_shapes(params: Params) -> np.ndarray:
     """(T, 3, 2) triangles of the scene file's ``[[keep_out.shapes]]`` boxes and discs."""
     parts = []
     for i, row in enumerate(params.keep_out.shapes):
@@ -283,7 +283,7 @@ def keep_out_shapes(params) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros((0, 3, 2))
 
 
-def from_params(params, load, extra: Paint | None = None, blender: bool = False) -> Paint | None:
+def from_params(params: Params, load, extra: Paint | None = None, blender: bool = False) -> Paint | None:
     """The paint of a scene file's settings (``[paint]``, the species rows' ``density_map``,
     ``[[keep_out.shapes]]``), file maps read by ``load(path, setting name) -> values (ny, nx)``
     (``images.read_map``). ``extra``: maps and footprints from Blender (the terrain's vertex
@@ -323,7 +323,7 @@ def from_params(params, load, extra: Paint | None = None, blender: bool = False)
     return None if paint.empty else paint
 
 
-def map_settings(params) -> list[tuple[str, str]]:
+def map_settings(params: Params) -> list[tuple[str, str]]:
     """(setting, value) of every paint map setting that names something."""
     out = [("paint.density", params.paint.density), ("paint.length", params.paint.length)]
     out += [(f"blade.species[{i}].density_map", row.get("density_map", "")) for i, row in enumerate(params.species())]

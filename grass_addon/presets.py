@@ -21,10 +21,13 @@ and reeds have thicker, stiffer stems in reality too).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from . import schema
 from .errors import ParameterError
+
+if TYPE_CHECKING:
+    from .params_typed import BladeSpeciesRow
 
 # Rows per preset; keys are schema.SPECIES_FIELDS columns (missing ones take the schema default).
 SPECIES_PRESETS: dict[str, tuple[dict[str, Any], ...]] = {
@@ -91,7 +94,7 @@ PRESET_HELP: dict[str, str] = {
 }
 
 
-def species_rows(name: str) -> tuple[dict[str, Any], ...]:
+def species_rows(name: str) -> tuple[BladeSpeciesRow, ...]:
     """The validated species table of preset ``name`` (every SPECIES_FIELDS column filled in)."""
     if name not in SPECIES_PRESETS:
         raise ParameterError(

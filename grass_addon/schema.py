@@ -20,7 +20,7 @@ import tomllib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from .errors import ParameterError, shown
 
@@ -555,6 +555,13 @@ def blender_params(section: str) -> tuple[Param, ...]:
 # Values
 
 
+if TYPE_CHECKING:
+    from .params_typed import BladeSpeciesRow
+    from .params_typed import Sections as _Sections
+else:
+    _Sections = object
+
+
 class Section:
     """Read-only view of one section: ``params.wind.speed``."""
 
@@ -577,8 +584,9 @@ class Section:
         return dict(self._values)
 
 
-class Params:
-    """A complete, validated parameter set. Immutable; ``replace`` returns a new one."""
+class Params(_Sections):
+    """A complete, validated parameter set. Immutable; ``replace`` returns a new one. Its sections
+    are typed for mypy (``params_typed.py``)."""
 
     def __init__(self, values: Mapping[str, Mapping[str, Any]]):
         self._values = {s: dict(values[s]) for s in SECTIONS}
@@ -628,12 +636,12 @@ class Params:
             nested.setdefault(section, {})[key] = value
         return from_dict(nested, base=self)
 
-    def species(self) -> tuple[dict[str, Any], ...]:
+    def species(self) -> tuple[BladeSpeciesRow, ...]:
         """The species table; one default species when the user gave none."""
         rows = self.blade.species
         if rows:
             return rows
-        return (row_defaults(SPECIES_FIELDS),)
+        return (cast("BladeSpeciesRow", row_defaults(SPECIES_FIELDS)),)
 
 
 def _plain(v: Any) -> Any:
@@ -1152,3 +1160,45 @@ def _parse_cli_value(p: Param, raw: Any) -> Any:
     if p.kind == "int" and number.is_integer():
         return int(number)
     return number
+
+
+# --------------------------------------------------------------------------------------------
+# The parameters' types for the type checker (``params_typed.py``, generated from PARAMS)
+
+_PYTHON_TYPES = {"int": "int", "float": "float", "bool": "bool", "enum": "str", "str": "str",
+                 "vec": "tuple[float, ...]", "keys": "tuple[KeyPoint, ...]"}
+
+
+def _class_name(*parts: str) -> str:
+    return "".join(word.capitalize() for part in parts for word in part.split("_"))
+
+
+def _python_type(p: Param, owner: str) -> str:
+    if p.kind == "table_list":
+        return f"tuple[{_class_name(owner, p.key)}Row, ...]"
+    return _PYTHON_TYPES[p.kind]
+
+
+def typed_source() -> str:
+    """The text of ``params_typed.py``: a class per section (and a TypedDict per table's rows)
+    whose attributes are the parameters with their Python types, so mypy checks every read of a
+    parameter (``params.wind.speed`` is a float; ``params.wind.sped`` an error). ``dev.py params``
+    writes it; tests/core/test_schema.py checks that it is current."""
+    lines = ['"""The parameters\' types for the type checker, generated from ``schema.PARAMS`` by',
+             "``schema.typed_source`` (``python3.11 dev.py params`` writes it again): do not edit. Imported",
+             '(by ``schema``) only while type checking; at run time a section is a ``schema.Section``."""',
+             "", "from __future__ import annotations", "", "from typing import Any, TypedDict", "", "",
+             "class KeyPoint(TypedDict):", "    time: float", "    position: tuple[float, ...]", "", "",
+             "class Section:", "    def as_dict(self) -> dict[str, Any]:", "        raise NotImplementedError", ""]
+    for section in SECTIONS:
+        for p in section_params(section):
+            if p.kind == "table_list":
+                lines += ["", f"class {_class_name(section, p.key)}Row(TypedDict):"]
+                lines += [f"    {f.key}: {_python_type(f, section)}" for f in p.fields]
+                lines.append("")
+        lines += ["", f"class {_class_name(section)}Section(Section):"]
+        lines += [f"    {p.key}: {_python_type(p, section)}" for p in section_params(section)]
+        lines.append("")
+    lines += ["", "class Sections:", '    """What ``Params`` holds: one attribute per section."""', ""]
+    lines += [f"    {section}: {_class_name(section)}Section" for section in SECTIONS]
+    return "\n".join(lines) + "\n"

@@ -30,6 +30,7 @@ from .clock import Clock
 from .errors import ParameterError
 from .layout import subset_layout
 from .loop import loop_frames, wind_frame
+from .schema import Params
 from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
 PROGRESS_INTERVAL_S = 1.0
@@ -48,7 +49,7 @@ class Trajectory:
     checkpoints: dict[int, SolverState] = field(default_factory=dict)
 
 
-def epoch_frames(params) -> tuple[int, int, int]:
+def epoch_frames(params: Params) -> tuple[int, int, int]:
     """(E, W, F): epoch length, warm-up and cross-fade in frames. With a loop of P frames
     (``loop.py``) the epoch is the divisor of P nearest ``simulation.epoch`` that holds the warm-up,
     so the trajectories come round with the loop."""
@@ -76,7 +77,7 @@ class Simulation:
     """The blade solver driven through time by a wind field (anything with ``sample(t, xy)``)
     over the cells of ``layout`` (the whole field or a window of blocks; see ``set_layout``)."""
 
-    def __init__(self, layout, params, wind, solver: BladeSolver | None = None):
+    def __init__(self, layout, params: Params, wind, solver: BladeSolver | None = None):
         self.params = params
         self.wind = wind
         self.clock = Clock.of(params)
@@ -267,7 +268,7 @@ class Simulation:
         self._shown.changed()
 
 
-def seek_note(params) -> str | None:
+def seek_note(params: Params) -> str | None:
     """What a jump to any frame costs at a high frame rate (None at 60 fps and below): the warm-up
     and the epoch are seconds, so their frames grow with the frame rate."""
     fps = Clock.of(params).rate
@@ -279,7 +280,7 @@ def seek_note(params) -> str | None:
             "make jumps cheaper")
 
 
-def seek_cost_bound(params) -> int:
+def seek_cost_bound(params: Params) -> int:
     """Most trajectory-frames a seek to any frame steps: W + E of one trajectory, W of the next."""
     epoch, warmup, _ = epoch_frames(params)
     return warmup + epoch + warmup
@@ -289,7 +290,7 @@ def seek_cost_bound(params) -> int:
 MAX_SEEK_FRAMES = 20_000  # trajectory-frames one frame may cost (14 minutes of wind at 24 fps)
 
 
-def check_seek(params, frames) -> None:
+def check_seek(params: Params, frames) -> None:
     """ParameterError (naming simulation.epoch and its limit) when reaching a frame of ``frames``
     would simulate more than MAX_SEEK_FRAMES frames: a jump into a long epoch simulates from the
     epoch's start (issue #57: frame 1,000,000 with an epoch of 10^6 s simulated for minutes

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import atlas
+from .schema import Params
 
 FREE = -1  # a position that shows nothing
 UNKNOWN = -2  # what a position shows is not known (new pool, undo, reopened file): write it
@@ -51,7 +52,7 @@ def blocks_within(layout, distance: float) -> int:
     return int(min(layout.blocks_x * layout.blocks_y, math.ceil(math.pi * radius * radius / (edge * edge))))
 
 
-def pool_blocks(layout, params) -> tuple[int, int]:
+def pool_blocks(layout, params: Params) -> tuple[int, int]:
     """(blade blocks, card blocks) the two pools must show at once. LOD off: every block is
     geometry and no card is drawn."""
     lod = params.lod
@@ -85,13 +86,13 @@ class PoolShape:
         return self.k * self.verts_per_block
 
 
-def pool_shapes(layout, params) -> tuple[PoolShape, PoolShape]:
+def pool_shapes(layout, params: Params) -> tuple[PoolShape, PoolShape]:
     """(blades, cards) pool shapes of a field."""
     blades, cards = pool_blocks(layout, params)
     return PoolShape.of(blade_vertex_count(layout), blades), PoolShape.of(card_vertex_count(layout), cards)
 
 
-def topology_key(grid, params, terrain=None) -> str:
+def topology_key(grid, params: Params, terrain=None) -> str:
     """What a field's slot objects are built for (``grid``: the field's ``FieldGrid`` or a layout;
     ``terrain``: its heightfield or None); they are rebuilt when it changes."""
     blades, cards = pool_shapes(grid, params)

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import blade, workers
+from .schema import Params
 
 RHO_AIR = 1.225  # rho_wind of eqs 15-17, kg/m^3 (air at sea level, 15 C)
 REFERENCE_DT = 1.0 / 24.0  # dt_ref: the paper's frame (24 fps) in which eq 26's rate M/gamma is given
@@ -299,7 +300,7 @@ def _balanced_chunks(C: int, chunk_cells: int, threads: int) -> list[tuple[int, 
 class BladeSolver:
     """Bending/twisting of every cell's representative blade (paper V.A). See the module doc."""
 
-    def __init__(self, layout, params, chunk_cells: int = 65536, threads: int = 2):
+    def __init__(self, layout, params: Params, chunk_cells: int = 65536, threads: int = 2):
         b = params.blade
         n = int(layout.segments)
         C = int(layout.n_cells)

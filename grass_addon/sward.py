@@ -511,7 +511,7 @@ def _paint_patches(params: Params, pixels: int) -> tuple[np.ndarray, np.ndarray]
         weights = meadow.species_weights(xy, params, species.p)
         depth = _stand_depth(params, xy, weights)
         stand = fit_stands(params, depth)[:, None] if fit_here else depth
-        if weights is None:
+        if weights is None or areas is None or colours is None:
             return stand
         shown = weights * areas[None, :]
         return np.concatenate([(shown @ colours) / shown.sum(axis=1, keepdims=True), stand], axis=1)

@@ -19,6 +19,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .grid import FieldGrid
+from .schema import Params
 
 # At most this many heightfield cells along a side: a 1024 x 1024-cell field is sampled every
 # 4 cells (the bridge ray-casts once per sample at build time, and the ground mesh has one quad
@@ -135,7 +136,7 @@ def grid_points(origin_xy, spacing: float, nx: int, ny: int) -> np.ndarray:
     return np.stack([gx, gy], axis=-1)
 
 
-def grid_for(params, max_cells: int = MAX_GRID_CELLS) -> tuple[np.ndarray, float, int, int]:
+def grid_for(params: Params, max_cells: int = MAX_GRID_CELLS) -> tuple[np.ndarray, float, int, int]:
     """(origin_xy, spacing, nx, ny) of the heightfield grid over the field of ``params``.
 
     One sample per cell corner (spacing = cell size); a field wider than ``max_cells`` cells is
@@ -282,7 +283,7 @@ def drape(triangles, origin_xy, spacing: float, nx: int, ny: int,
     return heights, hit.reshape(ny + 1, nx + 1)
 
 
-def from_heightmap(values, extent, height: float, params, name: str = "terrain.heightmap") -> Heightfield:
+def from_heightmap(values, extent, height: float, params: Params, name: str = "terrain.heightmap") -> Heightfield:
     """The heightfield of a greyscale heightmap (values 0..1, row 0 at y0) lying over ``extent``
     ([x0, y0, x1, y1] in the field's frame), white ``height`` metres above black, sampled at the
     field's heightfield grid (``grid_for``; bilinear between pixel centres)."""
@@ -293,7 +294,7 @@ def from_heightmap(values, extent, height: float, params, name: str = "terrain.h
     return Heightfield(origin, spacing, heights.astype(np.float32))
 
 
-def from_params(params, load) -> Heightfield | None:
+def from_params(params: Params, load) -> Heightfield | None:
     """The scene file's ``[terrain]`` heightmap (``load(path, setting name)`` reads it,
     ``images.read_map``), or None for flat ground."""
     t = params.terrain

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import gusts, loop
 from .errors import ParameterError
+from .schema import Params
 
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
 KEY_CACHE_SIZE = 6  # smoothed key lattices kept (4 are in use at any time)
@@ -121,7 +122,7 @@ def _triple(row) -> tuple[float, float, float]:
     return a, b, c
 
 
-def _parse_keys(keys: Sequence[Any] | None, params) -> np.ndarray:
+def _parse_keys(keys: Sequence[Any] | None, params: Params) -> np.ndarray:
     """(m, 3) float64 rows time, speed, direction (degrees, unwrapped along the shorter arc).
 
     ``keys``: None (use params.wind.keys, or the constant wind.speed / wind.direction when there
@@ -157,7 +158,7 @@ def _parse_keys(keys: Sequence[Any] | None, params) -> np.ndarray:
 class WindField:
     """Wind of every cell at any time t (seconds from the simulation start); see module doc."""
 
-    def __init__(self, layout, params, keys=None):
+    def __init__(self, layout, params: Params, keys=None):
         w = params.wind
         self.params = params
         self.kind = w.type

@@ -8,6 +8,8 @@ dict under the key "peers". For each blade count every peer runs in a fresh empt
 * ``ours``: a Windgrass field added through the add-on (``bpy.ops.windgrass.field_add`` with the
   blocks of ``field_plan``), LOD off, so every blade is strip geometry (5 segments, 12 vertices)
   written by our ``frame_change_pre`` handler with ``foreach_set``.
+* ``ours_strips``: the same field with one plain grass (no flowers, no leaves at the stems' foot:
+  no Geometry Nodes instances of ours), drawing what the Geometry Nodes peers draw.
 * ``geometry_nodes``: a GN modifier builds exactly N points (Points node, random positions over the
   same area), instances a 5-segment blade strip (12 vertices, the same topology as ours), leans
   each instance and bends its vertices by a Noise Texture sampled once per blade at the root +
@@ -433,8 +435,10 @@ def bench_hair_dynamics(plan: dict[str, Any], frames: int) -> dict[str, Any]:
 # Peer (a): ours, through the add-on
 
 
-def bench_ours(plan: dict[str, Any], frames: int) -> dict[str, Any]:
-    """Our field through the add-on: ``field_add`` with the plan's blocks, LOD off, rebuilt."""
+def bench_ours(plan: dict[str, Any], frames: int, strips_only: bool = False) -> dict[str, Any]:
+    """Our field through the add-on: ``field_add`` with the plan's blocks, LOD off, rebuilt.
+    ``strips_only``: its species table emptied (one plain grass: no flowers, no leaves at the
+    stems' foot, so no Geometry Nodes instances), what the Geometry Nodes peers draw."""
     import bpy
     scene = _fresh_scene()
     common.load(addon=True)
@@ -443,6 +447,8 @@ def bench_ours(plan: dict[str, Any], frames: int) -> dict[str, Any]:
         raise RuntimeError(f"windgrass.field_add returned {result}")
     item = scene.windgrass.fields[scene.windgrass.active_index]
     item.lod.enabled = False  # every blade drawn as geometry (no cards, no ground texture LOD)
+    if strips_only:
+        item.blade.species.clear()
     scene.render.fps = item.render.fps
     scene.frame_start = item.render.frame_start
     result = bpy.ops.windgrass.field_rebuild()  # fresh runtime: frame 1 below runs the preroll
@@ -479,9 +485,9 @@ def _safe(fn: Callable[..., dict[str, Any]], *args: Any) -> dict[str, Any]:
         return {"error": f"{type(exc).__name__}: {exc}"}
 
 
-PEERS = ("ours", "geometry_nodes", "geometry_nodes_vertex_noise", "hair_dynamics")
+PEERS = ("ours", "ours_strips", "geometry_nodes", "geometry_nodes_vertex_noise", "hair_dynamics")
 GOALS = {"ratio_ours_to_gn": 1 / 20, "ratio_ours_to_hair": 1 / 200}
-RATIOS = (("geometry_nodes", "ratio_ours_to_gn"),
+RATIOS = (("geometry_nodes", "ratio_ours_to_gn"), ("ours_strips", "ratio_ours_to_ours_strips"),
           ("geometry_nodes_vertex_noise", "ratio_ours_to_gn_vertex_noise"),
           ("hair_dynamics", "ratio_ours_to_hair"))
 
@@ -489,6 +495,8 @@ RATIOS = (("geometry_nodes", "ratio_ours_to_gn"),
 def _run_peer(name: str, plan: dict[str, Any], frames: int) -> dict[str, Any]:
     if name == "ours":
         return bench_ours(plan, frames)
+    if name == "ours_strips":
+        return bench_ours(plan, frames, strips_only=True)
     if name == "geometry_nodes":
         return bench_geometry_nodes(plan, frames)
     if name == "geometry_nodes_vertex_noise":
@@ -536,6 +544,8 @@ def run_peers(blade_counts=(10_000, 100_000), frames: int = 3, ours: bool = True
         for peer, key in RATIOS:
             a, b = row["ours_ms"], row[f"{peer}_ms"]
             row[key] = round(a / b, 5) if a is not None and b else None
+        strips, gn = row.get("ours_strips_ms"), row.get("geometry_nodes_ms")
+        row["ratio_ours_strips_to_gn"] = round(strips / gn, 5) if strips is not None and gn else None
         for key, goal in GOALS.items():  # goals: ours <= 1/20 of GN, <= 1/200 of hair dynamics
             row[key.replace("ratio_ours_to", "meets_goal")] = None if row[key] is None else row[key] <= goal
         row["detail"] = detail

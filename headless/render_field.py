@@ -400,7 +400,12 @@ def fingerprints(params):
     import bpy
 
     named: list[str] = []
-    schema.with_files(params, lambda path, name: named.append(path) or path)
+
+    def note(path, name):
+        named.append(path)
+        return path
+
+    schema.with_files(params, note)
     inputs = [Path(p).read_bytes() for p in named if Path(p).is_file()]
     settings, blender = schema.dumps_toml(params), bpy.app.version_string
     windgrass = farm.extension_version(Path(__file__).resolve().parents[1])

@@ -9,6 +9,9 @@ from ._common import has_active_field, reported
 NONE = "NONE"
 
 
+_SOURCES_KEPT: list[tuple[str, str, str]] = []
+
+
 def _sources(self, context):
     """(value, label, description) of every source the active field's map can read now."""
     items = [(NONE, "None", "No map: grass everywhere, as grown")]
@@ -25,8 +28,8 @@ def _sources(self, context):
     where = f"over the UV map of '{terrain.name}'" if terrain is not None else "over the field"
     items += [(f"image:{i.name}", f"Image: {i.name}", f"Grey levels of the image {where} (Texture Paint)")
               for i in bpy.data.images if i.type in ("IMAGE", "UV_TEST") and not i.get("wg_uid")]
-    _sources.cache = items  # (Blender keeps the strings only while a reference lives)
-    return items
+    _SOURCES_KEPT[:] = items  # (Blender keeps the strings only while a reference lives)
+    return _SOURCES_KEPT
 
 
 class WINDGRASS_OT_map_pick(bpy.types.Operator):

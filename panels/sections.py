@@ -149,6 +149,10 @@ def draw_section(layout, context, item, section: str) -> None:
         shared = runtime.wind_force.map_object(item)
         if shared is not None:
             wrapped(layout, context, f"Node trees read this field from '{shared.name}' (Object Info)", icon="INFO")
+        layout.operator("windgrass.field_map_add", icon="GEOMETRY_NODES")
+        shared = runtime.wind_force.map_object(item)
+        if shared is not None:
+            wrapped(layout, context, f"Node trees read this field from '{shared.name}' (Object Info)", icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
         for note in maps.keep_out_notes(item):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from ..clock import Clock
+from ..schema import Params
 
 # Past frame_end the sampled range grows in steps of this many frames, so the keys (and the
 # fingerprint) rarely change while a user plays on.
@@ -61,7 +62,7 @@ def fcurve_fingerprint(fc) -> bytes:
     return data.tobytes() + extra.encode()
 
 
-def sample_range(scene, params) -> tuple[int, int]:
+def sample_range(scene, params: Params) -> tuple[int, int]:
     """Frames from the simulation start (t = -preroll) to frame_end, extended in steps when the
     current frame lies beyond it, so the range (and the cache key) rarely changes."""
     first = math.floor(Clock.of(params).frame_at(-params.simulation.preroll))
@@ -71,7 +72,7 @@ def sample_range(scene, params) -> tuple[int, int]:
     return first, last
 
 
-def sample_wind_keys(fcurves: dict, params, frames: tuple[int, int]) -> tuple:
+def sample_wind_keys(fcurves: dict, params: Params, frames: tuple[int, int]) -> tuple:
     """(time_s, speed_m_s, direction_deg) per frame from the F-curves (one sample a frame).
 
     Time follows the engine's clock t = (frame - frame_start) / fps; direction F-curves hold

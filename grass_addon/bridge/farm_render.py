@@ -45,6 +45,8 @@ def _load_frames_module():
     for path in (here.with_name("farm_frames.py"), here.parents[1] / "farm_frames.py"):
         if path.is_file():
             spec = importlib.util.spec_from_file_location("windgrass_farm_frames", path)
+            if spec is None or spec.loader is None:
+                break
             module = importlib.util.module_from_spec(spec)
             spec.loader.exec_module(module)
             return module

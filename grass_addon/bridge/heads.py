@@ -21,7 +21,9 @@ import bpy
 import numpy as np
 
 from .. import heads as shapes
+from .. import plants as engine_plants
 from .. import tufts
+from ..schema import Params
 from . import materials, owned
 from .registry import warn_once
 
@@ -469,6 +471,58 @@ def own_collection(row):
     return found
 
 
+def plant_shapes(params: Params) -> engine_plants.Plants:
+    """The species drawn as the artist's own plant (Drawn As Plant), each its collection's
+    triangles as the heads' tree places them, coloured by their materials (a Principled BSDF's
+    Base Color, else the viewport colour), for the cards' atlas (``plants.py``)."""
+    rows = params.species()
+    kind = shapes.kinds(rows)
+    found = []
+    for k, row in enumerate(rows):
+        own = own_collection(row) if kind[k] == shapes.PLANT else None
+        if own is not None:
+            found.append((k, _triangles(own)))
+    return engine_plants.Plants(tuple(found))
+
+
+def _triangles(collection) -> engine_plants.PlantShape:
+    """A collection's mesh objects as triangles (their placement in the collection), coloured."""
+    points, triangles, colours, base = [], [], [], 0
+    offset = np.array(collection.instance_offset, np.float64)
+    for obj in collection.all_objects:
+        if obj.type != "MESH" or obj.data is None:
+            continue
+        mesh = obj.data
+        mesh.calc_loop_triangles()
+        co = np.empty(3 * len(mesh.vertices), np.float64)
+        mesh.vertices.foreach_get("co", co)
+        place = np.array(obj.matrix_world, np.float64)
+        points.append(co.reshape(-1, 3) @ place[:3, :3].T + place[:3, 3] - offset)
+        tri = np.empty(3 * len(mesh.loop_triangles), np.int64)
+        mesh.loop_triangles.foreach_get("vertices", tri)
+        slot = np.empty(len(mesh.loop_triangles), np.int64)
+        mesh.loop_triangles.foreach_get("material_index", slot)
+        palette = np.array([_colour(m.material if m else None) for m in obj.material_slots] or [_colour(None)])
+        triangles.append(tri.reshape(-1, 3) + base)
+        colours.append(palette[np.clip(slot, 0, len(palette) - 1)])
+        base += len(mesh.vertices)
+    if not points:
+        return engine_plants.PlantShape.of(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
+    return engine_plants.PlantShape.of(np.concatenate(points), np.concatenate(triangles), np.concatenate(colours))
+
+
+def _colour(material) -> tuple[float, float, float]:
+    """A material's colour as the cards show it (linear RGB): its Principled BSDF's Base Color
+    when nothing feeds it, else its viewport colour; no material: Blender's default grey."""
+    if material is None:
+        return (0.8, 0.8, 0.8)
+    tree = material.node_tree
+    for node in (tree.nodes if tree is not None else ()):
+        if node.bl_idname == "ShaderNodeBsdfPrincipled" and not node.inputs["Base Color"].is_linked:
+            return tuple(node.inputs["Base Color"].default_value[:3])
+    return tuple(material.diffuse_color[:3])
+
+
 def remove(item) -> None:
     """Delete the field's head objects, their meshes and its node group (its material stays:
     ``scene.remove_datablocks`` deletes the materials)."""
@@ -483,7 +537,7 @@ def remove(item) -> None:
             bpy.data.node_groups.remove(data)
 
 
-def sources_key(params) -> str:
+def sources_key(params: Params) -> str:
     """What the heads' modifier draws for each species (its kind, head shape, Own Plant and how
     it is drawn, leaves): the field's heads are made again when it changes."""
     rows = params.species()
@@ -492,7 +546,7 @@ def sources_key(params) -> str:
                  for k, r in enumerate(rows)])
 
 
-def build(item, params, uid: str, base: str, stems: int, leaf_material=None):
+def build(item, params: Params, uid: str, base: str, stems: int, leaf_material=None):
     """The field's heads, leaves and plants made anew (after ``remove``): a head object per species
     with Windgrass flower meshes, a leaves object per species with leaves (``leaf_material``: the
     blades'), the artist's collections as they are, and the node group that draws them on the
@@ -547,7 +601,7 @@ def _head_object(name: str, row, material) -> bpy.types.Object:
     return bpy.data.objects.new(mesh.name, mesh)
 
 
-def _leaves_object(name: str, row, params, material) -> bpy.types.Object:
+def _leaves_object(name: str, row, params: Params, material) -> bpy.types.Object:
     """An object (in no scene: the modifier instances it) of a species' unit tuft of leaves, with
     the blade material's UV maps: along the leaf, and its tint and shade (``_write_tints``)."""
     m = tufts.leaf_mesh(row["leaves"])
@@ -602,7 +656,7 @@ def attach(obj, tree) -> None:
     mod.node_group = tree
 
 
-def update_colours(item, params) -> None:
+def update_colours(item, params: Params) -> None:
     """Each Windgrass head mesh in its species' head colour, each leaves mesh in its species'
     colour (a look edit: nothing rebuilt)."""
     rows = params.species()

@@ -15,6 +15,7 @@ import bpy
 from .. import memory
 from .. import paint as paint_core
 from ..errors import WindgrassError
+from ..schema import Params
 from . import bake, maps, owned, properties, wind_force
 from . import scene as field_scene
 from .frame_pass import guarded, update_field
@@ -65,7 +66,7 @@ def apply_settings(scene, item, force: bool = False, look_later: bool = False) -
         scene.render.use_lock_interface = True
 
 
-def write_look(scene, item, params, heightfield, later: bool = False) -> None:
+def write_look(scene, item, params: Params, heightfield, later: bool = False) -> None:
     """Write the field's materials and its ground's canopy heights (``scene.refit_ground``) for
     ``params``; ``later`` (an edit in the UI): once their look is worked out on a thread
     (``look.ask``; the record says it waits, ``edits.show_look`` writes it then)."""
@@ -76,7 +77,7 @@ def write_look(scene, item, params, heightfield, later: bool = False) -> None:
         live.paint_look_lost()
 
 
-def refill_ground(scene, item, params) -> None:
+def refill_ground(scene, item, params: Params) -> None:
     """Make the painted ground grid a save emptied again (``scene.fill_ground``); the paint's look
     on it is then written at the next update."""
     if field_scene.fill_ground(item, params):

@@ -29,6 +29,7 @@ from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..errors import ParameterError
 from ..grid import FieldGrid
+from ..schema import Params
 from .owned import ground_object
 from .registry import warn_once
 
@@ -43,7 +44,7 @@ def _to_field(item):
     return np.array(ground.matrix_world.inverted_safe(), dtype=np.float64)
 
 
-def map_grid(params, detail: float = 0.0) -> tuple[np.ndarray, float, int, int]:
+def map_grid(params: Params, detail: float = 0.0) -> tuple[np.ndarray, float, int, int]:
     """(origin, spacing, nx, ny): the grid maps are draped onto, a sample per cell corner, or per
     ``detail`` metres where the mesh holds no finer detail (half its mean edge), or coarser for
     large fields (at most MAX_MAP_SAMPLES along a side)."""
@@ -62,7 +63,7 @@ def _detail(triangles: np.ndarray) -> float:
     return 0.5 * float(edges.mean())
 
 
-def _grid_raster(values: np.ndarray, params, name: str, detail: float = 0.0) -> paint_core.Raster:
+def _grid_raster(values: np.ndarray, params: Params, name: str, detail: float = 0.0) -> paint_core.Raster:
     """A raster whose pixel centres are the map grid's samples."""
     origin, spacing, nx, ny = map_grid(params, detail)
     h = 0.5 * spacing
@@ -123,7 +124,7 @@ def _attribute_values(obj, mesh, name: str, setting: str) -> tuple[np.ndarray, s
 IMAGES_KEY = "wg_maps"  # the field item's custom property: {setting: the image it paints with}
 
 
-def hold_images(item, params) -> None:
+def hold_images(item, params: Params) -> None:
     """Record on the field's item the image each ``image:NAME`` map setting names: an ID pointer
     counts as a user, so Blender keeps the image when the file is saved, and it follows a rename
     (``map_image``). Called where datablocks may change (``lifecycle.apply_settings``)."""
@@ -179,7 +180,7 @@ def _sample_image(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return low + (high - low) * fv
 
 
-def _blender_map(scene, item, params, setting: str, value: str, to_field) -> paint_core.Raster:
+def _blender_map(scene, item, params: Params, setting: str, value: str, to_field) -> paint_core.Raster:
     """The raster of a ``vertex_group:``, ``attribute:`` or ``image:`` map setting."""
     kind, _, name = value.partition(":")
     terrain = terrain_object(scene, item)
@@ -268,7 +269,7 @@ def keep_out_notes(item) -> list[str]:
     return notes
 
 
-def paint_of(scene, item, params) -> paint_core.Paint | None:
+def paint_of(scene, item, params: Params) -> paint_core.Paint | None:
     """The field's paint now (None: nothing painted); ParameterError naming the setting for a
     source that is not there (with what is)."""
     to_field = _to_field(item)
@@ -290,11 +291,11 @@ def read_file(path: str, name: str):
     return images.read_map(bpy.path.abspath(path), name)
 
 
-def _setting_of(params, value: str) -> str:
+def _setting_of(params: Params, value: str) -> str:
     return next((setting for setting, v in paint_core.map_settings(params) if v == value), "")
 
 
-def depends_on(scene, item, params) -> set:
+def depends_on(scene, item, params: Params) -> set:
     """Names of the datablocks the field's paint reads (its terrain, images, keep-out objects):
     an update to one of them is a stroke or an edit to apply."""
     names = set()
@@ -331,7 +332,7 @@ def terrain_object(scene, item):
     return obj
 
 
-def terrain_key(scene, item, params) -> str:
+def terrain_key(scene, item, params: Params) -> str:
     """Cheap key of what the terrain samples depend on besides the mesh data (the object and the
     grid): the runtime keeps its samples while it holds; Rebuild re-samples anyway."""
     obj = terrain_object(scene, item)
@@ -374,7 +375,7 @@ def _world_triangles(obj) -> np.ndarray:
     return extract(obj.data, obj.matrix_world)
 
 
-def sample_terrain(scene, item, params):
+def sample_terrain(scene, item, params: Params):
     """(heightfield, centre_xy) of ``item.terrain``, or (None, None) for flat ground.
 
     The field is centred on the terrain's XY bounding-box centre (world space); the heightfield

@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import edit_parts, gusts, sward
 from ..grid import FieldGrid
+from ..schema import Params
 from . import textures
 
 UV_TINT_RG = "wg_tint_rg"
@@ -579,7 +580,7 @@ def _speckled(t: _Tree, coord, slope, grass, grass_out: str, x: float, y: float)
     return mix
 
 
-def update_speckles(params, canopy) -> None:
+def update_speckles(params: Params, canopy) -> None:
     """The canopy's flowers from above for ``params`` (``_speckled``)."""
     nodes = canopy.node_tree.nodes
     grid, cut, colours = (nodes.get(n) for n in (NODE_SPECKLE_GRID, NODE_SPECKLE_CUT, NODE_SPECKLE_COLOURS))
@@ -891,7 +892,7 @@ def set_card_depth(cards, transparent_bounces: int) -> None:
         node.outputs[0].default_value = float(max(0, int(transparent_bounces) - 2))
 
 
-def update_haze(params, *mats) -> None:
+def update_haze(params: Params, *mats) -> None:
     """Write render.haze_distance / haze_color into every material's aerial perspective."""
     for mat in mats:
         if mat is not None and mat.node_tree is not None:
@@ -926,7 +927,7 @@ def set_paint_map(canopy, image, field_extent=None, map_extent=None) -> None:
         _set(mapping, ((fx0 - mx0) / (mx1 - mx0), (fy0 - my0) / (my1 - my0), 0.0), "Location")
 
 
-def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy=None) -> None:
+def update_viewport_colours(params: Params, blades=None, cards=None, ground=None, canopy=None) -> None:
     """The colours Solid shading draws (``Material.diffuse_color``; it shows no node tree and no
     texture): the blades' mean tip colour, the cards (see-through: CARD_VIEWPORT_ALPHA) and the far
     canopy in the sward's colour seen from afar, the meadow floor under them; matte, so the field
@@ -945,7 +946,7 @@ def update_viewport_colours(params, blades=None, cards=None, ground=None, canopy
         mat.metallic = 0.0
 
 
-def update_floor(params, ground) -> None:
+def update_floor(params: Params, ground) -> None:
     """The ground's floor colours: a meadow's thatch and litter, or a lawn's turf (``field.floor``),
     under the leaves at the stems' foot (``sward.ground_colours``)."""
     node = ground.node_tree.nodes.get(NODE_FLOOR) if ground is not None and ground.node_tree is not None else None
@@ -954,14 +955,14 @@ def update_floor(params, ground) -> None:
             _set(node, (*colour, 1.0), name)
 
 
-def gust_swing(params, speed: float) -> float:
+def gust_swing(params: Params, speed: float) -> float:
     """How much the gust waves brighten the far grass at a mean wind ``speed``: they show by the
     bend they cause, which grows as the speed squared (full from GUST_REFERENCE_SPEED on; calm
     air shows none)."""
     return GUST_SHADE * float(params.wind.gust_waves) * min(1.0, (speed / GUST_REFERENCE_SPEED) ** 2)
 
 
-def update_gusts(params, *mats) -> None:
+def update_gusts(params: Params, *mats) -> None:
     """The gust waves' brightness swing (at the settings' wind speed; ``set_gust_offset`` follows
     keyed wind every frame) and the pattern's scale (one tile per gusts.tile_metres)."""
     scale = 1.0 / gusts.tile_metres(params)
@@ -975,7 +976,7 @@ def update_gusts(params, *mats) -> None:
             _set(nodes[NODE_GUST_MAPPING_2], (scale, scale, 1.0), "Scale")
 
 
-def update_patches(params, *mats) -> None:
+def update_patches(params: Params, *mats) -> None:
     """Map the field's frame onto the patch image (sward.patch_tint): (x - origin) / size."""
     grid = FieldGrid.of(params)
     size, origin = grid.size, grid.origin
@@ -989,7 +990,7 @@ def update_patches(params, *mats) -> None:
                 _set(mapping, (-float(origin[0]) / size[0], -float(origin[1]) / size[1], 0.0), "Location")
 
 
-def set_gust_offset(displacement, speed: float, other, weights, params, *mats) -> None:
+def set_gust_offset(displacement, speed: float, other, weights, params: Params, *mats) -> None:
     """Carry the pattern downwind: the mapping's location is minus the mean wind's displacement
     (gusts.py), in tiles; the swing follows the mean wind's ``speed``; a looped wind's second
     pattern sits at the displacement ``other``, the two weighed by ``weights`` (``loop.py``;
@@ -1016,7 +1017,7 @@ def set_gust_offset(displacement, speed: float, other, weights, params, *mats) -
 LOOK_DIGEST = "wg_look"  # the canopy material's custom property: the settings its sward look was written for
 
 
-def set_lod_scale(params, canopy, scale: float = 1.0) -> None:
+def set_lod_scale(params: Params, canopy, scale: float = 1.0) -> None:
     """d_s1/d_s2 of eq 10 in the far grass, times the views' screen ``scale`` (``lod.screen_scale``:
     the frame's); written only when they change (a render's camera keeps them)."""
     kt = canopy.node_tree.nodes.get(NODE_KT) if canopy is not None and canopy.node_tree is not None else None
@@ -1031,7 +1032,7 @@ def set_lod_scale(params, canopy, scale: float = 1.0) -> None:
             _set(kt, value, names[0])
 
 
-def update_materials(params, canopy=None) -> None:
+def update_materials(params: Params, canopy=None) -> None:
     """Write the parameter-dependent values: d_s1/d_s2 of eq 10 and the far grass's colour."""
     if canopy is not None and canopy.node_tree is not None:
         set_lod_scale(params, canopy)
@@ -1064,7 +1065,7 @@ def update_materials(params, canopy=None) -> None:
         update_sward_profile(params, canopy)
 
 
-def update_sward_profile(params, canopy) -> None:
+def update_sward_profile(params: Params, canopy) -> None:
     """Write the sward's silhouette depth profile and the field's extent into the canopy."""
     nodes = canopy.node_tree.nodes
     heights, depth = sward.sward_profile(params)

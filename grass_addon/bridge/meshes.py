@@ -7,6 +7,7 @@ import numpy as np
 
 from .. import meadow
 from ..grid import FieldGrid
+from ..schema import Params
 from . import materials
 
 # The ground grid over a terrain sits this far above the heightfield, so it does not z-fight with
@@ -48,7 +49,7 @@ def fill_quads(mesh, n_verts: int, faces: np.ndarray, uvs: np.ndarray, attribute
     mesh.update(calc_edges=True)
 
 
-def thinning_edge(params):
+def thinning_edge(params: Params):
     """(width m, scale) of the field's thinning edge for the ground mesh (``ground_mesh``):
     ``meadow.edge_scale`` in the ground's frame (the field centred on its origin), its line straight
     (the far grass stands for the blades' mean; a few ground vertices on a ragged line rose as

@@ -9,6 +9,7 @@ import numpy as np
 from .. import paint as paint_core
 from .. import terrain as terrain_core
 from ..grid import FieldGrid
+from ..schema import Params
 from . import materials
 from .meshes import edge_ring, thinning_edge
 from .owned import MADE_KEY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
@@ -20,13 +21,13 @@ PAINT_GROUND_CELLS = 256
 PAINT_MAP_PIXELS = 1024  # the paint map image's longer side (the canopy's share of growing blades)
 
 
-def painted_settings(params, item) -> bool:
+def painted_settings(params: Params, item) -> bool:
     """Whether the field's settings paint it (maps, keep-out shapes or a keep-out collection):
     its ground is then a grid and its canopy reads a paint map (part of the slot topology)."""
     return bool(paint_core.map_settings(params) or params.keep_out.shapes or item.keep_out_collection)
 
 
-def paint_ground(params, heightfield):
+def paint_ground(params: Params, heightfield):
     """The heightfield the ground mesh of a painted field follows (a flat grid on flat ground)."""
     if heightfield is not None:
         return heightfield
@@ -51,7 +52,7 @@ def paint_map_extent(paint, field) -> tuple[float, float, float, float]:
     return (x0, y0, x1, y1) if x1 > x0 and y1 > y0 else field
 
 
-def update_paint_look(item, params, paint) -> None:
+def update_paint_look(item, params: Params, paint) -> None:
     """What the far grass shows of the paint: the paint map image (R: the share of blades that
     grow, G: their length / 2 over the field's extent) and the canopy and fringe heights of the
     ground (scaled by the length map). Data writes only (no datablock is added or removed)."""

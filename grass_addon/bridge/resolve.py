@@ -21,6 +21,7 @@ from .. import forces, interaction, schema
 from .. import paint as paint_core
 from ..clock import Clock
 from ..field import GrassField
+from ..schema import Params
 from . import animation, builds, maps, owned, paint_look, pools, properties, tracks
 from . import scene as field_scene
 from .registry import REGISTRY, Engine, LiveField, key_of, warn_once
@@ -41,7 +42,7 @@ def _clock(scene) -> tuple[Clock, int]:
     return Clock.of_scene(scene), int(scene.frame_end)
 
 
-def _wind_curves(scene, item, params) -> tuple[dict, str]:
+def _wind_curves(scene, item, params: Params) -> tuple[dict, str]:
     """The field's animated wind F-curves ({} when none) and their fingerprint."""
     fcurves = animation.wind_fcurves(scene, item) if scene.animation_data is not None else {}
     if not fcurves:
@@ -49,7 +50,7 @@ def _wind_curves(scene, item, params) -> tuple[dict, str]:
     return fcurves, animation.fingerprint(fcurves, animation.sample_range(scene, params))
 
 
-def _wind(scene, item, params, previous: Engine | None):
+def _wind(scene, item, params: Params, previous: Engine | None):
     """(params without the animated values, wind keys, fingerprint) of the field's wind now."""
     fcurves, fingerprint = _wind_curves(scene, item, params)
     if not fcurves:
@@ -62,7 +63,7 @@ def _wind(scene, item, params, previous: Engine | None):
     return stable, animation.sample_wind_keys(fcurves, params, frames), fingerprint
 
 
-def terrain_of(scene, item, params, force: bool = False) -> tuple:
+def terrain_of(scene, item, params: Params, force: bool = False) -> tuple:
     """(heightfield, centre, key) of the field's terrain: sampled once and kept while the terrain
     object and the grid hold (the field's record); ``force`` (Rebuild) samples it again."""
     state = REGISTRY.live(key_of(scene, item))
@@ -75,7 +76,7 @@ def terrain_of(scene, item, params, force: bool = False) -> tuple:
     return heightfield, centre, t_key
 
 
-def paint_of(scene, item, params):
+def paint_of(scene, item, params: Params):
     """The field's paint (``maps.paint_of``), read again only when its settings, its terrain or
     keep-out collection, or one of the datablocks it reads changed since (the record's ``strokes``,
     counted by ``handlers.on_depsgraph_update_post``)."""
@@ -99,7 +100,7 @@ def _ground_matrix(item) -> tuple:
     return () if ground is None else tuple(round(v, 6) for row in ground.matrix_world for v in row)
 
 
-def topology_of(params, heightfield, item) -> str:
+def topology_of(params: Params, heightfield, item) -> str:
     """What the field's objects must be built for (``scene.topology``)."""
     return field_scene.topology(params, heightfield, paint_look.painted_settings(params, item))
 

@@ -21,6 +21,7 @@ import bpy
 from .. import atlas, look, slots, sward
 from .. import kinematics as kin
 from ..grid import FieldGrid
+from ..schema import Params
 from . import heads, maps, materials, meshes, owned, paint_look, textures, wind_force
 
 # --------------------------------------------------------------------------------------------
@@ -89,7 +90,7 @@ def field_materials(item):
 MATERIALS_DIGEST = "wg_materials"  # the collection's custom property: what its materials show
 
 
-def update_field_materials(item, params, scene=None, later: bool = False) -> bool:
+def update_field_materials(item, params: Params, scene=None, later: bool = False) -> bool:
     """Refresh the parameter-dependent values (eq 10 distances, colours, the card atlas) of the
     materials, and the cards' layer limit from ``scene``'s transparent bounces (Cycles); nothing
     when they already show these. ``later`` (an edit in the UI): when the look of ``params`` takes
@@ -100,10 +101,12 @@ def update_field_materials(item, params, scene=None, later: bool = False) -> boo
     reg = owned.registered(item)
     digest = f"{params.digest()}|{bounces}|" + ",".join(sorted(d.name for d in reg.values()
                                                                if isinstance(d, (bpy.types.Material, bpy.types.Image))))
+    own = heads.plant_shapes(params)  # (the artist's plants the cards draw: their triangles, read here)
+    digest += repr(own) if own else ""
     coll = item.collection
     if coll is not None and coll.get(MATERIALS_DIGEST) == digest:
         return True
-    if later and not look.ask(params):
+    if later and not look.ask(params, own):
         return False
     materials.update_materials(params, reg.get(owned.ROLE_CANOPY_MATERIAL))
     mats = [reg.get(role) for role in (owned.ROLE_BLADE_MATERIAL, owned.ROLE_CARD_MATERIAL, owned.ROLE_GROUND_MATERIAL,
@@ -116,7 +119,7 @@ def update_field_materials(item, params, scene=None, later: bool = False) -> boo
         materials.set_card_depth(reg.get(owned.ROLE_CARD_MATERIAL), cycles.transparent_max_bounces)
     image = reg.get(owned.ROLE_CARD_IMAGE)
     if isinstance(image, bpy.types.Image):
-        textures.paint_card_image(image, params)
+        textures.paint_card_image(image, params, own)
     gust_image = reg.get(owned.ROLE_GUST_IMAGE)
     if isinstance(gust_image, bpy.types.Image):
         textures.paint_gust_image(gust_image, params)
@@ -151,7 +154,7 @@ def _remove_objects(objects) -> None:
             bpy.data.meshes.remove(mesh)
 
 
-def build_slots(scene, item, params, heightfield=None, terrain_centre=None, look_later: bool = False) -> bool:
+def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=None, look_later: bool = False) -> bool:
     """(Re)create the ground and the blade/card slot objects of the field of ``params``
     (``slots.pool_shapes``); idempotent. ``heightfield``: its terrain in the field's frame (None:
     flat), ``terrain_centre``: the world XY the field is centred on over it. The collection records
@@ -230,7 +233,7 @@ def build_slots(scene, item, params, heightfield=None, terrain_centre=None, look
 GROUND_HEIGHTS = "wg_sward_heights"  # the ground mesh's custom property: (canopy, fringe top) it was made with
 
 
-def _sward_heights(params, ground, look_later: bool) -> tuple[float, float]:
+def _sward_heights(params: Params, ground, look_later: bool) -> tuple[float, float]:
     """(canopy height, fringe top) of the ground mesh of ``params``: with ``look_later`` (an edit
     in the UI) while the sward's look is still to be worked out, those the ground had (``refit_ground``
     makes it again once the look is ready)."""
@@ -240,7 +243,7 @@ def _sward_heights(params, ground, look_later: bool) -> tuple[float, float]:
     return sward.canopy_height(params), sward.fringe_top(params)
 
 
-def refit_ground(item, params, heightfield) -> bool:
+def refit_ground(item, params: Params, heightfield) -> bool:
     """Make the ground mesh again when it was made with other sward heights than those of
     ``params`` (an edit that changes the blades' rest shapes but not the objects, a stiffness; or
     ``_sward_heights``: built while its look was worked out); returns whether it did (the paint's
@@ -263,7 +266,7 @@ def refit_ground(item, params, heightfield) -> bool:
 HEADS_KEY = "wg_heads"  # the collection's custom property: heads.sources_key its heads' modifier draws
 
 
-def _build_heads(item, params, uid: str, base: str, blade_mat):
+def _build_heads(item, params: Params, uid: str, base: str, blade_mat):
     """The heads' and leaves' objects and node group for ``params`` (None: no species has any)."""
     blade_shape = slots.pool_shapes(FieldGrid.of(params), params)[0]
     stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
@@ -271,7 +274,7 @@ def _build_heads(item, params, uid: str, base: str, blade_mat):
     return heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
 
 
-def refresh_heads(item, params) -> bool:
+def refresh_heads(item, params: Params) -> bool:
     """Make the field's heads, leaves and plants again when what its species carry changed (a
     head shape, leaves, an Own Plant: ``heads.sources_key``), its slot objects kept; returns
     whether it did."""
@@ -290,7 +293,7 @@ def refresh_heads(item, params) -> bool:
     return True
 
 
-def topology(params, heightfield, painted: bool) -> str:
+def topology(params: Params, heightfield, painted: bool) -> str:
     """What the field's objects are built for: ``slots.topology_key`` and whether it is painted
     (its ground a grid, its canopy reading a paint map)."""
     key = slots.topology_key(FieldGrid.of(params), params, heightfield)
@@ -300,7 +303,7 @@ def topology(params, heightfield, painted: bool) -> str:
 class _SlotTopology:
     """What every slot object of a role holds: k copies of one block's quads (``slots.py``)."""
 
-    def __init__(self, grid, params, role: str):
+    def __init__(self, grid, params: Params, role: str):
         blade_shape, card_shape = slots.pool_shapes(grid, params)
         if role == owned.ROLE_BLADES:
             self.shape, faces, uvs = blade_shape, kin.blade_faces(grid), kin.blade_uvs(grid)
@@ -328,7 +331,7 @@ def slot_blocks(item) -> list:
     return objects + [obj.data for obj in objects]
 
 
-def slots_missing(item, params) -> bool:
+def slots_missing(item, params: Params) -> bool:
     """Whether the field lacks a slot object its settings give: an opened file has none (they are
     never saved, ``leave_out_of_files``), or the artist deleted one."""
     blade_shape, card_shape = slots.pool_shapes(FieldGrid.of(params), params)
@@ -339,7 +342,7 @@ def slots_missing(item, params) -> bool:
 GROUND_REFILL = "wg_refill"  # the ground mesh's custom property: its grid was emptied for a save
 
 
-def clear_ground(scene, item, params) -> bool:
+def clear_ground(scene, item, params: Params) -> bool:
     """Empty the ground grid of a painted field on flat ground before a save (133,000 vertices at
     the default 256 cells a side: the file would grow 13 times); ``fill_ground`` makes it again
     from the settings. A terrain's ground (it follows the terrain mesh) is kept as it is. Returns
@@ -355,7 +358,7 @@ def clear_ground(scene, item, params) -> bool:
     return True
 
 
-def fill_ground(item, params) -> bool:
+def fill_ground(item, params: Params) -> bool:
     """Make again the ground grid ``clear_ground`` emptied; returns whether it did (the paint's
     look on it is then to be written again)."""
     ground = owned.ground_object(item)
@@ -367,7 +370,7 @@ def fill_ground(item, params) -> bool:
     return True
 
 
-def fill_slots(item, params) -> bool:
+def fill_slots(item, params: Params) -> bool:
     """Give every empty slot mesh of the field its quads again (a file saved by Windgrass before
     slots were left out of files held them empty); returns whether any was filled (its positions
     are then to be written)."""

@@ -14,6 +14,7 @@ import json
 import numpy as np
 
 from .. import atlas, edit_parts, gusts, interaction, sward
+from ..schema import Params
 
 DIGEST_KEY = "wg_atlas"  # custom property of the image: the digest of what it was painted from
 
@@ -24,7 +25,7 @@ def linear_to_srgb(rgb: np.ndarray) -> np.ndarray:
     return np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1 / 2.4) - 0.055).astype(np.float32)
 
 
-def atlas_digest(params) -> str:
+def atlas_digest(params: Params) -> str:
     """What the atlas depends on: the field's blades, their colours and the cards' width (not the
     wind, the solver, LOD distances: ``edit_parts``)."""
     inputs = [edit_parts.digest_of(params, (edit_parts.LAYOUT, edit_parts.LOOK)), params.lod.card_width,
@@ -53,12 +54,13 @@ def ensure_card_image(name: str):
     return image
 
 
-def paint_card_image(image, params) -> None:
-    """Paint the atlas of ``params`` into ``image`` unless it already shows it."""
-    digest = atlas_digest(params)
+def paint_card_image(image, params: Params, own=None) -> None:
+    """Paint the atlas of ``params`` (with the artist's plants ``own``, ``plants.Plants``) into
+    ``image`` unless it already shows it."""
+    digest = atlas_digest(params) + (repr(own) if own else "")
     if image.get(DIGEST_KEY) == digest:
         return
-    pixels = atlas.card_atlas(params)
+    pixels = atlas.card_atlas(params, own=own) if own else atlas.card_atlas(params)
     # A byte image stores its colour-space values as they are: encode linear RGB to sRGB.
     pixels[..., :3] = linear_to_srgb(pixels[..., :3])
     image.pixels.foreach_set(np.ascontiguousarray(pixels).ravel())
@@ -106,7 +108,7 @@ def _write_grey(image, values: np.ndarray, alpha: np.ndarray | None = None) -> N
     image.pack()
 
 
-def paint_gust_image(image, params) -> None:
+def paint_gust_image(image, params: Params) -> None:
     """Write the gust pattern of the field's seed, wind direction and stretch into ``image`` unless
     it already holds it."""
     seed, direction, stretch = int(params.field.seed), float(params.wind.direction), float(params.wind.gust_stretch)
@@ -130,7 +132,7 @@ def ensure_patch_image(name: str):
     return _grey_image(name, None, float_buffer=False, alpha=True)
 
 
-def paint_patch_image(image, params) -> None:
+def paint_patch_image(image, params: Params) -> None:
     """Write the patches' tint and stands of the field's settings (its field and blade sections:
     what decides the species mix and the lengths) into ``image`` unless it already holds them; one
     pixel without patches."""

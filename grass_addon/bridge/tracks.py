@@ -31,6 +31,7 @@ from .. import collider_shapes, forces
 from ..clock import Clock
 from ..errors import ParameterError
 from ..interaction import SampledTrack
+from ..schema import Params
 from . import maps, owned
 from .animation import action_fcurves, fcurve_fingerprint
 from .registry import REGISTRY, key_of
@@ -102,7 +103,7 @@ def notes(item) -> list[str]:
 VERTICAL_WIND = math.cos(math.radians(25.0))  # a Wind within 25 degrees of straight up or down (as Blender adds one)
 
 
-def frame_range(scene, params) -> range:
+def frame_range(scene, params: Params) -> range:
     """The frames sampled: the recovery (or the simulation's warm-up) before the start, to the end."""
     fps = Clock.of(params).rate
     before = max(math.ceil(params.interaction.recovery * fps), math.ceil(params.simulation.preroll * fps))
@@ -157,7 +158,7 @@ def _field_settings(obj) -> list:
                                                  if f"field.{name}" not in keyed]
 
 
-def fingerprint(scene, item, params) -> str:
+def fingerprint(scene, item, params: Params) -> str:
     """What the stored track was sampled from: the frame range, the grass's reach and every
     collider's and force field's motion and settings."""
     colliders, effectors = collider_objects(item), effector_objects(item)
@@ -176,7 +177,7 @@ def fingerprint(scene, item, params) -> str:
     return hashlib.sha1(json.dumps(data, default=str).encode()).hexdigest()
 
 
-def _top(params) -> float:
+def _top(params: Params) -> float:
     """How high above the ground grass can reach (the longest species, twice as long by a length map)."""
     return 2.0 * max(float(sp["length"]) for sp in params.species())
 
@@ -222,7 +223,7 @@ SECONDS_PER_VERTEX = 1.5e-6  # and per vertex of a collider whose mesh is read e
 AUTO_SAMPLE_S = 2.0  # the window samples again by itself only when it takes about this long at most
 
 
-def sampling_seconds(scene, item, params) -> float:
+def sampling_seconds(scene, item, params: Params) -> float:
     """About how long sampling the field's motion takes: the frames, and the vertices of the
     colliders whose meshes are read every frame (not the large rigid ones)."""
     read = sum(len(o.data.vertices) if o.type == "MESH" else 10_000 for o in collider_objects(item)
@@ -282,7 +283,7 @@ def blender_turbulence(q: np.ndarray) -> np.ndarray:
     return forces.turbulence_vector(q, noise=_blender_perlin)
 
 
-def sample(scene, item, params, progress=None) -> dict:
+def sample(scene, item, params: Params, progress=None) -> dict:
     """Sample the field's colliders and force fields at every frame of ``frame_range``: the
     track to store (``store``). ``progress(done, total)`` after each frame. The scene is back at
     its frame afterwards."""
@@ -296,7 +297,7 @@ def sample(scene, item, params, progress=None) -> dict:
             progress(done, total)
 
 
-def sampling(scene, item, params):
+def sampling(scene, item, params: Params):
     """``sample`` a frame at a time: a generator yielding (done, total) after each frame and
     returning the track; closed early (Esc), it puts the scene back at its frame and keeps nothing."""
     colliders, effectors = collider_objects(item), effector_objects(item)
@@ -495,7 +496,7 @@ def effector_digest(item) -> str:
     return hashlib.sha1(text.encode()).hexdigest() if text else ""
 
 
-def status(scene, item, params) -> str | None:
+def status(scene, item, params: Params) -> str | None:
     """A line for the panel: what the stored motion is, or that it is out of date."""
     try:
         wanted = fingerprint(scene, item, params)

@@ -265,3 +265,73 @@ def test_grass_seed_heads_are_spikes_and_panicles_over_their_stems_tops(runtime,
         top = np.linalg.norm(shown[nearest, n - 1, 1] - shown[nearest, n - 1, 0], axis=1)
         root = np.linalg.norm(shown[nearest, 0, 1] - shown[nearest, 0, 0], axis=1)
         assert np.all(top < root), name  # the stem tapers under its seed head, unwidened
+
+
+def _bush(name: str, height: float = 0.25, radius: float = 0.03) -> bpy.types.Collection:
+    """The artist's own plant, made here: a red cone of ``radius`` at its top, ``height`` tall (a
+    bush spreading upwards), its point on the root, in a collection in no scene; red as an artist
+    makes it (the Principled BSDF's Base Color)."""
+    coll = bpy.data.collections.new(name)
+    ring = [(radius * np.cos(a), radius * np.sin(a), height) for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
+    faces = [(0, 1 + i, 1 + (i + 1) % 16) for i in range(16)] + [tuple(range(16, 0, -1))]
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(0.0, 0.0, 0.0)] + ring, [], faces)
+    material = bpy.data.materials.new(f"{name} red")
+    if material.node_tree is None:  # (Blender 4.5: a new material has no nodes until asked)
+        material.use_nodes = True
+    bsdf = next(n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.02, 0.02, 1.0)
+    mesh.materials.append(material)
+    coll.objects.link(bpy.data.objects.new(name, mesh))
+    return coll
+
+
+def _card_pixels(item) -> np.ndarray:
+    """(rows, columns, 4) the cards' atlas as Blender holds it (sRGB colours, straight alpha)."""
+    uid = item.collection["wg_uid"]
+    image = next(i for i in bpy.data.images if i.get("wg_uid") == uid and i.get("wg_role") == "card_image")
+    pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels.reshape(image.size[1], image.size[0], 4)
+
+
+def test_an_artists_own_plant_is_drawn_on_the_cards(runtime, settle):
+    """Far away the cards stand for the blades (paper III.B): a species drawn as the artist's own
+    plant, a red cone 0.25 m tall spreading to 6 cm (made here; Blender scales it to each stem's
+    length, 0.32 m on average: 7.7 cm wide), shows on the cards' atlas as that plant: red where the
+    blades' strips were green, opaque, as wide at its top as the cone stands on the stems (within
+    40 %: the stems' lengths vary), narrowing to a point at its root. The same field without it
+    shows no red."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    item = bpy.context.scene.windgrass.fields[0]
+    while len(item.blade.species) > 1:
+        item.blade.species.remove(len(item.blade.species) - 1)
+    item.field.blocks_x = item.field.blocks_y = 2
+    item.field.blades_per_cell = 1  # (a plant a card: its width is the plant's)
+    settle()
+
+    def red(pixels):
+        return (pixels[..., 0] > 0.5) & (pixels[..., 1] < 0.3) & (pixels[..., 3] > 0.5)
+
+    assert not red(_card_pixels(item)).any()
+    _bush("my bush")
+    item.blade.species[0].plant = "my bush"
+    item.blade.species[0].plant_mode = "plant"
+    settle()
+    pixels = _card_pixels(item)
+    size = pixels.shape[0]
+    seen = red(pixels)
+    assert seen.mean() > 0.05, seen.mean()
+    card = item.lod.card_width * item.field.cell_size  # m across a card
+    widths = []
+    for k in range(pixels.shape[1] // size):
+        variant = seen[:, k * size:(k + 1) * size]
+        rows = np.flatnonzero(variant.any(axis=1))
+        if len(rows) < 10:
+            continue
+        low, high = rows[:3], rows[-len(rows) // 4:]
+        widths.append((variant[high].sum(axis=1).max() / size * card, variant[low].sum(axis=1).mean() / size * card))
+    assert widths, "a variant shows the plant"
+    top, root = np.median(np.array(widths), axis=0)
+    wide = 2 * 0.03 * item.blade.species[0].length / 0.25
+    assert abs(top - wide) < 0.4 * wide and root < 0.3 * top, (top, root, wide, card)

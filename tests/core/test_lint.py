@@ -1,6 +1,7 @@
 """The repository stays ruff-clean (rules and their justified exceptions: ruff.toml), and the engine and
 the bridge type-check (mypy.ini)."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -25,3 +26,23 @@ def test_the_engine_and_the_bridge_type_check():
                             cwd=REPO, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "Success: no issues found" in result.stdout
+
+
+@pytest.mark.slow  # (a mypy run of its own, about 10 s)
+def test_a_misread_parameter_is_a_type_error(tmp_path):
+    """Every read of a parameter is checked (issue #58: the sections are typed, params_typed.py): a
+    misspelt setting and a setting read as what it is not are mypy errors; the right reads pass."""
+    code = ("from grass_addon.schema import Params\n"
+            "def speed(params: Params) -> float:\n    return params.wind.speed\n"
+            "def typo(params: Params) -> float:\n    return params.wind.sped\n"
+            "def kind(params: Params) -> int:\n    return params.wind.type\n"
+            "def row(params: Params) -> str:\n    return params.species()[0]['plant']\n")
+    probe = tmp_path / "probe.py"
+    probe.write_text(code)
+    result = subprocess.run([sys.executable, "-m", "mypy", "--config-file", "mypy.ini", "--cache-dir", "/dev/null",
+                             str(probe)], cwd=REPO, capture_output=True, text=True,
+                            env={**os.environ, "MYPYPATH": str(REPO)})
+    errors = [line for line in result.stdout.splitlines() if ": error:" in line]
+    assert len(errors) == 2, result.stdout
+    assert '"WindSection" has no attribute "sped"' in errors[0]
+    assert 'got "str", expected "int"' in errors[1]

@@ -211,3 +211,15 @@ def test_flags_put_into_a_scene_file_keep_the_wind_types_rules(file, flags, spee
     """Flags go into the scene file's text before it is read (issue #37 item 9); a flag's wind type
     still brings its preset speed unless the flags give one, as on top of a read file."""
     assert schema.from_dict(schema.merge_flags({"wind": file}, flags)).wind.speed == speed
+
+
+def test_the_typed_sections_are_the_schemas():
+    """params_typed.py, the types mypy checks the reads of parameters with, is the schema's as it is
+    now (``python3.11 dev.py params`` writes it again): a section class per section, an attribute
+    per parameter, a TypedDict per table's rows."""
+    from pathlib import Path
+
+    written = (Path(schema.__file__).with_name("params_typed.py")).read_text()
+    assert written == schema.typed_source(), "run python3.11 dev.py params"
+    assert "    speed: float\n" in written and "class BladeSpeciesRow(TypedDict):" in written
+    assert written.count("Section(Section):") == len(schema.SECTIONS)

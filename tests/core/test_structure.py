@@ -230,3 +230,30 @@ def test_a_second_record_and_a_raised_flag_are_seen(tmp_path):
     assert _records(tmp_path) == {"state.FieldState": {"error", "terrain"}}
     assert _flags_set_outside(tmp_path, "state.py") == ["edit.py:2 .dirty"]
     assert _record_writes(tmp_path, "state.py", {"frame", "dirty"}) == ["edit.py:2 .dirty", "edit.py:3 .frame"]
+
+
+def _untyped_settings(paths) -> list[str]:
+    """Functions of ``paths`` with an argument ``params`` that carries no type."""
+    found = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                args = node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+                if any(a.arg == "params" and a.annotation is None for a in args):
+                    found.append(f"{path.name}:{node.lineno} {node.name}")
+    return found
+
+
+def test_every_settings_argument_of_the_engine_and_bridge_is_typed():
+    """mypy checks a read of a parameter (``params.wind.speed``, against params_typed.py) where the
+    settings are typed: every argument called ``params`` in grass_addon is (issue #58: 106 were
+    not, so their reads went unchecked). The decorators that pass any function's settings on
+    (``edit_parts``) are the exception."""
+    paths = [p for p in (REPO / "grass_addon").rglob("*.py") if p.name != "edit_parts.py"]
+    assert not _untyped_settings(paths)
+
+
+def test_an_untyped_settings_argument_is_seen(tmp_path):
+    path = tmp_path / "module.py"
+    path.write_text("def f(layout, params, n: int = 1):\n    return params.wind.speed\n")
+    assert _untyped_settings([path]) == ["module.py:1 f"]

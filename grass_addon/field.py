@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import clearance, edit_parts, forces, interaction, kinematics, loop, slots, wind_map
+from . import clearance, edit_parts, forces, interaction, loop, slots, wind_map
 from .blocks import BlockCache, Species
 from .celldata import CellData
 from .clock import Clock
@@ -34,6 +34,8 @@ from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .layout import FieldLayout, build_layout, window_layout
 from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, screen_scale, views
+from .roles import BY_NAME as ROLE_OF
+from .roles import ROLES, Role
 from .schema import Params
 from .simulation import Simulation
 from .wind import WindField
@@ -60,7 +62,7 @@ class FieldModel:
     @classmethod
     def of(cls, params: Params) -> FieldModel:
         grid = FieldGrid.of(params)
-        return cls(params, Clock.of(params), grid, dict(zip((BLADES, CARDS), slots.pool_shapes(grid, params))),
+        return cls(params, Clock.of(params), grid, slots.pool_shapes(grid, params),
                    grid.n_blocks * grid.cells_per_block ** 2 <= WHOLE_FIELD_CELLS, loop.loop_frames(params))
 
 
@@ -115,7 +117,7 @@ class GrassField:
         self.effectors = None
         self._progress = progress  # (done, total) of a long seek, or None
         self._twin = False  # a twin not yet retuned: it shares its simulation with its original
-        self._colours: tuple[object, dict] = (None, {})  # (window, its blade slots' colours: RoleFrame.colours)
+        self._colours: tuple[object, dict] = (None, {})  # (window, {role: its slots' data kept: RoleFrame.colours})
         self._map_kept: tuple | None = None  # (window, map grid, the field map's parts: _map_static)
         self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
@@ -458,10 +460,10 @@ class GrassField:
             lod = lod_fewer(lod, amount)
         distance = block_distance(self.layout, lod, views)
         motion = blur or subframe != 0.0
-        blades, cards = (self._role_frame(role, frame, subframe, lod, distance, motion) for role in (BLADES, CARDS))
+        parts = {role.name: self._role_frame(role, frame, subframe, lod, distance, motion) for role in ROLES}
         t = self.clock.seconds(frame, subframe)
         gust = self._gust(frame, subframe) if self.params.wind.gust_waves > 0.0 else None
-        return Frame(frame, subframe, t, lod, blades, cards, gust, self._trail(frame, views))
+        return Frame(frame, subframe, t, lod, parts, gust, self._trail(frame, views))
 
     def _gust(self, frame: int, subframe: float) -> tuple:
         """What the far grass's gust shading reads at ``frame + subframe``: (displacement, mean
@@ -476,16 +478,16 @@ class GrassField:
         tau, w = loop.phase(t, wind.loop)
         return wind.displacement(tau), wind.mean(tau)[0], wind.displacement(tau - wind.loop), loop.weights(w)
 
-    def _role_frame(self, role: str, frame: int, subframe: float, lod, distance, motion: bool) -> RoleFrame:
+    def _role_frame(self, role: Role, frame: int, subframe: float, lod, distance, motion: bool) -> RoleFrame:
         """One role's blocks (the nearest that need it, up to the pool's positions, in block
         order), their vertices and, with ``motion``, velocities."""
-        shape, layout = self.shapes[role], self.layout
-        chosen = slots.nearest_blocks(needs(role, layout, lod), distance, shape.positions)
+        shape, layout = self.shapes[role.name], self.layout
+        chosen = slots.nearest_blocks(needs(role.name, layout, lod), distance, shape.positions)
         shown = slots.assign_positions(shape.positions, layout.block_ids[chosen])
         count = len(chosen)
         local = np.full(shown.shape, slots.FREE, dtype=np.int64)
         local[:count] = np.searchsorted(layout.block_ids, shown[:count])
-        buffers = self._role_buffers(role)
+        buffers = self._role_buffers(role.name)
         vertices, velocity = buffers.vertices, None
         rows = count * shape.verts_per_block
         blocks = local[:count]
@@ -503,17 +505,23 @@ class GrassField:
             fill(frame, self.cells, vertices[:rows])
         vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
         buffers.rows = rows
-        if self._colours[0] is not layout or len(self._colours[1]) > 4 * shape.objects:
-            self._colours = (layout, {})  # (kept while the window and its blocks' slots hold)
-        return RoleFrame(role, shape, layout, lod, shown, local, count, vertices, velocity,
-                         colours=self._colours[1] if role == BLADES else None)
+        kept = None
+        if role.data_by_blocks:  # (kept while the window and its blocks' slots hold)
+            if self._colours[0] is not layout:
+                self._colours = (layout, {})
+            kept = self._colours[1].setdefault(role.name, {})
+            if len(kept) > 4 * shape.objects:
+                kept = self._colours[1][role.name] = {}
+        return RoleFrame(role.name, shape, layout, lod, shown, local, count, vertices, velocity, colours=kept)
 
     def prepare_frame(self, frame: int, views=None) -> None:
         """Work out ``frame`` seen from ``views`` ahead (a background build, ``bridge/builds.py``):
-        its state and the colours of every blade slot, so that writing it after is quick."""
-        blades = self.frame(frame, 0.0, views).blades
-        for index in range(blades.shape.objects):
-            blades.attributes(index, True)
+        its state and the data of every slot kept by its blocks (the blades' colours and marks), so
+        that writing it after is quick."""
+        for part in self.frame(frame, 0.0, views).roles():
+            if ROLE_OF[part.role].data_by_blocks:
+                for index in range(part.shape.objects):
+                    part.attributes(index, True)
 
     def _role_buffers(self, role: str) -> _RoleBuffers:
         """``role``'s frame arrays (made at first use)."""
@@ -612,8 +620,8 @@ class GrassField:
         lod, reach = self.params.lod, block_reach(self.params)[0]
         distance = self._seen_distances(cams, lod.card_far * scale + reach)
         room = self.cache.capacity() // 2  # (the window's margin and the blocks kept around it)
-        for far, positions in ((lod.blade_far, self.shapes[BLADES].positions),
-                               (lod.card_far, min(self.shapes[CARDS].positions, room))):
+        for role in ROLES:  # (the cards' window is also bounded by the block cache: ``room``)
+            far, positions = float(getattr(lod, role.far)), min(self.shapes[role.name].positions, room)
             if far > 0.0 and len(distance) > positions and distance[positions] < far * scale:
                 scale = float(distance[positions]) / far  # (the nearest ``positions`` blocks: those nearer)
         return max(1.0, scale)
@@ -646,22 +654,19 @@ class GrassField:
 
     # ------------------------------------------------------------------ geometry
 
-    def _fill(self, role: str, frame: int, cells: CellData, blocks, lod, out):
-        """The vertices of ``blocks`` (local ids) of ``role`` for ``cells`` of ``frame``, as drawn:
-        blades hidden beyond N (eq 9) and bent out of the colliders; cards of bare cells collapsed."""
+    def _fill(self, role: Role, frame: int, cells: CellData, blocks, lod, out):
+        """The vertices of ``blocks`` (local ids) of ``role`` for ``cells`` of ``frame``, as drawn
+        (``roles.Role``): blades hidden beyond N (eq 9) and bent out of the colliders; cards of
+        bare cells collapsed."""
         blocks = np.asarray(blocks, np.int64).reshape(-1)
-        if role == BLADES:
-            out = kinematics.blade_vertices(self.layout, cells, blocks, None if lod is None else lod.blade_count, out)
-            if self.interaction is not None:
-                self._clear_colliders(self.interaction, frame, blocks, out)
-            return out
-        out = kinematics.card_vertices(self.layout, cells, blocks, out)
+        out = role.vertices(self.layout, cells, blocks, lod, out)
+        if role.cleared and self.interaction is not None:
+            self._clear_colliders(self.interaction, frame, blocks, out)
         density = self.layout.cell_density
-        if density is not None and len(blocks):
-            # a cell where nothing grows has no card at all: collapsed, so rays do not cross it
-            # (many see-through cards along a path would use up a renderer's transparent layers)
+        if role.bare_collapsed and density is not None and len(blocks):
+            # a cell where nothing grows shows nothing: its quad collapsed onto its first corner
             bare = density[self.layout.block_cells[blocks]] <= 0.0
-            quads = out.reshape(len(blocks), self.layout.cells_per_block_total, 4, 3)
+            quads = out.reshape(len(blocks), self.layout.cells_per_block_total, -1, 3)
             quads[bare] = quads[bare][:, :1]
         return out
 
@@ -690,9 +695,9 @@ class GrassField:
     def blade_vertices(self, blocks, lod: LodWeights | None = None, out: np.ndarray | None = None) -> np.ndarray:
         """Blade strip vertices of ``blocks`` at the current frame as drawn (``_fill``)."""
         frame, cells = self._current()
-        return self._fill(BLADES, frame, cells, blocks, lod, out)
+        return self._fill(ROLE_OF[BLADES], frame, cells, blocks, lod, out)
 
     def card_vertices(self, blocks, out: np.ndarray | None = None) -> np.ndarray:
         """Card vertices of ``blocks`` at the current frame (paper III.B, eq 34), bare cells collapsed."""
         frame, cells = self._current()
-        return self._fill(CARDS, frame, cells, blocks, None, out)
+        return self._fill(ROLE_OF[CARDS], frame, cells, blocks, None, out)

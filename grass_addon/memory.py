@@ -72,8 +72,7 @@ def estimate(params: Params, grid: FieldGrid | None = None, resolve=str) -> Esti
     """What a field of ``params`` takes in Blender at most (bytes), from its parameters and the
     headers of its PNG maps (``resolve``: see ``maps_bytes``)."""
     grid = grid or FieldGrid.of(params)
-    blades, cards = slots.pool_shapes(grid, params)
-    vertices = blades.positions * blades.verts_per_block + cards.positions * cards.verts_per_block
+    vertices = sum(shape.positions * shape.verts_per_block for shape in slots.pool_shapes(grid, params).values())
     buffers = vertices * 12 * 3  # float32 xyz: the frame's vertices, velocities and the later pose
     window = slots.blocks_within(grid, params.lod.card_far + block_reach(params)[0] + 2 * grid.block_size)
     if not params.lod.enabled:

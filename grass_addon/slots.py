@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import atlas
+from .roles import ROLES
 from .schema import Params
 
 FREE = -1  # a position that shows nothing
@@ -28,16 +29,6 @@ UNKNOWN = -2  # what a position shows is not known (new pool, undo, reopened fil
 # object (default blades 6144 vertices per block: k = 4; cards 1024: k = 24). Fewer, larger
 # objects cut Blender's per-object cost (one write, one update, one evaluation per object).
 SLOT_VERTEX_BUDGET = 24576
-
-
-def blade_vertex_count(layout) -> int:
-    """Vertices of one block of blades: per blade n + 1 joints, each [left, right]."""
-    return layout.blades_per_block * (layout.segments + 1) * 2
-
-
-def card_vertex_count(layout) -> int:
-    """Vertices of one block of cards: one quad per cell."""
-    return layout.cells_per_block_total * 4
 
 
 def blocks_within(layout, distance: float) -> int:
@@ -52,14 +43,19 @@ def blocks_within(layout, distance: float) -> int:
     return int(min(layout.blocks_x * layout.blocks_y, math.ceil(math.pi * radius * radius / (edge * edge))))
 
 
-def pool_blocks(layout, params: Params) -> tuple[int, int]:
-    """(blade blocks, card blocks) the two pools must show at once. LOD off: every block is
-    geometry and no card is drawn."""
-    lod = params.lod
-    if not lod.enabled:
-        return (layout.blocks_x * layout.blocks_y if layout.blades_per_block else 0), 0
-    blades = blocks_within(layout, lod.blade_far) if layout.blades_per_block else 0
-    return blades, blocks_within(layout, lod.card_far)
+def pool_blocks(layout, params: Params) -> dict[str, int]:
+    """{role: blocks} each role's pool must show at once (``roles.ROLES``): those within its
+    ``Role.far``; LOD off: every block for the roles drawn then (blades), none for the others. A
+    field without blades has nothing in its blade pool."""
+    lod, out = params.lod, {}
+    for role in ROLES:
+        if not role.vertices_per_block(layout):
+            out[role.name] = 0
+        elif not lod.enabled:
+            out[role.name] = layout.blocks_x * layout.blocks_y if role.without_lod else 0
+        else:
+            out[role.name] = blocks_within(layout, float(getattr(lod, role.far)))
+    return out
 
 
 @dataclass(frozen=True)
@@ -86,18 +82,18 @@ class PoolShape:
         return self.k * self.verts_per_block
 
 
-def pool_shapes(layout, params: Params) -> tuple[PoolShape, PoolShape]:
-    """(blades, cards) pool shapes of a field."""
-    blades, cards = pool_blocks(layout, params)
-    return PoolShape.of(blade_vertex_count(layout), blades), PoolShape.of(card_vertex_count(layout), cards)
+def pool_shapes(layout, params: Params) -> dict[str, PoolShape]:
+    """{role: its pool's shape} of a field (``roles.ROLES``)."""
+    blocks = pool_blocks(layout, params)
+    return {role.name: PoolShape.of(role.vertices_per_block(layout), blocks[role.name]) for role in ROLES}
 
 
 def topology_key(grid, params: Params, terrain=None) -> str:
     """What a field's slot objects are built for (``grid``: the field's ``FieldGrid`` or a layout;
     ``terrain``: its heightfield or None); they are rebuilt when it changes."""
-    blades, cards = pool_shapes(grid, params)
+    shapes = pool_shapes(grid, params)
     return json.dumps([grid.blades_per_block, grid.segments, grid.cells_per_block, atlas.UV_LAYOUT,
-                       [blades.objects, blades.k], [cards.objects, cards.k],
+                       *([shapes[role.name].objects, shapes[role.name].k] for role in ROLES),
                        [round(float(v), 6) for v in grid.size],
                        terrain.fingerprint() if terrain is not None else "flat"])
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from .. import loop
+from .. import loop, roles
 from ..errors import WindgrassError
 from ..folders import ensure_writable
 from . import animation, heads, owned, usd_finish
@@ -40,7 +40,7 @@ from .registry import REGISTRY, key_of
 
 RECORD = "wg_bake"
 MODIFIER = "Windgrass bake"
-ROLES = (owned.ROLE_BLADES, owned.ROLE_CARDS)
+ROLES = roles.NAMES
 # The formats a bake writes: (file extension, the build option Blender needs, the name shown).
 FORMATS = {"alembic": (".abc", "alembic", "Alembic"), "usd": (".usdc", "usd", "USD")}
 USD_SINCE = (5, 0, 0)  # the oldest Blender whose USD writer samples a moving mesh's extent each frame (tested)
@@ -139,8 +139,7 @@ def check(scene, item, first: int, last: int, fmt: str = "alembic") -> Path:
     missing = missing_build_feature(fmt)
     if missing:
         raise BakeError(missing)
-    if item.collection is None or not owned.slot_objects(item, owned.ROLE_BLADES) and \
-            not owned.slot_objects(item, owned.ROLE_CARDS):
+    if item.collection is None or not any(owned.slot_objects(item, role) for role in ROLES):
         raise BakeError(f"bake: field '{item.name}' has no objects; add or rebuild it first")
     if scene.camera is None:
         raise BakeError("bake: the scene has no camera (the bake holds what the camera sees; set Scene > Camera)")
@@ -376,7 +375,7 @@ class Baker:
         for frame in sorted({self.first, (self.first + self.last) // 2, self.last}):
             self.scene.frame_set(frame)
             rt = REGISTRY.built(key_of(self.scene, self.item))
-            if rt is not None and (len(rt.blades.blocks) or len(rt.cards.blocks)):
+            if rt is not None and any(len(pool.blocks) for pool in rt.pools.values()):
                 return True
         return False
 

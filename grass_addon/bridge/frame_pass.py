@@ -15,6 +15,7 @@ import traceback
 import bpy
 import numpy as np
 
+from .. import roles
 from ..errors import WindgrassError
 from . import bake, builds, materials, owned, paint_look, pools, textures, wind_force
 from . import camera as field_camera
@@ -36,8 +37,8 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
                            blur=bool(scene.render.use_motion_blur), amount=amount)
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
-    rt.blades.write(item, shown.blades)
-    rt.cards.write(item, shown.cards)
+    for part in shown.roles():
+        rt.pools[part.role].write(item, part)
     scale = float(getattr(shown.lod, "scale", 1.0))  # the screen's scale of the LOD distances (no LOD: 1)
     if scale != 1.0 or rt.lod_scale != 1.0:
         materials.set_lod_scale(rt.params, owned.registered(item).get(owned.ROLE_CANOPY_MATERIAL), scale)
@@ -128,7 +129,7 @@ def guarded(work, scene, item, *args, camera_moved_only: bool = False, **kw) -> 
             kw["camera_moved_only"] = True
         work(scene, item, *args, **kw)
     except builds.BuildPending:  # (its objects may be built for the new settings already: collapsed as they are)
-        for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
+        for role in roles.NAMES:
             pools.collapse_objects(owned.slot_objects(item, role).values())
         REGISTRY.live(key).slots_changed()
         REGISTRY.live(key).no_error()  # (its settings were read: the engine is being made for them)
@@ -155,9 +156,9 @@ def hide(scene, item) -> None:
     """Collapse every slot of the field to a point (nothing drawn) and forget what they showed."""
     rt = get_runtime(scene, item)
     if rt is not None:
-        rt.blades.collapse(item)
-        rt.cards.collapse(item)
+        for pool in rt.pools.values():
+            pool.collapse(item)
         rt.unwritten()
         return
-    for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
+    for role in roles.NAMES:
         pools.collapse_objects(owned.slot_objects(item, role).values())

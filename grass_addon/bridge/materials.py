@@ -23,7 +23,7 @@ import warnings
 import bpy
 import numpy as np
 
-from .. import edit_parts, gusts, sward
+from .. import edit_parts, gusts, roles, sward
 from ..grid import FieldGrid
 from ..schema import Params
 from . import textures
@@ -31,6 +31,7 @@ from . import textures
 UV_TINT_RG = "wg_tint_rg"
 UV_TINT_BS = "wg_tint_bs"
 UV_FADE = "wg_fade"
+UV_OF = {roles.TINT_RG: UV_TINT_RG, roles.TINT_BS: UV_TINT_BS, roles.FADE: UV_FADE}  # a role's corner data's UV map
 UV_SWARD_Z = "wg_sward_z"  # ground mesh: (1 on the fringe, height above the ground) of the canopy
 ATTR_VELOCITY = "velocity"  # m/s per point: motion blur of a mesh rewritten from Python
 

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import bpy
 
+from .. import roles
+
 ROLE_COLLECTION = "collection"
 ROLE_GROUND = "ground"
-ROLE_BLADES = "blades"
-ROLE_CARDS = "cards"
+ROLE_BLADES = roles.BLADES  # the slot objects' roles: one a level of detail (roles.py)
+ROLE_CARDS = roles.CARDS
 ROLE_BLADE_MATERIAL = "blade_material"
 ROLE_CARD_MATERIAL = "card_material"
 ROLE_GROUND_MATERIAL = "ground_material"
@@ -164,7 +166,7 @@ def orphans(scene) -> list:
     for s in bpy.data.scenes:
         for item in scene_fields(s):
             recorded |= {o.as_pointer() for o in registered(item).values() if isinstance(o, bpy.types.Object)}
-    return [obj for obj in scene.objects if obj.get("wg_role") in (ROLE_GROUND, ROLE_BLADES, ROLE_CARDS)
+    return [obj for obj in scene.objects if obj.get("wg_role") in (ROLE_GROUND, *roles.NAMES)
             and obj.as_pointer() not in recorded]
 
 

@@ -17,7 +17,7 @@ from . import heads, materials, owned
 from .registry import warn_once
 
 # the UV map each engine attribute is written to
-UV_OF = {frames.TINT_RG: materials.UV_TINT_RG, frames.TINT_BS: materials.UV_TINT_BS, frames.FADE: materials.UV_FADE}
+UV_OF = materials.UV_OF
 
 
 def write_positions(mesh, verts: np.ndarray) -> None:

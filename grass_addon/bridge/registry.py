@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from ..roles import BLADES, CARDS
+
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..field import GrassField
@@ -27,8 +29,8 @@ def key_of(scene, item) -> Key:
 
 @dataclass(frozen=True, eq=False)
 class Engine:
-    """A field's engine (``GrassField``), its two slot pools and what it was built from (one
-    ``resolve._build``): a new one replaces it whole."""
+    """A field's engine (``GrassField``), its slot pools (one a role, ``roles.ROLES``) and what it
+    was built from (one ``resolve._build``): a new one replaces it whole."""
 
     field: GrassField
     params: Params  # validated, with the scene's clock (without the animated wind's values)
@@ -38,8 +40,15 @@ class Engine:
     wind_keys: tuple | None
     terrain_key: str  # maps.terrain_key of the terrain the engine grows on ("" for none)
     topology: str  # slots.topology_key: what the slot objects must be built for
-    blades: SlotPool
-    cards: SlotPool
+    pools: dict[str, SlotPool]  # role -> its slot pool
+
+    @property
+    def blades(self) -> SlotPool:
+        return self.pools[BLADES]
+
+    @property
+    def cards(self) -> SlotPool:
+        return self.pools[CARDS]
 
 
 @dataclass(eq=False)
@@ -115,6 +124,11 @@ class LiveField:
     @property
     def wind_keys(self) -> tuple | None:
         return self.resolved.wind_keys
+
+    @property
+    def pools(self) -> dict[str, SlotPool]:
+        """Its slot pools, one a role (``roles.ROLES``)."""
+        return self.resolved.pools
 
     @property
     def blades(self) -> SlotPool:
@@ -251,8 +265,8 @@ class LiveField:
     def slots_changed(self) -> None:
         """Its slot meshes hold something else now (rebuilt, undo): the pools write every slot."""
         if self.engine is not None:
-            self.engine.blades.state.forget()
-            self.engine.cards.state.forget()
+            for pool in self.engine.pools.values():
+                pool.state.forget()
         self.frame = None
 
     def building_percent(self) -> int | None:

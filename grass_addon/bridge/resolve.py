@@ -225,9 +225,9 @@ def _retuned(live: LiveField, base: Engine, field: GrassField, inputs: Inputs, p
     """``field``, the engine ``base``'s field retuned to ``inputs`` (or its twin), becomes the
     record's engine; the pools of ``base`` are kept while the objects' topology holds."""
     same = base.topology == inputs.topology
-    blades, cards = (base.blades, base.cards) if same else _pools(field)
+    kept = base.pools if same else _pools(field)
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
-                            inputs.wind_keys, inputs.terrain_key, inputs.topology, blades=blades, cards=cards),
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, kept),
                      painted, inputs.track, kept=True)
 
 
@@ -272,10 +272,9 @@ def _take_retuned(live: LiveField, inputs: Inputs, wait: bool, name: str) -> Non
         _retuned(live, base, job.made, made_for, job.painted)
 
 
-def _pools(field: GrassField) -> tuple[pools.SlotPool, pools.SlotPool]:
-    """New slot pools (blades, cards) for the engine ``field``'s shapes."""
-    return (pools.SlotPool(owned.ROLE_BLADES, field.shapes[owned.ROLE_BLADES]),
-            pools.SlotPool(owned.ROLE_CARDS, field.shapes[owned.ROLE_CARDS]))
+def _pools(field: GrassField) -> dict[str, pools.SlotPool]:
+    """New slot pools, one a role, for the engine ``field``'s shapes."""
+    return {role: pools.SlotPool(role, shape) for role, shape in field.shapes.items()}
 
 
 def _make(inputs: Inputs, progress) -> GrassField:
@@ -293,7 +292,7 @@ def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str) -> N
     """``field`` becomes the record's engine, with new slot pools."""
     field.report_progress(_seek_progress(name))
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
-                            inputs.wind_keys, inputs.terrain_key, inputs.topology, *_pools(field)),
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, _pools(field)),
                      inputs.painted, inputs.track)
 
 

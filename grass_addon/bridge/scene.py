@@ -18,8 +18,7 @@ from __future__ import annotations
 
 import bpy
 
-from .. import atlas, look, slots, sward
-from .. import kinematics as kin
+from .. import look, roles, slots, sward
 from ..grid import FieldGrid
 from ..schema import Params
 from . import heads, maps, materials, meshes, owned, paint_look, textures, wind_force
@@ -207,7 +206,9 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
             del coll["wg_terrain"]
 
     head_tree = _build_heads(item, params, uid, base, blade_mat)
-    for role, material in ((owned.ROLE_BLADES, blade_mat), (owned.ROLE_CARDS, card_mat)):
+    material_of = {owned.ROLE_BLADES: blade_mat, owned.ROLE_CARDS: card_mat}
+    for entry in roles.ROLES:
+        role, material = entry.name, material_of[entry.name]
         spec = _SlotTopology(grid, params, role)
         first = None
         for i in range(spec.shape.objects):  # once per build, not per frame
@@ -219,7 +220,7 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
                 mesh.name = f"{base} {role} {i:03d}"
             obj = bpy.data.objects.new(mesh.name, mesh)
             obj.visible_shadow = True
-            if head_tree is not None and role == owned.ROLE_BLADES:
+            if head_tree is not None and entry.heads:
                 heads.attach(obj, head_tree)
             owned.tag(obj, uid, role, i)
             owned.tag(mesh, uid, role, i)
@@ -268,7 +269,7 @@ HEADS_KEY = "wg_heads"  # the collection's custom property: heads.sources_key it
 
 def _build_heads(item, params: Params, uid: str, base: str, blade_mat):
     """The heads' and leaves' objects and node group for ``params`` (None: no species has any)."""
-    blade_shape = slots.pool_shapes(FieldGrid.of(params), params)[0]
+    blade_shape = slots.pool_shapes(FieldGrid.of(params), params)[owned.ROLE_BLADES]
     stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
     item.collection[HEADS_KEY] = heads.sources_key(params)
     return heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
@@ -301,16 +302,14 @@ def topology(params: Params, heightfield, painted: bool) -> str:
 
 
 class _SlotTopology:
-    """What every slot object of a role holds: k copies of one block's quads (``slots.py``)."""
+    """What every slot object of a role holds: k copies of one block's quads (``slots.py``,
+    ``roles.Role``)."""
 
     def __init__(self, grid, params: Params, role: str):
-        blade_shape, card_shape = slots.pool_shapes(grid, params)
-        if role == owned.ROLE_BLADES:
-            self.shape, faces, uvs = blade_shape, kin.blade_faces(grid), kin.blade_uvs(grid)
-            self.data_uvs: tuple[str, ...] = (materials.UV_TINT_RG, materials.UV_TINT_BS)
-        else:
-            self.shape, faces, uvs = card_shape, kin.card_faces(grid), atlas.card_uvs(grid)
-            self.data_uvs = (materials.UV_FADE,)
+        entry = roles.BY_NAME[role]
+        self.shape = slots.pool_shapes(grid, params)[role]
+        faces, uvs = entry.faces(grid), entry.uvs(grid)
+        self.data_uvs: tuple[str, ...] = tuple(materials.UV_OF[name] for name in entry.corner_data)
         self.faces, self.uvs = slots.tiled_topology(faces, uvs, self.shape.verts_per_block, self.shape.k)
         self.attributes = {materials.ATTR_VELOCITY: "FLOAT_VECTOR"}
 
@@ -327,16 +326,15 @@ def leave_out_of_files(blocks, out: bool = True) -> None:
 
 def slot_blocks(item) -> list:
     """The field's slot objects and their meshes."""
-    objects = [obj for role in (owned.ROLE_BLADES, owned.ROLE_CARDS) for obj in owned.slot_objects(item, role).values()]
+    objects = [obj for role in roles.NAMES for obj in owned.slot_objects(item, role).values()]
     return objects + [obj.data for obj in objects]
 
 
 def slots_missing(item, params: Params) -> bool:
     """Whether the field lacks a slot object its settings give: an opened file has none (they are
     never saved, ``leave_out_of_files``), or the artist deleted one."""
-    blade_shape, card_shape = slots.pool_shapes(FieldGrid.of(params), params)
-    return (len(owned.slot_objects(item, owned.ROLE_BLADES)) < blade_shape.objects
-            or len(owned.slot_objects(item, owned.ROLE_CARDS)) < card_shape.objects)
+    shapes = slots.pool_shapes(FieldGrid.of(params), params)
+    return any(len(owned.slot_objects(item, role)) < shape.objects for role, shape in shapes.items())
 
 
 GROUND_REFILL = "wg_refill"  # the ground mesh's custom property: its grid was emptied for a save
@@ -375,7 +373,7 @@ def fill_slots(item, params: Params) -> bool:
     slots were left out of files held them empty); returns whether any was filled (its positions
     are then to be written)."""
     grid, filled = FieldGrid.of(params), False
-    for role in (owned.ROLE_BLADES, owned.ROLE_CARDS):
+    for role in roles.NAMES:
         objects = owned.slot_objects(item, role)
         empty = [obj for obj in objects.values() if not len(obj.data.vertices)]
         if not empty:

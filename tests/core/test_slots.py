@@ -24,7 +24,7 @@ def test_pool_size_bounds_every_camera_position():
         dy = np.maximum(np.maximum(b[:, 1] - y, y - b[:, 3]), 0.0)
         worst = max(worst, int((np.hypot(dx, dy) <= params.lod.blade_far).sum()))
     assert worst <= pool
-    assert slots.pool_blocks(layout, params.replace({"lod.enabled": False})) == (layout.n_blocks, 0)
+    assert slots.pool_blocks(layout, params.replace({"lod.enabled": False})) == {"blades": layout.n_blocks, "cards": 0}
 
 
 def test_objects_hold_k_blocks_and_cover_the_pool():
@@ -32,10 +32,11 @@ def test_objects_hold_k_blocks_and_cover_the_pool():
     cost in Blender); objects * k positions still hold every block the pool needs."""
     params = schema.defaults().replace({"field.blocks_x": 14, "field.blocks_y": 14})
     layout = build_layout(params)
-    verts = (slots.blade_vertex_count(layout), slots.card_vertex_count(layout))
+    verts = {"blades": layout.blades_per_block * (layout.segments + 1) * 2, "cards": layout.cells_per_block_total * 4}
     for p in (params, params.replace({"lod.enabled": False})):
-        blocks = slots.pool_blocks(layout, p)
-        for shape, need, v in zip(slots.pool_shapes(layout, p), blocks, verts):
+        blocks, shapes = slots.pool_blocks(layout, p), slots.pool_shapes(layout, p)
+        for role, v in verts.items():
+            shape, need = shapes[role], blocks[role]
             if need == 0:
                 assert shape.objects == 0
                 continue
@@ -44,7 +45,8 @@ def test_objects_hold_k_blocks_and_cover_the_pool():
             assert shape.positions - shape.k < need <= shape.positions  # no object more than needed
     # Defaults: 512 blades of 12 vertices (6144) per block: 4 blocks per object; LOD off, the
     # 196 blocks of the field take 49 objects instead of 196.
-    blades, cards = slots.pool_shapes(layout, params.replace({"lod.enabled": False}))
+    shapes = slots.pool_shapes(layout, params.replace({"lod.enabled": False}))
+    blades, cards = shapes["blades"], shapes["cards"]
     assert (blades.k, blades.objects, cards.objects) == (4, 49, 0)
     faces, uvs = slots.tiled_topology(np.array([[0, 1, 3, 2]]), np.zeros((4, 2), np.float32), 6, 3)
     assert faces.tolist() == [[0, 1, 3, 2], [6, 7, 9, 8], [12, 13, 15, 14]] and uvs.shape == (12, 2)

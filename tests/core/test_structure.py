@@ -257,3 +257,38 @@ def test_an_untyped_settings_argument_is_seen(tmp_path):
     path = tmp_path / "module.py"
     path.write_text("def f(layout, params, n: int = 1):\n    return params.wind.speed\n")
     assert _untyped_settings([path]) == ["module.py:1 f"]
+
+
+_ROLE_NAMES = {"BLADES", "CARDS", "ROLE_BLADES", "ROLE_CARDS"}
+
+
+def _role_branches(paths) -> list[str]:
+    """Where code outside ``roles.py`` tells the levels of detail apart by name: a comparison with
+    one of them, or both listed side by side (a loop over two of them)."""
+    found = []
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, (ast.Compare, ast.Tuple)):
+                continue
+            names = {n.id if isinstance(n, ast.Name) else n.attr for n in ast.walk(node)
+                     if isinstance(n, (ast.Name, ast.Attribute))}
+            if isinstance(node, ast.Compare) and names & _ROLE_NAMES:
+                found.append(f"{path.name}:{node.lineno} compares a role by name")
+            elif isinstance(node, ast.Tuple) and len(names & _ROLE_NAMES) >= 2:
+                found.append(f"{path.name}:{node.lineno} lists the roles by name")
+    return found
+
+
+def test_the_levels_of_detail_are_described_once():
+    """The blade strips and the cards are entries of ``roles.ROLES`` (which cells need each, its
+    pool's reach, its quads, vertices, per-corner data, what rides on it): no other module of the
+    add-on tells them apart by name (issue #58: a dozen places did), so a third level is one entry."""
+    paths = [p for p in _modules().values() if p.name != "roles.py"]
+    assert not _role_branches(paths)
+
+
+def test_a_role_told_apart_by_name_is_seen(tmp_path):
+    path = tmp_path / "module.py"
+    path.write_text("def f(role, x):\n    if role == BLADES:\n        return x\n    for r in (owned.ROLE_BLADES, "
+                    "owned.ROLE_CARDS):\n        pass\n")
+    assert _role_branches([path]) == ["module.py:2 compares a role by name", "module.py:4 lists the roles by name"]

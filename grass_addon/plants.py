@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .schema import Params
+
 MAX_TRIANGLES = 20_000  # a source's triangles drawn at most (the largest; a card is 256 pixels high)
 
 
@@ -45,6 +47,17 @@ class PlantShape:
             tri, col = tri[np.sort(keep)], col[np.sort(keep)]
         return PlantShape(p, tri, col)
 
+    def mean_colour(self) -> tuple[float, float, float]:
+        """Its colour as the far grass shows it: its triangles' colours weighed by their areas
+        (linear RGB)."""
+        if not len(self.triangles):
+            return (0.0, 0.0, 0.0)
+        a, b, c = (self.points[self.triangles[:, i]] for i in range(3))
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        weights = area if area.sum() > 0 else np.ones(len(area))
+        r, g, bl = (weights @ self.colours) / weights.sum()
+        return float(r), float(g), float(bl)
+
     def digest(self) -> str:
         h = hashlib.sha1()
         for array in (self.points, self.triangles, self.colours):
@@ -67,6 +80,19 @@ class Plants:
 
     def __bool__(self) -> bool:
         return bool(self.shapes)
+
+
+def seen_far(params: Params, own: Plants | None) -> Params:
+    """``params`` as the far grass shows them (the sward's colours, the ground under the cards):
+    a species drawn as the artist's own plant takes that plant's colour (``mean_colour``); its
+    blades' colour is never seen (its strips collapse under the plant)."""
+    if not own:
+        return params
+    rows = [dict(row) for row in params.species()]
+    for kind, shape in own.shapes:
+        if kind < len(rows):
+            rows[kind]["color"] = tuple(min(max(c, 0.0), 1.0) for c in shape.mean_colour())
+    return params.replace({"blade.species": rows})
 
 
 def draw(rgb: np.ndarray, alpha: np.ndarray, shape: PlantShape, u_root: float, across, along: np.ndarray,

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import bpy
 
-from .. import look, roles, slots, sward
+from .. import look, plants, roles, slots, sward
 from ..grid import FieldGrid
 from ..schema import Params
 from . import heads, maps, materials, meshes, owned, paint_look, textures, wind_force
@@ -98,9 +98,10 @@ def update_field_materials(item, params: Params, scene=None, later: bool = False
     cycles = getattr(scene, "cycles", None)
     bounces = cycles.transparent_max_bounces if cycles is not None else -1
     reg = owned.registered(item)
+    own = heads.plant_shapes(params)  # (the artist's plants the cards draw: their triangles, read here)
+    params = plants.seen_far(params, own)  # (and their colour the far grass shows)
     digest = f"{params.digest()}|{bounces}|" + ",".join(sorted(d.name for d in reg.values()
                                                                if isinstance(d, (bpy.types.Material, bpy.types.Image))))
-    own = heads.plant_shapes(params)  # (the artist's plants the cards draw: their triangles, read here)
     digest += repr(own) if own else ""
     coll = item.collection
     if coll is not None and coll.get(MATERIALS_DIGEST) == digest:

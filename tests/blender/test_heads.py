@@ -335,3 +335,32 @@ def test_an_artists_own_plant_is_drawn_on_the_cards(runtime, settle):
     top, root = np.median(np.array(widths), axis=0)
     wide = 2 * 0.03 * item.blade.species[0].length / 0.25
     assert abs(top - wide) < 0.4 * wide and root < 0.3 * top, (top, root, wide, card)
+
+
+def _sward_colour(item) -> np.ndarray:
+    """The far canopy's colour as its material holds it: the mean of its sward-look curves (R, G, B
+    over the rays' slopes)."""
+    from windgrass.grass_addon.bridge import materials, owned
+
+    look = owned.registered(item)[owned.ROLE_CANOPY_MATERIAL].node_tree.nodes[materials.NODE_SWARD_LOOK]
+    return np.array([np.mean([p.location[1] for p in look.mapping.curves[c].points]) for c in range(3)])
+
+
+def test_the_far_grass_takes_the_colour_of_an_artists_own_plant(runtime, settle):
+    """Beyond the cards the far canopy stands for the grass: a field of one species drawn as the
+    artist's own red plant turns its far canopy from green (more green than red) to red (more red
+    than green, by half again at least)."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    item = bpy.context.scene.windgrass.fields[0]
+    while len(item.blade.species) > 1:
+        item.blade.species.remove(len(item.blade.species) - 1)
+    item.field.blocks_x = item.field.blocks_y = 2
+    settle()
+    green = _sward_colour(item)
+    assert green[1] > green[0], green
+    _bush("my red bush")
+    item.blade.species[0].plant = "my red bush"
+    item.blade.species[0].plant_mode = "plant"
+    settle()
+    red = _sward_colour(item)
+    assert red[0] > 1.5 * red[1], (green, red)

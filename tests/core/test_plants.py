@@ -62,3 +62,17 @@ def test_the_plants_are_known_by_their_contents():
     a, b = plants.Plants(((0, _square()),)), plants.Plants(((0, _square()),))
     assert repr(a) == repr(b) and repr(a) != repr(plants.Plants(((0, _square(0.4)),)))
     assert not plants.Plants() and a.of_species(0) is not None and a.of_species(1) is None
+
+
+def test_the_far_grass_shows_a_plants_colour_weighed_by_area():
+    """A plant of a red triangle and a green one three times its area is seen from afar as a
+    quarter red, three quarters green; ``seen_far`` gives that colour to the plant's species alone."""
+    from windgrass.grass_addon import schema
+
+    points = [(0, 0, 0), (1, 0, 0), (0, 0, 1), (0, 0, 0), (3, 0, 0), (0, 0, 1)]
+    shape = plants.PlantShape.of(points, [(0, 1, 2), (3, 4, 5)], [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)])
+    np.testing.assert_allclose(shape.mean_colour(), (0.25, 0.75, 0.0))
+    params = schema.defaults().replace({"blade.species": [{"name": "a"}, {"name": "b", "color": (0.1, 0.2, 0.3)}]})
+    far = plants.seen_far(params, plants.Plants(((0, shape),)))
+    np.testing.assert_allclose(far.species()[0]["color"], (0.25, 0.75, 0.0))
+    assert tuple(far.species()[1]["color"]) == (0.1, 0.2, 0.3) and plants.seen_far(params, plants.Plants()) is params

@@ -265,8 +265,9 @@ def _draw_variant(params: Params, block, cell: int, blades, size: int, widen: fl
             continue
         facing = float(block.blade_facing[b])
         side, normal = np.array([-np.sin(facing), np.cos(facing)]), -np.array([np.cos(facing), np.sin(facing)])
+        arc = np.concatenate([[0.0], np.cumsum(segs[i])])  # (rigid segments: the stem's own arc shares)
         plants.draw(rgb, alpha, shape, float(u[0]) + shift, (float(side @ a), float(normal @ a)), u - u[0],
-                    up / height, float(segs[i].sum()) / card_w)
+                    up / height, float(segs[i].sum()) / card_w, arc / max(float(arc[-1]), 1e-12))
     covered = alpha > 1e-6
     rgb[covered] /= alpha[covered][:, None]
     # Where no blade covers the card, the colour is the card's coverage-weighted mean colour of

@@ -96,20 +96,22 @@ def seen_far(params: Params, own: Plants | None) -> Params:
 
 
 def draw(rgb: np.ndarray, alpha: np.ndarray, shape: PlantShape, u_root: float, across, along: np.ndarray,
-         up: np.ndarray, scale_u: float) -> None:
+         up: np.ndarray, scale_u: float, share: np.ndarray | None = None) -> None:
     """Draw ``shape`` onto a square card image (``rgb`` (size, size, 3), ``alpha`` (size, size),
     row 0 at the bottom), opaque, over what is there: stood on a stem whose rest centre line, in
     card units, runs through (``along``, ``up``) joint by joint from (0, 0) (``along`` across the
     card from the root at ``u_root``); a point at height share z sits on that line at arc share z,
     moved ``across`` . (x, y) across the card (the strip's side and normal along the card) times
-    ``scale_u``, the stem's length over the card's width. The card is periodic across, as its
+    ``scale_u``, the stem's length over the card's width. ``share``: each joint's arc share of the
+    stem (its segments' lengths; None: measured on the card). The card is periodic across, as its
     strips are."""
     size = alpha.shape[0]
     if not len(shape.triangles):
         return
     z = shape.points[:, 2]
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(along), np.diff(up)))])
-    share = arc / max(arc[-1], 1e-12)
+    if share is None:
+        arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(along), np.diff(up)))])
+        share = arc / max(arc[-1], 1e-12)
     u = u_root + np.interp(z, share, along) + scale_u * (shape.points[:, :2] @ np.asarray(across, np.float64))
     v = np.interp(z, share, up)
     pix = np.column_stack([u * size, v * size])  # (m, 2) in pixels

@@ -486,7 +486,8 @@ def plant_shapes(params: Params) -> engine_plants.Plants:
 
 
 def _triangles(collection) -> engine_plants.PlantShape:
-    """A collection's mesh objects as triangles (their placement in the collection), coloured."""
+    """A collection's mesh objects as triangles (their placement in the collection), coloured: their
+    meshes as saved (the cards draw no modifier of the plant's objects)."""
     points, triangles, colours, base = [], [], [], 0
     offset = np.array(collection.instance_offset, np.float64)
     for obj in collection.all_objects:

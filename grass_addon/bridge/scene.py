@@ -99,7 +99,7 @@ def update_field_materials(item, params: Params, scene=None, later: bool = False
     bounces = cycles.transparent_max_bounces if cycles is not None else -1
     reg = owned.registered(item)
     own = heads.plant_shapes(params)  # (the artist's plants the cards draw: their triangles, read here)
-    params = plants.seen_far(params, own)  # (and their colour the far grass shows)
+    params = plants.seen_far(params, own)  # (and their colour the far grass shows: ``seen_far``)
     digest = f"{params.digest()}|{bounces}|" + ",".join(sorted(d.name for d in reg.values()
                                                                if isinstance(d, (bpy.types.Material, bpy.types.Image))))
     digest += repr(own) if own else ""
@@ -178,7 +178,7 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
             del item[owned.MADE_KEY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
-    heights = _sward_heights(params, ground, look_later)
+    heights = _sward_heights(seen_far(params), ground, look_later)
     mesh = meshes.ground_mesh(f"{base} ground", grid.size, surface, *heights, meshes.thinning_edge(params))
     mesh[GROUND_HEIGHTS] = heights
     paint_look.paint_map(item, uid, base, grid if painted else None, canopy_mat)
@@ -232,6 +232,13 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
     return update_field_materials(item, params, scene, later=look_later)
 
 
+def seen_far(params: Params) -> Params:
+    """``params`` as the far grass's look is worked out for them (``plants.seen_far``: an own
+    plant's colour for its species), so that the ground's heights and the materials ask the
+    look's kept parts for the same settings."""
+    return plants.seen_far(params, heads.plant_shapes(params))
+
+
 GROUND_HEIGHTS = "wg_sward_heights"  # the ground mesh's custom property: (canopy, fringe top) it was made with
 
 
@@ -253,7 +260,8 @@ def refit_ground(item, params: Params, heightfield) -> bool:
     ground = owned.ground_object(item)
     if ground is None or ground.data is None:
         return False
-    heights = (sward.canopy_height(params), sward.fringe_top(params))
+    far = seen_far(params)
+    heights = (sward.canopy_height(far), sward.fringe_top(far))
     old = ground.data.get(GROUND_HEIGHTS)
     if old is not None and tuple(float(h) for h in old) == heights:
         return False

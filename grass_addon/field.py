@@ -573,8 +573,9 @@ class GrassField:
             omega2, damping = self.sim.solver.recovery_oscillator()
             flat = point_mean(grid, at, self.interaction.flatness(frame, lay, omega2, damping), grows)
         tip = base + point_mean(grid, at, cells.card_offset, grows)  # eq 34: the cards' tops M' on their feet
-        return FieldMap(grid, ground, wind, height, point_mean(grid, at, omega, grows).astype(np.float32),
-                                 flat.astype(np.float32), tip.astype(np.float32), species)
+        bend = point_mean(grid, at, omega, grows)
+        return FieldMap(grid, ground, wind, height, bend.astype(np.float32), flat.astype(np.float32),
+                        tip.astype(np.float32), species)
 
     def _map_static(self, grid: MapGrid):
         """The field map's parts that hold while the window and its grid do: (the ground's height,

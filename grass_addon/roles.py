@@ -92,11 +92,11 @@ class Role:
 
 ROLES: tuple[Role, ...] = (
     Role(BLADES, "blade_count", "blade_far", True,
-         lambda lay: lay.blades_per_block * (lay.segments + 1) * 2,  # per blade n + 1 joints, each [left, right]
+         lambda lay: kinematics.blade_vertex_count(lay, 1),
          kinematics.blade_faces, kinematics.blade_uvs, _blade_vertices, (TINT_RG, TINT_BS), blade_tints,
          data_by_blocks=True, cleared=True, bare_collapsed=False, heads=True),
     Role(CARDS, "k_billboard", "card_far", False,
-         lambda lay: lay.cells_per_block_total * 4,  # one quad per cell
+         lambda lay: kinematics.card_vertex_count(lay, 1),
          kinematics.card_faces, atlas.card_uvs, _card_vertices, (FADE,), card_fade,
          data_by_blocks=False, cleared=False, bare_collapsed=True, heads=False),
 )

@@ -48,6 +48,14 @@ def write_point_vectors(mesh, name: str, values: np.ndarray) -> None:
     attribute.data.foreach_set("vector", np.ascontiguousarray(values, dtype=np.float32).ravel())
 
 
+def write_point_values(mesh, name: str, values: np.ndarray, kind: str = "FLOAT") -> None:
+    """The per-point number attribute ``name`` (``kind`` FLOAT or INT; made if missing)."""
+    attribute = mesh.attributes.get(name)
+    if attribute is None:
+        attribute = mesh.attributes.new(name, kind, "POINT")
+    attribute.data.foreach_set("value", np.ascontiguousarray(values, np.float32 if kind == "FLOAT" else np.int32))
+
+
 class SlotPool:
     """The objects of one role (``blades`` or ``cards``) of a field and what they showed."""
 

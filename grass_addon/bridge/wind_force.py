@@ -125,13 +125,11 @@ def write(item, field, frame: int) -> None:
     wind = found.wind.astype(np.float64)
     pools.write_point_vectors(mesh, ATTR_WIND, wind @ turn[:, :2].T)
     pools.write_point_vectors(mesh, "tip", found.tip.astype(np.float64) @ place[:3, :3].T + place[:3, 3])
-    for name, values, kind in ((ATTR_SPEED, np.hypot(wind[:, 0], wind[:, 1]), "FLOAT"),
-                               ("height", found.height * _scale(place), "FLOAT"), ("bend", found.bend, "FLOAT"),
-                               ("flat", found.flat, "FLOAT"), ("species", found.species, "INT")):
-        attribute = mesh.attributes.get(name)
-        if attribute is None:
-            attribute = mesh.attributes.new(name, kind, "POINT")
-        attribute.data.foreach_set("value", np.ascontiguousarray(values, np.float32 if kind == "FLOAT" else np.int32))
+    pools.write_point_values(mesh, ATTR_SPEED, np.hypot(wind[:, 0], wind[:, 1]))
+    pools.write_point_values(mesh, "height", found.height * _scale(place))
+    pools.write_point_values(mesh, "bend", found.bend)
+    pools.write_point_values(mesh, "flat", found.flat)
+    pools.write_point_values(mesh, "species", found.species, "INT")
     mesh.update_tag()
 
 

@@ -4,6 +4,7 @@
     python headless/bench.py --scale [--json]     (cost against field size: bench_scale.py)
     python headless/bench.py --bake [--json]      (bake size, Alembic against USD: bench_bake.py)
     python headless/bench.py --edits [--json]     (an edit of a setting against a frame change: bench_edits.py)
+    python headless/bench.py --handover [--json]  (strips written whole against Geometry Nodes: bench_handover.py)
     python headless/bench.py --realism [--image PNG] [--json]   (a meadow in wind, in numbers: bench_realism.py,
                                                                  and from every camera: bench_cameras.py)
     python headless/bench.py --farm [--blender PATH] [--json]   (farm chunks against one process: bench_farm.py)
@@ -54,6 +55,10 @@ from windgrass.grass_addon.lod import Camera, lod_weights  # noqa: E402
 CELLS_PER_BLOCK = 16
 BLADES_PER_CELL = 2
 WARMUP_FRAMES = 2
+# flag -> the script that measures it, run in a process of its own
+CHILD_SCRIPTS = {"edits": "bench_edits.py", "handover": "bench_handover.py", "render": "bench_render.py",
+                 "bake": "bench_bake.py", "motion": "bench_motion.py", "interaction": "bench_interaction.py",
+                 "paint": "bench_paint.py"}
 
 
 def field_params(blades: int, segments: int) -> schema.Params:
@@ -251,6 +256,9 @@ def main(argv=None) -> int:
     parser.add_argument("--edits", action="store_true",
                         help="what an edit of a setting costs on the Add-menu field and a 100 m field, against a "
                              "frame change (bench_edits.py; Blender); other flags ignored")
+    parser.add_argument("--handover", action="store_true",
+                        help="blade strips handed to Blender whole against strips Geometry Nodes build from the "
+                             "joints, at 10k and 100k blades (bench_handover.py; Blender); other flags ignored")
     parser.add_argument("--render", action="store_true",
                         help="where a rendered frame of the default scene spends its time, against the same "
                              "frame rendered again (bench_render.py); other flags ignored")
@@ -271,35 +279,11 @@ def main(argv=None) -> int:
                                 args.blender] + (["--json"] if args.json else []))
     if args.realism:
         return realism(args)
-    if args.edits:
+    script = next((name for flag, name in CHILD_SCRIPTS.items() if getattr(args, flag)), None)
+    if script:  # (each in a process of its own)
         import subprocess
 
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_edits.py"))]
-                               + (["--json"] if args.json else []))
-    if args.render:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_render.py"))]
-                               + (["--json"] if args.json else []))
-    if args.bake:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_bake.py"))]
-                               + (["--json"] if args.json else []))
-    if args.motion:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_motion.py"))]
-                               + (["--json"] if args.json else []))
-    if args.interaction:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_interaction.py"))]
-                               + (["--json"] if args.json else []))
-    if args.paint:
-        import subprocess
-
-        return subprocess.call([sys.executable, str(Path(__file__).with_name("bench_paint.py"))]
+        return subprocess.call([sys.executable, str(Path(__file__).with_name(script))]
                                + (["--json"] if args.json else []))
     if args.scale:
         import bench_scale

@@ -38,7 +38,8 @@ CURRENT = (ROOT / ".venv-5.3", ROOT / "requirements-blender-5.3.txt", (3, 13))
 CURRENT_LINE_TESTS = ("tests/blender/test_extension.py", "tests/blender/test_saved_files.py",
                       "tests/blender/test_live_edits.py", "tests/blender/test_loop.py", "tests/blender/test_undo.py",
                       "tests/blender/test_bake.py", "tests/blender/test_heads.py",
-                      "tests/blender/test_wind_force.py", "tests/blender/test_field_map.py")
+                      "tests/blender/test_wind_force.py", "tests/blender/test_field_map.py",
+                      "tests/blender/test_handover.py")
 # A real Blender with its window for tests/window: Debian's unstable suite ships Blender 5.2 LTS
 # (Debian 13 has 4.3), in a root made with debootstrap, on a virtual screen (Xvfb, Mesa's software GL).
 WINDOW_ROOT = Path(os.environ.get("WINDGRASS_WINDOW_ROOT", Path.home() / ".cache" / "windgrass" / "sid"))

@@ -108,7 +108,9 @@ def stroke(size_m: float, quads: int) -> dict:
             import pstats
             profile.disable()
             pstats.Stats(profile, stream=sys.stderr).sort_stats("cumulative").print_stats(25)
-        made.append(runtime.get_runtime(scene, item).last_repaint[1])
+        live = runtime.get_runtime(scene, item)
+        assert live is not None, "the field has no runtime after a frame change"
+        made.append(live.last_repaint[1])
     frame_s, stroke_s = statistics.median(floors), statistics.median(strokes)
     return {"field_m": size_m, "terrain_vertices": len(terrain.data.vertices), "frame_s": round(frame_s, 3),
             "stroke_s": round(stroke_s, 3), "ratio": round(stroke_s / frame_s, 2),

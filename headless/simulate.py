@@ -75,8 +75,8 @@ def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
     t0 = time.perf_counter()
     field = GrassField.of_scene(params)
     if not field.whole:
-        cells = field.grid.n_blocks * field.grid.cells_per_block ** 2
-        raise ParameterError("field.blocks_x", f"simulate.py traces every cell of the field, which has {cells:,}; "
+        count = field.grid.n_blocks * field.grid.cells_per_block ** 2
+        raise ParameterError("field.blocks_x", f"simulate.py traces every cell of the field, which has {count:,}; "
                              f"valid: at most {WHOLE_FIELD_CELLS:,} cells (fewer blocks or cells per block)")
     build_s = time.perf_counter() - t0
     layout, n = field.layout, field.layout.segments
@@ -92,7 +92,7 @@ def run(params: schema.Params, frames: int, trace_path: str | None) -> dict:
     rest_tip = (_tips(layout, kinematics.blade_vertices(layout, rest, blocks, out=tip_buf)).copy()
                 if layout.blades_per_block else np.zeros((0, 3)))
 
-    tr = {
+    tr: dict[str, np.ndarray] = {
         "frame": np.arange(f0, f0 + frames, dtype=np.int32),
         "time": np.empty(frames, np.float64),
         "wind_speed": np.empty(frames, np.float32),

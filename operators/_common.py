@@ -23,6 +23,15 @@ def reported(execute: Callable) -> Callable:
     return wrapper
 
 
+def active_field(scene: Any) -> Any:
+    """The scene's active field item; a WindgrassError (an ERROR report under ``reported``) when
+    the scene has none: an operator whose poll passed may still be called where it has none."""
+    item = properties.active_field(scene) if scene is not None else None
+    if item is None:
+        raise WindgrassError("this scene has no grass field: add one with Add > Grass Field")
+    return item
+
+
 def has_active_field(context: Any) -> bool:
     scene = getattr(context, "scene", None)
     return scene is not None and properties.active_field(scene) is not None

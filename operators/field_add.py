@@ -129,7 +129,7 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
             return {}, None
         extent = maps.extent_xy(terrain)
         cells, size = values["cells_per_block"], values["cell_size"]
-        most_cells = int(schema.BY_NAME["field.cells_per_block"].soft_max)  # (larger blocks: cards too heavy)
+        most_cells = int(schema.BY_NAME["field.cells_per_block"].soft_max or cells)  # (larger: cards too heavy)
         if not self.properties.is_property_set("cells_per_block"):
             while cells < most_cells and math.prod(FieldGrid.blocks_covering(extent, cells * size, 10**9)) \
                     > FIT_MAX_BLOCKS:

@@ -4,7 +4,7 @@ import bpy
 
 from ..grass_addon.bridge import runtime
 from ..grass_addon.bridge.runtime import properties
-from ._common import reported
+from ._common import active_field, reported
 
 
 class WINDGRASS_OT_field_bake_free(bpy.types.Operator):
@@ -22,7 +22,7 @@ class WINDGRASS_OT_field_bake_free(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        item = properties.active_field(scene)
+        item = active_field(scene)
         runtime.free_bake(scene, item)
         self.report({"INFO"}, f"Freed the bake of '{item.name}': live again")
         return {"FINISHED"}

@@ -5,7 +5,7 @@ import bpy
 
 from ..grass_addon.bridge import runtime
 from ..grass_addon.bridge.runtime import owned, properties
-from ._common import has_active_field, refresh, reported
+from ._common import active_field, has_active_field, refresh, reported
 
 
 class WINDGRASS_OT_field_duplicate(bpy.types.Operator):
@@ -25,7 +25,7 @@ class WINDGRASS_OT_field_duplicate(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        source = properties.active_field(scene)
+        source = active_field(scene)
         params = properties.params_from_settings(source)  # (a bad setting stops here, named)
         inputs = {key: getattr(source, key) for key in INPUTS}
         name, uid = source.name, source.uid

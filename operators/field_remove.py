@@ -4,7 +4,7 @@ import bpy
 
 from ..grass_addon.bridge import runtime
 from ..grass_addon.bridge.runtime import properties
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 
 class WINDGRASS_OT_field_remove(bpy.types.Operator):
@@ -25,7 +25,7 @@ class WINDGRASS_OT_field_remove(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        item = properties.active_field(scene)
+        item = active_field(scene)
         name = item.name
         runtime.remove_field(scene, item)
         properties.remove_item(scene, item)

@@ -3,7 +3,7 @@
 import bpy
 
 from ..grass_addon.bridge.runtime import properties, schema
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 # Rows of a table with a "time" column must have strictly increasing times (schema relation);
 # a new row goes this many seconds after the last one.
@@ -28,7 +28,7 @@ class WINDGRASS_OT_row_add(bpy.types.Operator):
 
     @reported
     def execute(self, context):
-        item = properties.active_field(context.scene)
+        item = active_field(context.scene)
         p, group, rows, index_name = properties.table_rows(item, self.table)
         if len(rows):
             source = rows[min(getattr(group, index_name), len(rows) - 1)]

@@ -3,7 +3,7 @@
 import bpy
 
 from ..grass_addon.bridge.runtime import properties
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 
 class WINDGRASS_OT_row_remove(bpy.types.Operator):
@@ -23,7 +23,7 @@ class WINDGRASS_OT_row_remove(bpy.types.Operator):
 
     @reported
     def execute(self, context):
-        item = properties.active_field(context.scene)
+        item = active_field(context.scene)
         p, group, rows, index_name = properties.table_rows(item, self.table)
         if not len(rows):
             self.report({"WARNING"}, f"{p.name} of '{item.name}' has no rows to remove")

@@ -4,7 +4,7 @@ import bpy
 
 from ..grass_addon.bridge import runtime
 from ..grass_addon.bridge.runtime import properties
-from ._common import has_active_field, refresh, reported
+from ._common import active_field, has_active_field, refresh, reported
 
 
 class WINDGRASS_OT_simulation_reset(bpy.types.Operator):
@@ -23,7 +23,7 @@ class WINDGRASS_OT_simulation_reset(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        item = properties.active_field(scene)
+        item = active_field(scene)
         properties.params_from_settings(item)  # a bad setting stops here, naming its key
         runtime.reset_field(scene, item)
         refresh(scene)

@@ -3,7 +3,7 @@
 import bpy
 
 from ..grass_addon.bridge.runtime import presets, properties, schema
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 
 def _items():
@@ -32,7 +32,7 @@ class WINDGRASS_OT_species_preset(bpy.types.Operator):
 
     @reported
     def execute(self, context):
-        item = properties.active_field(context.scene)
+        item = active_field(context.scene)
         rows = presets.species_rows(self.preset)  # validated by the schema
         properties.write_rows(item, properties.table_param("blade.species"), rows)
         changed = []

@@ -11,7 +11,7 @@ import bpy
 
 from ..grass_addon.bridge import runtime
 from ..grass_addon.bridge.runtime import WindgrassError, properties, tracks
-from ._common import has_active_field, refresh, reported
+from ._common import active_field, has_active_field, refresh, reported
 
 STEP_S = 0.1  # seconds of sampling per timer tick: the window stays responsive to Esc
 
@@ -33,7 +33,7 @@ class WINDGRASS_OT_track_update(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        item = properties.active_field(scene)
+        item = active_field(scene)
         params = properties.params_from_settings(item, scene)
         frames = tracks.frame_range(scene, params)
         changed = runtime.update_track(scene, item)
@@ -53,6 +53,8 @@ class WINDGRASS_OT_track_update(bpy.types.Operator):
     def invoke(self, context, event):
         scene = context.scene
         item = properties.active_field(scene)
+        if item is None:  # (execute reports it)
+            return self.execute(context)
         try:
             params = properties.params_from_settings(item, scene)
             wanted = tracks.fingerprint(scene, item, params)

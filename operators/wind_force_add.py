@@ -8,7 +8,7 @@ object's Hair Dynamics or Cloth Dynamics.
 import bpy
 
 from ..grass_addon.bridge import runtime
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 
 class WINDGRASS_OT_wind_force_add(bpy.types.Operator):
@@ -28,7 +28,7 @@ class WINDGRASS_OT_wind_force_add(bpy.types.Operator):
     @reported
     def execute(self, context):
         scene = context.scene
-        item = runtime.properties.active_field(scene)
+        item = active_field(scene)
         obj = context.active_object
         name, linked = runtime.blow_physics(scene, item, obj)
         if linked:

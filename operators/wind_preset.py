@@ -4,7 +4,7 @@ mean speed, turbulence)."""
 import bpy
 
 from ..grass_addon.bridge.runtime import animation, properties, schema
-from ._common import has_active_field, reported
+from ._common import active_field, has_active_field, reported
 
 
 def _items():
@@ -38,7 +38,7 @@ class WINDGRASS_OT_wind_preset(bpy.types.Operator):
 
     @reported
     def execute(self, context):
-        item = properties.active_field(context.scene)
+        item = active_field(context.scene)
         overrides = schema.wind_preset(self.type)  # {"wind.type": ..., "wind.speed": ..., ...}
         with properties.batch(item):
             for name, value in overrides.items():

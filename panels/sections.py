@@ -149,22 +149,19 @@ def draw_section(layout, context, item, section: str) -> None:
         shared = runtime.wind_force.map_object(item)
         if shared is not None:
             wrapped(layout, context, f"Node trees read this field from '{shared.name}' (Object Info)", icon="INFO")
-        layout.operator("windgrass.field_map_add", icon="GEOMETRY_NODES")
-        shared = runtime.wind_force.map_object(item)
-        if shared is not None:
-            wrapped(layout, context, f"Node trees read this field from '{shared.name}' (Object Info)", icon="INFO")
     if section == "keep_out":
         layout.prop(item, "keep_out_collection")
-        for note in maps.keep_out_notes(item):
-            wrapped(layout, context, note, icon="INFO")
+        for line in maps.keep_out_notes(item):
+            wrapped(layout, context, line, icon="INFO")
     if section == "interaction":
         layout.prop(item, "collider_collection")
         layout.prop(item, "effector_collection")
         layout.operator("windgrass.track_update", icon="FILE_REFRESH")
+        note: str | None = None
         try:
             note = tracks.status(context.scene, item, properties.params_from_settings(item, context.scene))
         except WindgrassError:
-            note = None
+            pass
         for line in ([note] if note else []) + tracks.notes(item):
             wrapped(layout, context, line, icon="INFO")
     if section == "paint":

@@ -191,24 +191,25 @@ HEAD, PLANT, SEED, SEED_SPAN = "head", "plant", "seed", "seed span"  # how a spe
 # scaled evenly by the span: shapes.SPAN_SCALED)
 
 
-def build_group(name: str, sources: list, segments: int, stems: int, leaves: list | None = None
+def build_group(name: str, sources: list, segments: int, leaves: list | None = None
                 ) -> bpy.types.GeometryNodeTree:
     """The node group drawing, for each species k with ``sources[k]`` = (``HEAD`` or ``PLANT``,
     an Object or a Collection) (None: nothing), that source on the stems whose ``wg_head`` species
     is k + 1, and ``leaves[k]`` (an Object, None: none) at their foot (see ``fill_group``);
-    ``segments``: the stems' n, ``stems``: how many a slot object holds."""
+    ``segments``: the stems' n."""
     tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    fill_group(tree, sources, segments, stems, leaves)
+    fill_group(tree, sources, segments, leaves)
     return tree
 
 
-def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | None = None) -> None:
+def fill_group(tree, sources: list, segments: int, leaves: list | None = None) -> None:
     """(Re)make ``tree``'s nodes. The strips come in as the engine wrote them: blade b's joint j
     at vertices 2 (n + 1) b + 2 j (left) and + 1 (right); a stem that carries something has
     ``wg_head`` (species + 1, size, turn, its first vertex) on its first vertex (a plant's on all
-    of them: ``heads.tip_marks``). A point per stem (``stems``) reads it there, so the fields
+    of them: ``heads.tip_marks``). A point per stem (the strip's vertices / 2 (n + 1): the tree
+    holds for any density, so a density edit keeps it) reads it there, so the fields
     below are evaluated once per stem, never per vertex (a pass over the strip's vertices, Mesh
     to Points, cost 9 ms a frame on the Add-menu field). A ``HEAD`` is put on the stem's tip (the middle of
     its two vertices), its +Z along the last segment, turned about it, ``size`` wide (a stem
@@ -225,7 +226,7 @@ def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | No
     kind, _size, _turn, first = t.head()  # (per vertex: the plants' strips)
     leaves = list(leaves or [])
     seeded = any(src is not None and src[0] in (SEED, SEED_SPAN) for src in sources) and n >= 2
-    placed = _stem_points(t, mesh, n, stems, any(leaf is not None for leaf in leaves), seeded)
+    placed = _stem_points(t, mesh, n, any(leaf is not None for leaf in leaves), seeded)
     grown = t.math("GREATER_THAN", t.vmath("LENGTH", t.attribute(ATTR_TIP_DIR, "FLOAT_VECTOR"), None, out="Value"),
                    1e-6)
     carries = t.math("GREATER_THAN", t.head()[0], 0.5)
@@ -263,14 +264,16 @@ def fill_group(tree, sources: list, segments: int, stems: int, leaves: list | No
     t.link(join.outputs[0], group_out.inputs[0])
 
 
-def _stem_points(t: _Tree, mesh, n: int, stems: int, leafy: bool, seeded: bool = False):
+def _stem_points(t: _Tree, mesh, n: int, leafy: bool, seeded: bool = False):
     """A point per stem of the slot object (a Points node: no pass over the strip's vertices) on
     its root, with its mark read from the stem's first vertex (``wg_head``, ``wg_stem``), its tip
     and last segment (``wg_tip``, ``wg_tip_dir``), where some species has ``leafy`` feet its
     leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``), and where some has its seed
     heads as meshes (``seeded``) its joint n - 2 (``wg_seed_base``)."""
+    size = t.node("GeometryNodeAttributeDomainSize")  # (component: the mesh)
+    t.link(mesh, size.inputs[0])
     stem = t.node("GeometryNodePoints")
-    stem.inputs["Count"].default_value = int(stems)
+    t.link(t.math("DIVIDE", size.outputs["Point Count"], float(2 * (n + 1))), stem.inputs["Count"])
     index = t.node("GeometryNodeInputIndex").outputs[0]
     base = t.math("MULTIPLY", index, float(2 * (n + 1)))
     mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
@@ -524,6 +527,18 @@ def _colour(material) -> tuple[float, float, float]:
     return tuple(material.diffuse_color[:3])
 
 
+def owns(data) -> bool:
+    """``data`` is one of the field's heads' datablocks (a head or leaves object, the node group)."""
+    return isinstance(data, (bpy.types.Object, bpy.types.NodeTree)) \
+        and data.get("wg_role") in (ROLE_HEAD, ROLE_LEAVES, ROLE_GROUP)
+
+
+def group_of(item):
+    """The field's heads' node group, or None."""
+    tree = owned.registered(item).get(ROLE_GROUP)
+    return tree if isinstance(tree, bpy.types.NodeTree) else None
+
+
 def remove(item) -> None:
     """Delete the field's head objects, their meshes and its node group (its material stays:
     ``scene.remove_datablocks`` deletes the materials)."""
@@ -539,15 +554,16 @@ def remove(item) -> None:
 
 
 def sources_key(params: Params) -> str:
-    """What the heads' modifier draws for each species (its kind, head shape, Own Plant and how
-    it is drawn, leaves): the field's heads are made again when it changes."""
+    """What the heads' objects and node group are made from (each species' kind, head shape, Own
+    Plant and how it is drawn, leaves; the stems' segments): the field's heads are made again when
+    it changes, and kept through any other edit (their colours are written in place)."""
     rows = params.species()
     kind = shapes.kinds(rows)
     return repr([(int(kind[k]), r["head_shape"], r["plant"], r["plant_mode"], r.get("leaves", "none"))
-                 for k, r in enumerate(rows)])
+                 for k, r in enumerate(rows)] + [int(params.blade.segments)])
 
 
-def build(item, params: Params, uid: str, base: str, stems: int, leaf_material=None):
+def build(item, params: Params, uid: str, base: str, leaf_material=None):
     """The field's heads, leaves and plants made anew (after ``remove``): a head object per species
     with Windgrass flower meshes, a leaves object per species with leaves (``leaf_material``: the
     blades'), the artist's collections as they are, and the node group that draws them on the
@@ -578,7 +594,7 @@ def build(item, params: Params, uid: str, base: str, stems: int, leaf_material=N
             sources[k] = (seed if kind[k] == shapes.SEED else HEAD, obj)
     if all(s is None for s in sources + leaves):
         return None
-    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), stems, leaves)
+    tree = build_group(f"{base} {GROUP_NAME.lower()}", sources, int(params.blade.segments), leaves)
     owned.tag(tree, uid, ROLE_GROUP)
     owned.record(item, ROLE_GROUP, tree)
     return tree

@@ -169,13 +169,15 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
     # The ground object stays (the artist's name for it, its place, parent and anything added to
     # it survive the rebuild); its mesh and the slot objects are made anew.
     ground = owned.ground_object(item)
-    heads.remove(item)
+    head_tree = heads.group_of(item) if coll.get(HEADS_KEY) == heads.sources_key(params) else None
+    if head_tree is None:  # (kept while what they are made from holds: a density or size edit keeps them)
+        heads.remove(item)
     _remove_objects([o for o in owned.field_objects(item) if o is not ground])
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
     for key, data in list(owned.registered(item).items()):
         if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground \
-                and key != owned.ROLE_WIND_MAP:  # (the artist's trees read the wind map: it stays)
-            del item[owned.MADE_KEY][key]
+                and key != owned.ROLE_WIND_MAP and not (head_tree is not None and heads.owns(data)):
+            del item[owned.MADE_KEY][key]  # (the artist's trees read the wind map: it stays)
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     heights = _sward_heights(seen_far(params), ground, look_later)
@@ -206,7 +208,8 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
         if "wg_terrain" in coll and heightfield is None and maps.terrain_object(scene, item) is None:
             del coll["wg_terrain"]
 
-    head_tree = _build_heads(item, params, uid, base, blade_mat)
+    if head_tree is None:
+        head_tree = _build_heads(item, params, uid, base, blade_mat)
     material_of = {owned.ROLE_BLADES: blade_mat, owned.ROLE_CARDS: card_mat}
     for entry in roles.ROLES:
         role, material = entry.name, material_of[entry.name]
@@ -278,10 +281,8 @@ HEADS_KEY = "wg_heads"  # the collection's custom property: heads.sources_key it
 
 def _build_heads(item, params: Params, uid: str, base: str, blade_mat):
     """The heads' and leaves' objects and node group for ``params`` (None: no species has any)."""
-    blade_shape = slots.pool_shapes(FieldGrid.of(params), params)[owned.ROLE_BLADES]
-    stems = blade_shape.verts_per_object // (2 * (int(params.blade.segments) + 1))
     item.collection[HEADS_KEY] = heads.sources_key(params)
-    return heads.build(item, params, uid, base, stems, blade_mat)  # (None: no heads, leaves or plants)
+    return heads.build(item, params, uid, base, blade_mat)  # (None: no heads, leaves or plants)
 
 
 def refresh_heads(item, params: Params) -> bool:

@@ -53,6 +53,41 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
         assert np.percentile(moved, 90) > 0.002, name
 
 
+def test_a_density_edit_keeps_the_heads_and_draws_them_on_the_new_stems(runtime, stems, nearest_in_plane, parts,
+                                                                       settle):
+    """Issue #58: a density edit makes the slot objects anew (a new topology) but not the flowers'
+    objects and node group (0.1-0.2 s of the window's time each edit before): the same datablocks
+    draw the heads, and Blender draws them on the new stems' tips (within 0.1 mm), on a share of
+    them like before the edit, over more stems than before."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    n = item.blade.segments
+    scene.frame_set(5)
+    before_stems = len(stems(item))
+    first = next(o for o in item.collection.objects if o.get("wg_role") == "blades")
+    first["probe"] = first.modifiers["Windgrass Heads"].node_group["probe"] = 1  # (what was made anew lacks it)
+    for head in parts.objects(item, "head").values():
+        head["probe"] = 1
+    item.field.blades_per_cell += 1
+    settle()
+    scene.frame_set(6)
+    blades = [o for o in item.collection.objects if o.get("wg_role") == "blades"]
+    assert blades and not any("probe" in o for o in blades)  # new slot objects: a new topology
+    assert all(o.modifiers["Windgrass Heads"].node_group.get("probe") == 1 for o in blades)
+    heads = parts.objects(item, "head")
+    assert set(heads) == {"buttercup", "ox-eye daisy"} and all(o.get("probe") == 1 for o in heads.values())
+    shown = stems(item)
+    assert len(shown) > 1.2 * before_stems, (len(shown), before_stems)
+    tips = shown.mean(axis=2)[:, n]
+    found = parts.instances(item, "head")
+    total = sum(len(m) for m in found.values())
+    assert 0.01 * len(shown) < total < 0.25 * len(shown), (total, len(shown))
+    for name, m in found.items():
+        at = m[:, :3, 3]
+        assert np.abs(at - tips[nearest_in_plane(at, tips)]).max() < 1e-4, name
+
+
 def test_a_daisys_white_rays_ring_its_yellow_disc_and_a_colour_edit_reaches_the_petals(runtime, tmp_path, settle,
                                                                                       parts):
     """Looked at straight down from 0.6 m over a field of ox-eye daisies in flower (Cycles): the

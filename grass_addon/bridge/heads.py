@@ -24,7 +24,7 @@ from .. import heads as shapes
 from .. import plants as engine_plants
 from .. import tufts
 from ..schema import Params
-from . import materials, owned
+from . import materials, meshes, owned
 from .registry import warn_once
 
 ATTR_HEAD = "wg_head"  # point vector of the blade slots: (species + 1, size m, turn rad) of a stem
@@ -625,8 +625,8 @@ def _leaves_object(name: str, row, params: Params, material) -> bpy.types.Object
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(m.vertices.tolist(), [], m.faces)
     corners = _corner_vertices(mesh)
-    uv = mesh.uv_layers.new(name="UVMap")
-    uv.data.foreach_set("uv", np.stack([np.full(len(corners), 0.5, np.float32), m.v[corners]], axis=1).ravel())
+    mesh.uv_layers.new(name="UVMap")
+    meshes.write_uv(mesh, "UVMap", np.stack([np.full(len(corners), 0.5, np.float32), m.v[corners]], axis=1))
     for data_uv in (materials.UV_TINT_RG, materials.UV_TINT_BS):
         mesh.uv_layers.new(name=data_uv, do_init=False)
     _write_tints(mesh, m, row["color"], float(params.blade.dry_tips))
@@ -648,9 +648,9 @@ def _write_tints(mesh, m, colour, dry: float) -> None:
     them (``frame.blade_tints``): the species' colour (straw on a dead leaf), each leaf's shade."""
     corners = _corner_vertices(mesh)
     rgb = m.tints(colour, dry)[corners]
-    mesh.uv_layers[materials.UV_TINT_RG].data.foreach_set("uv", np.ascontiguousarray(rgb[:, :2]).ravel())
+    meshes.write_uv(mesh, materials.UV_TINT_RG, rgb[:, :2])
     bs = np.stack([rgb[:, 2], m.shade[corners]], axis=1).astype(np.float32)
-    mesh.uv_layers[materials.UV_TINT_BS].data.foreach_set("uv", bs.ravel())
+    meshes.write_uv(mesh, materials.UV_TINT_BS, bs)
 
 
 def write_marks(mesh, marks: np.ndarray) -> None:

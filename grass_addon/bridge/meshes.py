@@ -17,6 +17,20 @@ from . import materials
 GROUND_LIFT = 0.002
 
 
+def write_uv(mesh, name: str, values: np.ndarray) -> None:
+    """Write the UV map ``name`` (float32 (corners, 2)) through its attribute: a UV map is a 2-D
+    corner attribute, and ``uv_layers[name].data`` writes it item by item (50x slower: 30-55 ms
+    against 0.6-0.7 ms for 400,000 corners on 4.5, 5.2 and 5.3)."""
+    mesh.attributes[name].data.foreach_set("vector", np.ascontiguousarray(values, dtype=np.float32).ravel())
+
+
+def read_uv(mesh, name: str) -> np.ndarray:
+    """The UV map ``name`` as float32 (corners, 2), read through its attribute (``write_uv``)."""
+    out = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.attributes[name].data.foreach_get("vector", out)
+    return out.reshape(-1, 2)
+
+
 def quad_mesh(name: str, n_verts: int, faces: np.ndarray, uvs: np.ndarray, material,
               attributes: dict[str, str], data_uvs: tuple[str, ...] = ()) -> bpy.types.Mesh:
     """A mesh of quads from topology arrays: faces (F, 4) local vertex ids, uvs (F*4, 2) per
@@ -40,8 +54,8 @@ def fill_quads(mesh, n_verts: int, faces: np.ndarray, uvs: np.ndarray, attribute
     mesh.loops.foreach_set("vertex_index", faces.ravel())
     mesh.polygons.foreach_set("loop_start", np.arange(0, n_faces * 4, 4, dtype=np.int32))
     mesh.polygons.foreach_set("use_smooth", np.ones(n_faces, dtype=bool))
-    uv = mesh.uv_layers.new(name="UVMap")
-    uv.data.foreach_set("uv", np.ascontiguousarray(uvs, dtype=np.float32).ravel())
+    mesh.uv_layers.new(name="UVMap")
+    write_uv(mesh, "UVMap", uvs)
     for data_uv in data_uvs:
         mesh.uv_layers.new(name=data_uv, do_init=False)
     for attr_name, attr_type in attributes.items():
@@ -126,7 +140,7 @@ def fill_ground(mesh, size: tuple[float, float], heightfield=None, canopy: float
     height = np.zeros((len(layer_faces), 4, 2), np.float32)
     height[len(faces):, :, 1] = lift[layer_faces[len(faces):]]  # each corner's height over the ground
     height[2 * len(faces):, :, 0] = 1.0  # the fringe
-    mesh.uv_layers[materials.UV_SWARD_Z].data.foreach_set("uv", height.ravel())
+    write_uv(mesh, materials.UV_SWARD_Z, height.reshape(-1, 2))
     mesh.polygons.foreach_set("use_smooth", np.full(len(layer_faces), smooth))
     index = np.concatenate([np.zeros(len(faces), np.int32), np.ones(len(faces) + len(skirt), np.int32)])
     mesh.polygons.foreach_set("material_index", index)

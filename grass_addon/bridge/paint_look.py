@@ -11,7 +11,7 @@ from .. import terrain as terrain_core
 from ..grid import FieldGrid
 from ..schema import Params
 from . import materials
-from .meshes import edge_ring, thinning_edge
+from .meshes import edge_ring, read_uv, thinning_edge, write_uv
 from .owned import MADE_KEY, ROLE_CANOPY_MATERIAL, ROLE_PAINT_MAP, ground_object, record, registered, tag
 
 # The ground of a painted field on flat ground is a grid of this many cells along its longer side,
@@ -110,12 +110,9 @@ def update_paint_look(item, params: Params, paint) -> None:
     first.co = first.co  # (positions changed: bounds)
     corners = np.empty(len(mesh.loops), np.int32)
     mesh.loops.foreach_get("vertex_index", corners)
-    uv: np.ndarray = np.empty(len(mesh.loops) * 2, np.float32)
-    layer = mesh.uv_layers[materials.UV_SWARD_Z]
-    layer.data.foreach_get("uv", uv)
-    uv = uv.reshape(-1, 2)
+    uv = read_uv(mesh, materials.UV_SWARD_Z)
     uv[:, 1] = lift[corners]
-    layer.data.foreach_set("uv", uv.ravel())
+    write_uv(mesh, materials.UV_SWARD_Z, uv)
     mesh.update()
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import frame as frames
 from .. import slots
-from . import heads, materials, owned
+from . import heads, materials, meshes, owned
 from .registry import warn_once
 
 # the UV map each engine attribute is written to
@@ -90,7 +90,7 @@ class SlotPool:
                 if name == frames.HEAD:
                     heads.write_marks(mesh, values)
                 else:
-                    mesh.uv_layers[UV_OF[name]].data.foreach_set("uv", values.ravel())
+                    meshes.write_uv(mesh, UV_OF[name], values)
             mesh.update()
 
     def collapse(self, item) -> None:

@@ -22,8 +22,16 @@ a ``frame_change_pre`` handler writes the frame, then ``scene.frame_set`` evalua
   their own (quads, UVs, the colours written once), and a modifier places each of its vertices
   from its joint (Sample Index): position = joint + (-sin a, cos a, 0) * its signed half width.
 
-Each way's evaluated mesh is checked against the engine's vertices (``max_error_m``). "ratio" is a
-way's frame against ``strips`` in the same run.
+The cards (``--cards-m``: a field that wide from ``bench_scale.py``'s camera, the LOD on), two ways:
+
+* ``cards``: today's: each card's 4 corners (48 bytes) and its opacity per corner, the UV map
+  ``wg_fade`` (32 bytes), every frame;
+* ``cards_gn``: a point per card, the middle of its top edge, the edge's turn and the opacity
+  (20 bytes); the cards keep a mesh of their own whose bottom corners never move, and a modifier
+  places the top corners from the card's point and stores the opacity as ``wg_fade``.
+
+Each way's evaluated mesh is checked against the engine's vertices (``max_error_m``; the cards'
+opacity too). "ratio" is a way's frame against ``strips`` (``cards``) in the same run.
 """
 
 from __future__ import annotations
@@ -42,6 +50,7 @@ import common  # noqa: E402
 import numpy as np  # noqa: E402
 
 WAYS = ("strips", "gn_extrude", "gn_sample")
+CARD_WAYS = ("cards", "cards_gn")
 
 
 def engine_frames(plan: dict[str, Any], frames: int) -> dict[str, Any]:
@@ -262,7 +271,147 @@ def run_way(way: str, data: dict[str, Any], frames: int) -> dict[str, Any]:
     return result
 
 
-def run(blade_counts=(10_000, 100_000), frames: int = 5) -> dict[str, Any]:
+def engine_cards(size_m: float, frames: int) -> dict[str, Any]:
+    """The cards of frames 1 .. frames + 1 of a ``size_m`` field seen from ``bench_scale.py``'s
+    camera (the LOD on: the cards the add-on draws): their corners (cards, 4, 3) and opacity per
+    corner (cards, 4), with their quads."""
+    common.load()
+    import bench_scale
+    from windgrass.grass_addon import kinematics, roles
+    from windgrass.grass_addon.field import GrassField
+
+    params = bench_scale._params(size_m)
+    camera = bench_scale._camera(params)
+    field = GrassField(params)
+    corners, fades = [], []
+    for f in range(1, frames + 2):
+        part = field.frame(f, 0.0, camera).cards
+        local = part.local[:part.count]
+        if f == 1:
+            fixed = local.copy()  # (the same blocks every frame: the camera stands still)
+        assert np.array_equal(local, fixed), "the cards' blocks moved"
+        cards = part.count * field.layout.cells_per_block_total
+        corners.append(np.ascontiguousarray(part.vertices[:cards * 4].reshape(cards, 4, 3)))
+        fades.append(roles.card_fade(field.layout, local, part.lod)[roles.FADE].reshape(cards, 4, 2)[..., 0].copy())
+    faces = kinematics.card_faces(field.layout)
+    per_block = field.layout.cells_per_block_total * 4
+    blocks = len(fixed)
+    quads = (faces[None] + (np.arange(blocks, dtype=np.int32) * per_block)[:, None, None]).reshape(-1, 4)
+    return {"corners": corners, "fades": fades, "faces": quads}
+
+
+def _cards_tree(tops_object):
+    """The cards' own mesh (bottom corners where the engine put them; ``wg_card``: each vertex's
+    card, ``wg_across``: 0 at the bottom, + or - half the card's width at its top) with its top
+    corners placed each frame from ``tops_object`` (a vertex per card on its top edge's middle,
+    ``wg_turn``: the top edge's direction less 90 degrees, ``wg_fade``: its opacity), and each
+    corner's opacity stored as the UV map ``wg_fade`` the cards' material reads."""
+    t = _Tree("HandoverCards")
+    info = t.node("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = tops_object
+    index = t.named("wg_card", "INT")
+
+    def sample(kind: str, value):
+        node = t.node("GeometryNodeSampleIndex")
+        node.data_type = kind
+        node.domain = "POINT"
+        t.link(info.outputs["Geometry"], node.inputs["Geometry"])
+        t.link(value, node.inputs["Value"])
+        t.link(index, node.inputs["Index"])
+        return node.outputs["Value"]
+
+    top = sample("FLOAT_VECTOR", t.node("GeometryNodeInputPosition").outputs["Position"])
+    across = t.named("wg_across", "FLOAT")
+    place = t.node("ShaderNodeVectorMath")
+    place.operation = "ADD"
+    t.link(top, place.inputs[0])
+    t.link(t.scale(t.across(sample("FLOAT", t.named("wg_turn", "FLOAT"))), across), place.inputs[1])
+    move = t.node("GeometryNodeSetPosition")
+    t.link(t.source, move.inputs["Geometry"])
+    t.link(t.math("GREATER_THAN", t.math("ABSOLUTE", across), 0.0), move.inputs["Selection"])  # (the top)
+    t.link(place.outputs["Vector"], move.inputs["Position"])
+    fade = sample("FLOAT", t.named("wg_fade", "FLOAT"))
+    pair = t.node("ShaderNodeCombineXYZ")
+    t.link(fade, pair.inputs["X"])
+    t.link(fade, pair.inputs["Y"])
+    store = t.node("GeometryNodeStoreNamedAttribute")
+    store.data_type = "FLOAT2"
+    store.domain = "CORNER"
+    store.inputs["Name"].default_value = "wg_fade"
+    t.link(move.outputs["Geometry"], store.inputs["Geometry"])
+    t.link(pair.outputs["Vector"], next(i for i in store.inputs if i.name == "Value" and i.enabled))
+    t.link(store.outputs["Geometry"], t.sink)
+    return t.tree
+
+
+def run_cards_way(way: str, data: dict[str, Any], frames: int) -> dict[str, Any]:
+    """``cards`` (today: the corners and the opacity per corner, the UV map ``wg_fade``) or
+    ``cards_gn`` (a point per card: its top's middle, turn and opacity), timed as ``run_way``; the
+    largest distance from the engine's corners and the largest opacity error."""
+    import bpy
+    from windgrass.grass_addon.bridge import meshes, pools
+
+    scene = bench_peers._fresh_scene()
+    corners, fades = data["corners"], data["fades"]
+    cards = corners[0].shape[0]
+    mesh = meshes.quad_mesh("HandoverCards", cards * 4, data["faces"], np.zeros((cards * 4, 2), np.float32), None,
+                            {}, ("wg_fade",))
+    obj = bpy.data.objects.new("HandoverCards", mesh)
+    scene.collection.objects.link(obj)
+    # (the corners follow the quads: corner k of card c is vertex 4 c + k, as kinematics.card_faces has them)
+    if way == "cards":
+        handed = [(c.reshape(-1, 3), np.repeat(f.reshape(-1, 1), 2, axis=1)) for c, f in zip(corners, fades)]
+        target, bytes_per_card = mesh, 4 * 12 + 4 * 8
+    else:
+        pools.write_positions(mesh, corners[0].reshape(-1, 3))  # (the bottom corners never move)
+        pools.write_point_values(mesh, "wg_card", np.repeat(np.arange(cards), 4), "INT")
+        half = 0.5 * np.linalg.norm(corners[0][:, 2] - corners[0][:, 3], axis=1)
+        pools.write_point_values(mesh, "wg_across", (half[:, None] * [0.0, 0.0, 1.0, -1.0]).ravel())
+        target = bpy.data.meshes.new("HandoverTops")
+        target.vertices.add(cards)
+        tops = bpy.data.objects.new("HandoverTops", target)
+        scene.collection.objects.link(tops)
+        tops.hide_render = tops.hide_viewport = True
+        handed = []
+        for c, f in zip(corners, fades):
+            edge = c[:, 2] - c[:, 3]
+            turn = (np.arctan2(edge[:, 1], edge[:, 0]) - 0.5 * np.pi).astype(np.float32)  # (across: (cos, sin) of it)
+            handed.append((0.5 * (c[:, 2] + c[:, 3]), np.stack([turn, f[:, 0]])))
+        modifier = obj.modifiers.new("Cards", "NODES")
+        modifier.node_group = _cards_tree(tops)
+        bytes_per_card = 12 + 4 + 4
+
+    def write(scene_, *_args) -> None:
+        positions, extra = handed[min(scene_.frame_current, len(handed)) - 1]
+        pools.write_positions(target, positions)
+        if way == "cards":
+            meshes.write_uv(target, "wg_fade", extra)
+        else:
+            pools.write_point_values(target, "wg_turn", extra[0])
+            pools.write_point_values(target, "wg_fade", extra[1])
+        target.update()
+
+    def check() -> int:
+        return len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
+
+    bpy.app.handlers.frame_change_pre.append(write)
+    try:
+        result = bench_peers._time_frames(scene, frames, check)
+        scene.frame_set(frames + 1)
+        drawn = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+        flat = np.zeros(len(drawn.vertices) * 3, np.float32)
+        drawn.attributes["position"].data.foreach_get("vector", flat)
+        opacity = meshes.read_uv(drawn, "wg_fade")
+    finally:
+        bpy.app.handlers.frame_change_pre.remove(write)
+    got, want = flat.reshape(-1, 3), corners[frames].reshape(-1, 3)
+    error = float(np.abs(got - want).max()) if got.shape == want.shape else math.inf
+    fade_error = float(np.abs(opacity[:, 0] - np.repeat(fades[frames].reshape(-1), 1)).max())
+    result.update(bytes_per_card=bytes_per_card, max_error_m=error, max_fade_error=fade_error, cards=cards)
+    return result
+
+
+def run(blade_counts=(10_000, 100_000), frames: int = 5, cards_m: float = 102.4) -> dict[str, Any]:
     bench_peers._prepare_blender_env()
     import bpy
 
@@ -276,6 +425,11 @@ def run(blade_counts=(10_000, 100_000), frames: int = 5) -> dict[str, Any]:
         base = row["strips"]["median_ms"]
         row["ratio"] = {way: round(row[way]["median_ms"] / base, 2) for way in WAYS}
         out["runs"].append(row)
+    if cards_m > 0:
+        data = engine_cards(cards_m, frames)
+        row = {"field_m": cards_m, **{way: run_cards_way(way, data, frames) for way in CARD_WAYS}}
+        row["ratio"] = round(row["cards_gn"]["median_ms"] / row["cards"]["median_ms"], 2)
+        out["cards"] = row
     return out
 
 
@@ -283,8 +437,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = common.parser(__doc__)
     parser.add_argument("--blades", nargs="+", type=int, default=[10_000, 100_000])
     parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument("--cards-m", type=float, default=102.4,
+                        help="the cards of a field this wide, from bench_scale.py's camera (0: none)")
     args = parser.parse_args(argv)
-    common.emit(run(tuple(args.blades), args.frames), args)
+    common.emit(run(tuple(args.blades), args.frames, args.cards_m), args)
     return 0
 
 

@@ -174,10 +174,10 @@ def build_slots(scene, item, params: Params, heightfield=None, terrain_centre=No
         heads.remove(item)
     _remove_objects([o for o in owned.field_objects(item) if o is not ground])
     _purge_orphan_meshes(uid)  # (slots deleted by hand): their names are free for the new ones
-    for key, data in list(owned.registered(item).items()):
+    for key, data in list(owned.registered(item).items()):  # (the artist's trees read the wind map: it stays)
         if not isinstance(data, (bpy.types.Material, bpy.types.Image)) and data is not ground \
                 and key != owned.ROLE_WIND_MAP and not (head_tree is not None and heads.owns(data)):
-            del item[owned.MADE_KEY][key]  # (the artist's trees read the wind map: it stays)
+            del item[owned.MADE_KEY][key]
     painted = paint_look.painted_settings(params, item)
     surface = paint_look.paint_ground(params, heightfield) if painted else heightfield
     heights = _sward_heights(seen_far(params), ground, look_later)

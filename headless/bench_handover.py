@@ -135,6 +135,38 @@ class _Tree:
         self.link(self.math("COSINE", angle), side.inputs["Y"])
         return side.outputs["Vector"]
 
+    def sampler(self, source_object, index_name: str):
+        """``sample(kind, value)``: ``value`` read on ``source_object``'s point whose index each
+        point of this geometry holds in ``index_name`` (Object Info, Sample Index)."""
+        info = self.node("GeometryNodeObjectInfo")
+        info.inputs["Object"].default_value = source_object
+        index = self.named(index_name, "INT")
+
+        def sample(kind: str, value):
+            node = self.node("GeometryNodeSampleIndex")
+            node.data_type = kind
+            node.domain = "POINT"
+            self.link(info.outputs["Geometry"], node.inputs["Geometry"])
+            self.link(value, node.inputs["Value"])
+            self.link(index, node.inputs["Index"])
+            return node.outputs["Value"]
+
+        return sample
+
+    def placed(self, sample, across, selection=None):
+        """The input geometry with its points (those of ``selection``) at their source point's
+        position + (-sin a, cos a, 0) * ``across``, a = the source point's ``wg_turn``."""
+        place = self.node("ShaderNodeVectorMath")
+        place.operation = "ADD"
+        self.link(sample("FLOAT_VECTOR", self.node("GeometryNodeInputPosition").outputs["Position"]), place.inputs[0])
+        self.link(self.scale(self.across(sample("FLOAT", self.named("wg_turn", "FLOAT"))), across), place.inputs[1])
+        move = self.node("GeometryNodeSetPosition")
+        self.link(self.source, move.inputs["Geometry"])
+        if selection is not None:
+            self.link(selection, move.inputs["Selection"])
+        self.link(place.outputs["Vector"], move.inputs["Position"])
+        return move.outputs["Geometry"]
+
 
 def _extrude_tree():
     """Joints (a vertex each, an edge per segment; ``wg_turn``, ``wg_width``) -> the blade strips:
@@ -162,29 +194,7 @@ def _sample_tree(joints_object):
     ``wg_across``: its signed half width) placed each frame from ``joints_object`` (a vertex per
     joint, ``wg_turn``): position = joint + (-sin turn, cos turn, 0) * across."""
     t = _Tree("HandoverSample")
-    info = t.node("GeometryNodeObjectInfo")
-    info.inputs["Object"].default_value = joints_object
-    index = t.named("wg_joint", "INT")
-
-    def sample(kind: str, value):
-        node = t.node("GeometryNodeSampleIndex")
-        node.data_type = kind
-        node.domain = "POINT"
-        t.link(info.outputs["Geometry"], node.inputs["Geometry"])
-        t.link(value, node.inputs["Value"])
-        t.link(index, node.inputs["Index"])
-        return node.outputs["Value"]
-
-    joint = sample("FLOAT_VECTOR", t.node("GeometryNodeInputPosition").outputs["Position"])
-    turn = sample("FLOAT", t.named("wg_turn", "FLOAT"))
-    place = t.node("ShaderNodeVectorMath")
-    place.operation = "ADD"
-    t.link(joint, place.inputs[0])
-    t.link(t.scale(t.across(turn), t.named("wg_across", "FLOAT")), place.inputs[1])
-    move = t.node("GeometryNodeSetPosition")
-    t.link(t.source, move.inputs["Geometry"])
-    t.link(place.outputs["Vector"], move.inputs["Position"])
-    t.link(move.outputs["Geometry"], t.sink)
+    t.link(t.placed(t.sampler(joints_object, "wg_joint"), t.named("wg_across", "FLOAT")), t.sink)
     return t.tree
 
 
@@ -201,6 +211,26 @@ def _joint_mesh(blades: int, n: int):
     mesh.edges.foreach_set("vertices", edges.ravel())
     mesh.update()
     return mesh
+
+
+def _timed(scene, obj, write, frames: int) -> tuple[dict[str, Any], Any, np.ndarray]:
+    """``bench_peers._time_frames`` with ``write`` as a ``frame_change_pre`` handler, then frame
+    ``frames + 1``: (the timing, ``obj``'s evaluated mesh there, its positions as (vertices, 3))."""
+    import bpy
+
+    def check() -> int:
+        return len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
+
+    bpy.app.handlers.frame_change_pre.append(write)
+    try:
+        result = bench_peers._time_frames(scene, frames, check)
+        scene.frame_set(frames + 1)
+    finally:
+        bpy.app.handlers.frame_change_pre.remove(write)
+    drawn = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    flat = np.zeros(len(drawn.vertices) * 3, np.float32)
+    drawn.attributes["position"].data.foreach_get("vector", flat)
+    return result, drawn, flat.reshape(-1, 3)
 
 
 def run_way(way: str, data: dict[str, Any], frames: int) -> dict[str, Any]:
@@ -247,24 +277,12 @@ def run_way(way: str, data: dict[str, Any], frames: int) -> dict[str, Any]:
             pools.write_point_values(mesh, "wg_turn", turn)
         mesh.update()
 
-    def check() -> int:
-        return len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
-
-    bpy.app.handlers.frame_change_pre.append(write)
-    try:
-        result = bench_peers._time_frames(scene, frames, check)
-        scene.frame_set(frames + 1)
-        drawn = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-        flat = np.zeros(len(drawn.vertices) * 3, np.float32)
-        drawn.attributes["position"].data.foreach_get("vector", flat)
-    finally:
-        bpy.app.handlers.frame_change_pre.remove(write)
+    result, _drawn, got = _timed(scene, obj, write, frames)
     strip = strips[frames]
     if way == "gn_extrude":  # the joints moved left, then their copies on the right
         want = np.concatenate([strip[:, 0::2].reshape(-1, 3), strip[:, 1::2].reshape(-1, 3)])
     else:
         want = strip.reshape(-1, 3)
-    got = flat.reshape(-1, 3)
     error = float(np.abs(got - want).max()) if got.shape == want.shape else math.inf
     bytes_per_blade = 2 * (n + 1) * 12 if way == "strips" else (n + 1) * 16
     result.update(bytes_per_blade=bytes_per_blade, max_error_m=error, blades=blades)
@@ -307,29 +325,9 @@ def _cards_tree(tops_object):
     ``wg_turn``: the top edge's direction less 90 degrees, ``wg_fade``: its opacity), and each
     corner's opacity stored as the UV map ``wg_fade`` the cards' material reads."""
     t = _Tree("HandoverCards")
-    info = t.node("GeometryNodeObjectInfo")
-    info.inputs["Object"].default_value = tops_object
-    index = t.named("wg_card", "INT")
-
-    def sample(kind: str, value):
-        node = t.node("GeometryNodeSampleIndex")
-        node.data_type = kind
-        node.domain = "POINT"
-        t.link(info.outputs["Geometry"], node.inputs["Geometry"])
-        t.link(value, node.inputs["Value"])
-        t.link(index, node.inputs["Index"])
-        return node.outputs["Value"]
-
-    top = sample("FLOAT_VECTOR", t.node("GeometryNodeInputPosition").outputs["Position"])
+    sample = t.sampler(tops_object, "wg_card")
     across = t.named("wg_across", "FLOAT")
-    place = t.node("ShaderNodeVectorMath")
-    place.operation = "ADD"
-    t.link(top, place.inputs[0])
-    t.link(t.scale(t.across(sample("FLOAT", t.named("wg_turn", "FLOAT"))), across), place.inputs[1])
-    move = t.node("GeometryNodeSetPosition")
-    t.link(t.source, move.inputs["Geometry"])
-    t.link(t.math("GREATER_THAN", t.math("ABSOLUTE", across), 0.0), move.inputs["Selection"])  # (the top)
-    t.link(place.outputs["Vector"], move.inputs["Position"])
+    moved = t.placed(sample, across, t.math("GREATER_THAN", t.math("ABSOLUTE", across), 0.0))  # (the top)
     fade = sample("FLOAT", t.named("wg_fade", "FLOAT"))
     pair = t.node("ShaderNodeCombineXYZ")
     t.link(fade, pair.inputs["X"])
@@ -338,7 +336,7 @@ def _cards_tree(tops_object):
     store.data_type = "FLOAT2"
     store.domain = "CORNER"
     store.inputs["Name"].default_value = "wg_fade"
-    t.link(move.outputs["Geometry"], store.inputs["Geometry"])
+    t.link(moved, store.inputs["Geometry"])
     t.link(pair.outputs["Vector"], next(i for i in store.inputs if i.name == "Value" and i.enabled))
     t.link(store.outputs["Geometry"], t.sink)
     return t.tree
@@ -391,22 +389,11 @@ def run_cards_way(way: str, data: dict[str, Any], frames: int) -> dict[str, Any]
             pools.write_point_values(target, "wg_fade", extra[1])
         target.update()
 
-    def check() -> int:
-        return len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices)
-
-    bpy.app.handlers.frame_change_pre.append(write)
-    try:
-        result = bench_peers._time_frames(scene, frames, check)
-        scene.frame_set(frames + 1)
-        drawn = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
-        flat = np.zeros(len(drawn.vertices) * 3, np.float32)
-        drawn.attributes["position"].data.foreach_get("vector", flat)
-        opacity = meshes.read_uv(drawn, "wg_fade")
-    finally:
-        bpy.app.handlers.frame_change_pre.remove(write)
-    got, want = flat.reshape(-1, 3), corners[frames].reshape(-1, 3)
+    result, drawn, got = _timed(scene, obj, write, frames)
+    opacity = meshes.read_uv(drawn, "wg_fade")
+    want = corners[frames].reshape(-1, 3)
     error = float(np.abs(got - want).max()) if got.shape == want.shape else math.inf
-    fade_error = float(np.abs(opacity[:, 0] - np.repeat(fades[frames].reshape(-1), 1)).max())
+    fade_error = float(np.abs(opacity[:, 0] - fades[frames].reshape(-1)).max())
     result.update(bytes_per_card=bytes_per_card, max_error_m=error, max_fade_error=fade_error, cards=cards)
     return result
 

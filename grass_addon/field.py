@@ -32,6 +32,7 @@ from .clock import Clock
 from .errors import ParameterError
 from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
+from .kinematics import carry_constants
 from .layout import FieldLayout, build_layout, window_layout
 from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, screen_scale, views
 from .roles import BY_NAME as ROLE_OF
@@ -209,23 +210,24 @@ class GrassField:
         rerun = self._twin or self.reruns(params, wind_keys)
         self._twin = False  # (its own run from here on)
         self._map_kept = None
-        old_shapes = self.shapes
+        old_shapes, old_layout = self.shapes, self.layout
         self.model = FieldModel.of(params)
-        self.cache.params, self.cache.species = params, Species(params)
-        ids, cells = self.layout.block_ids, self.layout.block_cells
-        row_major = not np.array_equal(cells.ravel(), np.arange(cells.size))  # (build_layout's, not a window's)
-        layout = build_layout(params, self.cache.terrain, cache=self.cache) if row_major \
-            else window_layout(self.cache, ids)
+        species = Species(params)
+        self.cache.params, self.cache.species = params, species
+        # the same blocks and cells: the layout's arrays and the blades' constants are kept
+        layout = old_layout.retitled(params, species.color, species.head_color)
+        carry_constants(old_layout, layout)
+        if edit_parts.LOOK not in parts:  # (the slots' colours and marks hold)
+            self._colours = (layout, self._colours[1]) if self._colours[0] is old_layout else (None, {})
+        self.layout = layout
         if rerun:
-            self.layout = layout
             self.wind = WindField(layout, params, keys=wind_keys)
             self._wind_keys = wind_keys
             forces.check_count(effectors)
             self.effectors = effectors
             self.sim = self._simulation(forces.ForcedWind(self.wind, effectors) if effectors is not None else self.wind)
-        else:
-            self.sim.set_layout(layout)
-            self.layout = layout
+        else:  # a look or LOD edit: the run goes on as it is
+            self.sim.retitle(layout)
         colliders = interaction.colliders_from_params(params) if colliders is None else colliders
         self.set_interaction(colliders, self.effectors)
         if self.shapes != old_shapes:

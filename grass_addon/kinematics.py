@@ -199,6 +199,14 @@ def _constants(layout) -> _Constants:
     return c
 
 
+def carry_constants(old, new) -> None:
+    """``new`` (``old.retitled``: the same blocks, settings that change none of them) uses the
+    per-blade values already worked out for ``old``."""
+    c = _CACHE.get(old)
+    if c is not None:
+        _CACHE[new] = c
+
+
 def _check_blocks(layout, blocks) -> np.ndarray:
     blocks = np.asarray(blocks, dtype=np.int64).ravel()
     if blocks.size and (blocks.min() < 0 or blocks.max() >= layout.n_blocks):

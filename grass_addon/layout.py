@@ -11,7 +11,7 @@ a window are block-major (``block_cells`` maps either way).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,6 +94,11 @@ class FieldLayout:
     blades_per_block = property(lambda self: self.grid.blades_per_block)
     origin = property(lambda self: self.grid.origin)
     size = property(lambda self: self.grid.size, doc="Field extent along X and Y in metres.")
+
+    def retitled(self, params: Params, species_color: np.ndarray, species_head_color: np.ndarray) -> FieldLayout:
+        """These blocks with ``params`` that change none of them (a wind, physics, LOD or look edit,
+        ``edit_parts``) and the species' colours of ``params``: the arrays are shared, not copied."""
+        return replace(self, params=params, species_color=species_color, species_head_color=species_head_color)
 
     def block_blades(self, block: int) -> slice:
         start = block * self.blades_per_block

@@ -133,6 +133,13 @@ class Simulation:
             self.cell_wind = self._sample(frame)
             self._wind_frame = frame
 
+    def retitle(self, layout) -> None:
+        """Work on ``layout``, the blocks and cells of this one with other settings of their look or
+        level of detail (``FieldLayout.retitled``): the run, its trajectories and the solver are kept."""
+        if not np.array_equal(layout.block_ids, self.layout.block_ids):
+            raise ValueError("retitle: the layout must hold the same blocks (set_layout moves a window)")
+        self.layout = self.solver.layout = layout
+
     def set_layout(self, layout, frame: int | None = None, renewed=()) -> None:
         """Work on the cells of ``layout`` from now on (the whole field or a window of blocks;
         ``layout.block_ids``).

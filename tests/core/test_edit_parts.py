@@ -3,7 +3,7 @@ same settings gives, bit for bit, and an edit of a colour or a LOD distance simu
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import edit_parts, schema
+from windgrass.grass_addon import edit_parts, kinematics, schema
 from windgrass.grass_addon import frame as frames
 from windgrass.grass_addon.errors import ParameterError
 from windgrass.grass_addon.field import GrassField
@@ -89,13 +89,19 @@ def test_an_edit_in_place_draws_what_a_fresh_build_draws(name, params, views):
 @pytest.mark.parametrize("name", ["lod.card_near", "render.sun_elevation", "blade.species (colours)",
                                   "render.samples"])
 def test_a_look_or_lod_edit_simulates_nothing_again(name):
+    """Nothing of the run is made again: no step, the same solver (its constants from the blades'
+    physics), the same blocks' arrays and per-blade constants of the strips (stop 72: a colour
+    edit of a 100 m field spent 0.13-0.15 s remaking them)."""
     params = dict(EDITS)[name]
     field = GrassField(base_params())
     drawn(field, 30, CAMERA)
-    steps = field.sim.steps
+    steps, solver, layout = field.sim.steps, field.sim.solver, field.layout
+    constants = kinematics._constants(layout)
     field.retune(params)
     drawn(field, 30, CAMERA)
     assert field.sim.steps == steps
+    assert field.sim.solver is solver and field.layout.blade_root is layout.blade_root
+    assert kinematics._constants(field.layout) is constants
 
 
 def test_a_wind_edit_keeps_the_blocks_and_a_shape_edit_needs_a_new_field():

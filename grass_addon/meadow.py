@@ -57,6 +57,23 @@ def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray
     return (x >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))
 
 
+def _lattice(seed: int, channel: int, i: np.ndarray, j: np.ndarray, pad: int):
+    """(table, row, column): ``_hash01`` on every lattice point of the box around the points (i, j)
+    widened by ``pad`` each way, so that ``table[row + di, column + dj]`` is ``_hash01(seed,
+    channel, i + di, j + dj)`` for |di|, |dj| <= pad; None when the box holds more points than
+    there are points (i, j) (then hashing each point costs less). The hashes of a block's blades
+    lie on a few lattice points: one hash each instead of one a blade (the same bits)."""
+    if not i.size:
+        return None
+    i0, j0 = i.min() - pad, j.min() - pad
+    rows, cols = int(i.max() - i0) + 1 + pad, int(j.max() - j0) + 1 + pad
+    if rows * cols > i.size:
+        return None
+    gi, gj = np.meshgrid(np.arange(rows) + i0, np.arange(cols) + j0, indexing="ij")
+    table = _hash01(seed, channel, gi.ravel(), gj.ravel()).reshape(rows, cols)
+    return table, (i - i0).astype(np.intp), (j - j0).astype(np.intp)
+
+
 def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
     """(n,) smooth noise in [0, 1] over points ``xy`` (n, 2) in metres: random values on a lattice
     of edge ``size``, blended by the smoothstep of the position between them."""
@@ -65,8 +82,13 @@ def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndar
     f = p - cell
     w = f * f * (3.0 - 2.0 * f)
     i, j = cell[:, 0], cell[:, 1]
-    v00, v10 = _hash01(seed, channel, i, j), _hash01(seed, channel, i + 1, j)
-    v01, v11 = _hash01(seed, channel, i, j + 1), _hash01(seed, channel, i + 1, j + 1)
+    box = _lattice(seed, channel, i, j, 1)
+    if box is None:
+        v00, v10 = _hash01(seed, channel, i, j), _hash01(seed, channel, i + 1, j)
+        v01, v11 = _hash01(seed, channel, i, j + 1), _hash01(seed, channel, i + 1, j + 1)
+    else:
+        table, r, c = box
+        v00, v10, v01, v11 = table[r, c], table[r + 1, c], table[r, c + 1], table[r + 1, c + 1]
     bottom = v00 + (v10 - v00) * w[:, 0]
     top = v01 + (v11 - v01) * w[:, 0]
     return bottom + (top - bottom) * w[:, 1]
@@ -89,10 +111,15 @@ def clump_centres(xy: np.ndarray, seed: int, size: float) -> np.ndarray:
     home = np.floor(p / size)
     best = np.empty_like(p)
     best_d = np.full(len(p), np.inf)
+    boxes = _lattice(seed, 11, home[:, 0], home[:, 1], 1), _lattice(seed, 12, home[:, 0], home[:, 1], 1)
     for di in (-1.0, 0.0, 1.0):
         for dj in (-1.0, 0.0, 1.0):
             i, j = home[:, 0] + di, home[:, 1] + dj
-            centre = np.stack([(i + _hash01(seed, 11, i, j)) * size, (j + _hash01(seed, 12, i, j)) * size], axis=1)
+            if boxes[0] is None or boxes[1] is None:
+                jitter = _hash01(seed, 11, i, j), _hash01(seed, 12, i, j)
+            else:
+                jitter = tuple(table[r + int(di), c + int(dj)] for table, r, c in boxes)
+            centre = np.stack([(i + jitter[0]) * size, (j + jitter[1]) * size], axis=1)
             d = ((centre - p) ** 2).sum(axis=1)
             nearer = d < best_d
             best[nearer], best_d[nearer] = centre[nearer], d[nearer]

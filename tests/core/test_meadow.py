@@ -102,3 +102,32 @@ def test_the_fields_edge_thins_out_along_a_ragged_line():
     south = (xy[:, 1] < 0.0) & (np.abs(xy[:, 1]) > np.abs(xy[:, 0]))
     reach = [inside[south & (np.abs(xy[:, 0] - x) < 0.25) & (ratio > 0.9)].min() for x in np.arange(-2.5, 2.6, 0.5)]
     assert np.std(reach) > 0.05, reach
+
+
+def test_noise_hashed_once_a_lattice_point_is_the_noise_hashed_once_a_point():
+    """``value_noise`` and ``clump_centres`` hash each lattice point once for a block's points
+    (``meadow._lattice``); they give the bits of the plain formula, one hash per point (its twin),
+    for a block's few lattice points and for points spread too wide for a table."""
+    rng = np.random.default_rng(3)
+
+    def plain_noise(xy, seed, channel, size):
+        p = xy / size
+        i, j = np.floor(p[:, 0]), np.floor(p[:, 1])
+        w = (p - np.floor(p)) ** 2 * (3.0 - 2.0 * (p - np.floor(p)))
+        v = {(a, b): meadow._hash01(seed, channel, i + a, j + b) for a in (0, 1) for b in (0, 1)}
+        bottom = v[0, 0] + (v[1, 0] - v[0, 0]) * w[:, 0]
+        top = v[0, 1] + (v[1, 1] - v[0, 1]) * w[:, 0]
+        return bottom + (top - bottom) * w[:, 1]
+
+    def plain_centres(xy, seed, size):
+        home = np.floor(xy / size)
+        found = [np.stack([(home[:, 0] + a + meadow._hash01(seed, 11, home[:, 0] + a, home[:, 1] + b)) * size,
+                           (home[:, 1] + b + meadow._hash01(seed, 12, home[:, 0] + a, home[:, 1] + b)) * size], 1)
+                 for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)]
+        d = np.stack([((c - xy) ** 2).sum(axis=1) for c in found])
+        return np.stack(found)[np.argmin(d, axis=0), np.arange(len(xy))]
+
+    for xy in (rng.uniform(-31.0, -29.4, (512, 2)), rng.uniform(-300.0, 300.0, (300, 2))):
+        for size in (0.3, 2.7, 9.0):
+            assert np.array_equal(meadow.value_noise(xy, 7, 5, size), plain_noise(xy, 7, 5, size))
+            assert np.array_equal(meadow.clump_centres(xy, 7, size), plain_centres(xy, 7, size))

@@ -454,43 +454,85 @@ def _write_joints(s: dict, t, dz, root_xy, root_z, w_side, rot_blade, blades: in
 # Cards
 
 
+_CARDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+class _CardConstants:
+    """What of each card of a layout never moves: its bottom edge (bottom-left xyz, bottom-right
+    xyz: one row a card, as ``card_vertices`` writes them) and its top's height at rest."""
+
+    def __init__(self, layout):
+        centre, ground = layout.card_center, layout.cell_ground
+        self.half = half = np.float32(0.5 * layout.params.lod.card_width * layout.cell_size)
+        bx, by = np.cos(layout.card_facing) * half, np.sin(layout.card_facing) * half
+        self.bottom = np.stack([centre[:, 0] - bx, centre[:, 1] - by, ground,
+                                centre[:, 0] + bx, centre[:, 1] + by, ground], axis=1).astype(np.float32)
+        self.bottom_records = self.bottom.view(np.dtype((np.void, 24)))[:, 0]
+        self.rest_top = ground + layout.card_height
+
+
+def _card_constants(layout) -> _CardConstants:
+    c = _CARDS.get(layout)
+    if c is None:
+        c = _CARDS[layout] = _CardConstants(layout)
+    return c
+
+
 def card_vertices(layout, cells, blocks, out=None) -> np.ndarray:
     """(len(blocks) * cells_per_block**2 * 4, 3) float32: bottom-left, bottom-right, top-right,
-    top-left of each card (paper III.B), top moved by M' of eq 34 and turned by the total twist."""
+    top-left of each card (paper III.B), top moved by M' of eq 34 and turned by the total twist.
+    The bottom edges are the layout's (``_CardConstants``); ``card_vertices_plain`` is its twin."""
     blocks = _check_blocks(layout, blocks)
     rows = card_vertex_count(layout, len(blocks))
     result = _output(out, rows)
     if rows == 0:
         return result
+    const = _card_constants(layout)
+    cell_ids = layout.block_cells[blocks].ravel()
+    # (gathers by np.take, the bottom edge as one 24-byte record a card: several times faster
+    # than fancy indexing of rows)
+    corners = result.reshape(-1).view(np.dtype((np.void, 24))).reshape(-1, 2)  # a card a row
+    corners[:, 0] = np.take(const.bottom_records, cell_ids)
+    v = result.reshape(-1, 12)
+    top_facing = np.take(layout.card_facing, cell_ids) + np.take(_total_twist(cells), cell_ids)
+    tx, ty = np.cos(top_facing) * const.half, np.sin(top_facing) * const.half
+    offset = np.take(np.asarray(cells.card_offset, dtype=np.float32), cell_ids, axis=0)  # M', eq 34 (x, y, z)
+    centre = np.take(layout.card_center, cell_ids, axis=0)
+    topx = centre[:, 0] + offset[:, 0]
+    topy = centre[:, 1] + offset[:, 1]
+    np.add(np.take(const.rest_top, cell_ids), offset[:, 2], out=v[:, 8])
+    v[:, 11] = v[:, 8]
+    np.add(topx, tx, out=v[:, 6])
+    np.add(topy, ty, out=v[:, 7])
+    np.subtract(topx, tx, out=v[:, 9])
+    np.subtract(topy, ty, out=v[:, 10])
+    return result
+
+
+def _total_twist(cells) -> np.ndarray:
+    """(C,) float32 the sum of the twist of every joint of each cell."""
+    twist_t = getattr(cells, "twist_t", None)  # joint-major (n, C) when present: no transpose
+    if twist_t is not None:
+        return np.add.reduce(np.asarray(twist_t, dtype=np.float32), axis=0)
+    return np.add.reduce(np.asarray(cells.twist, dtype=np.float32), axis=1)
+
+
+def card_vertices_plain(layout, cells, blocks) -> np.ndarray:
+    """``card_vertices`` stated plainly, corner by corner (the tests hold the fast one to it)."""
+    blocks = _check_blocks(layout, blocks)
     cell_ids = layout.block_cells[blocks].ravel()
     centre = layout.card_center[cell_ids]  # (m, 2) the card's foot inside its cell
     half = np.float32(0.5 * layout.params.lod.card_width * layout.cell_size)
     facing = layout.card_facing[cell_ids]
-    twist_t = getattr(cells, "twist_t", None)  # joint-major (n, C) when present: no transpose
-    if twist_t is not None:
-        total_twist = np.add.reduce(np.asarray(twist_t, dtype=np.float32)[:, cell_ids], axis=0)
-    else:
-        total_twist = np.add.reduce(np.asarray(cells.twist, dtype=np.float32)[cell_ids], axis=1)
     offset = np.asarray(cells.card_offset, dtype=np.float32)[cell_ids]  # M', eq 34 (x, y, z)
-    height = layout.card_height[cell_ids]
     ground = layout.cell_ground[cell_ids]  # terrain height at the cell centre
     bx, by = np.cos(facing) * half, np.sin(facing) * half
-    top_facing = facing + total_twist
+    top_facing = facing + _total_twist(cells)[cell_ids]
     tx, ty = np.cos(top_facing) * half, np.sin(top_facing) * half
-    topx = centre[:, 0] + offset[:, 0]
-    topy = centre[:, 1] + offset[:, 1]
-    topz = ground + height + offset[:, 2]
-    v = result.reshape(-1, 4, 3)
-    v[:, 0, 0] = centre[:, 0] - bx
-    v[:, 0, 1] = centre[:, 1] - by
-    v[:, 1, 0] = centre[:, 0] + bx
-    v[:, 1, 1] = centre[:, 1] + by
-    v[:, 0, 2] = ground
-    v[:, 1, 2] = ground
-    v[:, 2, 0] = topx + tx
-    v[:, 2, 1] = topy + ty
-    v[:, 3, 0] = topx - tx
-    v[:, 3, 1] = topy - ty
-    v[:, 2, 2] = topz
-    v[:, 3, 2] = topz
-    return result
+    top = np.stack([centre[:, 0] + offset[:, 0], centre[:, 1] + offset[:, 1],
+                    ground + layout.card_height[cell_ids] + offset[:, 2]], axis=1)
+    corners = [np.stack([centre[:, 0] - bx, centre[:, 1] - by, ground], axis=1),  # bottom-left
+               np.stack([centre[:, 0] + bx, centre[:, 1] + by, ground], axis=1),  # bottom-right
+               top + np.stack([tx, ty, np.zeros_like(tx)], axis=1),  # top-right
+               top - np.stack([tx, ty, np.zeros_like(tx)], axis=1)]  # top-left
+    return np.stack(corners, axis=1).reshape(-1, 3).astype(np.float32)

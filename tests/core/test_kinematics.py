@@ -404,3 +404,28 @@ def test_seed_heads_widen_the_joint_below_the_tip_and_flowers_open_into_a_small_
         ((layout.blade_length[flower] - head) / (n - 2))[:, None], n - 2, axis=1), rtol=1e-4)
     np.testing.assert_allclose(segment[~flower], np.repeat(layout.blade_length[~flower, None] / n, n, axis=1),
                                rtol=1e-4)
+
+
+def test_the_cards_are_their_plain_statement_corner_by_corner():
+    """``card_vertices`` (bottom edges kept by the layout, records gathered) gives the bits of
+    ``card_vertices_plain`` (each corner stated: foot -+ half the width along the card's facing;
+    top = foot + M' of eq 34 -+ half the width along the facing turned by the total twist), for
+    blocks in any order, on flat ground and on a hill, and after a LOD edit of the cards' width."""
+    params = schema.defaults().replace({"field.blocks_x": 3, "field.blocks_y": 2, "field.cells_per_block": 4,
+                                        "field.blades_per_cell": 2})
+    origin, spacing, nx, ny = grid_for(params)
+    x, y = np.meshgrid(origin[0] + spacing * np.arange(nx + 1), origin[1] + spacing * np.arange(ny + 1))
+    hill = Heightfield(origin, spacing, (0.3 * x - 0.2 * y + 0.1 * np.sin(3.0 * x)).astype(np.float32))
+    for terrain in (None, hill):
+        layout = build_layout(params, terrain)
+        cells = random_cells(layout, seed=7)
+        for blocks in (np.arange(layout.n_blocks), np.array([5, 2, 3, 0]), np.array([4])):
+            want = kinematics.card_vertices_plain(layout, cells, blocks)
+            np.testing.assert_array_equal(kinematics.card_vertices(layout, cells, blocks), want)
+        wider = layout.retitled(layout.params.replace({"lod.card_width": 2.2}), layout.species_color,
+                                layout.species_head_color)
+        got = kinematics.card_vertices(wider, cells, np.arange(layout.n_blocks)).reshape(-1, 4, 3)
+        width = np.linalg.norm(got[:, 1, :2] - got[:, 0, :2], axis=1)
+        np.testing.assert_allclose(width, 2.2 * layout.cell_size, rtol=1e-5)
+        np.testing.assert_array_equal(got.reshape(-1, 3), kinematics.card_vertices_plain(wider, cells,
+                                                                                          np.arange(layout.n_blocks)))

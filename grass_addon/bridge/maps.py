@@ -30,6 +30,7 @@ from .. import terrain as terrain_core
 from ..errors import ParameterError
 from ..grid import FieldGrid
 from ..schema import Params
+from .meshes import read_uv
 from .owned import ground_object
 from .registry import warn_once
 
@@ -204,9 +205,7 @@ def _blender_map(scene, item, params: Params, setting: str, value: str, to_field
             if uv_layer is None:
                 raise ParameterError(setting, f"the terrain '{terrain.name}' has no UV map to lay {value!r} on "
                                      "(add one, or paint a vertex group)")
-            uv = np.empty(len(mesh.loops) * 2, np.float32)
-            uv_layer.data.foreach_get("uv", uv)
-            corner_uv = uv.reshape(-1, 2)[loops]
+            corner_uv = read_uv(mesh, uv_layer.name)[loops]
             pixels = _image_pixels(name, setting, item)
             corner = None
     finally:

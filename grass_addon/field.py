@@ -30,6 +30,7 @@ from .blocks import BlockCache, Species
 from .celldata import CellData
 from .clock import Clock
 from .errors import ParameterError
+from .far_sway import WindowSim
 from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .kinematics import carry_constants
@@ -38,7 +39,6 @@ from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod
 from .roles import BY_NAME as ROLE_OF
 from .roles import ROLES, Role
 from .schema import Params
-from .simulation import Simulation
 from .wind import WindField
 from .wind_map import FieldMap, MapGrid, most_common, nearest_points, point_mean
 
@@ -280,6 +280,13 @@ class GrassField:
         ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
         self._viewed = True
         self._scale = self.lod_scale(camera)
+        moved = self._move_window(camera, frame)
+        if self.sim.look(views(camera), self._scale, frame) and not moved:  # (far_sway: near blocks, band)
+            self.cells = None
+            self._recent.clear()
+        return moved
+
+    def _move_window(self, camera, frame: int | None) -> bool:
         needed = self.blocks_for(camera)
         current = self.layout.block_ids
         if np.array_equal(needed, current):
@@ -371,8 +378,8 @@ class GrassField:
         self._progress = progress
         self.sim.progress = progress
 
-    def _simulation(self, wind) -> Simulation:
-        sim = Simulation(self.layout, self.params, wind)
+    def _simulation(self, wind) -> WindowSim:
+        sim = WindowSim(self.layout, self.params, wind)
         sim.progress = self._progress
         return sim
 

@@ -20,7 +20,8 @@ from .grid import FieldGrid
 from .schema import Params
 from .terrain import Heightfield
 
-__all__ = ["RNG_BLADES", "RNG_CELLS", "FieldLayout", "build_layout", "subset_layout", "window_layout"]
+__all__ = ["RNG_BLADES", "RNG_CELLS", "CellSet", "FieldLayout", "build_layout", "cell_set", "subset_layout",
+           "window_layout"]
 
 
 @dataclass(eq=False)
@@ -187,9 +188,12 @@ def build_layout(params: Params, terrain: Heightfield | None = None, cache: Bloc
     return _assemble(params, cache, ids, cache.get(ids), block_cells)
 
 
-def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
-    """The layout of some of ``layout``'s blocks (local ids, in that order); cells block-major."""
+def subset_layout(layout, local_blocks):
+    """The layout of some of ``layout``'s blocks (local ids, in that order); cells block-major (a
+    ``CellSet``'s: the same cells of fewer blocks)."""
     local = np.asarray(local_blocks, dtype=np.int64).ravel()
+    if isinstance(layout, CellSet):
+        return layout.subset(local)
     P, bpb = layout.cells_per_block_total, layout.blades_per_block
     cells = layout.block_cells[local].ravel()
     blades = (local[:, None] * bpb + np.arange(bpb)).ravel()
@@ -202,3 +206,65 @@ def subset_layout(layout: FieldLayout, local_blocks) -> FieldLayout:
     colors = (layout.species_color, layout.species_head_color)
     return _layout(layout.params, layout.grid, layout.block_ids[local], block_cells, arrays, colors,
                    layout.terrain, layout.block_z_range[local], None if slope is None else slope[blades])
+
+
+_SOLVER_CELLS = ("cell_center", "cell_length", "cell_width", "cell_root_stiffness", "cell_rest_tilt", "cell_facing")
+
+
+@dataclass(eq=False)
+class CellSet:
+    """Some cells of some blocks of a layout, with what the solver and the wind read of them
+    (``far_sway.py``): each block's cells ``side`` x ``side``, one every ``step`` along each of its
+    rows and columns (``step`` 1: all of them), block-major, each block's row-major."""
+
+    params: Params
+    grid: FieldGrid
+    block_ids: np.ndarray  # (n_blocks,) int64 field-wide ids
+    step: int
+    cell_center: np.ndarray
+    cell_length: np.ndarray
+    cell_width: np.ndarray
+    cell_root_stiffness: np.ndarray
+    cell_rest_tilt: np.ndarray
+    cell_facing: np.ndarray
+
+    @property
+    def side(self) -> int:
+        return -(-self.grid.cells_per_block // self.step)
+
+    cells_per_block = property(lambda self: self.side)  # (a block's cells are a side x side grid: wind.py)
+    cells_x = cells_y = 0  # (never the whole field's grid)
+    segments = property(lambda self: self.grid.segments)
+
+    @property
+    def n_blocks(self) -> int:
+        return len(self.block_ids)
+
+    @property
+    def n_cells(self) -> int:
+        return self.n_blocks * self.side * self.side
+
+    @property
+    def block_cells(self) -> np.ndarray:
+        return np.arange(self.n_cells, dtype=np.int32).reshape(self.n_blocks, self.side * self.side)
+
+    def subset(self, local: np.ndarray) -> CellSet:
+        """The same cells of the local blocks ``local`` (in that order)."""
+        cells = self.block_cells[local].ravel()
+        return replace(self, block_ids=self.block_ids[local],
+                       **{name: getattr(self, name)[cells] for name in _SOLVER_CELLS})
+
+
+def cell_offsets(cells_per_block: int, step: int) -> np.ndarray:
+    """Within a block (row-major), the cells one every ``step`` along its rows and columns."""
+    picked = np.arange(0, cells_per_block, step)
+    return (picked[:, None] * cells_per_block + picked[None, :]).ravel()
+
+
+def cell_set(layout: FieldLayout, local_blocks, step: int = 1) -> CellSet:
+    """``CellSet`` of ``layout``'s local blocks ``local_blocks`` (in that order), one cell every
+    ``step`` along each block's rows and columns."""
+    local = np.asarray(local_blocks, dtype=np.int64).ravel()
+    cells = layout.block_cells[local][:, cell_offsets(layout.cells_per_block, step)].ravel()
+    return CellSet(layout.params, layout.grid, layout.block_ids[local], int(step),
+                   **{name: np.ascontiguousarray(getattr(layout, name)[cells]) for name in _SOLVER_CELLS})

@@ -246,6 +246,21 @@ def lod_weights(layout, camera, params: Params | None = None, scale: float = 1.0
                       block_distance=block_distance, scale=float(scale))
 
 
+def views_eyes(camera) -> list[np.ndarray]:
+    """The eyes of ``camera`` (one ``Camera``, several or None): (3,) float64 each."""
+    return [camera_eye(cam) for cam in views(camera)]
+
+
+def block_distances(layout, eyes) -> np.ndarray:
+    """(n_blocks,) float32: the nearest of ``eyes`` to each block's ground box (``_block_distance``)."""
+    return _nearest(_block_distance(layout, eye) for eye in eyes)
+
+
+def cell_distances(centre: np.ndarray, ground: np.ndarray, eyes) -> np.ndarray:
+    """(m,) float32: the nearest of ``eyes`` to cells at ``centre`` (m, 2) on ``ground`` (m,), as eq 7's d."""
+    return _nearest(_cell_distance(centre, ground, eye) for eye in eyes)
+
+
 def _nearest(distances):
     """Element-wise minimum of a sequence of distance arrays (None when empty)."""
     out = None

@@ -792,11 +792,34 @@ class BladeSolver:
         np.expm1(xt, out=xt)
         return x, xt
 
-    def _smooth_update(self, a: int, b: int, rows: slice, eqm: _Equilibrium, x, xt, dt: float) -> None:
+    def _smooth_update(self, a: int, b: int, rows: slice, eqm: _Equilibrium, x, xt, dt: float, substeps: int,
+                       S: _Scratch) -> None:
         """Joints ``rows`` (none oscillating): theta -= (E - theta) x, and its rate
         d theta / dt = -(E - theta) x / dt (eq 27). It stays within bounds by itself: it moves
-        between two bounded angles. (The gap buffers hold the step afterwards.)"""
-        st = self.state
+        between two bounded angles. (The gap buffers hold the step afterwards.)
+
+        With one sub-step it is the arithmetic of ``_step_once`` for a joint that does not swing
+        (rate (E - theta) (-x / dt), step rate dt, clipped), so a joint gets the same bits whether
+        its chunk's other cells make its row oscillate or not: a cell's bits never depend on the
+        cells stepped with it (``far_sway.py`` steps some alone)."""
+        st, m = self.state, b - a
+        if substeps == 1:
+            rate = S.get("smooth_rate", (rows.stop - rows.start, m))
+            np.multiply(x[rows], F32(-1.0 / dt), out=rate)
+            vel = st.bend_vel_t[rows, :, a:b]
+            np.multiply(eqm.gap[rows], rate[:, None, :], out=vel)
+            step = eqm.gap[rows]
+            np.multiply(vel, F32(dt), out=step)
+            st.bend_t[rows, :, a:b] += step
+            _clip(st.bend_t[rows, :, a:b], *_limits(S, m, BEND_LIMIT))
+            np.multiply(xt[rows], F32(-1.0 / dt), out=rate)
+            twist_vel = st.twist_vel_t[rows, a:b]
+            np.multiply(eqm.twist_gap[rows], rate, out=twist_vel)
+            twist_step = eqm.twist_gap[rows]
+            np.multiply(twist_vel, F32(dt), out=twist_step)
+            st.twist_t[rows, a:b] += twist_step
+            _clip(st.twist_t[rows, a:b], *_limits(S, m, TWIST_LIMIT))
+            return
         inv_dt = F32(-1.0 / dt)
         step = eqm.gap[rows]
         step *= x[rows, None, :]
@@ -816,7 +839,7 @@ class BladeSolver:
         x, xt = self._smooth_fractions(a, b, eqm, split, dt, S)
         for rows in (slice(0, split.j0), slice(split.j1, self.n)):
             if rows.start < rows.stop:
-                self._smooth_update(a, b, rows, eqm, x, xt, dt)
+                self._smooth_update(a, b, rows, eqm, x, xt, dt, substeps, S)
         if split.swinging is not None:
             self._oscillate(a, b, forcing, eqm, split, x, xt, dt, substeps, S)
 

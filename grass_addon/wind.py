@@ -31,6 +31,7 @@ from .schema import Params
 
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
 KEY_CACHE_SIZE = 6  # smoothed key lattices kept (4 are in use at any time)
+PATCHES_PER_KEY = 2  # regions of a key kept: a window's near cells and its far patches sample apart (far_sway.py)
 PATTERN_PERIOD_MAX = 1000.0  # m: gust fronts and the vortex repeat at most this far apart
 STEPS_PER_SEGMENT = 64  # time grid of the advection integral between two mean-wind keys
 MAX_GUST_FRONTS = 256  # blast: at most this many fronts (the most recent) are summed
@@ -180,7 +181,7 @@ class WindField:
         self.turbulence_std = float(w.turbulence)
         self.period = float(w.turbulence_period)
         self.unit = max(float(w.turbulence_scale), 0.5 * self.cell_size)
-        self._keys_cache: OrderedDict[int, tuple[tuple[int, int, int, int], np.ndarray]] = OrderedDict()
+        self._keys_cache: OrderedDict[int, list[tuple[tuple[int, int, int, int], np.ndarray]]] = OrderedDict()
         # The whirlwind repeats with these periods (m) over very large fields (the fronts: _gust_half).
         self.vortex_period = tuple(min(v, PATTERN_PERIOD_MAX) for v in self.size)
         # Gust waves (gusts.py): a large pattern scaling the mean wind, carried downwind with it.
@@ -279,9 +280,8 @@ class WindField:
         unsmoothed v_0 of a unit is a hash of (seed, key, unit), so any unit of the unbounded
         lattice has the same value whichever patch computes it.
         """
-        cached = self._keys_cache.get(key)
-        if cached is not None:
-            (ci0, cj0, ci1, cj1), patch = cached
+        kept = self._keys_cache.get(key, [])
+        for (ci0, cj0, ci1, cj1), patch in kept:
             if ci0 <= i0 and cj0 <= j0 and i1 <= ci1 and j1 <= cj1:
                 self._keys_cache.move_to_end(key)
                 return patch[j0 - cj0:j1 - cj0, i0 - ci0:i1 - ci0]
@@ -293,7 +293,8 @@ class WindField:
         v = mid * v0[1:-1] + lo * v0[:-2] + hi * v0[2:]
         v = mid * v[:, 1:-1] + lo * v[:, :-2] + hi * v[:, 2:]
         patch = np.ascontiguousarray(v, dtype=np.float32)
-        self._keys_cache[key] = ((ci0, cj0, ci1, cj1), patch)
+        self._keys_cache[key] = [((ci0, cj0, ci1, cj1), patch)] + kept[:PATCHES_PER_KEY - 1]
+        self._keys_cache.move_to_end(key)
         while len(self._keys_cache) > KEY_CACHE_SIZE:
             self._keys_cache.popitem(last=False)
         return patch[j0 - cj0:j1 - cj0, i0 - ci0:i1 - ci0]

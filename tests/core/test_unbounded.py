@@ -11,11 +11,11 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from windgrass.grass_addon import schema
+from windgrass.grass_addon import far_sway, schema
 from windgrass.grass_addon.blocks import BlockCache, FieldGrid
 from windgrass.grass_addon.errors import ParameterError
 from windgrass.grass_addon.field import GrassField
-from windgrass.grass_addon.lod import Camera
+from windgrass.grass_addon.lod import Camera, cell_distances, views_eyes
 from windgrass.grass_addon.wind import WindField
 
 # 12 x 12 blocks of 4 x 4 cells of 0.1 m (a 4.8 m field); LOD distances shrunk so that a camera
@@ -73,11 +73,25 @@ def test_a_cell_is_the_same_bits_whichever_way_it_was_reached():
     back.seek(target + 30, camera_at(1.5, 1.5, 200.0))
     back.seek(target, path(target))
 
+    # far_sway: a cell nearer than the blades' end shows its own sway, one past the band its
+    # patch's first cell's (here a block is one patch: cell 0), the same bits as in the whole field
+    lay = direct.layout
+    d = cell_distances(lay.cell_center, lay.cell_ground, views_eyes(path(target)))
+    where = {(int(b), p): float(d[lay.block_cells[i, p]]) for i, b in enumerate(lay.block_ids) for p in range(16)}
+    start = params.lod.blade_far
+    own = [key for key, dist in where.items() if dist <= start]
+    far = [key for key, dist in where.items() if dist >= far_sway.BAND * start]
+    assert own and far
+    shown = cell_states(direct)
     for field in (wander, direct, back):
         states = cell_states(field)
         assert 0 < len(states) < len(reference)  # a window, not the field
-        for key, bits in states.items():
-            assert np.array_equal(bits, reference[key]), key
+        for key in set(own) & states.keys():
+            assert np.array_equal(states[key], reference[key]), key
+        for block, p in set(far) & states.keys():
+            assert np.array_equal(states[(block, p)], reference[(block, 0)]), (block, p)
+        for key in where.keys() & states.keys():  # the band's cells too: whichever way they were reached
+            assert np.array_equal(states[key], shown[key]), key
 
 
 @pytest.mark.slow

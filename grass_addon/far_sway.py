@@ -32,7 +32,7 @@ from .solver import BladeSolver, SolverState
 
 GROUP = 4  # a far patch is GROUP x GROUP cells of a block, swaying as its first cell
 BAND = 1.25  # the band where a cell's own sway gives way to its patch's ends at BAND x lod.blade_far
-KEEP = 1.25  # a block simulated cell by cell stays so while within KEEP x the band's end
+KEEP = 1.1  # a block simulated cell by cell stays so while within KEEP x the band's end
 RAW_FRAMES = 4  # the simulations' poses kept for the frames around the shown one (motion blur)
 F32 = np.float32
 

@@ -70,6 +70,7 @@ SMOOTH_MIN_ANGLE = 0.1  # rad: below this gap the smooth update's rate stops fal
 QUASI_RATE = 1.0e6
 RELAX_GAIN = 1.0  # slope of the reconfigured equilibrium per radian of the blade's bend (_step_chunk)
 
+ONE_LANE_CELLS = 12_000  # fewer cells step faster on one lane than handed to two (far_sway's patches)
 F32 = np.float32
 ROW_PAD = 16  # floats between the rows of a scratch buffer (see _Scratch)
 
@@ -308,7 +309,7 @@ class BladeSolver:
         self.params = params
         self.n, self.n_cells = n, C
         self.chunk_cells = max(1, int(chunk_cells))
-        self.threads = max(1, int(threads))
+        self.threads = max(1, int(threads)) if C >= ONE_LANE_CELLS else 1
         # k of eq 23 per joint: stiffness and the joint angles of a given curvature scale with
         # n / REFERENCE_SEGMENTS and its inverse (blade.joint_stiffness), so k by its square and
         # the angle where stiffening stops by its inverse: the bent shape does not depend on n.

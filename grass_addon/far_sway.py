@@ -71,26 +71,34 @@ class WindowSim:
     views simulated cell by cell (``near``), the others by their patches' representatives
     (``far``); ``state`` and ``cell_wind`` are what the last ``seek`` shows."""
 
-    def __init__(self, layout, params: Params, wind):
+    def __init__(self, layout, params: Params, wind, near_ids=None):
+        """``near_ids``: the blocks a run before this one simulated cell by cell for the views (a
+        new run of an edit starts with them: no solver of the whole window is made); None: every
+        block until ``look``."""
         self.params, self.wind, self.layout = params, wind, layout
-        self.near = Simulation(layout, params, wind)
-        self.far: Simulation | None = None
+        self._viewed = near_ids is not None  # a view chose them (else every block is near)
+        ids = np.asarray(layout.block_ids)
+        near_local, far_local = self._parts(ids if near_ids is None else ids[np.isin(ids, near_ids)])
+        self.near = Simulation(self._near_layout(near_local, far_local), params, wind)
+        self.far: Simulation | None = Simulation(cell_set(layout, far_local, GROUP), params, wind) \
+            if far_local.size else None
         self.frame = self.near.frame
         self.state: SolverState = self.near.state
         self.cell_wind: np.ndarray = self.near.cell_wind
-        self._near_ids = np.asarray(layout.block_ids)  # field-wide ids simulated cell by cell
-        self._viewed = False  # a view chose them (else every block is near)
+        self._near_ids = ids[near_local]  # field-wide ids simulated cell by cell
         self._index: np.ndarray | None = None  # (C,) each window cell's place in the joined poses
         self._base_index = np.zeros(0, np.int64)  # the same with every near cell its own
         self._near_cells = self._near_own = self._near_rep = np.zeros(0, np.int64)
-        self._band: tuple | None = None  # (window cells, own, representative, weight) of the band
+        # (each window cell's place with the band's end applied; the band's cells in the window,
+        # their own places, their patches' and (1, k) weights), or None when no cell is past blade_far
+        self._band: tuple | None = None
         self._raw: OrderedDict[int, tuple] = OrderedDict()
         self._pose: Pose | None = None
         self._wind_shown: np.ndarray | None = None
         self._solver: BladeSolver | None = None
         self._progress = None
         self._steps_done = 0  # steps of simulations let go
-        self._split(self._near_ids, None)  # (every block near: the near simulation's layout is the window)
+        self._index_cells(near_local, far_local)
 
     # ------------------------------------------------------------------ Simulation's face
 
@@ -135,6 +143,10 @@ class WindowSim:
 
     # ------------------------------------------------------------------ which blocks are near
 
+    def seen_near(self) -> np.ndarray | None:
+        """The blocks simulated cell by cell for the last views (None: no view chose them)."""
+        return self._near_ids if self._viewed else None
+
     def look(self, cameras, scale: float, frame: int | None = None) -> bool:
         """Choose the blocks simulated cell by cell for ``cameras`` (a list of ``lod.Camera``) with
         the LOD distances' ``scale``, and the band's weights. True when what ``seek`` shows of a
@@ -145,13 +157,19 @@ class WindowSim:
             return self._place(np.asarray(layout.block_ids), None, frame)
         self._viewed = True
         start = float(lod.blade_far) * float(scale)
-        end = BAND * start
+        return self._place(self._chosen(layout, eyes, scale), (eyes, start, BAND * start), frame)
+
+    def _chosen(self, layout, eyes, scale: float) -> np.ndarray:
+        """Ids of ``layout``'s blocks nearer ``eyes`` than the band's end, and those simulated cell
+        by cell now that are within KEEP times it."""
+        end = BAND * float(self.params.lod.blade_far) * float(scale)
         distance = block_distances(layout, eyes)
         near = (distance <= end) | ((distance <= KEEP * end) & np.isin(layout.block_ids, self._near_ids))
-        changed = self._place(np.asarray(layout.block_ids)[near], (eyes, start, end), frame)
-        return changed
+        return np.asarray(layout.block_ids)[near]
 
     def _place(self, ids: np.ndarray, band, frame: int | None) -> bool:
+        """Simulate ``ids`` cell by cell; ``band`` (eyes, start, end): each near cell's weight
+        from its distance (0 to ``start``, 1 from ``end``). True when anything shown changed."""
         changed = False
         if not np.array_equal(ids, self._near_ids):
             self._split(ids, frame)
@@ -177,18 +195,23 @@ class WindowSim:
         self._band = weights
         return changed
 
+    def _parts(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(local ids simulated cell by cell: those of ``ids``, the others) of the window."""
+        near = np.isin(self.layout.block_ids, ids)
+        return np.flatnonzero(near), np.flatnonzero(~near)
+
+    def _near_layout(self, near_local: np.ndarray, far_local: np.ndarray):
+        """What the near simulation steps: the window itself when every block is near."""
+        return self.layout if far_local.size == 0 else cell_set(self.layout, near_local)
+
     def _split(self, ids: np.ndarray, frame: int | None, renewed=()) -> None:
         """Simulate the blocks ``ids`` cell by cell, the rest of the window by representatives
         (``renewed``: blocks whose cells changed, caught up again: ``Simulation.set_layout``)."""
-        layout = self.layout
-        near_mask = np.isin(layout.block_ids, ids)
-        near_local, far_local = np.flatnonzero(near_mask), np.flatnonzero(~near_mask)
-        self._near_ids = np.asarray(layout.block_ids)[near_local]
-        everything = far_local.size == 0
-        near_layout = layout if everything else cell_set(layout, near_local)
-        self.near.set_layout(near_layout, frame=frame, renewed=renewed)
+        near_local, far_local = self._parts(ids)
+        self._near_ids = np.asarray(self.layout.block_ids)[near_local]
+        self.near.set_layout(self._near_layout(near_local, far_local), frame=frame, renewed=renewed)
         if far_local.size:
-            far_layout = cell_set(layout, far_local, GROUP)
+            far_layout = cell_set(self.layout, far_local, GROUP)
             if self.far is None:
                 self.far = Simulation(far_layout, self.params, self.wind)
                 self.far.progress = self._progress
@@ -197,21 +220,28 @@ class WindowSim:
         elif self.far is not None:
             self._steps_done += self.far.steps
             self.far = None
+        self._index_cells(near_local, far_local)
+        self._raw.clear()
+
+    def _index_cells(self, near_local: np.ndarray, far_local: np.ndarray) -> None:
+        """Each window cell's place in the simulated cells joined (the near simulation's, then the
+        far one's): its own, or its patch's first cell's; and the near cells' own and patch places."""
+        layout = self.layout
         cpb = layout.cells_per_block
         rep_offset, rep_rank = patch_offsets(cpb)
         cells = layout.block_cells
         near_window = cells[near_local]
+        everything = far_local.size == 0
         own = near_window if everything else np.arange(near_window.size).reshape(near_window.shape)
         index = np.empty(layout.n_cells, np.int64)
         index[near_window] = own
         side = -(-cpb // GROUP)
-        far_window = cells[far_local]
-        index[far_window] = near_layout.n_cells + (np.arange(far_local.size)[:, None] * side * side + rep_rank[None, :])
+        index[cells[far_local]] = near_window.size + (np.arange(far_local.size)[:, None] * side * side
+                                                      + rep_rank[None, :])
         self._near_cells, self._near_own = near_window.ravel(), own.ravel()
         self._near_rep = own[:, rep_offset].ravel()
         self._base_index = index
         self._index = None if everything else index
-        self._raw.clear()
 
     # ------------------------------------------------------------------ time
 
@@ -281,15 +311,22 @@ class WindowSim:
 
     # ------------------------------------------------------------------ the window
 
-    def set_layout(self, layout, frame: int | None = None, renewed=()) -> None:
-        """Work on the window ``layout`` from now on (``Simulation.set_layout``): the blocks simulated
-        cell by cell stay so while in it; a new block is simulated by its representatives until the
-        next ``look`` (every block cell by cell while no view chose)."""
+    def set_layout(self, layout, frame: int | None = None, renewed=(), cameras=None, scale: float = 1.0) -> None:
+        """Work on the window ``layout`` from now on (``Simulation.set_layout``): with ``cameras``
+        (and the LOD distances' ``scale``) the blocks near them are simulated cell by cell at once
+        (as ``look`` chooses); without, those simulated so stay so while in it, a new block is
+        simulated by its representatives until the next ``look`` (every block while no view chose)."""
         if self.layout is layout:
             return
         self.layout = layout
         ids = np.asarray(layout.block_ids)
-        self._split(ids[np.isin(ids, self._near_ids)] if self._viewed else ids, frame, renewed)
+        eyes = views_eyes(cameras)
+        if eyes and self.params.lod.enabled and layout.n_blocks:
+            self._viewed = True
+            near = self._chosen(layout, eyes, scale)
+        else:
+            near = ids[np.isin(ids, self._near_ids)] if self._viewed else ids
+        self._split(near, frame, renewed)
         self._band = None
         self._solver = None
 

@@ -300,7 +300,7 @@ class GrassField:
             wanted = self.blocks_for(camera, margin=WINDOW_MARGIN_BLOCKS * self.grid.block_size) if windowed \
                 else needed
             layout = window_layout(self.cache, wanted)
-        self.sim.set_layout(layout, frame=frame)
+        self.sim.set_layout(layout, frame=frame, cameras=views(camera), scale=self._scale)
         self.layout = layout
         self.cells = None
         self._recent.clear()
@@ -379,7 +379,10 @@ class GrassField:
         self.sim.progress = progress
 
     def _simulation(self, wind) -> WindowSim:
-        sim = WindowSim(self.layout, self.params, wind)
+        """A new run in ``wind``; a field already seen starts it with the blocks its views need
+        simulated cell by cell (``far_sway``)."""
+        before = getattr(self, "sim", None)
+        sim = WindowSim(self.layout, self.params, wind, near_ids=before.seen_near() if before is not None else None)
         sim.progress = self._progress
         return sim
 

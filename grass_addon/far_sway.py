@@ -28,7 +28,7 @@ from .layout import cell_set
 from .lod import block_distances, cell_distances, views_eyes
 from .schema import Params
 from .simulation import Simulation
-from .solver import BladeSolver, SolverState
+from .solver import BladeSolver, SolverState, base_oscillator
 
 GROUP = 4  # a far patch is GROUP x GROUP cells of a block, swaying as its first cell
 BAND = 1.25  # the band where a cell's own sway gives way to its patch's ends at BAND x lod.blade_far
@@ -95,7 +95,7 @@ class WindowSim:
         self._raw: OrderedDict[int, tuple] = OrderedDict()
         self._pose: Pose | None = None
         self._wind_shown: np.ndarray | None = None
-        self._solver: BladeSolver | None = None
+        self._oscillator: tuple | None = None  # (window, recovery_oscillator's arrays)
         self._progress = None
         self._steps_done = 0  # steps of simulations let go
         self._index_cells(near_local, far_local)
@@ -134,12 +134,15 @@ class WindowSim:
 
     @property
     def solver(self) -> BladeSolver:
-        """A solver of the window's cells (their constants: ``recovery_oscillator``)."""
-        if self.near.layout is self.layout:
-            return self.near.solver
-        if self._solver is None or self._solver.n_cells != self.layout.n_cells:
-            self._solver = BladeSolver(self.layout, self.params)
-        return self._solver
+        """The near simulation's solver (every cell's when every block is near)."""
+        return self.near.solver
+
+    def recovery_oscillator(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K/M, C/M) of each window cell's base joint (``BladeSolver.recovery_oscillator``)."""
+        kept = self._oscillator
+        if kept is None or kept[0] is not self.layout:
+            kept = self._oscillator = (self.layout, base_oscillator(self.layout, self.params))
+        return kept[1]
 
     # ------------------------------------------------------------------ which blocks are near
 
@@ -328,7 +331,6 @@ class WindowSim:
             near = ids[np.isin(ids, self._near_ids)] if self._viewed else ids
         self._split(near, frame, renewed)
         self._band = None
-        self._solver = None
 
     def retitle(self, layout) -> None:
         """The same blocks and cells with other settings of their look or level of detail
@@ -340,6 +342,4 @@ class WindowSim:
         self.near.retitle(layout if self.near.layout is self.layout else cell_set(layout, near_local))
         if self.far is not None:
             self.far.retitle(cell_set(layout, far_local, GROUP))
-        if self._solver is not None:
-            self._solver.layout = layout
         self.layout, self.params = layout, layout.params

@@ -390,7 +390,7 @@ class GrassField:
         """The cell data of ``state`` at ``frame`` (``celldata.cell_data``'s, views, no copy), with
         the colliders' push and trample on top when there are colliders."""
         if self.interaction is not None:
-            omega2, damping = self.sim.solver.recovery_oscillator()
+            omega2, damping = self.sim.recovery_oscillator()
             over = self.interaction.bend(frame, self.layout, state.bend_t, omega2, damping)
             if over is not None:
                 state = state.overlaid(over)
@@ -582,7 +582,7 @@ class GrassField:
         omega = np.hypot(bend_sum[0], bend_sum[1])
         flat = np.zeros(grid.count)
         if self.interaction is not None:
-            omega2, damping = self.sim.solver.recovery_oscillator()
+            omega2, damping = self.sim.recovery_oscillator()
             flat = point_mean(grid, at, self.interaction.flatness(frame, lay, omega2, damping), grows)
         tip = base + point_mean(grid, at, cells.card_offset, grows)  # eq 34: the cards' tops M' on their feet
         bend = point_mean(grid, at, omega, grows)

@@ -285,6 +285,17 @@ def _limits(S: _Scratch, m: int, limit: float) -> tuple[np.ndarray, np.ndarray]:
     return S.const(f"lo{limit}", -limit, m), S.const(f"hi{limit}", limit, m)
 
 
+def base_oscillator(layout, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """``BladeSolver(layout, params).recovery_oscillator()``, the same bits, without a solver:
+    (K/M, C/M) of each cell's base joint at rest, (C,) float64 each (eqs 29-31)."""
+    b, n = params.blade, int(layout.segments)
+    seg = np.asarray(layout.cell_length, dtype=np.float64) / n
+    mu = np.ascontiguousarray(blade.joint_stiffness(layout.cell_root_stiffness, seg, n, b.stiffness_offset)[:, 0])
+    inv_inertia = (1.0 / (b.density * (n * seg) ** 3)).astype(F32)
+    omega2 = np.asarray(mu, np.float64) * inv_inertia
+    return omega2, float(b.damping_mass) + float(b.damping_stiffness) * omega2
+
+
 def _balanced_chunks(C: int, chunk_cells: int, threads: int) -> list[tuple[int, int]]:
     """Cells [0, C) cut into equal chunks of at most ``chunk_cells``, as few as can be (fewer,
     longer numpy calls beat cache locality here: each costs ~1-2 us of Python and setup), and a

@@ -14,7 +14,7 @@ from windgrass.grass_addon import far_sway, schema
 from windgrass.grass_addon.field import GrassField
 from windgrass.grass_addon.layout import cell_set
 from windgrass.grass_addon.lod import Camera, cell_distances, views_eyes
-from windgrass.grass_addon.solver import BladeSolver
+from windgrass.grass_addon.solver import BladeSolver, base_oscillator
 
 # 16 x 16 blocks of 8 x 8 cells of 0.1 m (12.8 m), LOD distances a few metres, a stiff breeze
 FIELD = {"field.blocks_x": 16, "field.blocks_y": 16, "field.cells_per_block": 8, "field.blades_per_cell": 1,
@@ -149,3 +149,12 @@ def test_a_wind_edit_in_place_draws_what_a_fresh_build_draws(camera):
     assert fresh.sim._band is not None  # (cells in the band: the case a new run must not lose)
     for role, vertices in want.items():
         np.testing.assert_array_equal(got[role], vertices, err_msg=role)
+
+
+def test_the_recovery_oscillator_needs_no_solver_of_the_window():
+    """Colliders' trampled grass sways back with each cell's base joint (eqs 29-31): the window's
+    values, without a solver of every cell, are the solver's own bits."""
+    params = schema.defaults().replace(FIELD)
+    layout = GrassField(params).layout
+    for got, want in zip(base_oscillator(layout, params), BladeSolver(layout, params).recovery_oscillator()):
+        np.testing.assert_array_equal(got, want)

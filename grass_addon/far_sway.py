@@ -33,6 +33,8 @@ from .solver import BladeSolver, SolverState, base_oscillator
 GROUP = 4  # a far patch is GROUP x GROUP cells of a block, swaying as its first cell
 BAND = 1.25  # the band where a cell's own sway gives way to its patch's ends at BAND x lod.blade_far
 KEEP = 1.1  # a block simulated cell by cell stays so while within KEEP x the band's end
+SPLIT_CELLS = 65_536  # a field of more cells is split; a smaller one (25.6 m at 0.1 m) steps every cell:
+# its window is small, and catching blocks up as a camera moves would cost more than it saves
 RAW_FRAMES = 4  # the simulations' poses kept for the frames around the shown one (motion blur)
 F32 = np.float32
 
@@ -156,11 +158,18 @@ class WindowSim:
         frame changed (the poses kept for frames are then composed again)."""
         layout, lod = self.layout, self.params.lod
         eyes = views_eyes(cameras)
-        if not eyes or not lod.enabled or layout.n_blocks == 0:
+        if not eyes or not self._splits(layout):
             return self._place(np.asarray(layout.block_ids), None, frame)
         self._viewed = True
         start = float(lod.blade_far) * float(scale)
         return self._place(self._chosen(layout, eyes, scale), (eyes, start, BAND * start), frame)
+
+    def _splits(self, layout) -> bool:
+        """Far blocks are simulated by patches: LOD on, a field of more than SPLIT_CELLS cells
+        (the field's, not the window's: the choice never depends on the camera's path)."""
+        grid = layout.grid
+        return bool(self.params.lod.enabled and layout.n_blocks
+                    and grid.n_blocks * grid.cells_per_block_total > SPLIT_CELLS)
 
     def _chosen(self, layout, eyes, scale: float) -> np.ndarray:
         """Ids of ``layout``'s blocks nearer ``eyes`` than the band's end, and those simulated cell
@@ -324,7 +333,7 @@ class WindowSim:
         self.layout = layout
         ids = np.asarray(layout.block_ids)
         eyes = views_eyes(cameras)
-        if eyes and self.params.lod.enabled and layout.n_blocks:
+        if eyes and self._splits(layout):
             self._viewed = True
             near = self._chosen(layout, eyes, scale)
         else:

@@ -16,8 +16,9 @@ from windgrass.grass_addon.layout import cell_set
 from windgrass.grass_addon.lod import Camera, cell_distances, views_eyes
 from windgrass.grass_addon.solver import BladeSolver, base_oscillator
 
-# 16 x 16 blocks of 8 x 8 cells of 0.1 m (12.8 m), LOD distances a few metres, a stiff breeze
-FIELD = {"field.blocks_x": 16, "field.blocks_y": 16, "field.cells_per_block": 8, "field.blades_per_cell": 1,
+# 36 x 36 blocks of 8 x 8 cells of 0.1 m (28.8 m, above far_sway.SPLIT_CELLS), LOD distances a
+# few metres, a stiff breeze
+FIELD = {"field.blocks_x": 36, "field.blocks_y": 36, "field.cells_per_block": 8, "field.blades_per_cell": 1,
          "lod.blade_near": 1.5, "lod.blade_far": 3.0, "lod.card_near": 8.0, "lod.card_far": 12.0,
          "lod.screen_size": False, "simulation.preroll": 1.0, "simulation.epoch": 2.0,
          "wind.type": "moderate_breeze"}
@@ -25,7 +26,7 @@ FRAME = 30
 
 
 def edge_camera() -> Camera:
-    return Camera.look_at((0.0, -6.6, 1.2), (0.0, 2.0, 0.0), math.radians(70.0), 16 / 9)
+    return Camera.look_at((0.0, -14.6, 1.2), (0.0, -6.0, 0.0), math.radians(70.0), 16 / 9)
 
 
 def poses(field) -> dict[tuple[int, int], np.ndarray]:
@@ -132,13 +133,14 @@ def test_a_cell_stepped_alone_has_the_bits_it_has_among_others():
 
 
 INSIDE = Camera.look_at((0.0, 0.0, 1.0), (1.0, 1.0, 0.0), math.radians(90.0))
+SHORT = {"lod.card_near": 3.2, "lod.card_far": 3.5}  # (a window that ends within the band)
 
 
-@pytest.mark.parametrize("camera", [edge_camera(), INSIDE],
+@pytest.mark.parametrize("camera,lod", [(edge_camera(), {}), (INSIDE, SHORT)],
                          ids=["edge: near, band and far", "inside: every block near, a band"])
-def test_a_wind_edit_in_place_draws_what_a_fresh_build_draws(camera):
+def test_a_wind_edit_in_place_draws_what_a_fresh_build_draws(camera, lod):
     """A new run (``GrassField.retune``) chooses its near blocks and band as a fresh field does."""
-    params = schema.defaults().replace({**FIELD, "field.blocks_x": 8, "field.blocks_y": 8})
+    params = schema.defaults().replace({**FIELD, **lod})
     edited = params.replace({"wind.speed": params.wind.speed + 3.0})
     field = GrassField(params)
     field.frame(FRAME, 0.0, camera)
@@ -158,3 +160,18 @@ def test_the_recovery_oscillator_needs_no_solver_of_the_window():
     layout = GrassField(params).layout
     for got, want in zip(base_oscillator(layout, params), BladeSolver(layout, params).recovery_oscillator()):
         np.testing.assert_array_equal(got, want)
+
+
+def test_a_small_field_steps_every_cell():
+    """A field of at most SPLIT_CELLS cells (the Add menu's, 25.6 m) is simulated cell by cell
+    everywhere, whatever the camera: every cell shows its own pose."""
+    params = schema.defaults().replace({**FIELD, "field.blocks_x": 16, "field.blocks_y": 16})
+    assert params.field.blocks_x ** 2 * params.field.cells_per_block ** 2 <= far_sway.SPLIT_CELLS
+    whole = GrassField(params)
+    whole.seek(FRAME)
+    field = GrassField(params)
+    field.seek(FRAME, edge_camera())
+    assert field.sim.far is None
+    reference = poses(whole)
+    for key, pose in poses(field).items():
+        np.testing.assert_array_equal(pose, reference[key])

@@ -175,3 +175,24 @@ def test_a_small_field_steps_every_cell():
     reference = poses(whole)
     for key, pose in poses(field).items():
         np.testing.assert_array_equal(pose, reference[key])
+
+
+def test_a_camera_moved_a_little_moves_no_pose_more_than_the_band_ramps(seen):
+    """No pop as the camera moves: at one frame, a camera 2 cm further on changes a cell's pose
+    by at most 2 cm / the band's width of the gap between its own pose and its patch's (the ramp
+    by distance); a switch from one to the other would move it by the whole gap."""
+    params, whole, field, shown, where = seen
+    step = 0.02
+    start, end = params.lod.blade_far, far_sway.BAND * params.lod.blade_far
+    assert end - start >= 0.2 * start  # (a band a fifth of the blades' reach at least: a ramp, not a step)
+    moved = GrassField(params)
+    eye, target = edge_camera().position, np.array([0.0, -6.0, 0.0])
+    moved.seek(FRAME, Camera.look_at(eye + (0.0, step, 0.0), target + (0.0, step, 0.0), math.radians(70.0), 16 / 9))
+    after = poses(moved)
+    changed = 0
+    for block, p in shown.keys() & after.keys():
+        gap = np.abs(whole[(block, representative(p))] - whole[(block, p)])
+        change = np.abs(after[(block, p)] - shown[(block, p)])
+        assert np.all(change <= gap * (step / (end - start)) * 1.001 + 1e-6), (block, p)
+        changed += bool(change.max() > 0.0)
+    assert changed > 20  # (cells in the band moved along their ramp)

@@ -16,10 +16,9 @@ import bpy
 
 from ..errors import WindgrassError
 from . import bake, maps, properties, tracks
-from .frame_pass import guarded, update_field
 from .lifecycle import apply_settings, write_look
 from .registry import REGISTRY, key_of
-from .resolve import terrain_of
+from .resolve import guarded, terrain_of, update_field
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
 # for this long, so dragging a slider on a large field does not re-simulate at every step; while the

@@ -24,9 +24,9 @@ from . import bake, floor, owned, properties
 from . import camera as field_camera
 from . import scene as field_scene
 from .edits import flush_pending, mark_dirty, painting, poll_builds, refresh_later, show_look
-from .frame_pass import guarded, update_field, update_scene
 from .lifecycle import apply_settings, refill_ground
 from .registry import REGISTRY, key_of, warn_once
+from .resolve import guarded, update_field, update_scene
 
 VIEW_POLL_S = 0.1  # how often the viewport's views are looked at (orbiting changes no data, so no handler runs)
 

@@ -18,9 +18,8 @@ from ..errors import WindgrassError
 from ..schema import Params
 from . import bake, maps, owned, properties, wind_force
 from . import scene as field_scene
-from .frame_pass import guarded, update_field
 from .registry import REGISTRY, key_of
-from .resolve import resolve, terrain_of, topology_of
+from .resolve import guarded, resolve, terrain_of, topology_of, update_field
 
 
 def apply_settings(scene, item, force: bool = False, look_later: bool = False) -> None:

@@ -3,7 +3,8 @@
 Operators, panels, scripts and tests call these; each lives in the one module of its job:
 
 * ``resolve.py``: a field's settings resolved into its live record (parameters with the scene's
-  clock, the numpy engine ``GrassField``, its two slot pools), numpy only;
+  clock, the numpy engine ``GrassField``, its two slot pools), then its frame written
+  (``update_field``: an edit's and a frame handler's one call; ``guarded``: never raising);
 * ``lifecycle.py``: the field's datablocks brought to its settings (build, rebuild, bake,
   remove), only inside operators, property edits and file load (Blender's undo needs it);
 * ``frame_pass.py``: one frame: views -> ``GrassField.frame`` -> writes;
@@ -39,7 +40,6 @@ from .edits import (
     stroke_seconds,
     update_track,
 )
-from .frame_pass import update_field, update_scene
 from .handlers import register, unregister
 from .lifecycle import (
     TERRAIN_COPY_KEY,
@@ -57,7 +57,7 @@ from .lifecycle import (
     write_read_me,
 )
 from .registry import REGISTRY, LiveField, key_of
-from .resolve import field_error, get_runtime, resolve, terrain_of, topology_of
+from .resolve import field_error, get_runtime, resolve, terrain_of, topology_of, update_field, update_scene
 
 
 def loop_notes(scene, item) -> list[str]:

@@ -292,3 +292,21 @@ def test_a_role_told_apart_by_name_is_seen(tmp_path):
     path.write_text("def f(role, x):\n    if role == BLADES:\n        return x\n    for r in (owned.ROLE_BLADES, "
                     "owned.ROLE_CARDS):\n        pass\n")
     assert _role_branches([path]) == ["module.py:2 compares a role by name", "module.py:4 lists the roles by name"]
+
+
+def test_a_slider_reaches_the_engine_through_three_modules():
+    """Issue #58: a setting's edit goes properties -> edits -> resolve (the engine kept, retuned or
+    made, then the frame written by frame_pass, which resolves nothing): ``edits`` calls
+    ``resolve.update_field``, ``resolve`` holds the engine's ``GrassField``, ``frame_pass`` imports
+    neither ``resolve`` nor ``edits``, and ``properties`` reaches the rest only by its hook."""
+    modules = _modules()
+    graph = {name: _imports(name, path, modules) for name, path in modules.items()}
+    bridge = "grass_addon.bridge"
+    assert f"{bridge}.resolve" in graph[f"{bridge}.edits"]
+    assert "grass_addon.field" in graph[f"{bridge}.resolve"]
+    assert not graph[f"{bridge}.frame_pass"] & {f"{bridge}.resolve", f"{bridge}.edits", "grass_addon.field"}
+    assert not graph[f"{bridge}.properties"] & {f"{bridge}.edits", f"{bridge}.resolve", f"{bridge}.frame_pass"}
+    edits = ast.parse(modules[f"{bridge}.edits"].read_text())
+    taken = {alias.name for node in edits.body if isinstance(node, ast.ImportFrom) and node.module == "resolve"
+             for alias in node.names}
+    assert "update_field" in taken  # (the edits' one call: the engine brought to the settings, then written)

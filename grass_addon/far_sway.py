@@ -109,6 +109,9 @@ class WindowSim:
     warmup = property(lambda self: self.near.warmup)
     frame_dt = property(lambda self: self.near.frame_dt)
     clock = property(lambda self: self.near.clock)
+    fps = property(lambda self: self.near.fps)
+    frame_start = property(lambda self: self.near.frame_start)
+    loop = property(lambda self: self.near.loop)
 
     def time(self, frame: int) -> float:
         return self.near.time(frame)

@@ -98,6 +98,7 @@ class WindowSim:
         self._pose: Pose | None = None
         self._wind_shown: np.ndarray | None = None
         self._oscillator: tuple | None = None  # (window, recovery_oscillator's arrays)
+        self._seen: tuple | None = None  # (window, eyes, scale) of the last look
         self._progress = None
         self._steps_done = 0  # steps of simulations let go
         self._index_cells(near_local, far_local)
@@ -161,6 +162,10 @@ class WindowSim:
         frame changed (the poses kept for frames are then composed again)."""
         layout, lod = self.layout, self.params.lod
         eyes = views_eyes(cameras)
+        seen = (layout, tuple(tuple(eye.tolist()) for eye in eyes), float(scale))
+        if self._seen is not None and self._seen[0] is layout and self._seen[1:] == seen[1:]:
+            return False  # (the same window from the same eyes: the same choice; a still camera's frames)
+        self._seen = seen
         if not eyes or not self._splits(layout):
             return self._place(np.asarray(layout.block_ids), None, frame)
         self._viewed = True
@@ -349,9 +354,8 @@ class WindowSim:
         (``FieldLayout.retitled``): the runs go on."""
         if not np.array_equal(layout.block_ids, self.layout.block_ids):
             raise ValueError("retitle: the layout must hold the same blocks (set_layout moves a window)")
-        near_mask = np.isin(layout.block_ids, self._near_ids)
-        near_local, far_local = np.flatnonzero(near_mask), np.flatnonzero(~near_mask)
-        self.near.retitle(layout if self.near.layout is self.layout else cell_set(layout, near_local))
+        self.layout, self.params = layout, layout.params
+        near_local, far_local = self._parts(self._near_ids)
+        self.near.retitle(self._near_layout(near_local, far_local))
         if self.far is not None:
             self.far.retitle(cell_set(layout, far_local, GROUP))
-        self.layout, self.params = layout, layout.params

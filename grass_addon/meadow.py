@@ -47,48 +47,57 @@ CUP_DEPTH = 0.7  # a flower's head (its top two segments) is this many times as 
 FLOWER_RIM = 0.6  # a flower's tip joint is this share of its width (the head's rim)
 
 
-def _hash01(seed: int, channel: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+def _hash01(seed: int, channel, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """A uniform number in [0, 1) for each integer lattice point (i, j), a pure function of
-    (seed, channel, i, j) (SplitMix64's finaliser, ``wind.mix64``, over the packed key)."""
+    (seed, channel, i, j) (SplitMix64's finaliser, ``wind.mix64``, over the packed key). The
+    arguments broadcast: ``channel`` may be an array of channels (C, 1) against points (n,)."""
     with np.errstate(over="ignore"):
-        x: np.ndarray = np.asarray(np.uint64(seed & 0xFFFFFFFF) * wind.GOLDEN ^ np.uint64(channel) * wind.MIX1)
+        x: np.ndarray = np.asarray(np.uint64(seed & 0xFFFFFFFF) * wind.GOLDEN
+                                   ^ np.asarray(channel).astype(np.uint64) * wind.MIX1)
         x = x + i.astype(np.int64).astype(np.uint64) * wind.MIX2
         x = wind.mix64(x ^ (j.astype(np.int64).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)))
     return (x >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))
 
 
-def _lattice(seed: int, channel: int, i: np.ndarray, j: np.ndarray, pad: int):
-    """(table, row, column): ``_hash01`` on every lattice point of the box around the points (i, j)
-    widened by ``pad`` each way, so that ``table[row + di, column + dj]`` is ``_hash01(seed,
-    channel, i + di, j + dj)`` for |di|, |dj| <= pad; None when the box holds more points than
-    there are points (i, j) (then hashing each point costs less). The hashes of a block's blades
-    lie on a few lattice points: one hash each instead of one a blade (the same bits)."""
+def _lattice(seed: int, channels, i: np.ndarray, j: np.ndarray, pad: int):
+    """(tables, row, column): ``_hash01`` of each channel on every lattice point of the box around
+    the points (i, j) widened by ``pad`` each way, so that ``tables[k, row + di, column + dj]`` is
+    ``_hash01(seed, channels[k], i + di, j + dj)`` for |di|, |dj| <= pad; None when the box holds
+    more points than there are points (i, j) (then hashing each point costs less). The hashes of a
+    block's blades lie on a few lattice points: one hash each instead of one a blade (the same bits)."""
     if not i.size:
         return None
     i0, j0 = i.min() - pad, j.min() - pad
     rows, cols = int(i.max() - i0) + 1 + pad, int(j.max() - j0) + 1 + pad
     if rows * cols > i.size:
         return None
-    gi, gj = np.meshgrid(np.arange(rows) + i0, np.arange(cols) + j0, indexing="ij")
-    table = _hash01(seed, channel, gi.ravel(), gj.ravel()).reshape(rows, cols)
-    return table, (i - i0).astype(np.intp), (j - j0).astype(np.intp)
+    gi, gj = (np.arange(rows) + i0)[:, None], (np.arange(cols) + j0)[None, :]
+    tables = _hash01(seed, np.asarray(channels)[:, None, None], gi, gj)
+    return tables, (i - i0).astype(np.intp), (j - j0).astype(np.intp)
 
 
 def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
     """(n,) smooth noise in [0, 1] over points ``xy`` (n, 2) in metres: random values on a lattice
     of edge ``size``, blended by the smoothstep of the position between them."""
+    return noise_channels(xy, seed, [channel], size)[0]
+
+
+def noise_channels(xy: np.ndarray, seed: int, channels, size: float) -> np.ndarray:
+    """(C, n) ``value_noise`` of each of ``channels`` at the same points: the lattice cells and
+    blend weights are worked out once for all of them (each row the bits ``value_noise`` gives)."""
     p = np.asarray(xy, dtype=np.float64).reshape(-1, 2) / float(size)
     cell = np.floor(p)
     f = p - cell
     w = f * f * (3.0 - 2.0 * f)
     i, j = cell[:, 0], cell[:, 1]
-    box = _lattice(seed, channel, i, j, 1)
+    box = _lattice(seed, channels, i, j, 1)
     if box is None:
-        v00, v10 = _hash01(seed, channel, i, j), _hash01(seed, channel, i + 1, j)
-        v01, v11 = _hash01(seed, channel, i, j + 1), _hash01(seed, channel, i + 1, j + 1)
+        ch = np.asarray(channels)[:, None]
+        v00, v10 = _hash01(seed, ch, i, j), _hash01(seed, ch, i + 1, j)
+        v01, v11 = _hash01(seed, ch, i, j + 1), _hash01(seed, ch, i + 1, j + 1)
     else:
-        table, r, c = box
-        v00, v10, v01, v11 = table[r, c], table[r + 1, c], table[r, c + 1], table[r + 1, c + 1]
+        tables, r, c = box
+        v00, v10, v01, v11 = tables[:, r, c], tables[:, r + 1, c], tables[:, r, c + 1], tables[:, r + 1, c + 1]
     bottom = v00 + (v10 - v00) * w[:, 0]
     top = v01 + (v11 - v01) * w[:, 0]
     return bottom + (top - bottom) * w[:, 1]
@@ -97,33 +106,38 @@ def value_noise(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndar
 def patches(xy: np.ndarray, seed: int, channel: int, size: float) -> np.ndarray:
     """(n,) patch noise in [-1, 1]: three octaves of ``value_noise`` at ``size``, a third of it and
     three times it, spread so that the field's patches reach both ends (about 1 % clipped)."""
-    a = value_noise(xy, seed, 2 * channel + 101, size)
-    b = value_noise(xy, seed, 2 * channel + 102, size / 3.0)
-    c = value_noise(xy, seed, 2 * channel + 301, size * 3.0)
+    return patch_channels(xy, seed, [channel], size)[0]
+
+
+def patch_channels(xy: np.ndarray, seed: int, channels, size: float) -> np.ndarray:
+    """(C, n) ``patches`` of each of ``channels`` at the same points (each row its bits)."""
+    ch = np.asarray(channels, dtype=np.int64)
+    a = noise_channels(xy, seed, 2 * ch + 101, size)
+    b = noise_channels(xy, seed, 2 * ch + 102, size / 3.0)
+    c = noise_channels(xy, seed, 2 * ch + 301, size * 3.0)
     return np.clip(3.2 * ((0.5 * a + 0.2 * b + 0.3 * c) - 0.5), -1.0, 1.0)
 
 
 def clump_centres(xy: np.ndarray, seed: int, size: float) -> np.ndarray:
     """(n, 2) the nearest tussock centre to each point: one centre on each cell of the lattice of
     edge ``size``, jittered anywhere inside its cell (the 3 x 3 lattice cells around a point hold
-    its nearest)."""
+    its nearest; of equally near ones, the first in the order below)."""
     p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     home = np.floor(p / size)
-    best = np.empty_like(p)
-    best_d = np.full(len(p), np.inf)
-    boxes = _lattice(seed, 11, home[:, 0], home[:, 1], 1), _lattice(seed, 12, home[:, 0], home[:, 1], 1)
-    for di in (-1.0, 0.0, 1.0):
-        for dj in (-1.0, 0.0, 1.0):
-            i, j = home[:, 0] + di, home[:, 1] + dj
-            if boxes[0] is None or boxes[1] is None:
-                jitter = _hash01(seed, 11, i, j), _hash01(seed, 12, i, j)
-            else:
-                jitter = tuple(table[r + int(di), c + int(dj)] for table, r, c in boxes)
-            centre = np.stack([(i + jitter[0]) * size, (j + jitter[1]) * size], axis=1)
-            d = ((centre - p) ** 2).sum(axis=1)
-            nearer = d < best_d
-            best[nearer], best_d[nearer] = centre[nearer], d[nearer]
-    return best
+    d = np.array([-1.0, -1.0, -1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0])[:, None], \
+        np.array([-1.0, 0.0, 1.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0])[:, None]
+    i, j = home[:, 0] + d[0], home[:, 1] + d[1]  # (9, n) the lattice cells around each point
+    box = _lattice(seed, [11, 12], home[:, 0], home[:, 1], 1)
+    if box is None:
+        jitter = _hash01(seed, 11, i, j), _hash01(seed, 12, i, j)
+    else:
+        tables, r, c = box
+        rows, cols = r + d[0].astype(np.intp), c + d[1].astype(np.intp)
+        jitter = tables[0, rows, cols], tables[1, rows, cols]
+    cx, cy = (i + jitter[0]) * size, (j + jitter[1]) * size
+    nearest = (((cx - p[:, 0]) ** 2) + ((cy - p[:, 1]) ** 2)).argmin(axis=0)
+    at = np.arange(len(p))
+    return np.stack([cx[nearest, at], cy[nearest, at]], axis=1)
 
 
 def clumped(xy: np.ndarray, seed: int, clumping: float, size: float) -> np.ndarray:
@@ -180,10 +194,11 @@ def species_weights(xy: np.ndarray, params: Params, weights: np.ndarray) -> np.n
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     out = np.empty((len(xy), len(weights)))
     base = PATCH_SHARE * float(f.patchiness)
+    noise = patch_channels(xy, int(f.seed), np.arange(1, len(weights) + 1), float(f.patch_size))
     for k, (w, drift) in enumerate(zip(weights, drifts(params.species()))):
         contrast = base * (float(f.flower_drift) if drift else 1.0)
         gain = _mean_gain(base) / _mean_gain(contrast)
-        out[:, k] = w * gain * np.exp(contrast * patches(xy, int(f.seed), k + 1, float(f.patch_size)))
+        out[:, k] = w * gain * np.exp(contrast * noise[k])
     return out
 
 

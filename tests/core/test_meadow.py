@@ -107,7 +107,8 @@ def test_the_fields_edge_thins_out_along_a_ragged_line():
 def test_noise_hashed_once_a_lattice_point_is_the_noise_hashed_once_a_point():
     """``value_noise`` and ``clump_centres`` hash each lattice point once for a block's points
     (``meadow._lattice``); they give the bits of the plain formula, one hash per point (its twin),
-    for a block's few lattice points and for points spread too wide for a table."""
+    for a block's few lattice points and for points spread too wide for a table; so do the
+    patches of several species worked out together (``patch_channels``)."""
     rng = np.random.default_rng(3)
 
     def plain_noise(xy, seed, channel, size):
@@ -131,3 +132,10 @@ def test_noise_hashed_once_a_lattice_point_is_the_noise_hashed_once_a_point():
         for size in (0.3, 2.7, 9.0):
             assert np.array_equal(meadow.value_noise(xy, 7, 5, size), plain_noise(xy, 7, 5, size))
             assert np.array_equal(meadow.clump_centres(xy, 7, size), plain_centres(xy, 7, size))
+            # every species' patches at once (a block's shares): each row the bits of its own channel
+            rows = meadow.patch_channels(xy, 7, [1, 2, 6], size)
+            for row, channel in zip(rows, (1, 2, 6)):
+                octaves = [plain_noise(xy, 7, 2 * channel + c, s) for c, s in ((101, size), (102, size / 3.0),
+                                                                                (301, size * 3.0))]
+                want = np.clip(3.2 * ((0.5 * octaves[0] + 0.2 * octaves[1] + 0.3 * octaves[2]) - 0.5), -1.0, 1.0)
+                assert np.array_equal(row, want)

@@ -280,10 +280,16 @@ def _stem_points(t: _Tree, mesh, n: int, leafy: bool, seeded: bool = False):
     t.link(mesh, mark.inputs["Geometry"])
     t.link(t.attribute(ATTR_HEAD, "FLOAT_VECTOR"), _socket(mark.inputs, "Value", "VECTOR"))
     t.link(base, mark.inputs["Index"])
-    tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
-    root = t.middle(mesh, base)
     points = t.store(stem.outputs[0], ATTR_HEAD, "FLOAT_VECTOR", _socket(mark.outputs, "Value", "VECTOR"))
     points = t.store(points, ATTR_STEM, "FLOAT", base)
+    # only the stems that carry something go on (one in seven on the meadow): the rest is sampled for them alone
+    carrying = t.node("GeometryNodeDeleteGeometry", domain="POINT")
+    t.link(points, carrying.inputs["Geometry"])
+    t.link(t.math("LESS_THAN", t.head()[0], 0.5), carrying.inputs["Selection"])
+    points = carrying.outputs[0]
+    base = t.attribute(ATTR_STEM, "FLOAT")
+    tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
+    root = t.middle(mesh, base)
     if leafy:
         points = t.store(points, ATTR_LEAF, "FLOAT", t.sample(mesh, t.attribute(ATTR_LEAF, "FLOAT"), base, "FLOAT"))
         points = t.store(points, ATTR_FOOT_DIR, "FLOAT_VECTOR",

@@ -258,8 +258,7 @@ def _sward_look(params: Params, slopes) -> np.ndarray:
     where it gets through, exp(-D(0)). Light from 45 degrees up reaches z through
     tau(z) / LIGHT_SLOPE + tau_h(z)."""
     slopes = np.maximum(np.atleast_1d(np.asarray(slopes, np.float64)), 1e-6)[:, None]
-    edges = np.linspace(0.0, sward_top(params), LOOK_LAYERS + 1)
-    side, top, side_rgb, top_rgb = _layers(params, edges)
+    side, top, side_rgb, top_rgb = sward_layers(params)
     depth = side[None] / slopes + top[None]  # (slopes, edges)
     meets = np.exp(-depth[:, 1:]) - np.exp(-depth[:, :-1])  # (slopes, layers)
     d_side, d_top = side[:-1] - side[1:], top[:-1] - top[1:]  # (layers,)
@@ -270,6 +269,13 @@ def _sward_look(params: Params, slopes) -> np.ndarray:
     lit = np.exp(-0.5 * (light[1:] + light[:-1]))
     floor = np.mean(floor_colours(params), axis=0) * np.exp(-light[0])
     return np.einsum("sl,slc->sc", meets * lit[None], colours) + np.exp(-depth[:, :1]) * floor
+
+
+@edit_parts.remembered((edit_parts.LAYOUT, edit_parts.LOOK))
+def sward_layers(params: Params):
+    """``_layers`` at LOOK_LAYERS + 1 heights from the ground to ``sward_top``: what every slope's
+    look is made of, worked out once for all the slopes asked (the viewport's and the material's)."""
+    return _layers(params, np.linspace(0.0, sward_top(params), LOOK_LAYERS + 1))
 
 
 def _layers(params: Params, edges: np.ndarray):

@@ -109,3 +109,30 @@ def test_a_blade_too_soft_for_its_weight_lies_on_the_ground():
     assert tilt.max() <= blade.GROUND_TILT + 1e-6
     assert np.all(theta >= -1e-7)
     assert np.degrees(tilt[1:, -1]).min() > 80.0  # the heavy blades do lie down
+
+
+def test_blocks_rest_shapes_worked_out_together_are_each_blocks_own():
+    """``rest_angles_blocks`` (a cache makes its blocks' rest shapes in one pass) gives each block
+    the bits ``rest_angles`` gives it alone, though the blocks stop iterating at different times
+    (a stiff block settles in a few iterations, a soft one runs them all) and only some have
+    blades that the ground stops."""
+    rng = np.random.default_rng(11)
+    B = 300
+    kinds = {"stiff": (0.02, 0.1, 0.2), "meadow": (MU_ROOT, 0.3, 0.3), "lying": (2e-5, 0.6, 0.5)}
+    inclination, seg, mu, alone = [], [], [], []
+    for mu_root, length, tilt in kinds.values():
+        inc = rng.uniform(0.0, tilt, B)
+        s = np.full(B, length / N) * rng.uniform(0.7, 1.3, B)
+        m = blade.joint_stiffness(mu_root * rng.uniform(0.5, 1.5, B), s, N, OFFSET)
+        inclination.append(inc)
+        seg.append(s)
+        mu.append(m)
+        alone.append(blade.rest_angles(inc, s, m, DENSITY))
+    together = blade.rest_angles_blocks(np.stack(inclination), np.stack(seg), np.stack(mu), DENSITY)
+    for k, name in enumerate(kinds):
+        assert np.array_equal(together[k], alone[k]), name
+    # (the cases are what they say: the stiff block settled early, the soft one lies on the ground)
+    assert np.array_equal(blade.rest_angles(inclination[0], seg[0], mu[0], DENSITY, iterations=10), alone[0])
+    lying = blade.rest_tilt(inclination[2], alone[2])
+    assert np.isclose(lying.max(), blade.GROUND_TILT, atol=1e-6)
+    assert blade.rest_tilt(inclination[1], alone[1]).max() < blade.GROUND_TILT - 0.1

@@ -36,7 +36,7 @@ import dataclasses
 import numpy as np
 
 from . import blade, edit_parts, meadow, tufts
-from .blocks import Block, Species, make_block
+from .blocks import Block, Species, make_blocks
 from .grid import FieldGrid
 from .schema import Params
 
@@ -112,7 +112,7 @@ def sample_blades(params: Params) -> Block:
     key = _blocks_key(params)
     if _SAMPLE_KEPT.get("key") != key:
         inner = params.replace({"field.edge": 0.0})  # (the field's mean: its thinning edge is no part of it)
-        blocks = [make_block(inner, FieldGrid.of(inner), Species(inner), i) for i in sample_ids(inner)]
+        blocks = make_blocks(inner, FieldGrid.of(inner), Species(inner), sample_ids(inner))
         _SAMPLE_KEPT.clear()
         _SAMPLE_KEPT.update(key=key, whole=_joined(blocks))
     return _SAMPLE_KEPT["whole"]

@@ -70,7 +70,8 @@ SMOOTH_MIN_ANGLE = 0.1  # rad: below this gap the smooth update's rate stops fal
 QUASI_RATE = 1.0e6
 RELAX_GAIN = 1.0  # slope of the reconfigured equilibrium per radian of the blade's bend (_step_chunk)
 
-ONE_LANE_CELLS = 12_000  # fewer cells step faster on one lane than handed to two (far_sway's patches)
+ONE_LANE_CELLS = 32_768  # fewer cells step faster on one lane than handed to two (far_sway's patches; the Add-menu
+# field's 16,384: 3.5-5.3 ms a step against 6.0-6.4 on two, its wind edit 0.81 -> 0.54 s; even at 36,864)
 F32 = np.float32
 ROW_PAD = 16  # floats between the rows of a scratch buffer (see _Scratch)
 

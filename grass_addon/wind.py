@@ -32,6 +32,7 @@ from .schema import Params
 TURBULENCE_PURPOSE = 13  # np.random.default_rng([seed, 13, key]) draws the key lattices of eq 13
 KEY_CACHE_SIZE = 6  # smoothed key lattices kept (4 are in use at any time)
 PATCHES_PER_KEY = 2  # regions of a key kept: a window's near cells and its far patches sample apart (far_sway.py)
+BLOCK_GRIDS_KEPT = 2  # layouts whose cells' rows and columns are kept (a window's near cells and its far patches)
 PATTERN_PERIOD_MAX = 1000.0  # m: gust fronts and the vortex repeat at most this far apart
 STEPS_PER_SEGMENT = 64  # time grid of the advection integral between two mean-wind keys
 MAX_GUST_FRONTS = 256  # blast: at most this many fronts (the most recent) are summed
@@ -189,7 +190,7 @@ class WindField:
         self.gust_tile = (gusts.pattern(self.seed, float(w.direction), float(w.gust_stretch)) if self.gust_waves > 0.0
                           else None)
         self.gust_metres = gusts.tile_metres(params)
-        self._block_grid_of: tuple[Any, tuple[np.ndarray, np.ndarray] | None] | None = None
+        self._block_grids: list[tuple[Any, tuple[np.ndarray, np.ndarray] | None]] = []
         self.loop = loop.loop_seconds(params)  # L (s): the wind repeats after it (loop.py); 0: never
 
     # ------------------------------------------------------------------ mean wind (eq 12)
@@ -431,10 +432,11 @@ class WindField:
     def _block_grid(self, layout) -> tuple[np.ndarray, np.ndarray] | None:
         """(xs, ys), (blocks, cells_per_block) float64: the column x and row y of each block's
         cells, when the layout's cells are block-major and each block's are a row-major grid
-        (a window's layout); None otherwise. Kept for the last layout asked about."""
-        cached = self._block_grid_of
-        if cached is not None and cached[0] is layout:
-            return cached[1]
+        (a window's layout); None otherwise. Kept for the last BLOCK_GRIDS_KEPT layouts asked about
+        (a window's near cells and far patches are two, sampled in turn every frame)."""
+        for kept, grid in self._block_grids:
+            if kept is layout:
+                return grid
         n = int(layout.cells_per_block)
         centres = np.asarray(layout.cell_center, dtype=np.float64)
         grid = None
@@ -444,7 +446,7 @@ class WindField:
             if np.array_equal(cells[..., 0], np.broadcast_to(xs[:, None, :], cells.shape[:3])) and \
                     np.array_equal(cells[..., 1], np.broadcast_to(ys[:, :, None], cells.shape[:3])):
                 grid = (np.ascontiguousarray(xs), np.ascontiguousarray(ys))
-        self._block_grid_of = (layout, grid)
+        self._block_grids = [(layout, grid)] + self._block_grids[:BLOCK_GRIDS_KEPT - 1]
         return grid
 
     # ------------------------------------------------------------------ the whole field (eq 12)

@@ -1009,8 +1009,8 @@ def set_gust_offset(displacement, speed: float, other, weights, params: Params, 
                 continue
             socket = _socket(node.inputs, "Location")
             location = (-float(shift[0]) * scale, -float(shift[1]) * scale, 0.0)
-            if tuple(socket.default_value) != location:
-                socket.default_value = location
+            if weight and tuple(socket.default_value) != location:  # (a pattern that weighs nothing stays:
+                socket.default_value = location  # each write updates the material's nodes)
             if value.outputs[0].default_value != swing * weight:
                 value.outputs[0].default_value = swing * weight
 

@@ -70,8 +70,10 @@ SMOOTH_MIN_ANGLE = 0.1  # rad: below this gap the smooth update's rate stops fal
 QUASI_RATE = 1.0e6
 RELAX_GAIN = 1.0  # slope of the reconfigured equilibrium per radian of the blade's bend (_step_chunk)
 
-ONE_LANE_CELLS = 32_768  # fewer cells step faster on one lane than handed to two (far_sway's patches; the Add-menu
-# field's 16,384: 3.5-5.3 ms a step against 6.0-6.4 on two, its wind edit 0.81 -> 0.54 s; even at 36,864)
+ONE_LANE_CELLS = 12_000  # fewer cells step faster on one lane than handed to two (far_sway's patches). The
+# Add-menu field's 16,384 step faster on one lane in a script (3.5-5.3 against 6.0-6.4 ms), but an
+# edit's run on a thread in Blender's window, beside the viewport's drawing, arrived later on one:
+# the window test of a wind drag showed the grass of the speed before (stop 74); kept at 12,000
 F32 = np.float32
 ROW_PAD = 16  # floats between the rows of a scratch buffer (see _Scratch)
 

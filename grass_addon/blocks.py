@@ -144,9 +144,7 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
     ``paint`` (paint.py): which blades grow (``blade_alive``, ``cell_density``), their species and
     length where maps are painted. Its draws come after every draw of the plain field, so a field
     without paint is the same bits as before, and each blade's numbers never depend on the paint."""
-    grown = _Grown(params, grid, species, block, terrain, paint)
-    return grown.block(_rest_tilt(params, grown.length, grown.stiffness, grown.inclination)
-                       if grown.length.size else np.zeros((0, int(params.blade.segments))))
+    return make_blocks(params, grid, species, [block], terrain, paint)[0]
 
 
 def make_blocks(params: Params, grid: FieldGrid, species: Species, blocks, terrain: Heightfield | None = None,

@@ -138,11 +138,10 @@ def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
     out: dict = {}
     if coll is None:
         return out
-    group = item.get(MADE_KEY)
-    prefix = slot_key(role, 0)[:-3]  # (the record's keys name the role: looked at first, every frame)
-    found = [obj for key, obj in group.items() if key.startswith(prefix) and isinstance(obj, bpy.types.Object)] \
-        if group is not None and hasattr(group, "items") else field_objects(item)
-    for obj in found:
+    prefix = slot_key(role, 0)[:-3]  # ("blades "): the record's keys name the role, read first (every frame)
+    for key, obj in registered(item).items():
+        if not key.startswith(prefix) or not isinstance(obj, bpy.types.Object):
+            continue
         if obj.get("wg_role") == role and obj.type == "MESH" and coll.objects.get(obj.name) is obj:
             out[int(obj.get("wg_slot", -1))] = obj
     return out

@@ -139,6 +139,17 @@ class WindowSim:
             self.far.progress = report
 
     @property
+    def glimpse(self) -> int:
+        """Frames of a first look's trajectories (``Simulation.glimpse``; 0: the run's own)."""
+        return self.near.glimpse
+
+    @glimpse.setter
+    def glimpse(self, frames: int) -> None:
+        for sim in (self.near, self.far):
+            if sim is not None:
+                sim.glimpse = frames
+
+    @property
     def solver(self) -> BladeSolver:
         """The near simulation's solver (every cell's when every block is near)."""
         return self.near.solver
@@ -234,7 +245,7 @@ class WindowSim:
             far_layout = cell_set(self.layout, far_local, GROUP)
             if self.far is None:
                 self.far = Simulation(far_layout, self.params, self.wind)
-                self.far.progress = self._progress
+                self.far.progress, self.far.glimpse = self._progress, self.near.glimpse
             else:
                 self.far.set_layout(far_layout, frame=frame, renewed=renewed)
         elif self.far is not None:

@@ -45,6 +45,7 @@ from .wind_map import FieldMap, MapGrid, most_common, nearest_points, point_mean
 RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
 WHOLE_FIELD_CELLS = 1 << 18  # without a camera (or with LOD off) fields this small (51 m) are simulated whole
 WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the camera needs
+GLIMPSE_S = 0.75  # seconds of the new wind a first look of an edit simulates (``GrassField.glimpse``)
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 
@@ -195,6 +196,15 @@ class GrassField:
         twin._progress = progress
         twin._twin = True
         return twin
+
+    def glimpse(self, seconds: float = GLIMPSE_S) -> GrassField:
+        """Make this field, a ``twin`` just retuned, a first look of an edit's new run: each of its
+        trajectories starts from rest ``seconds`` before the frame first asked of it, so that frame
+        costs that many frames of steps, not the warm-up's and the epoch's (``bridge/builds.py``
+        shows it while the run is made). Its blades lean and sway in the new wind, but their phases
+        are not a build's (its frames are not the settings' frames): it is never made an engine."""
+        self.sim.glimpse = max(1, self.clock.frames(seconds))
+        return self
 
     def retune(self, params: Params, wind_keys=None, colliders=None, effectors=None) -> frozenset[str]:
         """Take the settings ``params`` (``can_retune``) in place: the blocks are kept; the wind

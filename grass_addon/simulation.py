@@ -95,6 +95,9 @@ class Simulation:
         self.cell_wind = self._sample(self.frame)
         self._wind_frame: int | None = self.frame
         self.steps = 0  # cell-frames stepped so far (a measure of work)
+        # > 0: a first look (``GrassField.first_look``): each trajectory starts from rest this many
+        # frames before the frame first asked of it, not at its s_k (not the frames a build gives)
+        self.glimpse = 0
         # progress(done, total) of a long seek: at most every PROGRESS_INTERVAL_S seconds, and
         # (total, total) at its end when it reported at all
         self.progress: Callable[[int, int], None] | None = None
@@ -219,6 +222,8 @@ class Simulation:
         if traj is not None and traj.pos <= frame:
             return traj
         start = self.trajectory_start(k)
+        if self.glimpse > 0:
+            start = max(start, frame - self.glimpse)
         if traj is None:
             traj = Trajectory(k, start, SolverState(self.layout.n_cells, self.layout.segments), start)
             self._trajectories[k] = traj

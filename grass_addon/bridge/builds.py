@@ -12,7 +12,10 @@ the field's is dropped. Scripts, background renders and renders in the UI build 
 
 An edit of the wind or the solver keeps the field's blocks but simulates again (seconds on a large
 field): in the UI that run is a ``Build`` too, of the engine's ``twin`` retuned (``base``: the
-engine it was made from, which goes on showing its frames meanwhile). A finished one is taken even
+engine it was made from, which goes on showing its frames meanwhile). Before it the thread works
+out a first look (another twin, ``GrassField.glimpse``: 0.75 s of the new wind from rest),
+which the timer writes at once: the edit shows in a tenth of the run's time, and the run's exact
+frame replaces it when done. A finished one is taken even
 when the settings moved on while it ran (a slider still dragged): the grass follows the drag, one
 run behind.
 """
@@ -39,11 +42,22 @@ class Build:
     inputs: object = None  # resolve.Inputs it is made for (a retune: ``base`` is set)
     base: object = None  # registry.Engine whose twin it retunes, else None (a new engine)
     painted: str = ""  # paint.fingerprint of the paint the base grew when its twin was made
+    # A retune's first look (``GrassField.glimpse``) once worked out on the thread, to be written
+    # while the run goes on (``edits.poll_builds``), and whether one is worked out at all
+    first_look: GrassField | None = None
+    looks_first: bool = False
 
-    def start(self, make) -> Build:
-        """Run ``make(report) -> GrassField`` on a thread, then the first seek."""
+    def start(self, make, first=None) -> Build:
+        """Run ``make(report) -> GrassField`` on a thread, then the first seek; ``first() ->
+        GrassField``: a first look worked out before it (``first_look``)."""
+        self.looks_first = first is not None
+
         def run() -> None:
+            nonlocal first
             try:
+                if first is not None:
+                    self._look_first(first)
+                    first = None  # (the first look is the timer's now: not kept through the run)
                 engine = make(self.report)
                 engine.view(self.views, self.at_frame)
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
@@ -55,6 +69,20 @@ class Build:
 
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()
         return self
+
+    def _look_first(self, first) -> None:
+        try:
+            glimpse = first()
+            glimpse.view(self.views, self.at_frame)
+            glimpse.prepare_frame(self.at_frame, self.views)
+        except Exception:  # (a preview only: the run after it meets and reports what is wrong)
+            self.looks_first = False
+            return
+        self.first_look = glimpse
+
+    def first_look_shown(self) -> None:
+        """The first look was written (or is no longer wanted): let it go."""
+        self.first_look, self.looks_first = None, False
 
     def report(self, done: int, total: int) -> None:
         self.progress = (done, total)

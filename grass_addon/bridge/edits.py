@@ -16,6 +16,7 @@ import bpy
 
 from ..errors import WindgrassError
 from . import bake, maps, properties, tracks
+from .frame_pass import write_first_look
 from .lifecycle import apply_settings, write_look
 from .registry import REGISTRY, key_of
 from .resolve import guarded, terrain_of, update_field
@@ -26,6 +27,7 @@ from .resolve import guarded, terrain_of, update_field
 EDIT_SETTLE_S = 0.15
 FOLLOW_S = 0.3
 BUILD_POLL_S = 0.1  # how often a field being built in the background is looked at
+FIRST_LOOK_POLL_S = 0.02  # ... while an edit's first look is being worked out (it shows at once)
 STROKE_GOAL_S = 0.5  # a field whose strokes take longer to show follows when paint mode is left
 PAINT_MODE_POLL_S = 0.25
 
@@ -99,7 +101,7 @@ def flush_pending() -> float | None:
         state.stroke_shown(time.perf_counter() - started if stroke else None)
     if any(s.building is not None or s.look_waiting for s in REGISTRY.states.values()) \
             and not bpy.app.timers.is_registered(poll_builds):
-        bpy.app.timers.register(poll_builds, first_interval=BUILD_POLL_S)
+        bpy.app.timers.register(poll_builds, first_interval=_poll_interval())
     return PAINT_MODE_POLL_S if waiting else None
 
 
@@ -109,6 +111,8 @@ def poll_builds() -> float | None:
     running = False
     scenes = {s.session_uid: s for s in bpy.data.scenes}
     for key, state in list(REGISTRY.states.items()):
+        if state.building is not None and state.building.first_look is not None:
+            _show_first_look(scenes, key, state, state.building)
         if state.look_waiting:
             scene, item = _field_of(scenes, key)
             if item is None or item.collection is None:
@@ -131,7 +135,25 @@ def poll_builds() -> float | None:
         guarded(update_field, scene, item, wait=False)
         running = running or state.building is not None
         _redraw()
-    return BUILD_POLL_S if running else None
+    return _poll_interval() if running else None
+
+
+def _poll_interval() -> float:
+    waiting = any(s.building is not None and s.building.looks_first for s in REGISTRY.states.values())
+    return FIRST_LOOK_POLL_S if waiting else BUILD_POLL_S
+
+
+def _show_first_look(scenes: dict, key, state, job) -> None:
+    """Write the first look of the run ``job`` makes (``builds.Build.first_look``) while the
+    frame it was worked out for is shown and the run is not done."""
+    field = job.first_look
+    job.first_look_shown()
+    scene, item = _field_of(scenes, key)
+    if item is None or item.collection is None or job.done.is_set() or scene.frame_current != job.at_frame \
+            or state.engine is None or state.engine is not job.base:
+        return
+    guarded(write_first_look, scene, item, state, field, job.views)
+    _redraw()
 
 
 def show_look(scene, item, later: bool = True) -> None:

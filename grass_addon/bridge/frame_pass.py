@@ -48,6 +48,20 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     rt.written(shown.frame, shown.subframe, field_camera.signature(views), shown.blades_drawn())
 
 
+def write_first_look(scene, item, rt: LiveField, field, views) -> None:
+    """An edit's first look (``GrassField.glimpse``, worked out on a build's thread) written into
+    the field's objects while its run is made: the roles' slots and the gust offset. The record
+    keeps the frame it wrote: the next frame change, or the run when done, writes over it."""
+    amount = 1.0 if field_camera.rendering() else float(field.params.lod.viewport_amount)
+    shown = field.frame(scene.frame_current, 0.0, views, amount=amount)
+    for part in shown.roles():
+        rt.pools[part.role].write(item, part)
+    if shown.gust is not None:
+        reg = owned.registered(item)
+        materials.set_gust_offset(*shown.gust, field.params, reg.get(owned.ROLE_CARD_MATERIAL),
+                                  reg.get(owned.ROLE_CANOPY_MATERIAL))
+
+
 def _write_trails(item, rt: LiveField, trail) -> None:
     """The far canopy's trampled trails (``interaction.trail_map``, or None): its image and
     mapping, written when they changed."""

@@ -244,13 +244,15 @@ def _retune_later(live: LiveField, engine: Engine, inputs: Inputs, name: str, vi
     if live.building is None:
         job = builds.Build(inputs.digest, inputs.frame, views, inputs=inputs, base=engine, painted=live.painted)
         twin = engine.field.twin(progress=job.report)  # (here: the blocks as they are now)
+        glimpse = engine.field.twin() if engine.topology == inputs.topology else None  # (written with its pools)
 
-        def make(_report) -> GrassField:
-            twin.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders,
-                        effectors=inputs.effectors)
-            return twin
+        def retuned(field: GrassField) -> GrassField:
+            field.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders,
+                         effectors=inputs.effectors)
+            return field
 
-        live.build_started(job.start(make))
+        live.build_started(job.start(lambda _report: retuned(twin),
+                                     first=None if glimpse is None else lambda: retuned(glimpse).glimpse()))
     raise builds.BuildPending(name)
 
 

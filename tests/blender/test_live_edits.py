@@ -240,6 +240,43 @@ def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
         np.testing.assert_array_equal(a, b)
 
 
+def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_bridge, drawn):
+    """Issue #58: a wind edit in the UI shows at once: before its new run is done (a warm-up of
+    20 s here), the field draws a first look of the new wind (0.75 s of it simulated from
+    rest): its blades lean as far as the run's own do, within a fifth of how far the grass moved
+    (a stronger wind lowers them); the run's frame, the bits of a fresh build, replaces it."""
+    import time
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import edits, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 3.0,
+                                      "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    scene, item = _build(base)
+    before = drawn(item, "blades")
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 12.0))
+    job = live.building
+    assert job is not None and job.looks_first
+    waited = time.monotonic()
+    while job.first_look is None and time.monotonic() - waited < 30.0:
+        time.sleep(0.002)
+    assert job.first_look is not None and not job.done.is_set(), "the first look came after the run"
+    edits.poll_builds()
+    first = drawn(item, "blades")
+    assert not job.done.is_set() or live.engine is job.base  # (what was drawn is the first look, not the run)
+    runtime.shown_when_done(scene, item)
+    assert runtime.field_error(scene, item) is None
+    exact = drawn(item, "blades")
+    _, want_item = _build(base.replace({"wind.speed": 12.0}))
+    np.testing.assert_array_equal(exact, drawn(want_item, "blades"))
+    height = {name: float(np.mean(v[:, 2])) for name, v in (("before", before), ("first", first), ("run", exact))}
+    moved = height["before"] - height["run"]
+    assert moved > 0.01, height  # (a 12 m/s wind bends the blades down: it shows)
+    assert abs(height["first"] - height["run"]) < 0.2 * moved, height
+
+
 def _look_drawn(item):
     """What a field's materials and ground show of its look: the evaluated ground mesh's vertices,
     the card atlas's pixels and the far canopy's curves (the sward's colours, depth and grain)."""

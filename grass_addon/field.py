@@ -197,14 +197,18 @@ class GrassField:
         twin._twin = True
         return twin
 
-    def glimpse(self, seconds: float = GLIMPSE_S) -> GrassField:
-        """Make this field, a ``twin`` just retuned, a first look of an edit's new run: each of its
-        trajectories starts from rest ``seconds`` before the frame first asked of it, so that frame
-        costs that many frames of steps, not the warm-up's and the epoch's (``bridge/builds.py``
-        shows it while the run is made). Its blades lean and sway in the new wind, but their phases
-        are not a build's (its frames are not the settings' frames): it is never made an engine."""
-        self.sim.glimpse = max(1, self.clock.frames(seconds))
-        return self
+    def first_look(self, seconds: float = GLIMPSE_S) -> GrassField:
+        """A first look of this field's run, to show while the run works out its first frame (an
+        edit's new run or new field, ``bridge/builds.py``): a twin with its own wind and run whose
+        trajectories each start from rest ``seconds`` before the frame first asked of them, so that
+        frame costs that many frames of steps, not the warm-up's and the epoch's. Its blades lean
+        and sway in the wind as this field's do, but their phases are not its frames (they are
+        about a third of their bend apart): it is shown, never made an engine."""
+        look = self.twin()
+        colliders = [] if self.interaction is None else self.interaction.colliders
+        look.retune(self.params, wind_keys=self._wind_keys, colliders=colliders, effectors=self.effectors)
+        look.sim.glimpse = max(1, self.clock.frames(seconds))
+        return look
 
     def retune(self, params: Params, wind_keys=None, colliders=None, effectors=None) -> frozenset[str]:
         """Take the settings ``params`` (``can_retune``) in place: the blocks are kept; the wind

@@ -12,10 +12,12 @@ the field's is dropped. Scripts, background renders and renders in the UI build 
 
 An edit of the wind or the solver keeps the field's blocks but simulates again (seconds on a large
 field): in the UI that run is a ``Build`` too, of the engine's ``twin`` retuned (``base``: the
-engine it was made from, which goes on showing its frames meanwhile). Before it the thread works
-out a first look (another twin, ``GrassField.glimpse``: 0.75 s of the new wind from rest),
-which the timer writes at once: the edit shows in a tenth of the run's time, and the run's exact
-frame replaces it when done. A finished one is taken even
+engine it was made from, which goes on showing its frames meanwhile).
+
+Before a build's first frame (its warm-up: most of a run's time) the thread works out a first
+look (``GrassField.first_look``: 0.75 s of the wind from rest), which the timer writes at once
+into the objects when they fit it: the edit shows in a fraction of the time, and the exact frame
+replaces it when done. A finished one is taken even
 when the settings moved on while it ran (a slider still dragged): the grass follows the drag, one
 run behind.
 """
@@ -39,27 +41,25 @@ class Build:
     failure: BaseException | None = None
     done: threading.Event = field(default_factory=threading.Event)
     progress: tuple[int, int] = (0, 0)  # (frames simulated, of) the first seek
-    inputs: object = None  # resolve.Inputs it is made for (a retune: ``base`` is set)
+    inputs: object = None  # resolve.Inputs it is made for
     base: object = None  # registry.Engine whose twin it retunes, else None (a new engine)
     painted: str = ""  # paint.fingerprint of the paint the base grew when its twin was made
-    # A retune's first look (``GrassField.glimpse``) once worked out on the thread, to be written
-    # while the run goes on (``edits.poll_builds``), and whether one is worked out at all
+    # The engine's first look (``GrassField.first_look``) once worked out on the thread, to be
+    # written while its first frame is (``edits.poll_builds``), and whether one is worked out at all
     first_look: GrassField | None = None
     looks_first: bool = False
 
-    def start(self, make, first=None) -> Build:
-        """Run ``make(report) -> GrassField`` on a thread, then the first seek; ``first() ->
-        GrassField``: a first look worked out before it (``first_look``)."""
-        self.looks_first = first is not None
+    def start(self, make, first_look: bool = False) -> Build:
+        """Run ``make(report) -> GrassField`` on a thread, then the first seek; with
+        ``first_look``, a first look of the engine is worked out before the seek (``first_look``)."""
+        self.looks_first = first_look
 
         def run() -> None:
-            nonlocal first
             try:
-                if first is not None:
-                    self._look_first(first)
-                    first = None  # (the first look is the timer's now: not kept through the run)
                 engine = make(self.report)
-                engine.view(self.views, self.at_frame)
+                engine.view(self.views, self.at_frame)  # (a new field's blocks are made here)
+                if first_look:
+                    self._look_first(engine)
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
                 self.made = engine
             except BaseException as exc:  # (handed to the main thread, which reports it)
@@ -70,15 +70,15 @@ class Build:
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()
         return self
 
-    def _look_first(self, first) -> None:
+    def _look_first(self, engine: GrassField) -> None:
         try:
-            glimpse = first()
-            glimpse.view(self.views, self.at_frame)
-            glimpse.prepare_frame(self.at_frame, self.views)
+            look = engine.first_look()
+            look.view(self.views, self.at_frame)
+            look.prepare_frame(self.at_frame, self.views)
         except Exception:  # (a preview only: the run after it meets and reports what is wrong)
             self.looks_first = False
             return
-        self.first_look = glimpse
+        self.first_look = look
 
     def first_look_shown(self) -> None:
         """The first look was written (or is no longer wanted): let it go."""

@@ -15,11 +15,11 @@ import time
 import bpy
 
 from ..errors import WindgrassError
-from . import bake, maps, properties, tracks
+from . import bake, maps, owned, properties, tracks
 from .frame_pass import write_first_look
 from .lifecycle import apply_settings, write_look
 from .registry import REGISTRY, key_of
-from .resolve import guarded, terrain_of, update_field
+from .resolve import guarded, new_pools, terrain_of, update_field
 
 # Edits in the UI arrive once per slider step; they are coalesced and applied once the user pauses
 # for this long, so dragging a slider on a large field does not re-simulate at every step; while the
@@ -144,15 +144,24 @@ def _poll_interval() -> float:
 
 
 def _show_first_look(scenes: dict, key, state, job) -> None:
-    """Write the first look of the run ``job`` makes (``builds.Build.first_look``) while the
-    frame it was worked out for is shown and the run is not done."""
-    field = job.first_look
+    """Write the first look of the engine ``job`` makes (``builds.Build.first_look``) while the
+    frame it was worked out for is shown, its first frame is not done and the field's objects fit
+    it: a run's through the pools of the engine it retunes, a new field's through new ones."""
+    look = job.first_look
     job.first_look_shown()
     scene, item = _field_of(scenes, key)
     if item is None or item.collection is None or job.done.is_set() or scene.frame_current != job.at_frame \
-            or state.engine is None or state.engine is not job.base:
+            or item.collection.get(owned.TOPOLOGY) != job.inputs.topology:
         return
-    guarded(write_first_look, scene, item, state, field, job.views)
+    if job.base is None:
+        pools = new_pools(look)
+    elif state.engine is job.base and job.base.topology == job.inputs.topology:
+        pools = state.pools
+    else:
+        return
+    guarded(write_first_look, scene, item, pools, look, job.views)
+    if job.base is None:
+        state.slots_changed()  # (the engine before, still shown at other frames, writes every slot again)
     _redraw()
 
 

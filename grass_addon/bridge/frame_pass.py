@@ -48,14 +48,15 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     rt.written(shown.frame, shown.subframe, field_camera.signature(views), shown.blades_drawn())
 
 
-def write_first_look(scene, item, rt: LiveField, field, views) -> None:
-    """An edit's first look (``GrassField.glimpse``, worked out on a build's thread) written into
-    the field's objects while its run is made: the roles' slots and the gust offset. The record
-    keeps the frame it wrote: the next frame change, or the run when done, writes over it."""
+def write_first_look(scene, item, pools: dict, field, views) -> None:
+    """A build's first look (``GrassField.first_look``, worked out on its thread) written into the
+    field's objects through ``pools`` while its first frame is worked out: the roles' slots and the
+    gust offset. The record keeps the frame it wrote: the next frame change, or the build when
+    done, writes over it."""
     amount = 1.0 if field_camera.rendering() else float(field.params.lod.viewport_amount)
     shown = field.frame(scene.frame_current, 0.0, views, amount=amount)
     for part in shown.roles():
-        rt.pools[part.role].write(item, part)
+        pools[part.role].write(item, part)
     if shown.gust is not None:
         reg = owned.registered(item)
         materials.set_gust_offset(*shown.gust, field.params, reg.get(owned.ROLE_CARD_MATERIAL),

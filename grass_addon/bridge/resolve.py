@@ -201,8 +201,8 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
         _build(live, inputs, name)
         return
     if job is None:  # (one running: the next update after it starts one for the settings then)
-        live.build_started(builds.Build(inputs.digest, inputs.frame, views).start(
-            lambda report: _make(inputs, report)))
+        live.build_started(builds.Build(inputs.digest, inputs.frame, views, inputs=inputs).start(
+            lambda report: _make(inputs, report), first_look=True))
     raise builds.BuildPending(name)
 
 
@@ -231,7 +231,7 @@ def _retuned(live: LiveField, base: Engine, field: GrassField, inputs: Inputs, p
     """``field``, the engine ``base``'s field retuned to ``inputs`` (or its twin), becomes the
     record's engine; the pools of ``base`` are kept while the objects' topology holds."""
     same = base.topology == inputs.topology
-    kept = base.pools if same else _pools(field)
+    kept = base.pools if same else new_pools(field)
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
                             inputs.wind_keys, inputs.terrain_key, inputs.topology, kept),
                      painted, inputs.track, kept=True)
@@ -244,15 +244,13 @@ def _retune_later(live: LiveField, engine: Engine, inputs: Inputs, name: str, vi
     if live.building is None:
         job = builds.Build(inputs.digest, inputs.frame, views, inputs=inputs, base=engine, painted=live.painted)
         twin = engine.field.twin(progress=job.report)  # (here: the blocks as they are now)
-        glimpse = engine.field.twin() if engine.topology == inputs.topology else None  # (written with its pools)
 
-        def retuned(field: GrassField) -> GrassField:
-            field.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders,
-                         effectors=inputs.effectors)
-            return field
+        def make(_report) -> GrassField:
+            twin.retune(inputs.params, wind_keys=inputs.wind_keys, colliders=inputs.colliders,
+                        effectors=inputs.effectors)
+            return twin
 
-        live.build_started(job.start(lambda _report: retuned(twin),
-                                     first=None if glimpse is None else lambda: retuned(glimpse).glimpse()))
+        live.build_started(job.start(make, first_look=engine.topology == inputs.topology))  # (its objects fit)
     raise builds.BuildPending(name)
 
 
@@ -280,7 +278,7 @@ def _take_retuned(live: LiveField, inputs: Inputs, wait: bool, name: str) -> Non
         _retuned(live, base, job.made, made_for, job.painted)
 
 
-def _pools(field: GrassField) -> dict[str, pools.SlotPool]:
+def new_pools(field: GrassField) -> dict[str, pools.SlotPool]:
     """New slot pools, one a role, for the engine ``field``'s shapes."""
     return {role: pools.SlotPool(role, shape) for role, shape in field.shapes.items()}
 
@@ -300,7 +298,7 @@ def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str) -> N
     """``field`` becomes the record's engine, with new slot pools."""
     field.report_progress(_seek_progress(name))
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
-                            inputs.wind_keys, inputs.terrain_key, inputs.topology, _pools(field)),
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, new_pools(field)),
                      inputs.painted, inputs.track)
 
 

@@ -277,6 +277,42 @@ def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_brid
     assert abs(height["first"] - height["run"]) < 0.2 * moved, height
 
 
+def test_a_density_edit_in_the_ui_shows_the_new_fields_first_look_before_its_first_frame(with_bridge, drawn):
+    """Issue #58: a density edit in the UI hides the grass while the new field is made; once its
+    blocks are, and before its first frame's warm-up (20 s here) is done, the field draws the new
+    field's first look: as many blades as its own frame then draws, leaning as far (mean height
+    within a tenth); its frame, a fresh build's bits, replaces it."""
+    import time
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import edits, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 8.0,
+                                      "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    scene, item = _build(base)
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.field, "blades_per_cell", 4))
+    job = live.building
+    assert job is not None and job.base is None and job.looks_first
+    assert not np.any(drawn(item, "blades")), "the grass of the old settings was left showing"
+    waited = time.monotonic()
+    while job.first_look is None and time.monotonic() - waited < 30.0:
+        time.sleep(0.002)
+    assert job.first_look is not None and not job.done.is_set(), "the first look came after the field"
+    edits.poll_builds()
+    first = drawn(item, "blades")
+    runtime.shown_when_done(scene, item)
+    assert runtime.field_error(scene, item) is None
+    exact = drawn(item, "blades")
+    _, want_item = _build(base.replace({"field.blades_per_cell": 4}))
+    np.testing.assert_array_equal(exact, drawn(want_item, "blades"))
+    points = [len(np.unique(v.round(6), axis=0)) for v in (first, exact)]  # (what shows nothing is one point)
+    assert points[0] > 1000 and abs(points[0] - points[1]) <= 0.005 * points[1], points
+    heights = [float(np.mean(v[:, 2])) for v in (first, exact)]
+    assert abs(heights[0] - heights[1]) < 0.1 * heights[1], heights
+
+
 def _look_drawn(item):
     """What a field's materials and ground show of its look: the evaluated ground mesh's vertices,
     the card atlas's pixels and the far canopy's curves (the sward's colours, depth and grain)."""

@@ -200,10 +200,11 @@ class GrassField:
     def first_look(self, seconds: float = GLIMPSE_S) -> GrassField:
         """A first look of this field's run, to show while the run works out its first frame (an
         edit's new run or new field, ``bridge/builds.py``): a twin with its own wind and run whose
-        trajectories each start from rest ``seconds`` before the frame first asked of them, so that
-        frame costs that many frames of steps, not the warm-up's and the epoch's. Its blades lean
-        and sway in the wind as this field's do, but their phases are not its frames (they are
-        about a third of their bend apart): it is shown, never made an engine."""
+        trajectories each start from rest ``seconds`` before the frame first asked of them and step
+        three frames at a time (``Simulation.glimpse``), so that frame costs a few steps, not the
+        warm-up's and the epoch's frames. Its blades lean as far as this field's do (their mean bend
+        within a few per cent) and sway in the same wind, but their phases are not its frames (a
+        third of their bend apart): it is shown, never made an engine."""
         look = self.twin()
         colliders = [] if self.interaction is None else self.interaction.colliders
         look.retune(self.params, wind_keys=self._wind_keys, colliders=colliders, effectors=self.effectors)

@@ -35,6 +35,7 @@ from .solver import STATE_ARRAYS, BladeSolver, SolverState
 
 PROGRESS_INTERVAL_S = 1.0
 CHECKPOINT_FRAMES = 24  # a saved state every this many frames, or every second at higher frame rates
+GLIMPSE_STRIDE = 3  # frames a first look's step spans (``Simulation.glimpse``)
 MAX_CHECKPOINT_BYTES = 1 << 27  # 128 MiB of saved states per trajectory at most (they only speed seeks back)
 
 
@@ -96,7 +97,8 @@ class Simulation:
         self._wind_frame: int | None = self.frame
         self.steps = 0  # cell-frames stepped so far (a measure of work)
         # > 0: a first look (``GrassField.first_look``): each trajectory starts from rest this many
-        # frames before the frame first asked of it, not at its s_k (not the frames a build gives)
+        # frames before the frame first asked of it, not at its s_k, and steps GLIMPSE_STRIDE frames
+        # at a time (``_glance``): not the frames a build gives
         self.glimpse = 0
         # progress(done, total) of a long seek: at most every PROGRESS_INTERVAL_S seconds, and
         # (total, total) at its end when it reported at all
@@ -238,6 +240,9 @@ class Simulation:
 
     def _advance(self, targets: dict[int, int]) -> None:
         """Step trajectories ``k`` to frames ``targets[k]`` together: one wind sample per frame."""
+        if self.glimpse > 0:
+            self._glance(targets)
+            return
         trajs = [self._trajectory(k, f) for k, f in targets.items()]
         frames = [max(f, t.start) for t, f in zip(trajs, targets.values())]
         total = sum(f - t.pos for t, f in zip(trajs, frames))
@@ -259,6 +264,23 @@ class Simulation:
                 self.progress(done, total)
         if reported and self.progress is not None:
             self.progress(total, total)
+
+    def _glance(self, targets: dict[int, int]) -> None:
+        """``_advance`` for a first look (``glimpse``): each trajectory stepped GLIMPSE_STRIDE
+        frames at a time in the wind of each step's end: a third of the steps, and the blades' mean
+        bend within a few per cent of the frame-by-frame run's (the solver's smooth update, eqs
+        25-27, is exact for any step; joints too quick for the longer step follow it)."""
+        for k, frame in targets.items():
+            traj = self._trajectory(k, frame)
+            while traj.pos < frame:
+                stride = min(GLIMPSE_STRIDE, frame - traj.pos)
+                wind = self._sample(traj.pos + stride)
+                dt = stride * self.frame_dt
+                self.solver.state = traj.state
+                self.solver.step(wind, dt, self.solver.stable_substeps(dt))
+                traj.pos += stride
+                self.steps += self.layout.n_cells
+                self._wind_frame, self.cell_wind = traj.pos, wind
 
     def _step(self, traj: Trajectory, wind: np.ndarray) -> None:
         self.solver.state = traj.state

@@ -74,7 +74,10 @@ class Build:
         try:
             look = engine.first_look()
             look.view(self.views, self.at_frame)
-            look.prepare_frame(self.at_frame, self.views)
+            if self.base is None:  # (a new field's slots are all written: their colours worked out here)
+                look.prepare_frame(self.at_frame, self.views)
+            else:  # (a run's slots keep their blocks and colours: the write works out the vertices)
+                look.seek(self.at_frame)
         except Exception:  # (a preview only: the run after it meets and reports what is wrong)
             self.looks_first = False
             return

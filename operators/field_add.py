@@ -54,6 +54,12 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
     def poll(cls, context):
         return context.scene is not None and hasattr(context.scene, "windgrass")
 
+    def invoke(self, context, event):
+        """From the Add menu (or F3): the field's engine is made in the background, so the window
+        is not held while it is (its first look shows once the blocks are made)."""
+        self.in_background = not bpy.app.background
+        return self.execute(context)
+
     @reported
     def execute(self, context):
         scene = context.scene
@@ -74,13 +80,15 @@ class WINDGRASS_OT_field_add(bpy.types.Operator):
             item.terrain = terrain
         locked = scene.render.use_lock_interface
         try:
-            collection = runtime.build_field(scene, item)
+            later = getattr(self, "in_background", False)
+            collection = (runtime.build_in_background if later else runtime.build_field)(scene, item)
         except Exception:  # whatever stopped the build, the half-added field goes before it is raised
             _undo_add(scene, item)
             raise
         if collection is not None and item.collection is None:
             item.collection = collection
-        refresh(scene)
+        if not later:  # (a frame written now would wait for the field's engine)
+            refresh(scene)
         grid = FieldGrid.of(params)
         blades, (size_x, size_y) = grid.n_blades, grid.size
         where = f" rooted on '{terrain.name}'" if terrain is not None else ""

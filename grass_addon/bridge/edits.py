@@ -17,7 +17,7 @@ import bpy
 from ..errors import WindgrassError
 from . import bake, maps, owned, properties, tracks
 from .frame_pass import write_first_look
-from .lifecycle import apply_settings, write_look
+from .lifecycle import apply_settings, build_field, write_look
 from .registry import REGISTRY, key_of
 from .resolve import guarded, new_pools, terrain_of, update_field
 
@@ -99,10 +99,24 @@ def flush_pending() -> float | None:
         stroke, started = state.stroked, time.perf_counter()
         guarded(update_field, scene, item, wait=stroke)  # (a new engine on a thread; a stroke shows at once)
         state.stroke_shown(time.perf_counter() - started if stroke else None)
+    watch_builds()
+    return PAINT_MODE_POLL_S if waiting else None
+
+
+def build_in_background(scene, item) -> bpy.types.Collection:
+    """Add Grass Field in the UI: the field's datablocks at once, its engine made on a thread
+    (``lifecycle.build_field`` with ``wait`` False: the window is not held while the blocks are
+    made and the warm-up simulated), its first look and then its frame written by the timer."""
+    collection = build_field(scene, item, wait=False)
+    watch_builds()
+    return collection
+
+
+def watch_builds() -> None:
+    """Poll the fields' background work (``poll_builds``) until it is done."""
     if any(s.building is not None or s.look_waiting for s in REGISTRY.states.values()) \
             and not bpy.app.timers.is_registered(poll_builds):
         bpy.app.timers.register(poll_builds, first_interval=_poll_interval())
-    return PAINT_MODE_POLL_S if waiting else None
 
 
 def poll_builds() -> float | None:

@@ -92,9 +92,11 @@ def forget_slots(scene, item, rebuilt: bool = False) -> None:
     live.slots_changed()
 
 
-def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
+def build_field(scene, item, force: bool = False, wait: bool = True) -> bpy.types.Collection:
     """Add, Rebuild (``force``), scripts: the field's datablocks for its settings and its current
-    frame written at once (``apply_settings``, ``update_field``). A setting out of range raises
+    frame written at once (``apply_settings``, ``update_field``; ``wait`` False, Add in the UI:
+    the engine made on a thread, ``builds.Build``, its objects hidden until its first look is
+    written: ``edits.build_in_background``). A setting out of range raises
     before anything is built; once the datablocks are built nothing raises: a frame that cannot
     be simulated (a paint map that needs a terrain, ...) is recorded for the panel
     (``field_error``) and its grass hidden, so the operator finishes and Blender's undo step holds
@@ -105,7 +107,7 @@ def build_field(scene, item, force: bool = False) -> bpy.types.Collection:
     apply_settings(scene, item, force=True if item.collection is None else force)
     if force:
         reset_field(scene, item)
-    guarded(update_field, scene, item)
+    guarded(update_field, scene, item, wait=wait)
     write_read_me()
     return item.collection
 

@@ -32,6 +32,7 @@ from .edits import (
     EDIT_SETTLE_S,
     PAINT_MODE_POLL_S,
     STROKE_GOAL_S,
+    build_in_background,
     flush_pending,
     mark_dirty,
     poll_builds,
@@ -114,6 +115,7 @@ def scene_clock(scene) -> Clock:
 
 __all__ = ["animation", "bake", "farm_job", "FieldGrid", "maps", "owned", "presets", "properties", "schema",
            "seek_note", "tracks", "WindgrassError", "apply_settings", "bake_field", "bake_status", "build_field",
+           "build_in_background",
            "background_work", "blades_drawn", "building_percent", "loop_notes", "EDIT_SETTLE_S", "field_error",
            "LiveField", "flush_pending", "free_bake", "get_runtime", "key_of", "mark_dirty", "PAINT_MODE_POLL_S",
            "params_digest", "plays_cache", "poll_builds", "refresh_later", "register", "REGISTRY", "remove_field",

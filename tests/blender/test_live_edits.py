@@ -41,9 +41,8 @@ IN_PLACE = {"wind.speed", "wind.direction", "wind.turbulence", "wind.gust_waves"
 NOT_IN_THE_MESHES = {"lod.card_near", "lod.card_width", "render.haze_distance", "lod.blade_far", "interaction.recovery"}
 
 
-def _build(params):
-    from windgrass.grass_addon.bridge import properties, runtime
-
+def _camera_scene():
+    """An empty scene with a camera looking over the field."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
@@ -51,6 +50,13 @@ def _build(params):
     scene.camera = cam
     cam.location = (-1.3, -1.0, 0.7)
     cam.rotation_euler = (Vector((0.4, 0.3, 0.1)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    return scene
+
+
+def _build(params):
+    from windgrass.grass_addon.bridge import properties, runtime
+
+    scene = _camera_scene()
     runtime.build_field(scene, properties.add_field(scene, params))
     scene.frame_set(FRAME)
     return scene, scene.windgrass.fields[0]
@@ -311,6 +317,40 @@ def test_a_density_edit_in_the_ui_shows_the_new_fields_first_look_before_its_fir
     assert points[0] > 1000 and abs(points[0] - points[1]) <= 0.005 * points[1], points
     heights = [float(np.mean(v[:, 2])) for v in (first, exact)]
     assert abs(heights[0] - heights[1]) < 0.1 * heights[1], heights
+
+
+def test_a_field_added_from_the_menu_is_built_in_the_background(with_bridge, drawn):
+    """Issue #58: Add Grass Field from the menu (``build_in_background``, the operator's invoke in
+    the UI) makes the field's objects and returns before its engine is made: nothing of it is
+    drawn yet; the timer draws its first look before its frame (the blocks made, the warm-up not
+    simulated), then the frame a field added by a script draws, bit for bit."""
+    import time
+
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import edits, properties, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    params = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 8.0,
+                                        "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    _, want_item = _build(params)
+    want = drawn(want_item, "blades")
+    scene = _camera_scene()
+    scene.frame_set(FRAME)
+    item = properties.add_field(scene, params)
+    started = time.monotonic()
+    runtime.build_in_background(scene, item)
+    job = REGISTRY.live(key_of(scene, item)).building
+    assert job is not None and not job.done.is_set(), "the engine was made before Add returned"
+    assert item.collection is not None and not np.any(drawn(item, "blades"))
+    while job.first_look is None and time.monotonic() - started < 30.0:
+        time.sleep(0.002)
+    assert job.first_look is not None and not job.done.is_set(), "the first look came after the field"
+    edits.poll_builds()
+    first = drawn(item, "blades")
+    assert len(np.unique(first.round(6), axis=0)) > 1000
+    runtime.shown_when_done(scene, item)
+    assert runtime.field_error(scene, item) is None
+    np.testing.assert_array_equal(drawn(item, "blades"), want)
 
 
 def _look_drawn(item):

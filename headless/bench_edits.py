@@ -111,15 +111,16 @@ def blender_run(blocks: int | None) -> dict:
 
 
 def _ui_build(scene, item) -> dict:
-    """The same field added again as Add Grass Field does from the menu (its engine made on a
-    thread, ``edits.build_in_background``), in a fresh scene: the window held (the objects and
-    the look made), and the seconds until its first look and its frame are written."""
+    """The field added again with another seed as Add Grass Field does from the menu (its look
+    and engine made on threads, ``edits.build_in_background``), in a fresh scene: the window held
+    (the objects made), and the seconds until its first look and its frame are written."""
     import bench_peers
     from windgrass.grass_addon import schema
     from windgrass.grass_addon.bridge import edits, properties
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     params = properties.params_from_settings(item, scene)
+    params = params.replace({"field.seed": params.field.seed + 1})  # (another field: nothing of its look kept)
     scene = bench_peers._fresh_scene()
     common.scene_camera(scene, schema.defaults())
     scene.frame_set(1)

@@ -95,8 +95,8 @@ def forget_slots(scene, item, rebuilt: bool = False) -> None:
 def build_field(scene, item, force: bool = False, wait: bool = True) -> bpy.types.Collection:
     """Add, Rebuild (``force``), scripts: the field's datablocks for its settings and its current
     frame written at once (``apply_settings``, ``update_field``; ``wait`` False, Add in the UI:
-    the engine made on a thread, ``builds.Build``, its objects hidden until its first look is
-    written: ``edits.build_in_background``). A setting out of range raises
+    the far grass's look and the engine made on threads, ``builds.Build``, its objects hidden
+    until its first look is written: ``edits.build_in_background``). A setting out of range raises
     before anything is built; once the datablocks are built nothing raises: a frame that cannot
     be simulated (a paint map that needs a terrain, ...) is recorded for the panel
     (``field_error``) and its grass hidden, so the operator finishes and Blender's undo step holds
@@ -104,7 +104,7 @@ def build_field(scene, item, force: bool = False, wait: bool = True) -> bpy.type
     freed ones: Ctrl+Z crashed)."""
     if bake.is_baked(item) and not force:
         return item.collection
-    apply_settings(scene, item, force=True if item.collection is None else force)
+    apply_settings(scene, item, force=True if item.collection is None else force, look_later=not wait)
     if force:
         reset_field(scene, item)
     guarded(update_field, scene, item, wait=wait)

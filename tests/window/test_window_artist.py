@@ -595,12 +595,13 @@ def test_no_step_of_a_drag_holds_the_window_for_a_second(real_blender):
 def test_add_from_the_menu_builds_its_field_without_holding_the_window(real_blender):
     """Issue #58: Add Grass Field from the menu (the operator invoked, as the Add menu and F3 run
     it) makes the field's objects and returns: its engine (blocks, warm-up) is made on a thread,
-    its first look and then its frame written by the timer. A 51 m field added that way holds the
-    window under half as long as the same field added by a script (which builds at once), and
-    draws as many blades once built (looked at: the meadow from the startup view)."""
+    its look, first look and frame written by the timer. A 51 m field added that way (another seed:
+    nothing of its look kept) holds the window under half as long as one added by a script (which
+    builds at once), and draws about as many blades once built (looked at: the meadow from the
+    startup view)."""
     size = {"blocks_x": 32, "blocks_y": 32}
     steps = [{"select": None}, {"op": "windgrass.field_add", "args": size}, {"wait": 1.0},
-             {"op": "windgrass.field_add", "args": size, "invoke": True}, {"probe": "lod"},
+             {"op": "windgrass.field_add", "args": {**size, "seed": 7}, "invoke": True}, {"probe": "lod"},
              {"wait": 12.0}, {"shading": "SOLID"}, {"wait": 1.0}, {"probe": "lod"}, {"shot": "added"}]
     run = real_blender.run(steps)
     run.assert_clean()
@@ -611,4 +612,4 @@ def test_add_from_the_menu_builds_its_field_without_holding_the_window(real_blen
     right_after, built = run.results("probe")
     assert list(right_after.values())[1] is None or not list(right_after.values())[1]["blades_drawn"]
     script_drawn, menu_drawn = (v["blades_drawn"] for v in built.values())
-    assert script_drawn > 0 and menu_drawn == script_drawn, built  # (the same settings: the same grass)
+    assert script_drawn > 0 and abs(menu_drawn - script_drawn) <= 0.2 * script_drawn, built  # (another seed)

@@ -45,7 +45,7 @@ from .wind_map import FieldMap, MapGrid, most_common, nearest_points, point_mean
 RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one before)
 WHOLE_FIELD_CELLS = 1 << 18  # without a camera (or with LOD off) fields this small (51 m) are simulated whole
 WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the camera needs
-GLIMPSE_S = 0.75  # seconds of the new wind a first look of an edit simulates (``GrassField.glimpse``)
+GLIMPSE_S = 0.75  # seconds of wind a first look simulates (``GrassField.first_look``)
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 

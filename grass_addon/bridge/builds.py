@@ -12,14 +12,15 @@ the field's is dropped. Scripts, background renders and renders in the UI build 
 
 An edit of the wind or the solver keeps the field's blocks but simulates again (seconds on a large
 field): in the UI that run is a ``Build`` too, of the engine's ``twin`` retuned (``base``: the
-engine it was made from, which goes on showing its frames meanwhile).
+engine it was made from, which goes on showing its frames meanwhile). A finished one is taken even
+when the settings moved on while it ran (a slider still dragged): the grass follows the drag, one
+run behind.
 
 Before a build's first frame (its warm-up: most of a run's time) the thread works out a first
 look (``GrassField.first_look``: 0.75 s of the wind from rest), which the timer writes at once
 into the objects when they fit it: the edit shows in a fraction of the time, and the exact frame
-replaces it when done. A finished one is taken even
-when the settings moved on while it ran (a slider still dragged): the grass follows the drag, one
-run behind.
+replaces it when done. Add Grass Field from the menu builds this way too
+(``edits.build_in_background``).
 """
 
 from __future__ import annotations

@@ -120,8 +120,9 @@ def watch_builds() -> None:
 
 
 def poll_builds() -> float | None:
-    """Timer: write the fields whose background build (``builds.Build``) is done, and the
-    materials whose look was worked out on a thread (``show_look``); run again while one is not."""
+    """Timer: write the fields whose background build (``builds.Build``) is done (or its first
+    look, once worked out), and the materials whose look was worked out on a thread
+    (``show_look``); run again while one is not."""
     running = False
     scenes = {s.session_uid: s for s in bpy.data.scenes}
     for key, state in list(REGISTRY.states.items()):

@@ -246,15 +246,29 @@ def test_a_wind_drag_in_the_ui_runs_on_a_thread_and_follows(with_bridge, drawn):
         np.testing.assert_array_equal(a, b)
 
 
+def _first_look_drawn(job, item, drawn, after: str):
+    """The blades drawn once the edits' timer wrote ``job``'s first look, which must come before
+    the job is done (``after``: what it would have come after)."""
+    import time
+
+    from windgrass.grass_addon.bridge import edits
+
+    waited = time.monotonic()
+    while job.first_look is None and time.monotonic() - waited < 30.0:
+        time.sleep(0.002)
+    assert job.first_look is not None and not job.done.is_set(), f"the first look came after {after}"
+    edits.poll_builds()
+    return drawn(item, "blades")
+
+
 def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_bridge, drawn):
     """Issue #58: a wind edit in the UI shows at once: before its new run is done (a warm-up of
     20 s here), the field draws a first look of the new wind (0.75 s of it simulated from
     rest): its blades lean as far as the run's own do, within a fifth of how far the grass moved
     (a stronger wind lowers them); the run's frame, the bits of a fresh build, replaces it."""
-    import time
 
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import edits, runtime
+    from windgrass.grass_addon.bridge import runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 3.0,
@@ -265,12 +279,7 @@ def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_brid
     _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 12.0))
     job = live.building
     assert job is not None and job.looks_first
-    waited = time.monotonic()
-    while job.first_look is None and time.monotonic() - waited < 30.0:
-        time.sleep(0.002)
-    assert job.first_look is not None and not job.done.is_set(), "the first look came after the run"
-    edits.poll_builds()
-    first = drawn(item, "blades")
+    first = _first_look_drawn(job, item, drawn, "the run")
     assert not job.done.is_set() or live.engine is job.base  # (what was drawn is the first look, not the run)
     runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None
@@ -288,10 +297,9 @@ def test_a_density_edit_in_the_ui_shows_the_new_fields_first_look_before_its_fir
     blocks are, and before its first frame's warm-up (20 s here) is done, the field draws the new
     field's first look: as many blades as its own frame then draws, leaning as far (mean height
     within a tenth); its frame, a fresh build's bits, replaces it."""
-    import time
 
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import edits, runtime
+    from windgrass.grass_addon.bridge import runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 8.0,
@@ -302,12 +310,7 @@ def test_a_density_edit_in_the_ui_shows_the_new_fields_first_look_before_its_fir
     job = live.building
     assert job is not None and job.base is None and job.looks_first
     assert not np.any(drawn(item, "blades")), "the grass of the old settings was left showing"
-    waited = time.monotonic()
-    while job.first_look is None and time.monotonic() - waited < 30.0:
-        time.sleep(0.002)
-    assert job.first_look is not None and not job.done.is_set(), "the first look came after the field"
-    edits.poll_builds()
-    first = drawn(item, "blades")
+    first = _first_look_drawn(job, item, drawn, "the field")
     runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None
     exact = drawn(item, "blades")
@@ -324,10 +327,9 @@ def test_a_field_added_from_the_menu_is_built_in_the_background(with_bridge, dra
     the UI) makes the field's objects and returns before its engine is made: nothing of it is
     drawn yet; the timer draws its first look before its frame (the blocks made, the warm-up not
     simulated), then the frame a field added by a script draws, bit for bit."""
-    import time
 
     from windgrass.grass_addon import schema
-    from windgrass.grass_addon.bridge import edits, properties, runtime
+    from windgrass.grass_addon.bridge import properties, runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
     params = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 8.0,
@@ -337,16 +339,11 @@ def test_a_field_added_from_the_menu_is_built_in_the_background(with_bridge, dra
     scene = _camera_scene()
     scene.frame_set(FRAME)
     item = properties.add_field(scene, params)
-    started = time.monotonic()
     runtime.build_in_background(scene, item)
     job = REGISTRY.live(key_of(scene, item)).building
     assert job is not None and not job.done.is_set(), "the engine was made before Add returned"
     assert item.collection is not None and not np.any(drawn(item, "blades"))
-    while job.first_look is None and time.monotonic() - started < 30.0:
-        time.sleep(0.002)
-    assert job.first_look is not None and not job.done.is_set(), "the first look came after the field"
-    edits.poll_builds()
-    first = drawn(item, "blades")
+    first = _first_look_drawn(job, item, drawn, "the field")
     assert len(np.unique(first.round(6), axis=0)) > 1000
     runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None

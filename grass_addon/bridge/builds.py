@@ -49,6 +49,7 @@ class Build:
     # written while its first frame is (``edits.poll_builds``), and whether one is worked out at all
     first_look: GrassField | None = None
     looks_first: bool = False
+    shows_first_look: bool = False  # its first look is drawn now (the panel says so)
 
     def start(self, make, first_look: bool = False) -> Build:
         """Run ``make(report) -> GrassField`` on a thread, then the first seek; with
@@ -84,9 +85,9 @@ class Build:
             return
         self.first_look = look
 
-    def first_look_shown(self) -> None:
-        """The first look was written (or is no longer wanted): let it go."""
-        self.first_look, self.looks_first = None, False
+    def first_look_shown(self, written: bool = False) -> None:
+        """The first look was ``written`` (or is no longer wanted): let it go."""
+        self.first_look, self.looks_first, self.shows_first_look = None, False, written
 
     def report(self, done: int, total: int) -> None:
         self.progress = (done, total)

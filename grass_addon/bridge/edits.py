@@ -175,6 +175,7 @@ def _show_first_look(scenes: dict, key, state, job) -> None:
     else:
         return
     guarded(write_first_look, scene, item, pools, look, job.views)
+    job.first_look_shown(written=True)
     if job.base is None:
         state.slots_changed()  # (the engine before, still shown at other frames, writes every slot again)
     _redraw()

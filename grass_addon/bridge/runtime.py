@@ -75,8 +75,8 @@ def building_percent(scene, item) -> int | None:
 
 def background_work(scene, item) -> str | None:
     """What of the field is being worked out on a thread after an edit, in a sentence for the
-    panel (a new field, a new run of the wind or the solver, the far grass's look), None when
-    nothing is."""
+    panel (a new field, a new run of the wind or the solver, and whether its first look is drawn
+    meanwhile; the far grass's look), None when nothing is."""
     state = REGISTRY.states.get(key_of(scene, item))
     if state is None:
         return None
@@ -84,7 +84,8 @@ def background_work(scene, item) -> str | None:
     if percent is not None:
         what = "Simulating the new settings" if state.building.base is not None \
             else "Building the field for its new settings"
-        return f"{what}: {percent} %"
+        shown = ", a first look shown" if state.building.shows_first_look else ""
+        return f"{what}: {percent} %{shown}"
     return "Working out the far grass's look for the new settings" if state.look_waiting else None
 
 

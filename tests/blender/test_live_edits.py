@@ -280,6 +280,7 @@ def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_brid
     job = live.building
     assert job is not None and job.looks_first
     first = _first_look_drawn(job, item, drawn, "the run")
+    assert runtime.background_work(scene, item).endswith(", a first look shown")  # (the panel's line)
     assert not job.done.is_set() or live.engine is job.base  # (what was drawn is the first look, not the run)
     runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None

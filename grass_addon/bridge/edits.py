@@ -161,24 +161,26 @@ def _poll_interval() -> float:
 def _show_first_look(scenes: dict, key, state, job) -> None:
     """Write the first look of the engine ``job`` makes (``builds.Build.first_look``) while the
     frame it was worked out for is shown, its first frame is not done and the field's objects fit
-    it: a run's through the pools of the engine it retunes, a new field's through new ones."""
-    look = job.first_look
-    job.first_look_shown()
+    it; then let it go."""
     scene, item = _field_of(scenes, key)
+    pools = _first_look_pools(scene, item, state, job)
+    if pools is not None:
+        guarded(write_first_look, scene, item, pools, job.first_look, job.views)
+        if job.base is None:
+            state.slots_changed()  # (the engine before, still shown at other frames, writes every slot again)
+        _redraw()
+    job.first_look_shown(written=pools is not None)
+
+
+def _first_look_pools(scene, item, state, job) -> dict | None:
+    """The pools a first look is written through: a run's, the engine's it retunes; a new field's,
+    new ones. None when it is not to be written (see ``_show_first_look``)."""
     if item is None or item.collection is None or job.done.is_set() or scene.frame_current != job.at_frame \
             or item.collection.get(owned.TOPOLOGY) != job.inputs.topology:
-        return
+        return None
     if job.base is None:
-        pools = new_pools(look)
-    elif state.engine is job.base and job.base.topology == job.inputs.topology:
-        pools = state.pools
-    else:
-        return
-    guarded(write_first_look, scene, item, pools, look, job.views)
-    job.first_look_shown(written=True)
-    if job.base is None:
-        state.slots_changed()  # (the engine before, still shown at other frames, writes every slot again)
-    _redraw()
+        return new_pools(job.first_look)
+    return state.pools if state.engine is job.base and job.base.topology == job.inputs.topology else None
 
 
 def show_look(scene, item, later: bool = True) -> None:

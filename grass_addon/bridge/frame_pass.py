@@ -27,21 +27,13 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     each motion-blur step), the vertices are those of that instant and carry their velocity."""
     if views is None:
         views = field_camera.field_views(scene, item, depsgraph)
-    amount = 1.0 if field_camera.rendering() else float(rt.params.lod.viewport_amount)  # (renders: all)
-    shown = rt.field.frame(scene.frame_current, float(scene.frame_subframe), views,
-                           blur=bool(scene.render.use_motion_blur), amount=amount)
+    shown = _write_roles(scene, item, rt.pools, rt.field, views, blur=bool(scene.render.use_motion_blur))
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
-    for part in shown.roles():
-        rt.pools[part.role].write(item, part)
     scale = float(getattr(shown.lod, "scale", 1.0))  # the screen's scale of the LOD distances (no LOD: 1)
     if scale != 1.0 or rt.lod_scale != 1.0:
         materials.set_lod_scale(rt.params, owned.registered(item).get(owned.ROLE_CANOPY_MATERIAL), scale)
         rt.lod_scaled(scale)
-    if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
-        reg = owned.registered(item)
-        materials.set_gust_offset(*shown.gust, rt.params, reg.get(owned.ROLE_CARD_MATERIAL),
-                                  reg.get(owned.ROLE_CANOPY_MATERIAL))
     _write_trails(item, rt, shown.trail)
     if shown.subframe == 0.0:  # (Blender's hair and cloth step whole frames)
         wind_force.write(item, rt.field, shown.frame)
@@ -53,14 +45,22 @@ def write_first_look(scene, item, pools: dict, field, views) -> None:
     field's objects through ``pools`` while its first frame is worked out: the roles' slots and the
     gust offset. The record keeps the frame it wrote: the next frame change, or the build when
     done, writes over it."""
-    amount = 1.0 if field_camera.rendering() else float(field.params.lod.viewport_amount)
-    shown = field.frame(scene.frame_current, 0.0, views, amount=amount)
+    _write_roles(scene, item, pools, field, views)
+
+
+def _write_roles(scene, item, pools: dict, field, views, blur: bool = False):
+    """``field``'s frame at the scene's instant seen from ``views`` (the viewport's share of the
+    blades, a render's all), its roles written through ``pools`` and its gust offset into the
+    materials; returns the frame (``frame.Frame``)."""
+    amount = 1.0 if field_camera.rendering() else float(field.params.lod.viewport_amount)  # (renders: all)
+    shown = field.frame(scene.frame_current, float(scene.frame_subframe), views, blur=blur, amount=amount)
     for part in shown.roles():
         pools[part.role].write(item, part)
-    if shown.gust is not None:
+    if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
         reg = owned.registered(item)
         materials.set_gust_offset(*shown.gust, field.params, reg.get(owned.ROLE_CARD_MATERIAL),
                                   reg.get(owned.ROLE_CANOPY_MATERIAL))
+    return shown
 
 
 def _write_trails(item, rt: LiveField, trail) -> None:

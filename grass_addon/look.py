@@ -49,6 +49,7 @@ class _Worker:
         self.lock = threading.Lock()
         self.thread: threading.Thread | None = None
         self.wanted: tuple | None = None  # (the settings, plants) asked for last, not yet taken
+        self.after: threading.Event | None = None  # each part waits for it (``hold``)
 
     def ask(self, params: Params, own=None) -> None:
         with self.lock:
@@ -65,12 +66,29 @@ class _Worker:
                     self.thread = None
                     return
             try:
-                prepare(*wanted)
+                for part, args, keywords in _parts(*wanted):
+                    after = self.after
+                    if after is not None:
+                        after.wait(HOLD_S)
+                    part(*args, **keywords)
             except Exception:  # noqa: BLE001 (the bridge's own write works it out again and reports it)
                 pass
 
 
 _WORKER = _Worker()
+HOLD_S = 10.0  # a part waits at most this long for ``hold``'s event
+
+
+def working() -> bool:
+    """A look asked for is being worked out now (asking whether it is ready can wait)."""
+    return _WORKER.thread is not None
+
+
+def hold(until: threading.Event) -> None:
+    """The parts of a look asked for wait until ``until`` is set (at most HOLD_S each): a new
+    field's blocks, made on another thread, are not slowed by the look beside them (the two are
+    numpy calls from Python, which share one lock of the interpreter)."""
+    _WORKER.after = until
 
 
 def ask(params: Params, own=None) -> bool:

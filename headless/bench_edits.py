@@ -139,12 +139,12 @@ def _timers_until_shown(live, start: float) -> tuple[float, float | None]:
     call, seconds from ``start`` until its first look was written or None: none was)."""
     from windgrass.grass_addon.bridge import edits
 
-    clock, held, first = time.perf_counter, 0.0, None
+    clock, held, first, wait = time.perf_counter, 0.0, None, POLL_S
     while live.building is not None or getattr(live, "look_waiting", False):  # (the code before it had none)
-        time.sleep(POLL_S)
+        time.sleep(wait)
         job, t0 = live.building, clock()
         ready = job is not None and getattr(job, "first_look", None) is not None and not job.done.is_set()
-        edits.poll_builds()
+        wait = edits.poll_builds() or POLL_S  # (called again when the timer asks to be, as Blender does)
         held = max(held, clock() - t0)
         if ready and first is None:
             first = clock() - start

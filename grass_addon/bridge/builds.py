@@ -50,6 +50,7 @@ class Build:
     first_look: GrassField | None = None
     looks_first: bool = False
     shows_first_look: bool = False  # its first look is drawn now (the panel says so)
+    blocks_made: threading.Event = field(default_factory=threading.Event)  # (or it failed first)
 
     def start(self, make, first_look: bool = False) -> Build:
         """Run ``make(report) -> GrassField`` on a thread, then the first seek; with
@@ -60,6 +61,7 @@ class Build:
             try:
                 engine = make(self.report)
                 engine.view(self.views, self.at_frame)  # (a new field's blocks are made here)
+                self.blocks_made.set()
                 if first_look:
                     self._look_first(engine)
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
@@ -67,6 +69,7 @@ class Build:
             except BaseException as exc:  # (handed to the main thread, which reports it)
                 self.failure = exc
             finally:
+                self.blocks_made.set()
                 self.done.set()
 
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()

@@ -14,6 +14,7 @@ import time
 
 import bpy
 
+from .. import look
 from ..errors import WindgrassError
 from . import bake, maps, owned, properties, tracks
 from .frame_pass import write_first_look
@@ -108,6 +109,9 @@ def build_in_background(scene, item) -> bpy.types.Collection:
     (``lifecycle.build_field`` with ``wait`` False: the window is not held while the blocks are
     made and the warm-up simulated), its first look and then its frame written by the timer."""
     collection = build_field(scene, item, wait=False)
+    job = REGISTRY.live(key_of(scene, item)).building
+    if job is not None:  # (the far grass's look, on its own thread, waits for the blocks: sooner shown)
+        look.hold(job.blocks_made)
     watch_builds()
     return collection
 
@@ -128,7 +132,9 @@ def poll_builds() -> float | None:
     for key, state in list(REGISTRY.states.items()):
         if state.building is not None and state.building.first_look is not None:
             _show_first_look(scenes, key, state, state.building)
-        if state.look_waiting:
+        if state.look_waiting and look.working():
+            running = True  # (asking whether it is ready reads every setting: once the thread is done)
+        elif state.look_waiting:
             scene, item = _field_of(scenes, key)
             if item is None or item.collection is None:
                 state.look_waits(False)

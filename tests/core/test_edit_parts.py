@@ -154,3 +154,28 @@ def test_an_edit_of_another_part_keeps_a_remembered_look():
     first = atlas.card_atlas(params)
     first[...] = 0.0  # (a caller writes into its copy)
     assert np.any(atlas.card_atlas(params)) and sward.canopy_height.known(params)
+
+
+def test_a_look_held_for_a_new_fields_blocks_is_worked_out_once_they_are_made():
+    """Add Grass Field from the menu makes the field's blocks and its far grass's look on two
+    threads; the look waits for the blocks (``look.hold``): asked for while they are made it is not
+    worked out, and once they are (the event set) it is, without being asked again."""
+    import threading
+    import time
+
+    from windgrass.grass_addon import atlas, look
+
+    params = base_params().replace({"field.seed": 9083, "render.sun_elevation": 33.0})  # (a look never made)
+    made = threading.Event()
+    look.hold(made)
+    try:
+        assert not look.ask(params) and look.working()
+        time.sleep(1.0)  # (the whole look, unheld, takes well under a second: its atlas a quarter)
+        assert not atlas.card_atlas.known(params) and not look.ready(params)
+        made.set()
+        deadline = time.monotonic() + 60.0
+        while look.working() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert look.ready(params) and look.ask(params)
+    finally:
+        made.set()

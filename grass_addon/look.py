@@ -67,7 +67,7 @@ class _Worker:
                     return
             try:
                 for part, args, keywords in _parts(*wanted):
-                    after = self.after
+                    after = self.after  # (read before each part: a hold set once the look began applies)
                     if after is not None:
                         after.wait(HOLD_S)
                     part(*args, **keywords)

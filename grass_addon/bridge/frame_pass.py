@@ -38,6 +38,9 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     if shown.subframe == 0.0:  # (Blender's hair and cloth step whole frames)
         wind_force.write(item, rt.field, shown.frame)
     rt.written(shown.frame, shown.subframe, field_camera.signature(views), shown.blades_drawn())
+    job = rt.building
+    if job is not None and job.shows_first_look:  # (the grass before the edit, written over its first look)
+        job.first_look_shown(written=False)
 
 
 def write_first_look(scene, item, pools: dict, field, views) -> None:

@@ -293,6 +293,34 @@ def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_brid
     assert abs(height["first"] - height["run"]) < 0.2 * moved, height
 
 
+def test_the_panel_says_no_first_look_once_the_grass_before_the_edit_is_drawn_over_it(with_bridge, drawn):
+    """A wind slider dragged on while its first look is drawn: the next step of the drag draws the
+    grass of the settings before over the first look (its run goes on), so the panel's line no
+    longer says a first look is shown; the field ends drawing a fresh build of the last value."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 3.0,
+                                      "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    scene, item = _build(base)
+    before = drawn(item, "blades")
+    live = REGISTRY.live(key_of(scene, item))
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 12.0))
+    job = live.building
+    _first_look_drawn(job, item, drawn, "the run")
+    assert runtime.background_work(scene, item).endswith(", a first look shown")
+    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 11.0))  # (the drag goes on)
+    assert live.building is job and not job.done.is_set()  # (the first run still going, 20 s of warm-up)
+    np.testing.assert_array_equal(drawn(item, "blades"), before)  # (the grass before, over the first look)
+    line = runtime.background_work(scene, item)
+    assert line is not None and line.startswith("Simulating") and "first look" not in line, line
+    runtime.shown_when_done(scene, item)
+    got = drawn(item, "blades")
+    _, want_item = _build(base.replace({"wind.speed": 11.0}))
+    np.testing.assert_array_equal(got, drawn(want_item, "blades"))
+
+
 def test_a_density_edit_in_the_ui_shows_the_new_fields_first_look_before_its_first_frame(with_bridge, drawn):
     """Issue #58: a density edit in the UI hides the grass while the new field is made; once its
     blocks are, and before its first frame's warm-up (20 s here) is done, the field draws the new

@@ -261,12 +261,10 @@ def _first_look_drawn(job, item, drawn, after: str):
     return drawn(item, "blades")
 
 
-def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_bridge, drawn):
-    """Issue #58: a wind edit in the UI shows at once: before its new run is done (a warm-up of
-    20 s here), the field draws a first look of the new wind (0.75 s of it simulated from
-    rest): its blades lean as far as the run's own do, within a fifth of how far the grass moved
-    (a stronger wind lowers them); the run's frame, the bits of a fresh build, replaces it."""
-
+def _windier_first_look(drawn):
+    """A small field in a 3 m/s wind (a warm-up of 20 s) edited to 12 m/s in the UI, its first look
+    drawn and the panel saying so: (settings before, scene, field, its record, the blades drawn
+    before the edit, the blades of the first look)."""
     from windgrass.grass_addon import schema
     from windgrass.grass_addon.bridge import runtime
     from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
@@ -281,6 +279,18 @@ def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_brid
     assert job is not None and job.looks_first
     first = _first_look_drawn(job, item, drawn, "the run")
     assert runtime.background_work(scene, item).endswith(", a first look shown")  # (the panel's line)
+    return base, scene, item, live, before, first
+
+
+def test_a_wind_edit_in_the_ui_shows_a_first_look_at_once_then_its_run(with_bridge, drawn):
+    """Issue #58: a wind edit in the UI shows at once: before its new run is done (a warm-up of
+    20 s here), the field draws a first look of the new wind (0.75 s of it simulated from
+    rest): its blades lean as far as the run's own do, within a fifth of how far the grass moved
+    (a stronger wind lowers them); the run's frame, the bits of a fresh build, replaces it."""
+    from windgrass.grass_addon.bridge import runtime
+
+    base, scene, item, live, before, first = _windier_first_look(drawn)
+    job = live.building
     assert not job.done.is_set() or live.engine is job.base  # (what was drawn is the first look, not the run)
     runtime.shown_when_done(scene, item)
     assert runtime.field_error(scene, item) is None
@@ -297,19 +307,10 @@ def test_the_panel_says_no_first_look_once_the_grass_before_the_edit_is_drawn_ov
     """A wind slider dragged on while its first look is drawn: the next step of the drag draws the
     grass of the settings before over the first look (its run goes on), so the panel's line no
     longer says a first look is shown; the field ends drawing a fresh build of the last value."""
-    from windgrass.grass_addon import schema
     from windgrass.grass_addon.bridge import runtime
-    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
 
-    base = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 3.0,
-                                      "simulation.preroll": 20.0, "simulation.epoch": 20.0})
-    scene, item = _build(base)
-    before = drawn(item, "blades")
-    live = REGISTRY.live(key_of(scene, item))
-    _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 12.0))
+    base, scene, item, live, before, _ = _windier_first_look(drawn)
     job = live.building
-    _first_look_drawn(job, item, drawn, "the run")
-    assert runtime.background_work(scene, item).endswith(", a first look shown")
     _edit_in_the_ui(scene, item, lambda it: setattr(it.wind, "speed", 11.0))  # (the drag goes on)
     assert live.building is job and not job.done.is_set()  # (the first run still going, 20 s of warm-up)
     np.testing.assert_array_equal(drawn(item, "blades"), before)  # (the grass before, over the first look)

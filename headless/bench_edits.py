@@ -35,7 +35,7 @@ REPEATS = 3
 FRAMES = 5
 GOALS = {"in_place_s_max": {"add_menu": 0.15, "100m": 0.5}, "layout_s_max": {"100m": 3.0},
          "build_s_max": {"100m": 3.0}, "ui_held_s_max": {"add_menu": 0.2, "100m": 0.2}}
-POLL_S = 0.01  # how often the timers are called while an edit's work runs on threads
+POLL_S = 0.01  # the edits' timer's first call after an edit (then it says when: _timers_until_shown)
 
 
 def _edits(item):
@@ -135,8 +135,9 @@ def _ui_build(scene, item) -> dict:
 
 
 def _timers_until_shown(live, start: float) -> tuple[float, float | None]:
-    """Call the edits' timer every POLL_S until the field's work on threads is shown: (the longest
-    call, seconds from ``start`` until its first look was written or None: none was)."""
+    """Call the edits' timer, as Blender does, at the interval it returns (POLL_S first) until the
+    field's work on threads is shown: (the longest call, seconds from ``start`` until its first
+    look was written or None: none was)."""
     from windgrass.grass_addon.bridge import edits
 
     clock, held, first, wait = time.perf_counter, 0.0, None, POLL_S

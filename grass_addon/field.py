@@ -35,7 +35,18 @@ from .frame import BLADES, CARDS, Frame, RoleFrame, block_distance, needs
 from .grid import FieldGrid
 from .kinematics import carry_constants
 from .layout import FieldLayout, build_layout, window_layout
-from .lod import Camera, LodWeights, block_reach, block_visible, camera_eye, lod_fewer, lod_weights, screen_scale, views
+from .lod import (
+    Camera,
+    LodWeights,
+    block_reach,
+    block_visible,
+    camera_eye,
+    lod_fewer,
+    lod_weights,
+    screen_scale,
+    views,
+    views_key,
+)
 from .roles import BY_NAME as ROLE_OF
 from .roles import ROLES, Role
 from .schema import Params
@@ -121,6 +132,7 @@ class GrassField:
         self._twin = False  # a twin not yet retuned: it shares its simulation with its original
         self._colours: tuple[object, dict] = (None, {})  # (window, {role: its slots' data kept: RoleFrame.colours})
         self._map_kept: tuple | None = None  # (window, map grid, the field map's parts: _map_static)
+        self._lod_kept: tuple | None = None  # (window, settings, (scale, amount, views), LodWeights: ``lod``)
         self.sim = self._simulation(self.wind)
         self.cells: CellData | None = None  # cell data of the last seek
         self._recent: OrderedDict[int, CellData] = OrderedDict()  # states of frames around the shown one
@@ -482,9 +494,7 @@ class GrassField:
         self.view(views, frame)  # the same window: no work
         if self.cells is None or self._cells_frame != frame:
             self.seek(frame)  # (the same frame seen from other views reuses its state)
-        lod = self.lod(views)
-        if lod is not None and amount < 1.0:
-            lod = lod_fewer(lod, amount)
+        lod = self.lod(views, amount)
         distance = block_distance(self.layout, lod, views)
         motion = blur or subframe != 0.0
         parts = {role.name: self._role_frame(role, frame, subframe, lod, distance, motion) for role in ROLES}
@@ -631,10 +641,21 @@ class GrassField:
 
     # ------------------------------------------------------------------ LOD
 
-    def lod(self, camera) -> LodWeights:
+    def lod(self, camera, amount: float = 1.0) -> LodWeights:
         """Eqs 7-11 per cell and culling per block for one camera or several (all geometry when
-        camera is None), the distances scaled for their screens (``lod_scale``, found by ``view``)."""
-        return lod_weights(self.layout, camera, self.params, self._scale)
+        camera is None), the distances scaled for their screens (``lod_scale``, found by ``view``);
+        ``amount`` < 1: that share of each cell's blades (``lod_fewer``). Kept while the window,
+        the settings and the views hold: a still camera's weights are worked out once, and the
+        same object tells the slots their LOD-weighted data (the cards' opacity) still hold."""
+        key = (self._scale, float(amount), views_key(camera))
+        kept = self._lod_kept
+        if kept is not None and kept[0] is self.layout and kept[1] is self.params and kept[2] == key:
+            return kept[3]
+        lod = lod_weights(self.layout, camera, self.params, self._scale)
+        if amount < 1.0:
+            lod = lod_fewer(lod, amount)
+        self._lod_kept = (self.layout, self.params, key, lod)
+        return lod
 
     def lod_scale(self, camera) -> float:
         """The views' screen scale of the LOD distances (``lod.screen_scale``), lowered until the

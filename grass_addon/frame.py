@@ -79,16 +79,17 @@ class RoleFrame:
         rows = self.shape.verts_per_object
         return slice(index * rows, (index + 1) * rows)
 
-    def attributes(self, index: int, changed: bool) -> dict:
+    def attributes(self, index: int, changed: bool, relit: bool = True) -> dict:
         """{name: per-corner float32 (corners, 2)} of slot object ``index`` (``roles.Role.data``:
         blade colours and the flower heads' marks, card opacity). Data that depend on a slot's
         blocks alone come only when a position of it shows another block than before
-        (``changed``), kept by those blocks in ``colours``."""
+        (``changed``), kept by those blocks in ``colours``; data that read the LOD weights too
+        only then or when the weights are others than at the last write (``relit``)."""
         k = self.shape.k
         local = self.local[index * k:(index + 1) * k]
         entry = BY_NAME[self.role]
         if not entry.data_by_blocks:
-            return entry.data(self.layout, local, self.lod)
+            return entry.data(self.layout, local, self.lod) if changed or relit else {}
         if not changed:
             return {}
         key = local.tobytes()

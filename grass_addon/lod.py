@@ -195,6 +195,15 @@ def camera_eye(camera: Camera) -> np.ndarray:
     return eye
 
 
+def views_key(camera) -> tuple:
+    """What ``lod_weights`` reads of ``camera`` (one ``Camera``, several or None), as a tuple
+    that compares equal for the same views: a still camera's LOD weights are worked out once."""
+    return tuple(tuple(np.asarray(value, np.float64).tobytes() if isinstance(value, np.ndarray) else value
+                       for value in (cam.position, cam.forward, cam.up, cam.fov_x, cam.aspect, cam.projection,
+                                     cam.ortho_width, tuple(cam.shift), cam.pixels))
+                 for cam in views(camera))
+
+
 def views(camera) -> list[Camera]:
     """``camera`` as a list of views: None gives none, a ``Camera`` itself, a sequence its items."""
     if camera is None:

@@ -124,12 +124,15 @@ def assign_positions(n_positions: int, chosen: np.ndarray) -> np.ndarray:
 @dataclass
 class Assignment:
     """One frame of a pool: ``shown`` block per position (FREE after the first ``count``),
-    ``write`` and ``changed`` per object (``changed``: some position shows another block)."""
+    ``write`` and ``changed`` per object (``changed``: some position shows another block);
+    ``relit``: the LOD weights differ from those of the last write (data that read them, the
+    cards' opacity, are written again)."""
 
     shown: np.ndarray
     count: int
     write: np.ndarray
     changed: np.ndarray
+    relit: bool = True
 
 
 class PoolState:
@@ -138,10 +141,12 @@ class PoolState:
     def __init__(self, shape: PoolShape):
         self.shape = shape
         self.shown = np.full(shape.positions, UNKNOWN, dtype=np.int64)
+        self.lod: object = None  # the LOD weights (``lod.LodWeights``) of the last write
 
     def forget(self) -> None:
         """The objects' data may be anything now (undo, a reopened file): write everything next."""
         self.shown.fill(UNKNOWN)
+        self.lod = None
 
     def assign(self, needs: np.ndarray, block_distance: np.ndarray, block_ids: np.ndarray | None = None) -> Assignment:
         """This frame's assignment: the nearest blocks that ``need`` the pool (bool per block).
@@ -152,13 +157,16 @@ class PoolState:
             chosen = np.asarray(block_ids, dtype=np.int64)[chosen]
         return self.record(assign_positions(self.shape.positions, chosen))
 
-    def record(self, shown: np.ndarray) -> Assignment:
+    def record(self, shown: np.ndarray, lod: object = None) -> Assignment:
         """Take ``shown`` (the block at each position, FREE after the shown ones; the engine's
-        ``frame.RoleFrame.shown``) as this frame's, and say which objects must be written."""
+        ``frame.RoleFrame.shown``) and ``lod`` (its LOD weights: the same object while they hold,
+        ``GrassField.lod``) as this frame's, and say which objects must be written."""
         k = self.shape.k
         cur, prev = shown.reshape(-1, k), self.shown.reshape(-1, k)
         # an object whose positions are all FREE now and were FREE before stays collapsed
         write = ~((cur == FREE).all(axis=1) & (prev == FREE).all(axis=1))
         changed = (cur != prev).any(axis=1)
         self.shown = shown.copy()
-        return Assignment(shown, int(np.count_nonzero(shown != FREE)), write, changed)
+        relit = lod is None or lod is not self.lod
+        self.lod = lod
+        return Assignment(shown, int(np.count_nonzero(shown != FREE)), write, changed, relit)

@@ -32,7 +32,7 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
     scale = float(getattr(shown.lod, "scale", 1.0))  # the screen's scale of the LOD distances (no LOD: 1)
     if scale != 1.0 or rt.lod_scale != 1.0:
-        materials.set_lod_scale(rt.params, owned.registered(item).get(owned.ROLE_CANOPY_MATERIAL), scale)
+        materials.set_lod_scale(rt.params, owned.recorded(item, owned.ROLE_CANOPY_MATERIAL), scale)
         rt.lod_scaled(scale)
     _write_trails(item, rt, shown.trail)
     if shown.subframe == 0.0:  # (Blender's hair and cloth step whole frames)
@@ -60,9 +60,8 @@ def _write_roles(scene, item, pools: dict, field, views, blur: bool = False):
     for part in shown.roles():
         pools[part.role].write(item, part)
     if shown.gust is not None:  # the far grass's gust waves travel with the mean wind
-        reg = owned.registered(item)
-        materials.set_gust_offset(*shown.gust, field.params, reg.get(owned.ROLE_CARD_MATERIAL),
-                                  reg.get(owned.ROLE_CANOPY_MATERIAL))
+        materials.set_gust_offset(*shown.gust, field.params, owned.recorded(item, owned.ROLE_CARD_MATERIAL),
+                                  owned.recorded(item, owned.ROLE_CANOPY_MATERIAL))
     return shown
 
 
@@ -71,10 +70,9 @@ def _write_trails(item, rt: LiveField, trail) -> None:
     mapping, written when they changed."""
     if rt.trail_written and trail is None and rt.trail is None:
         return
-    reg = owned.registered(item)
-    image = reg.get(owned.ROLE_TRAIL_IMAGE)
+    image = owned.recorded(item, owned.ROLE_TRAIL_IMAGE)
     if trail is not None and isinstance(image, bpy.types.Image):
         if rt.trail is None or rt.trail.extent != trail.extent or not np.array_equal(rt.trail.flat, trail.flat):
             textures.write_trail_image(image, trail.flat)
-    materials.set_trail(reg.get(owned.ROLE_CANOPY_MATERIAL), trail)
+    materials.set_trail(owned.recorded(item, owned.ROLE_CANOPY_MATERIAL), trail)
     rt.trail_shown(trail)

@@ -87,6 +87,16 @@ def registered(item) -> dict:
     return {key: value for key, value in group.items() if isinstance(value, bpy.types.ID)}
 
 
+def recorded(item, key: str):
+    """The datablock recorded under ``key`` on the field's settings item (``registered``'s, read
+    alone: what a frame reads every frame), or None."""
+    group = item.get(MADE_KEY)
+    if group is None or not hasattr(group, "items"):
+        return _tagged(item).get(key)
+    value = group.get(key)
+    return value if isinstance(value, bpy.types.ID) else None
+
+
 def was_built(item) -> bool:
     """Whether objects were ever made for the field (a field being added has none yet)."""
     return item.get(MADE_KEY) is not None or item.collection is not None
@@ -145,6 +155,17 @@ def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
         if obj.get("wg_role") == role and obj.type == "MESH" and coll.objects.get(obj.name) is obj:
             out[int(obj.get("wg_slot", -1))] = obj
     return out
+
+
+def slot_object(item, role: str, index: int):
+    """``slot_objects(item, role)[index]`` read alone (a frame's writes: the objects that changed),
+    or None."""
+    coll = item.collection
+    obj = recorded(item, slot_key(role, index)) if coll is not None else None
+    if (isinstance(obj, bpy.types.Object) and obj.get("wg_role") == role and obj.type == "MESH"
+            and obj.get("wg_slot", -1) == index and coll.objects.get(obj.name) is obj):
+        return obj
+    return None
 
 
 def ground_object(item):

@@ -3,7 +3,7 @@
 The engine computes the frame (``GrassField.frame``: which block each position shows, the
 vertices, velocities and attributes); a ``SlotPool`` writes one role of it: each object's rows
 with one bulk ``foreach_set``, its velocities with motion blur, and its per-vertex attributes
-(blade colours when a position changed block, card opacity every write). ``slots.PoolState``
+(blade colours when a position changed block, card opacity when it or the LOD weights did). ``slots.PoolState``
 remembers what each position showed, so objects that did not change are not written.
 """
 
@@ -68,13 +68,12 @@ class SlotPool:
     def write(self, item, part) -> None:
         """Write ``part`` (this role's ``frame.RoleFrame``) into every object that needs it: one
         whose positions changed, or all of them when the frame carries velocities."""
-        assignment = self.state.record(part.shown)
+        assignment = self.state.record(part.shown, part.lod)
         self.blocks = part.shown[:part.count].copy()
-        objects = owned.slot_objects(item, self.role)
         if part.velocity is not None:  # every object carries this frame's velocities (FREE: zero)
             assignment.write[:] = True
         for index in np.flatnonzero(assignment.write).tolist():
-            obj = objects.get(index)
+            obj = owned.slot_object(item, self.role, index)
             if obj is None:
                 warn_once(f"{self.role} slot {index} of field '{item.name}' was deleted; its blocks are not "
                           "drawn (rebuild the field to restore it)")
@@ -86,7 +85,7 @@ class SlotPool:
             write_positions(mesh, part.vertices[rows])
             if part.velocity is not None:
                 write_velocity(mesh, part.velocity[rows])
-            for name, values in part.attributes(index, bool(assignment.changed[index])).items():
+            for name, values in part.attributes(index, bool(assignment.changed[index]), assignment.relit).items():
                 if name == frames.HEAD:
                     heads.write_marks(mesh, values)
                 else:

@@ -68,7 +68,7 @@ def _asset_path() -> str:
 
 def map_object(item):
     """The field's wind map object, or None (not asked for)."""
-    found = owned.registered(item).get(ROLE_MAP)
+    found = owned.recorded(item, ROLE_MAP)
     return found if isinstance(found, bpy.types.Object) else None
 
 

@@ -366,6 +366,28 @@ def test_camera_moves_change_lod(bridge):
             assert (spread > 0.0) == (int(rt.blades.state.shown[obj["wg_slot"] * k + i]) >= 0)
 
 
+
+def test_a_small_camera_move_refades_the_cards_it_keeps(bridge):
+    """A still camera's LOD weights are worked out once and the cards' opacity is not written
+    again; a dolly of half a metre keeps every card block in its slot, yet eq 11's K_b of each
+    card changes with its distance: the slots then hold the opacity a fresh build gives there."""
+    owned, runtime = bridge
+    scene, item = _add_field(cell_size=0.5)  # 8 m square, blocks of 4 m
+    item.lod.blade_near, item.lod.blade_far = 1.0, 2.5
+    item.lod.card_near, item.lod.card_far = 6.0, 9.0
+    cam = _camera(scene, (-3.5, -3.5, 1.0), target=(0.0, 0.0, 0.0))
+    for frame in (2, 3):  # (the second frame reuses the first's weights)
+        scene.frame_set(frame)
+    rt = runtime.get_runtime(scene, item)
+    cards_before, opacity_before = rt.cards.blocks.tolist(), _card_opacity(item, rt)
+    _aim(cam, (-3.0, -3.5, 1.0), (0.5, 0.0, 0.0))
+    scene.frame_set(4)
+    assert rt.cards.blocks.tolist() == cards_before  # the same blocks in the same slots
+    moved = _card_opacity(item, rt)
+    assert not np.allclose(moved, opacity_before, atol=1e-3)
+    runtime.build_field(scene, item)  # a fresh runtime at this camera and frame
+    np.testing.assert_array_equal(moved, _card_opacity(item, runtime.get_runtime(scene, item)))
+
 def _uv(obj, name) -> np.ndarray:
     data = np.empty(len(obj.data.loops) * 2, dtype=np.float32)
     obj.data.uv_layers[name].data.foreach_get("uv", data)

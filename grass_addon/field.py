@@ -206,6 +206,7 @@ class GrassField:
         twin = copy.copy(self)
         twin.cache = self.cache.fork()
         twin._buffers, twin._recent, twin._colours, twin._map_kept = {}, OrderedDict(), (None, {}), None
+        twin._shown_kept = {}
         twin.cells, twin._cells_frame = None, None
         twin._progress = progress
         twin._twin = True

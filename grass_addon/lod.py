@@ -31,7 +31,7 @@ and never below 1 (``GrassField`` lowers it further to what its pools hold).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -198,10 +198,14 @@ def camera_eye(camera: Camera) -> np.ndarray:
 def views_key(camera) -> tuple:
     """What ``lod_weights`` reads of ``camera`` (one ``Camera``, several or None), as a tuple
     that compares equal for the same views: a still camera's LOD weights are worked out once."""
-    return tuple(tuple(np.asarray(value, np.float64).tobytes() if isinstance(value, np.ndarray) else value
-                       for value in (cam.position, cam.forward, cam.up, cam.fov_x, cam.aspect, cam.projection,
-                                     cam.ortho_width, tuple(cam.shift), cam.pixels))
-                 for cam in views(camera))
+    return tuple(tuple(_comparable(getattr(cam, f.name)) for f in fields(cam)) for cam in views(camera))
+
+
+def _comparable(value):
+    """A ``Camera`` field's value as something ``==`` compares whole (arrays by their bits)."""
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    return tuple(value) if isinstance(value, (list, tuple)) else value
 
 
 def views(camera) -> list[Camera]:

@@ -310,7 +310,7 @@ class GrassField:
         ``frame``: the frame about to be shown (trajectories not needed there are not caught up)."""
         key = (self.layout, self.params, self.sim, views_key(camera))
         kept = self._view_kept
-        if self._viewed and kept is not None and all(a is b for a, b in zip(kept[:3], key[:3])) and kept[3] == key[3]:
+        if kept is not None and all(a is b for a, b in zip(kept[:3], key[:3])) and kept[3] == key[3]:
             return False  # (the same views of the same window and run: a still camera's frames)
         self._viewed = True
         self._scale = self.lod_scale(camera)

@@ -148,11 +148,9 @@ def slot_objects(item, role: str) -> dict[int, bpy.types.Object]:
     out: dict = {}
     if coll is None:
         return out
-    prefix = slot_key(role, 0)[:-3]  # ("blades "): the record's keys name the role, read first (every frame)
+    prefix = slot_key(role, 0)[:-3]  # ("blades "): the record's keys name the role, read first
     for key, obj in registered(item).items():
-        if not key.startswith(prefix) or not isinstance(obj, bpy.types.Object):
-            continue
-        if obj.get("wg_role") == role and obj.type == "MESH" and coll.objects.get(obj.name) is obj:
+        if key.startswith(prefix) and _is_slot(obj, role, coll):
             out[int(obj.get("wg_slot", -1))] = obj
     return out
 
@@ -162,10 +160,14 @@ def slot_object(item, role: str, index: int):
     or None."""
     coll = item.collection
     obj = recorded(item, slot_key(role, index)) if coll is not None else None
-    if (isinstance(obj, bpy.types.Object) and obj.get("wg_role") == role and obj.type == "MESH"
-            and obj.get("wg_slot", -1) == index and coll.objects.get(obj.name) is obj):
-        return obj
-    return None
+    return obj if _is_slot(obj, role, coll, index) else None
+
+
+def _is_slot(obj, role: str, coll, index: int | None = None) -> bool:
+    """``obj`` is a mesh object of ``role`` (its slot ``index``, when given) still in the field's
+    collection ``coll``."""
+    return (isinstance(obj, bpy.types.Object) and obj.get("wg_role") == role and obj.type == "MESH"
+            and (index is None or obj.get("wg_slot", -1) == index) and coll.objects.get(obj.name) is obj)
 
 
 def ground_object(item):

@@ -28,7 +28,7 @@ RNG_BLADES = 1
 RNG_CELLS = 2
 MIN_BLADE_LENGTH = 1e-3  # m: a blade mown shorter is drawn this long (it does not grow, paint.py)
 DEFAULT_CACHE_BYTES = 1 << 30  # the block cache's budget unless the caller sets one
-MADE_TOGETHER = 8  # blocks whose rest shapes are worked out in one pass (make_blocks)
+MADE_TOGETHER = 16  # blocks grown and given their rest shapes in one pass (make_blocks)
 
 
 @dataclass(eq=False)
@@ -149,9 +149,10 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
 
 def make_blocks(params: Params, grid: FieldGrid, species: Species, blocks, terrain: Heightfield | None = None,
                 paint: Paint | None = None) -> list[Block]:
-    """``make_block`` of each of ``blocks``, their blades' rest shapes worked out together
-    (``blade.rest_angles_blocks``: the same bits, in less than half the time)."""
-    grown = [_Grown(params, grid, species, b, terrain, paint) for b in blocks]
+    """``make_block`` of each of ``blocks``, grown together (``_grow``: the meadow's noise over all
+    their blades at once) and their blades' rest shapes worked out together
+    (``blade.rest_angles_blocks``): the same bits as one by one, in less than half the time."""
+    grown = _grow(params, grid, species, [int(b) for b in blocks], terrain, paint)
     n = int(params.blade.segments)
     if not grown or grown[0].length.size == 0:
         return [g.block(np.zeros((0, n))) for g in grown]
@@ -163,9 +164,40 @@ def make_blocks(params: Params, grid: FieldGrid, species: Species, blocks, terra
     return [g.block(blade.rest_tilt(g.inclination, angles)) for g, angles in zip(grown, theta)]
 
 
+def _grow(params: Params, grid: FieldGrid, species: Species, blocks: list[int], terrain: Heightfield | None,
+          paint: Paint | None) -> list[_Grown]:
+    """Each block's blades as grown, the blocks' draws each from its own streams in the order one
+    block alone draws them, and the meadow's noise (tussocks, patches, edge: pure functions of the
+    place, point by point) worked out once over every block's blades (the same bits, fewer calls)."""
+    grown = [_Grown(params, grid, species, b, terrain, paint) for b in blocks]
+    if not grown:
+        return grown
+    f = params.field
+    # paper III.A (2) and the tussocks (meadow.clumped): each blade pulled towards its clump's centre
+    pulled = _split(meadow.clumped(np.concatenate([g.drawn for g in grown]), int(f.seed), float(f.clumping),
+                                   float(f.clump_size)), grown)
+    for g, xy in zip(grown, pulled):
+        g.root_at(xy)
+    shares = _local_shares(params, species, grown[0].painted, np.concatenate([g.root[:, :2] for g in grown]))
+    for g, local in zip(grown, _split(shares, grown) if shares is not None else [None] * len(grown)):
+        g.sample(local)
+    lengths = _meadow_lengths(params, grid, np.concatenate([g.root[:, :2] for g in grown]),
+                              np.concatenate([g.length for g in grown]))
+    for g, length in zip(grown, _split(lengths, grown)):
+        g.length = length
+        g.meadow()
+    return grown
+
+
+def _split(values: np.ndarray, grown: list[_Grown]) -> list[np.ndarray]:
+    """``values`` over every block's blades in turn, cut into each block's."""
+    return np.split(values, np.cumsum([len(g.drawn) for g in grown])[:-1])
+
+
 class _Grown:
     """A block's blades as grown (where, which species, how long, how stiff, how inclined), before
-    their rest shapes: ``block(rest_tilt)`` finishes it."""
+    their rest shapes: made in the steps ``_grow`` takes (``root_at``, ``sample``, ``meadow``),
+    then ``block(rest_tilt)`` finishes it."""
 
     def __init__(self, params: Params, grid: FieldGrid, species: Species, block: int,
                  terrain: Heightfield | None, paint: Paint | None):
@@ -173,21 +205,27 @@ class _Grown:
         f = params.field
         cs, num, P = grid.cell_size, int(f.blades_per_cell), grid.cells_per_block ** 2
         self.centre64 = grid.cell_centers(self.block_id)
-        rng = np.random.default_rng([int(f.seed), RNG_BLADES, self.block_id])
-        n_blades = P * num
+        self.rng = np.random.default_rng([int(f.seed), RNG_BLADES, self.block_id])
         # paper III.A (2): random position inside the cell and random orientation
-        offset = rng.random((n_blades, 2)) * cs - 0.5 * cs
-        root = self.root = np.empty((n_blades, 3), dtype=np.float32)
-        # a meadow's tussocks pull the roots towards their clumps' centres (meadow.py), inside the field
-        pulled = meadow.clumped(np.repeat(self.centre64, num, axis=0) + offset, int(f.seed), float(f.clumping),
-                                float(f.clump_size))
+        offset = self.rng.random((P * num, 2)) * cs - 0.5 * cs
+        self.drawn = np.repeat(self.centre64, num, axis=0) + offset
+        self.painted = paint if paint is not None and not paint.empty else None
+
+    def root_at(self, pulled: np.ndarray) -> None:
+        """Its roots where the tussocks pulled them (inside the field), on the terrain."""
+        grid = self.grid
+        root = self.root = np.empty((len(pulled), 3), dtype=np.float32)
         root[:, :2] = np.clip(pulled, grid.origin, np.asarray(grid.origin) + grid.size)
-        root[:, 2] = ground_z(terrain, root[:, :2])  # rooted on the terrain surface
-        self.facing = (rng.random(n_blades) * 2.0 * np.pi).astype(np.float32)
-        painted = self.painted = paint if paint is not None and not paint.empty else None
-        local = _local_shares(params, species, painted, root[:, :2])
+        root[:, 2] = ground_z(self.terrain, root[:, :2])  # rooted on the terrain surface
+        self.facing = (self.rng.random(len(root)) * 2.0 * np.pi).astype(np.float32)
+
+    def sample(self, local: np.ndarray | None) -> None:
+        """Species, length, width, stiffness, inclination and shade, and which blades grow (paint),
+        with the species' shares ``local`` where they stand (``_local_shares``)."""
+        rng, root, painted = self.rng, self.root, self.painted
+        n_blades = len(root)
         self.kind, length, self.width, self.stiffness, self.inclination, *barren = _sample_blades(
-            rng, n_blades, params, species, local)
+            rng, n_blades, self.params, self.species, local)
         self.shade = rng.random(n_blades).astype(np.float32)
         self.alive = None
         if painted is not None:
@@ -197,9 +235,15 @@ class _Grown:
             self.alive = (grow_number < painted.density_at(root[:, :2])) & (scale >= MIN_LENGTH_SCALE)
             if barren:
                 self.alive &= ~barren[0]
-        self.length = _meadow_lengths(params, grid, root[:, :2], length)
+        self.length = length
+
+    def meadow(self) -> None:
+        """Its heads, flowers and dry tips (after ``_meadow_lengths`` scaled its lengths)."""
+        f = self.params.field
         self.head, self.flower, self.dry = meadow.heads_and_dryness(
-            np.random.default_rng([int(f.seed), meadow.RNG_MEADOW, self.block_id]), self.kind, species, params)
+            np.random.default_rng([int(f.seed), meadow.RNG_MEADOW, self.block_id]), self.kind, self.species,
+            self.params)
+        del self.rng, self.drawn
 
     def block(self, rest_tilt: np.ndarray) -> Block:
         """The block, with its blades' absolute rest tilts (n_blades, n) (eqs 1-6)."""

@@ -106,45 +106,40 @@ class _Constants:
     contiguous pass and the vertex writes go straight to `out`. Per-cell values (bend, twist)
     are expanded over the slots by bitwise record copies. Horizontal 2-D vectors are complex64
     x + iy: one numpy call handles both components, and rotations by the twist are complex
-    products."""
+    products. A block's values are worked out the first time its blades are drawn (``ready``):
+    a window's far blocks, drawn as cards, never need them."""
 
     def __init__(self, layout):
         n, num, P = layout.segments, layout.blades_per_cell, layout.cells_per_block_total
         nb = layout.n_blocks
         bpb = P * num
         self.n, self.num, self.P, self.nb = n, num, P, nb
-        facing = layout.blade_facing.astype(np.float64)
-        d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
-        # rest tilt vector blade_rest_tilt * d_b, (nb, bpb, n) complex
-        self.rest = (layout.blade_rest_tilt.astype(np.float64) * d_b).astype(np.complex64).reshape(nb, bpb, n)
-        # l/n, but a flower's head is its short top segments (meadow.segment_shares)
-        shares = meadow.segment_shares(n, layout.blade_length, layout.blade_width, layout.blade_flower)
-        seg = (layout.blade_length.astype(np.float64)[:, None] * shares).astype(np.float32)
-        self.seg = np.ascontiguousarray(seg.reshape(nb, bpb, n))
+        # the layout's arrays each block's values are worked out from (not the layout: a cache's
+        # value must not hold its key)
+        self.facing, self.rest_tilt = layout.blade_facing, layout.blade_rest_tilt
+        self.length, self.width, self.flower = layout.blade_length, layout.blade_width, layout.blade_flower
+        self.root, self.ground_slope = layout.blade_root, layout.blade_ground_slope
+        self.blade_alive = layout.blade_alive
         # linear taper of the width along the blade, per joint (multiplies the per-cell e^{i Phi})
         self.taper = blade.joint_widths(layout.params.blade.tip_width, n).astype(np.float32)
-        # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f},
-        # repeated for every joint (nb, bpb, n+1).
-        w_side = (-1j * 0.5 * layout.blade_width.astype(np.float64) * d_b[:, 0]).astype(np.complex64)
-        self.w_side = np.ascontiguousarray(np.broadcast_to(w_side.reshape(nb, bpb, 1), (nb, bpb, n + 1)))
         # a seed head widens the strip at its last joint but one, a flower its top two joints (meadow.py)
         # (a flower or seed head that is a mesh rides the tip: its stem is not widened, heads.py)
-        for joint, width in meadow.widened_joints(n, heads.strip_heads(layout), heads.strip_flowers(layout)):
-            if width.any():
-                widening = meadow.head_widening(width, layout.params.blade.tip_width, n, joint)
-                self.w_side[..., joint] *= widening.reshape(nb, bpb)
-        root = layout.blade_root.astype(np.float64)
-        self.root_xy = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(nb, bpb)
+        self.widened = [(joint, meadow.head_widening(width, layout.params.blade.tip_width, n, joint))
+                        for joint, width in meadow.widened_joints(n, heads.strip_heads(layout),
+                                                                  heads.strip_flowers(layout)) if width.any()]
+        self.ready = np.zeros(nb, bool)
+        c64, f32 = np.complex64, np.float32
+        self.rest = np.empty((nb, bpb, n), c64)  # rest tilt vector blade_rest_tilt * d_b
+        self.seg = np.empty((nb, bpb, n), f32)  # each segment's length
+        self.w_side = np.empty((nb, bpb, n + 1), c64)  # side offset at each joint
+        self.root_xy = np.empty((nb, bpb), c64)
+        self.root_z = np.empty((nb, bpb), f32)
         # The ground stops each segment (blade.GROUND_TILT): flat ground as one row of the limit;
         # on a terrain the conjugate slope conj(g) at each root (the limit depends on the lean).
-        slope = layout.blade_ground_slope
-        self.slope = (None if slope is None else
-                      (slope[:, 0] - 1j * slope[:, 1]).astype(np.complex64).reshape(nb, bpb, 1))
-        self.root_z = root[:, 2].astype(np.float32).reshape(nb, bpb)
-        self.slot = np.arange(num, dtype=np.int32)[None, :]  # (1, num)
+        self.slope = None if self.ground_slope is None else np.empty((nb, bpb, 1), c64)
         # blades that grow (paint.py): 1, the others 0 (they collapse onto their root); None: all grow
-        alive = layout.blade_alive
-        self.alive = None if alive is None else alive.astype(np.float32).reshape(nb, bpb)
+        self.alive = None if self.blade_alive is None else np.empty((nb, bpb), f32)
+        self.slot = np.arange(num, dtype=np.int32)[None, :]  # (1, num)
         # Cells of block b = by * blocks_x + bx are the cpb x cpb square at (by, bx) of the
         # row-major field (layout.py): gathers of consecutive blocks of a block row are then
         # strided copies instead of per-cell takes.
@@ -161,6 +156,37 @@ class _Constants:
         self._scratch: list[dict[str, np.ndarray]] = []
         self._lock = threading.Lock()
         self.call_lock = threading.Lock()
+
+    def make_ready(self, blocks: np.ndarray) -> None:
+        """Work out the values of those of ``blocks`` not yet worked out (under ``call_lock``)."""
+        todo = np.unique(blocks[~self.ready[blocks]])
+        if not todo.size:
+            return
+        n, bpb = self.n, self.P * self.num
+        blades = (todo[:, None] * bpb + np.arange(bpb)).ravel()
+        facing = self.facing[blades].astype(np.float64)
+        d_b = np.exp(1j * facing)[:, None]  # d_b = (cos f, sin f) as cos f + i sin f
+        self.rest[todo] = (self.rest_tilt[blades].astype(np.float64) * d_b).astype(np.complex64).reshape(-1, bpb, n)
+        # l/n, but a flower's head is its short top segments (meadow.segment_shares)
+        length = self.length[blades]
+        shares = meadow.segment_shares(n, length, self.width[blades], self.flower[blades])
+        self.seg[todo] = (length.astype(np.float64)[:, None] * shares).astype(np.float32).reshape(-1, bpb, n)
+        # Side offset at the root, h = -s w/2 with s = (-sin f, cos f) = i e^{i f}: h = -i (w/2) e^{i f},
+        # repeated for every joint.
+        w_side = (-1j * 0.5 * self.width[blades].astype(np.float64) * d_b[:, 0]).astype(np.complex64)
+        rows = np.repeat(w_side.reshape(-1, 1), n + 1, axis=1)
+        for joint, widening in self.widened:
+            rows[:, joint] *= widening[blades]
+        self.w_side[todo] = rows.reshape(-1, bpb, n + 1)
+        root = self.root[blades].astype(np.float64)
+        self.root_xy[todo] = (root[:, 0] + 1j * root[:, 1]).astype(np.complex64).reshape(-1, bpb)
+        self.root_z[todo] = root[:, 2].astype(np.float32).reshape(-1, bpb)
+        if self.slope is not None:
+            slope = self.ground_slope[blades]
+            self.slope[todo] = (slope[:, 0] - 1j * slope[:, 1]).astype(np.complex64).reshape(-1, bpb, 1)
+        if self.alive is not None:
+            self.alive[todo] = self.blade_alive[blades].astype(np.float32).reshape(-1, bpb)
+        self.ready[todo] = True
 
     def scratch(self, index: int) -> dict[str, np.ndarray]:
         """Working arrays of worker `index` for chunks of up to k_max blocks (allocated once)."""
@@ -200,11 +226,9 @@ def _constants(layout) -> _Constants:
 
 
 def carry_constants(old, new) -> None:
-    """``new`` (``old.retitled``: the same blocks, settings that change none of them) uses the
-    per-blade values already worked out for ``old``."""
-    c = _CACHE.get(old)
-    if c is not None:
-        _CACHE[new] = c
+    """``new`` (``old.retitled``: the same blocks, settings that change none of them) shares the
+    per-blade values of ``old``: those worked out for either serve both."""
+    _CACHE[new] = _constants(old)
 
 
 def _check_blocks(layout, blocks) -> np.ndarray:
@@ -331,6 +355,7 @@ def blade_vertices(layout, cells, blocks, blade_count=None, out=None) -> np.ndar
             _blade_chunk(layout, const, s, ids, bend, twist, counts, view[start:start + len(ids)])
 
     with const.call_lock:  # the scratch arrays serve one call at a time
+        const.make_ready(blocks)
         workers.run_lanes(work, min(THREADS, len(chunks)))
     return result
 

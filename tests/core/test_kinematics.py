@@ -261,7 +261,8 @@ def test_quads_face_the_way_the_blade_leans():
 
 def test_any_block_order_with_blade_counts_matches_the_full_field():
     """Blocks asked in any order (the bridge asks for the visible ones) give the same per-block
-    vertices as the whole field, with eq 9 counts applied (chunks of one block: gathers, threads)."""
+    vertices as the whole field, with eq 9 counts applied (chunks of one block: gathers, threads);
+    the blocks' per-blade constants are worked out when first drawn, some now and others later."""
     layout = small_layout(**{"field.blocks_x": 3})
     cells = random_cells(layout, seed=11)
     count = (np.arange(layout.n_cells) % 4).astype(np.int32)  # 0..3 of 3 blades
@@ -273,10 +274,13 @@ def test_any_block_order_with_blade_counts_matches_the_full_field():
         kinematics.CHUNK_BLADES = layout.blades_per_block
         kinematics._CACHE.clear()
         got = kinematics.blade_vertices(layout, cells, order, count).reshape(len(order), -1, 3)
+        assert kinematics._constants(layout).ready.sum() == len(order)
+        again = kinematics.blade_vertices(layout, cells, np.arange(layout.n_blocks), count)
     finally:
         kinematics.CHUNK_BLADES = old
         kinematics._CACHE.clear()
     np.testing.assert_array_equal(got, per_block[order])
+    np.testing.assert_array_equal(again, full)
 
 
 def test_joint_major_cell_data_gives_the_same_strips_and_cards():

@@ -13,6 +13,7 @@ ready.
 from __future__ import annotations
 
 import threading
+import time
 
 from . import atlas, sward
 from .schema import Params
@@ -67,16 +68,26 @@ class _Worker:
                     return
             try:
                 for part, args, keywords in _parts(*wanted):
-                    after = self.after  # (read before each part: a hold set once the look began applies)
-                    if after is not None:
-                        after.wait(HOLD_S)
+                    self._held()
                     part(*args, **keywords)
             except Exception:  # noqa: BLE001 (the bridge's own write works it out again and reports it)
                 pass
 
 
+    def _held(self) -> None:
+        """Wait while ``hold``'s event is not set, at most HOLD_S (the event read again as it
+        waits: a hold set, or moved to another event, once the look began applies)."""
+        deadline = time.monotonic() + HOLD_S
+        while (after := self.after) is not None and not after.is_set():
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                return
+            after.wait(min(left, HOLD_POLL_S))
+
+
 _WORKER = _Worker()
 HOLD_S = 10.0  # a part waits at most this long for ``hold``'s event
+HOLD_POLL_S = 0.05  # ... looking again this often which event that is
 
 
 def working() -> bool:
@@ -84,10 +95,10 @@ def working() -> bool:
     return _WORKER.thread is not None
 
 
-def hold(until: threading.Event) -> None:
-    """The parts of a look asked for wait until ``until`` is set (at most HOLD_S each): a new
-    field's blocks, made on another thread, are not slowed by the look beside them (the two are
-    numpy calls from Python, which share one lock of the interpreter)."""
+def hold(until: threading.Event | None) -> None:
+    """The parts of a look asked for wait until ``until`` is set (at most HOLD_S each; None: they
+    do not wait): a new field's blocks, made on another thread, are not slowed by the look beside
+    them (the two are numpy calls from Python, which share one lock of the interpreter)."""
     _WORKER.after = until
 
 

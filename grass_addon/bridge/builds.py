@@ -50,7 +50,9 @@ class Build:
     first_look: GrassField | None = None
     looks_first: bool = False
     shows_first_look: bool = False  # its first look is drawn now (the panel says so)
-    blocks_made: threading.Event = field(default_factory=threading.Event)  # (or it failed first)
+    # its blocks are made and its first look worked out (or not wanted, or it failed first): what
+    # the far grass's look, on its own thread, waits for (``look.hold``)
+    looked: threading.Event = field(default_factory=threading.Event)
 
     def start(self, make, first_look: bool = False) -> Build:
         """Run ``make(report) -> GrassField`` on a thread, then the first seek; with
@@ -61,15 +63,15 @@ class Build:
             try:
                 engine = make(self.report)
                 engine.view(self.views, self.at_frame)  # (a new field's blocks are made here)
-                self.blocks_made.set()
                 if first_look:
                     self._look_first(engine)
+                self.looked.set()
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
                 self.made = engine
             except BaseException as exc:  # (handed to the main thread, which reports it)
                 self.failure = exc
             finally:
-                self.blocks_made.set()
+                self.looked.set()
                 self.done.set()
 
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()

@@ -10,6 +10,7 @@ its terrain is in a paint mode.
 
 from __future__ import annotations
 
+import threading
 import time
 
 import bpy
@@ -108,10 +109,12 @@ def build_in_background(scene, item) -> bpy.types.Collection:
     """Add Grass Field in the UI: the field's datablocks at once, its engine made on a thread
     (``lifecycle.build_field`` with ``wait`` False: the window is not held while the blocks are
     made and the warm-up simulated), its first look and then its frame written by the timer."""
-    collection = build_field(scene, item, wait=False)
-    job = REGISTRY.live(key_of(scene, item)).building
-    if job is not None:  # (the far grass's look, on its own thread, waits for the blocks: sooner shown)
-        look.hold(job.blocks_made)
+    before = threading.Event()  # (the field's objects ask for its look before its build begins: held)
+    look.hold(before)
+    try:
+        collection = build_field(scene, item, wait=False)
+    finally:
+        before.set()
     watch_builds()
     return collection
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import bpy
 
-from .. import forces, interaction, roles, schema
+from .. import forces, interaction, look, roles, schema
 from .. import paint as paint_core
 from ..clock import Clock
 from ..errors import WindgrassError
@@ -201,8 +201,9 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
         _build(live, inputs, name)
         return
     if job is None:  # (one running: the next update after it starts one for the settings then)
-        live.build_started(builds.Build(inputs.digest, inputs.frame, views, inputs=inputs).start(
-            lambda report: _make(inputs, report), first_look=True))
+        job = builds.Build(inputs.digest, inputs.frame, views, inputs=inputs)
+        look.hold(job.looked)  # (the far grass's look, on its own thread, waits: the first look sooner)
+        live.build_started(job.start(lambda report: _make(inputs, report), first_look=True))
     raise builds.BuildPending(name)
 
 

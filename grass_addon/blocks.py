@@ -61,6 +61,10 @@ class Block:
     z_range: np.ndarray  # (2,) lowest, highest ground
     blade_alive: np.ndarray | None = None  # (B,) bool: the blade grows (paint); None: every blade
     cell_density: np.ndarray | None = None  # (P,) float32: share of the cell's blades that grow
+    # (B,) float64 each blade's length and width as grown, which its rest shape (eqs 1-6) and its
+    # cell's means are worked out from: a rest-shape edit makes the block again from them (``reshapes``)
+    grown_length: np.ndarray | None = None
+    grown_width: np.ndarray | None = None
 
     @property
     def nbytes(self) -> int:
@@ -70,6 +74,34 @@ class Block:
     def empty(self) -> bool:
         """No blade grows in the block (painted out): nothing to simulate or draw there."""
         return self.cell_density is not None and not bool(self.cell_density.any())
+
+
+# Settings that change only the blades' rest shapes (eqs 1-6: the stiffness, its offset, the
+# blades' weight; a species' ``stiffness`` column) and what follows from them (the cells'
+# stiffness and rest tilt, the cards' height): every blade grows where and as it did.
+REST_SHAPE = frozenset({"blade.root_stiffness", "blade.stiffness_offset", "blade.density"})
+SPECIES_REST_SHAPE = frozenset({"stiffness"})
+
+
+def reshapes(old: Params, new: Params) -> bool:
+    """``new`` differs from ``old`` in rest-shape settings alone (``REST_SHAPE``), and in some:
+    the blocks of ``new`` can be made from the blades ``old``'s blocks grew (``make_blocks``' ``before``)."""
+    a, b = old.to_dict(), new.to_dict()
+    changed = False
+    for section, values in b.items():
+        for key, value in values.items():
+            before = a[section][key]
+            if before == value:
+                continue
+            if f"{section}.{key}" == "blade.species" and len(before) == len(value) and all(
+                    {k for k in set(x) | set(y) if x.get(k) != y.get(k)} <= SPECIES_REST_SHAPE
+                    for x, y in zip(before, value)):
+                changed = True
+            elif f"{section}.{key}" in REST_SHAPE:
+                changed = True
+            else:
+                return False
+    return changed
 
 
 class Species:
@@ -148,11 +180,16 @@ def make_block(params: Params, grid: FieldGrid, species: Species, block: int,
 
 
 def make_blocks(params: Params, grid: FieldGrid, species: Species, blocks, terrain: Heightfield | None = None,
-                paint: Paint | None = None) -> list[Block]:
+                paint: Paint | None = None, before: dict[int, Block] | None = None) -> list[Block]:
     """``make_block`` of each of ``blocks``, grown together (``_grow``: the meadow's noise over all
     their blades at once) and their blades' rest shapes worked out together
-    (``blade.rest_angles_blocks``): the same bits as one by one, in less than half the time."""
-    grown = _grow(params, grid, species, [int(b) for b in blocks], terrain, paint)
+    (``blade.rest_angles_blocks``): the same bits as one by one, in less than half the time.
+    ``before``: blocks made for settings that differ only in the rest shapes (``reshapes``), by id;
+    a block found there keeps the blades it grew (nothing drawn again), its rest shapes worked out anew."""
+    ids = [int(b) for b in blocks]
+    kept = {b: before[b] for b in ids if before is not None and b in before}
+    drawn = iter(_grow(params, grid, species, [b for b in ids if b not in kept], terrain, paint))
+    grown = [_Grown.of(params, grid, species, b, kept[b], terrain, paint) if b in kept else next(drawn) for b in ids]
     n = int(params.blade.segments)
     if not grown or grown[0].length.size == 0:
         return [g.block(np.zeros((0, n))) for g in grown]
@@ -210,6 +247,24 @@ class _Grown:
         offset = self.rng.random((P * num, 2)) * cs - 0.5 * cs
         self.drawn = np.repeat(self.centre64, num, axis=0) + offset
         self.painted = paint if paint is not None and not paint.empty else None
+
+    @classmethod
+    def of(cls, params: Params, grid: FieldGrid, species: Species, block: int, made: Block,
+           terrain: Heightfield | None, paint: Paint | None) -> _Grown:
+        """Block ``block``'s blades as ``made`` (for settings that differ only in the rest shapes)
+        grew them, their stiffness of ``params``: what ``_grow`` draws for it, bit for bit."""
+        self = cls.__new__(cls)
+        self.params, self.grid, self.species, self.block_id, self.terrain = params, grid, species, int(block), terrain
+        self.centre64 = grid.cell_centers(self.block_id)
+        self.painted = paint if paint is not None and not paint.empty else None
+        self.root, self.facing, self.kind, self.shade = made.blade_root, made.blade_facing, made.blade_species, \
+            made.blade_shade
+        self.length, self.width = made.grown_length, made.grown_width
+        self.stiffness = params.blade.root_stiffness * species.stiffness[self.kind]  # (as _sample_blades)
+        self.inclination = made.blade_inclination  # (the rest shapes read it in float32)
+        self.alive, self.head, self.flower, self.dry = made.blade_alive, made.blade_head, made.blade_flower, \
+            made.blade_dry
+        return self
 
     def root_at(self, pulled: np.ndarray) -> None:
         """Its roots where the tussocks pulled them (inside the field), on the terrain."""
@@ -290,7 +345,8 @@ class _Grown:
             cell_rest_tilt=np.ascontiguousarray(cell_rest_tilt, dtype=f32), cell_facing=cell_facing,
             card_height=card_height.astype(f32), card_facing=card_facing.astype(f32),
             card_shade=card_shade.astype(f32), card_center=card_center.astype(f32),
-            z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density)
+            z_range=np.asarray(z_range, dtype=f32), blade_alive=alive, cell_density=cell_density,
+            grown_length=np.asarray(length, dtype=np.float64), grown_width=np.asarray(width, dtype=np.float64))
 
 
 def _meadow_lengths(params: Params, grid: FieldGrid, xy: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -344,8 +400,13 @@ class BlockCache:
     used first out). ``get`` never drops a block it is returning."""
 
     def __init__(self, params: Params, terrain: Heightfield | None = None, budget: int = DEFAULT_CACHE_BYTES,
-                 paint: Paint | None = None):
+                 paint: Paint | None = None, before: BlockCache | None = None):
+        """``before``: the cache of a field whose settings differ from ``params`` only in the rest
+        shapes (``reshapes``; the same terrain and paint), its blocks as they are now: each block it
+        holds is made from the blades it grew (its rest shapes anew), not drawn again."""
         self.params = params
+        # (each taken once, when its block is made)
+        self._before = dict(before._blocks) if before is not None and reshapes(before.params, params) else None
         self.grid = FieldGrid.of(params)
         self.species = Species(params)
         self.terrain = terrain
@@ -370,7 +431,7 @@ class BlockCache:
         f, n = self.params.field, int(self.params.blade.segments)
         P = self.grid.cells_per_block ** 2
         B = P * int(f.blades_per_cell)
-        per_blade = 4 * (3 + 8 + n + (2 if self.terrain is not None else 0)) + 2
+        per_blade = 4 * (3 + 8 + n + (2 if self.terrain is not None else 0)) + 2 + 16  # (16: grown_length, _width)
         per_cell = 4 * (2 + 1 + 3 + n + 1 + 3)
         return B * per_blade + P * per_cell + 8
 
@@ -402,7 +463,9 @@ class BlockCache:
         made: dict[int, Block] = {}
         for at in range(0, len(missing), MADE_TOGETHER):
             group = missing[at:at + MADE_TOGETHER]
-            made.update(zip(group, make_blocks(self.params, self.grid, self.species, group, self.terrain, self.paint)))
+            before = None if self._before is None else {b: self._before.pop(b) for b in group if b in self._before}
+            made.update(zip(group, make_blocks(self.params, self.grid, self.species, group, self.terrain, self.paint,
+                                               before)))
         out = []
         for b in ids:
             block = self._blocks.get(b)

@@ -8,8 +8,9 @@ checks each setting):
 ========== ============================================== ==========================================
 part       settings                                       what an edit does
 ========== ============================================== ==========================================
-layout     the grid, seed, blade shapes (eqs 1-6),        the blocks are made again (a new engine)
-           species' shapes and shares, terrain, paint
+layout     the grid, seed, blade shapes (eqs 1-6),        the blocks are made again (a new engine);
+           species' shapes and shares, terrain, paint     of the stiffness (blocks.reshapes), from
+                                                          the blades they grew: rest shapes anew
 wind       wind.*, the clock (fps, first frame)           a new wind and solver run; blocks kept
 physics    the solver's constants (eqs 14-32), sub-steps  a new solver run; blocks and wind kept
 lod        LOD distances and card width (eqs 7-11)        the next frame's LOD; the run kept

@@ -104,14 +104,17 @@ class GrassField:
     ``terrain.Heightfield`` in the field's frame or None (flat); paint: a ``paint.Paint`` (where
     grass grows, how tall) or None; colliders: objects with ``at(t) -> interaction.Spheres``
     (None: the scene file's ``[[colliders]]``); effectors: an object with ``at(t) -> [forces.Effector]``
-    (None: the scene file's ``[[effectors]]``)."""
+    (None: the scene file's ``[[effectors]]``); before: the block cache (a ``fork``) of a field
+    whose settings differ only in the blades' rest shapes (``blocks.reshapes``: a stiffness edit),
+    its blocks made again from the blades they grew."""
 
     def __init__(self, params: Params, wind_keys=None, terrain=None, paint=None, colliders=None, effectors=None,
-                 progress=None):
+                 progress=None, before: BlockCache | None = None):
         self.model = model = FieldModel.of(params)
         self._buffers: dict[str, _RoleBuffers] = {}  # role -> its frame arrays
         self._cells_frame: int | None = None  # the frame ``cells`` holds
-        self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint)
+        self.cache = BlockCache(params, terrain, budget=int(params.simulation.cache_mb) << 20, paint=paint,
+                                before=before)
         self._check_budget(params)
         self.notice: str | None = None
         cells = self.grid.n_blocks * self.grid.cells_per_block ** 2

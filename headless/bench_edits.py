@@ -7,7 +7,8 @@ the median of ``REPEATS`` edits back and forth:
 
 * in place (``edit_parts``): the wind's speed and direction (a new wind and solver run, blocks
   kept), the air damping (a new solver run), a species' colour, the LOD's card distance (no run);
-* layout (the blocks made again): the root stiffness, the density (blades per cell);
+* layout (the blocks made again): the root stiffness (from the blades they grew, ``blocks.reshapes``),
+  the density (blades per cell);
 
 beside the same field's frame change (``scene.frame_set`` to the next frame) and its build (Add
 Grass Field as a script runs it; ``ui_build``: as the menu does, its engine on a thread), timed

@@ -22,6 +22,7 @@ import bpy
 
 from .. import forces, interaction, look, roles, schema
 from .. import paint as paint_core
+from ..blocks import BlockCache, reshapes
 from ..clock import Clock
 from ..errors import WindgrassError
 from ..field import GrassField
@@ -203,7 +204,8 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
     if job is None:  # (one running: the next update after it starts one for the settings then)
         job = builds.Build(inputs.digest, inputs.frame, views, inputs=inputs)
         look.hold(job.looked)  # (the far grass's look, on its own thread, waits: the first look sooner)
-        live.build_started(job.start(lambda report: _make(inputs, report), first_look=True))
+        before = _grown(live, inputs)
+        live.build_started(job.start(lambda report: _make(inputs, report, before), first_look=True))
     raise builds.BuildPending(name)
 
 
@@ -284,15 +286,27 @@ def new_pools(field: GrassField) -> dict[str, pools.SlotPool]:
     return {role: pools.SlotPool(role, shape) for role, shape in field.shapes.items()}
 
 
-def _make(inputs: Inputs, progress) -> GrassField:
-    """The engine of ``inputs`` (numpy only: a background build runs it on its thread)."""
+def _make(inputs: Inputs, progress, before: BlockCache | None = None) -> GrassField:
+    """The engine of ``inputs`` (numpy only: a background build runs it on its thread); ``before``:
+    ``_grown``'s blocks."""
     return GrassField(inputs.params, wind_keys=inputs.wind_keys, terrain=inputs.heightfield, paint=inputs.paint,
-                      colliders=inputs.colliders, effectors=inputs.effectors, progress=progress)
+                      colliders=inputs.colliders, effectors=inputs.effectors, progress=progress, before=before)
+
+
+def _grown(live: LiveField, inputs: Inputs) -> BlockCache | None:
+    """The engine's blocks as they are now (``fork``) when ``inputs`` change only its blades' rest
+    shapes (a stiffness edit, ``blocks.reshapes``) on the same terrain and paint: the new engine
+    makes its blocks from the blades they grew instead of growing them again."""
+    engine = live.engine
+    if (engine is None or engine.terrain_key != inputs.terrain_key or live.painted != inputs.painted
+            or not reshapes(engine.params, inputs.params)):
+        return None
+    return engine.field.cache.fork()
 
 
 def _build(live: LiveField, inputs: Inputs, name: str) -> None:
     """A new engine and its slot pools for ``inputs``: its objects show nothing of it yet."""
-    _install(live, inputs, _make(inputs, _seek_progress(name)), name)
+    _install(live, inputs, _make(inputs, _seek_progress(name), _grown(live, inputs)), name)
 
 
 def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str) -> None:

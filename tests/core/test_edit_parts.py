@@ -1,9 +1,11 @@
 """Edits in place (``GrassField.retune``): every setting's edit gives the frame a fresh build of the
 same settings gives, bit for bit, and an edit of a colour or a LOD distance simulates nothing again."""
 
+import dataclasses
+
 import numpy as np
 import pytest
-from windgrass.grass_addon import edit_parts, kinematics, schema
+from windgrass.grass_addon import blocks, edit_parts, kinematics, schema
 from windgrass.grass_addon import frame as frames
 from windgrass.grass_addon.errors import ParameterError
 from windgrass.grass_addon.field import GrassField
@@ -114,6 +116,52 @@ def test_a_wind_edit_keeps_the_blocks_and_a_shape_edit_needs_a_new_field():
     assert not field.can_retune(base_params().replace({"field.seed": 3}))
     assert edit_parts.changed_parts(base_params(), base_params().replace({"blade.root_stiffness": 0.004})) \
         == {edit_parts.LAYOUT}
+
+
+def _stiffer_species(params: schema.Params) -> schema.Params:
+    rows = [dict(r) for r in params.blade.species]
+    rows[1]["stiffness"] = 2.5
+    return params.replace({"blade.species": tuple(rows)})
+
+
+@pytest.mark.parametrize("edit", [{"blade.root_stiffness": 0.004}, {"blade.stiffness_offset": 0.12},
+                                  {"blade.density": 0.006}, "species"], ids=["root", "offset", "weight", "species"])
+def test_a_rest_shape_edit_makes_the_blocks_from_the_blades_they_grew(edit):
+    """A stiffness edit changes only the blades' rest shapes (eqs 1-6): the new field makes its
+    blocks from the blades the field before grew (``blocks.reshapes``; nothing drawn again), and
+    every array of every block, and the frame, is what a fresh build of the new settings has."""
+    base = base_params()
+    params = _stiffer_species(base) if edit == "species" else base.replace(edit)
+    field = GrassField(base)
+    drawn(field, 10, CAMERA)
+    assert blocks.reshapes(base, params)
+    made = GrassField(params, before=field.cache.fork())
+    got = drawn(made, 10, CAMERA)
+    fresh = GrassField(params)
+    want = drawn(fresh, 10, CAMERA)
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    assert set(made.cache._blocks) == set(fresh.cache._blocks) == set(field.cache._blocks)
+    for b, block in fresh.cache._blocks.items():
+        again = made.cache._blocks[b]
+        assert again.grown_length is field.cache._blocks[b].grown_length  # (the blades it grew, not drawn again)
+        for entry in dataclasses.fields(block):
+            x, y = getattr(block, entry.name), getattr(again, entry.name)
+            assert (x is None and y is None) or np.array_equal(x, y), (b, entry.name)
+    assert not np.array_equal(made.layout.blade_rest_tilt, field.layout.blade_rest_tilt)
+
+
+def test_only_rest_shape_settings_keep_the_grown_blades():
+    base = base_params()
+    assert not blocks.reshapes(base, base)
+    for other in ({"field.blades_per_cell": 3}, {"field.seed": 9}, {"blade.inclination": 20.0},
+                  {"blade.root_stiffness": 0.004, "field.seed": 9}):
+        assert not blocks.reshapes(base, base.replace(other)), other
+        assert GrassField(base.replace(other), before=GrassField(base).cache).cache._before is None
+    rows = [dict(r) for r in base.blade.species]
+    rows[0]["length"] = 0.5
+    assert not blocks.reshapes(base, base.replace({"blade.species": tuple(rows)}))
+    assert blocks.reshapes(base, _stiffer_species(base))
 
 
 RERUNS = [(name, params) for name, params in EDITS if GrassField(base_params()).reruns(params)]

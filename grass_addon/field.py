@@ -90,6 +90,14 @@ class _RoleBuffers:
     ahead: np.ndarray | None = None
     rows: int = 0  # rows of ``vertices`` filled last frame
     velocity_rows: int = 0  # and of ``velocity``
+    filled: tuple | None = None  # (frame, count, cells, LOD weights, blocks) ``vertices`` holds, but motion's
+
+    def holds(self, frame: int, count: int, *objects) -> bool:
+        """``vertices`` holds the fill of ``frame`` for these ``count`` blocks and these objects
+        (the cell data, the LOD weights, the blocks' positions: the same objects, not equal ones)."""
+        filled = self.filled
+        return (filled is not None and filled[:2] == (frame, count)
+                and all(a is b for a, b in zip(filled[2:], objects, strict=True)))
 
     def motion(self) -> tuple[np.ndarray, np.ndarray]:
         """(velocity, ahead), made at first use."""
@@ -554,8 +562,9 @@ class GrassField:
                 self.motion(frame, subframe, fill, vertices[:rows], velocity[:rows], ahead[:rows])
             velocity[rows:buffers.velocity_rows] = 0.0
             buffers.velocity_rows = rows
-        elif count:
+        elif count and not buffers.holds(frame, count, self.cells, lod, local):  # (asked again: no fill)
             fill(frame, self.cells, vertices[:rows])
+        buffers.filled = None if motion else (frame, count, self.cells, lod, local)
         vertices[rows:buffers.rows] = 0.0  # FREE positions are zero (those beyond were zero already)
         buffers.rows = rows
         kept = None

@@ -54,6 +54,27 @@ def test_seek_is_deterministic(field):
     np.testing.assert_array_equal(fresh.blade_vertices(blocks), first)
 
 
+def test_a_frame_asked_again_is_the_frame_a_fresh_field_draws():
+    """``frame`` asked again for the same frame and views keeps its vertices (a build's frame,
+    worked out on its thread, then written), and asked with fewer blades, or after another
+    frame, draws what a fresh field draws then."""
+    camera = Camera.look_at((-1.5, -1.2, 0.8), (0.5, 0.3, 0.1), fov_x=1.0)
+    params = small_params(**{"wind.speed": 7.0})
+    field = GrassField(params)
+
+    def drawn(f, frame, amount=1.0):
+        shown = f.frame(frame, 0.0, camera, amount=amount)
+        return [part.vertices.copy() for part in shown.roles()]
+
+    first = drawn(field, 9)
+    for again, fresh in ((drawn(field, 9), drawn(GrassField(params), 9)),
+                         (drawn(field, 9, amount=0.4), drawn(GrassField(params), 9, amount=0.4)),
+                         (drawn(field, 12), drawn(GrassField(params), 12)), (drawn(field, 9), first)):
+        for a, b in zip(again, fresh):
+            np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(drawn(field, 9, amount=0.4)[0], first[0])
+
+
 def test_wind_moves_the_blades(field):
     """A 7 m/s wind bends blades away from their rest shape; the frames differ as it sways."""
     lay = field.layout

@@ -53,7 +53,6 @@ class Build:
     # its blocks are made and its first look worked out (or not wanted, or it failed first): what
     # the far grass's look, on its own thread, waits for (``look.hold``)
     looked: threading.Event = field(default_factory=threading.Event)
-    look_taken: threading.Event = field(default_factory=threading.Event)  # its first look written or let go
 
     def start(self, make, first_look: bool = False) -> Build:
         """Run ``make(report) -> GrassField`` on a thread, then the first seek; with
@@ -66,8 +65,6 @@ class Build:
                 engine.view(self.views, self.at_frame)  # (a new field's blocks are made here)
                 if first_look:
                     self._look_first(engine)
-                    if self.first_look is not None:  # (written by the window's thread alone: never held long)
-                        self.look_taken.wait(LOOK_TAKEN_WAIT_S)
                 self.looked.set()
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
                 self.made = engine
@@ -96,21 +93,16 @@ class Build:
     def first_look_shown(self, written: bool = False) -> None:
         """The first look was ``written`` (or is no longer wanted): let it go."""
         self.first_look, self.looks_first, self.shows_first_look = None, False, written
-        self.look_taken.set()
 
     def report(self, done: int, total: int) -> None:
         self.progress = (done, total)
 
     def wait(self) -> None:
-        self.look_taken.set()  # (its first look is not waited for: the frame is)
         self.done.wait()
 
     def percent(self) -> int:
         done, total = self.progress
         return int(100 * done / total) if total else 0
-
-
-LOOK_TAKEN_WAIT_S = 2.0  # a build waits at most this long for its first look to be written before going on
 
 
 class BuildPending(Exception):  # noqa: N818 (a signal, not an error: the grass shows when it is built)

@@ -73,7 +73,6 @@ class _Worker:
             except Exception:  # noqa: BLE001 (the bridge's own write works it out again and reports it)
                 pass
 
-
     def _held(self) -> None:
         """Wait while ``hold``'s event is not set, at most HOLD_S (the event read again as it
         waits: a hold set, or moved to another event, once the look began applies)."""

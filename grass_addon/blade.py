@@ -225,4 +225,3 @@ def tip_height(length: np.ndarray, tilt: np.ndarray, shares: np.ndarray | None =
 def rest_tilt(inclination: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Absolute tilt from vertical of each segment at rest: alpha + sum of theta_base up to i."""
     return (np.asarray(inclination, dtype=np.float32)[:, None] + np.cumsum(angles, axis=1)).astype(np.float32)
-

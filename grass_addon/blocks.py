@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import blade, heads, meadow
+from . import blade, edit_parts, heads, meadow
 from .errors import ParameterError
 from .grid import FieldGrid
 from .paint import MIN_LENGTH_SCALE, Paint
@@ -86,22 +86,25 @@ SPECIES_REST_SHAPE = frozenset({"stiffness"})
 def reshapes(old: Params, new: Params) -> bool:
     """``new`` differs from ``old`` in rest-shape settings alone (``REST_SHAPE``), and in some:
     the blocks of ``new`` can be made from the blades ``old``'s blocks grew (``make_blocks``' ``before``)."""
-    a, b = old.to_dict(), new.to_dict()
-    changed = False
-    for section, values in b.items():
-        for key, value in values.items():
-            before = a[section][key]
-            if before == value:
-                continue
-            if f"{section}.{key}" == "blade.species" and len(before) == len(value) and all(
-                    {k for k in set(x) | set(y) if x.get(k) != y.get(k)} <= SPECIES_REST_SHAPE
-                    for x, y in zip(before, value)):
-                changed = True
-            elif f"{section}.{key}" in REST_SHAPE:
-                changed = True
-            else:
-                return False
-    return changed
+    changed = edit_parts.changed_settings(old, new)
+
+    def shape_only(name: str, a, b) -> bool:
+        if name == "blade.species":
+            columns = edit_parts.species_columns(a, b)
+            return columns is not None and columns <= SPECIES_REST_SHAPE
+        return name in REST_SHAPE
+
+    return bool(changed) and all(shape_only(*setting) for setting in changed)
+
+
+def _stiffness(params: Params, species: Species, kind: np.ndarray) -> np.ndarray:
+    """Each blade's root stiffness: the field's times its species' (float64)."""
+    return params.blade.root_stiffness * species.stiffness[kind]
+
+
+def _painted(paint: Paint | None) -> Paint | None:
+    """``paint``, or None where nothing is painted."""
+    return None if paint is None or paint.empty else paint
 
 
 class Species:
@@ -153,7 +156,7 @@ def _sample_blades(rng: np.random.Generator, count: int, params: Params, species
     normal = np.clip(rng.standard_normal(count), -4.0, 4.0)
     length = np.maximum(base + species.length_variation[kind] * normal, 0.15 * base)
     width = species.width[kind] * np.clip(1.0 + 0.12 * rng.standard_normal(count), 0.6, 1.4)
-    stiffness = params.blade.root_stiffness * species.stiffness[kind]
+    stiffness = _stiffness(params, species, kind)
     inclination = np.radians(params.blade.inclination) * rng.random(count)  # random initial alpha
     if local is not None:
         return kind, length, width, stiffness, inclination, barren
@@ -246,7 +249,7 @@ class _Grown:
         # paper III.A (2): random position inside the cell and random orientation
         offset = self.rng.random((P * num, 2)) * cs - 0.5 * cs
         self.drawn = np.repeat(self.centre64, num, axis=0) + offset
-        self.painted = paint if paint is not None and not paint.empty else None
+        self.painted = _painted(paint)
 
     @classmethod
     def of(cls, params: Params, grid: FieldGrid, species: Species, block: int, made: Block,
@@ -256,11 +259,11 @@ class _Grown:
         self = cls.__new__(cls)
         self.params, self.grid, self.species, self.block_id, self.terrain = params, grid, species, int(block), terrain
         self.centre64 = grid.cell_centers(self.block_id)
-        self.painted = paint if paint is not None and not paint.empty else None
+        self.painted = _painted(paint)
         self.root, self.facing, self.kind, self.shade = made.blade_root, made.blade_facing, made.blade_species, \
             made.blade_shade
         self.length, self.width = made.grown_length, made.grown_width
-        self.stiffness = params.blade.root_stiffness * species.stiffness[self.kind]  # (as _sample_blades)
+        self.stiffness = _stiffness(params, species, self.kind)  # (as _sample_blades draws it)
         self.inclination = made.blade_inclination  # (the rest shapes read it in float32)
         self.alive, self.head, self.flower, self.dry = made.blade_alive, made.blade_head, made.blade_flower, \
             made.blade_dry
@@ -410,7 +413,7 @@ class BlockCache:
         self.grid = FieldGrid.of(params)
         self.species = Species(params)
         self.terrain = terrain
-        self.paint = None if paint is None or paint.empty else paint
+        self.paint = _painted(paint)
         self.budget = int(budget)
         self._blocks: OrderedDict[int, Block] = OrderedDict()
         self.nbytes = 0

@@ -68,30 +68,32 @@ def part_of(name: str) -> str:
     return _PART_OF.get(name, LAYOUT)
 
 
+def species_columns(old: tuple[Mapping[str, Any], ...], new: tuple[Mapping[str, Any], ...]) -> set[str] | None:
+    """The columns that differ between two species tables, None when their rows differ in number."""
+    if len(old) != len(new):
+        return None
+    return {k for a, b in zip(old, new) for k in set(a) | set(b) if a.get(k) != b.get(k)}
+
+
 def _species_part(old: tuple[Mapping[str, Any], ...], new: tuple[Mapping[str, Any], ...]) -> str | None:
     if old == new:
         return None
-    if len(old) != len(new):
-        return LAYOUT
-    for a, b in zip(old, new):
-        if any(a.get(k) != b.get(k) for k in set(a) | set(b) if k not in SPECIES_LOOK):
-            return LAYOUT
-    return LOOK
+    columns = species_columns(old, new)
+    return LOOK if columns is not None and columns <= SPECIES_LOOK else LAYOUT
+
+
+def changed_settings(old: schema.Params, new: schema.Params) -> list[tuple[str, Any, Any]]:
+    """(name, value in ``old``, value in ``new``) of each setting that differs."""
+    a, b = old.to_dict(), new.to_dict()
+    return [(f"{section}.{key}", a[section][key], value) for section, values in b.items()
+            for key, value in values.items() if a[section][key] != value]
 
 
 def changed_parts(old: schema.Params, new: schema.Params) -> frozenset[str]:
     """The parts of a field that differ between the settings ``old`` and ``new``."""
-    a, b = old.to_dict(), new.to_dict()
-    parts = set()
-    for section, values in b.items():
-        for key, value in values.items():
-            if a[section][key] == value:
-                continue
-            name = f"{section}.{key}"
-            part = _species_part(a[section][key], value) if name == "blade.species" else part_of(name)
-            if part is not None:
-                parts.add(part)
-    return frozenset(parts)
+    parts = (_species_part(a, b) if name == "blade.species" else part_of(name)
+             for name, a, b in changed_settings(old, new))
+    return frozenset(part for part in parts if part is not None)
 
 
 def digest_of(params: schema.Params, parts: Iterable[str]) -> str:

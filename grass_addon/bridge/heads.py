@@ -31,6 +31,8 @@ ATTR_HEAD = "wg_head"  # point vector of the blade slots: (species + 1, size m, 
 ATTR_STEM = "wg_stem"  # point float of the blade slots: the stem's first vertex (a colour attribute
 # of four read back from an Alembic cache crashed Blender 5.3: two plain attributes instead)
 ATTR_LEAF = "wg_leaf"  # point float of the blade slots: the longest leaf at a stem's foot (m; 0: none)
+ATTR_CARRY = "wg_carry"  # point float of the blade slots: on vertex 0 how many stems carry something,
+# on vertex k + 1 the k-th one's first vertex (the tree makes a point for each of those stems alone)
 ATTR_TIP_DIR = "wg_tip_dir"  # (in the tree) the stem's last segment at its tip
 ATTR_FOOT_DIR = "wg_foot_dir"  # (in the tree) the stem's first segment at its root
 ATTR_SEED_BASE = "wg_seed_base"  # (in the tree) the stem's joint n - 2: where its seed head's spindle starts
@@ -171,12 +173,16 @@ class _Tree:
         return n.outputs[0]
 
     def sample(self, geometry, value, index, data_type: str = "FLOAT_VECTOR"):
-        """The ``value`` of point ``index`` (a socket): a position, or a float (``data_type`` FLOAT)."""
+        """The ``value`` of point ``index`` (a socket: a field; a number: a single value): a
+        position, or a float (``data_type`` FLOAT)."""
         kind = "VECTOR" if data_type == "FLOAT_VECTOR" else "VALUE"
         n = self.node("GeometryNodeSampleIndex", data_type=data_type, domain="POINT")
         self.link(geometry, n.inputs["Geometry"])
         self.link(value, _socket(n.inputs, "Value", kind))
-        self.link(index, n.inputs["Index"])
+        if isinstance(index, bpy.types.NodeSocket):
+            self.link(index, n.inputs["Index"])
+        else:
+            n.inputs["Index"].default_value = int(index)
         return _socket(n.outputs, "Value", kind)
 
 
@@ -208,16 +214,17 @@ def fill_group(tree, sources: list, segments: int, leaves: list | None = None) -
     """(Re)make ``tree``'s nodes. The strips come in as the engine wrote them: blade b's joint j
     at vertices 2 (n + 1) b + 2 j (left) and + 1 (right); a stem that carries something has
     ``wg_head`` (species + 1, size, turn, its first vertex) on its first vertex (a plant's on all
-    of them: ``heads.tip_marks``). A point per stem (the strip's vertices / 2 (n + 1): the tree
-    holds for any density, so a density edit keeps it) reads it there, so the fields
-    below are evaluated once per stem, never per vertex (a pass over the strip's vertices, Mesh
-    to Points, cost 9 ms a frame on the Add-menu field). A ``HEAD`` is put on the stem's tip (the middle of
-    its two vertices), its +Z along the last segment, turned about it, ``size`` wide (a stem
-    marked for its leaves alone has size 0: no head); ``leaves[k]`` stands on the root, its +Z
-    along the first segment, turned about it, ``wg_leaf`` long; a ``PLANT``
-    stands on the stem's root and is bent along it (``_bend_along``) and the stem's own strip
-    is collapsed onto its root. Stems collapsed by the LOD (eq 9) have no segment: nothing is
-    drawn there."""
+    of them: ``heads.tip_marks``). A point per stem that carries something (the field lists them:
+    ``wg_carry``, ``carriers``; the tree holds for any density, so a density edit keeps it) reads
+    it there, so the fields below are evaluated once per such stem, never per vertex (a pass over
+    the strip's vertices, Mesh to Points, cost 9 ms a frame on the Add-menu field; a point for
+    every stem, then those that carry nothing deleted, about 1 ms of 20 at 100 m). A ``HEAD`` is
+    put on the stem's tip (the middle of its two vertices), its +Z along the last segment,
+    turned about it, ``size`` wide (a stem marked for its leaves alone has size 0: no head);
+    ``leaves[k]`` stands on the root, its +Z along the first segment, turned about it,
+    ``wg_leaf`` long; a ``PLANT`` stands on the stem's root and is bent along it
+    (``_bend_along``) and the stem's own strip is collapsed onto its root. Stems collapsed by
+    the LOD (eq 9) have no segment: nothing is drawn there."""
     tree.nodes.clear()
     t = _Tree(tree)
     group_in, group_out = t.node("NodeGroupInput"), t.node("NodeGroupOutput")
@@ -270,23 +277,17 @@ def _stem_points(t: _Tree, mesh, n: int, leafy: bool, seeded: bool = False):
     and last segment (``wg_tip``, ``wg_tip_dir``), where some species has ``leafy`` feet its
     leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``), and where some has its seed
     heads as meshes (``seeded``) its joint n - 2 (``wg_seed_base``)."""
-    size = t.node("GeometryNodeAttributeDomainSize")  # (component: the mesh)
-    t.link(mesh, size.inputs[0])
-    stem = t.node("GeometryNodePoints")
-    t.link(t.math("DIVIDE", size.outputs["Point Count"], float(2 * (n + 1))), stem.inputs["Count"])
+    carry = t.attribute(ATTR_CARRY, "FLOAT")  # (vertex 0: how many; vertex k + 1: the k-th one's first vertex)
+    stem = t.node("GeometryNodePoints")  # only the stems that carry something (one in seven on the meadow)
+    t.link(t.sample(mesh, carry, 0, "FLOAT"), stem.inputs["Count"])
     index = t.node("GeometryNodeInputIndex").outputs[0]
-    base = t.math("MULTIPLY", index, float(2 * (n + 1)))
+    base = t.sample(mesh, carry, t.math("ADD", index, 1.0), "FLOAT")
     mark = t.node("GeometryNodeSampleIndex", data_type="FLOAT_VECTOR", domain="POINT")
     t.link(mesh, mark.inputs["Geometry"])
     t.link(t.attribute(ATTR_HEAD, "FLOAT_VECTOR"), _socket(mark.inputs, "Value", "VECTOR"))
     t.link(base, mark.inputs["Index"])
     points = t.store(stem.outputs[0], ATTR_HEAD, "FLOAT_VECTOR", _socket(mark.outputs, "Value", "VECTOR"))
     points = t.store(points, ATTR_STEM, "FLOAT", base)
-    # only the stems that carry something go on (one in seven on the meadow): the rest is sampled for them alone
-    carrying = t.node("GeometryNodeDeleteGeometry", domain="POINT")
-    t.link(points, carrying.inputs["Geometry"])
-    t.link(t.math("LESS_THAN", t.head()[0], 0.5), carrying.inputs["Selection"])
-    points = carrying.outputs[0]
     base = t.attribute(ATTR_STEM, "FLOAT")
     tip = t.middle(mesh, t.math("ADD", base, float(2 * n)))
     root = t.middle(mesh, base)
@@ -659,12 +660,29 @@ def _write_tints(mesh, m, colour, dry: float) -> None:
     meshes.write_uv(mesh, materials.UV_TINT_BS, bs)
 
 
+def carriers(marks: np.ndarray) -> np.ndarray:
+    """(vertices,) float32 ``wg_carry`` of an object's marks (``heads.tip_marks``' rows of its
+    vertices): how many stems carry something, then each one's first vertex (a marked vertex
+    whose index, modulo the object's vertex count, is its own: a plant marks every vertex of its
+    strip with its first one's)."""
+    count = len(marks)
+    own = np.arange(count, dtype=np.int64)
+    first = np.flatnonzero((marks[:, 0] > 0.5) & (np.mod(marks[:, 3].astype(np.int64), max(count, 1)) == own))
+    out = np.zeros(count, np.float32)
+    if count:
+        out[0] = len(first)
+        out[1:1 + len(first)] = first
+    return out
+
+
 def write_marks(mesh, marks: np.ndarray) -> None:
     """The engine's marks (``heads.tip_marks``, (vertices, 5)) into the slot mesh's ``wg_head``
-    (the first three), ``wg_stem`` and ``wg_leaf``."""
+    (the first three), ``wg_stem`` and ``wg_leaf``, and the stems that carry something
+    (``wg_carry``, ``carriers``)."""
     for name, kind, field, values in ((ATTR_HEAD, "FLOAT_VECTOR", "vector", marks[:, :3]),
                                       (ATTR_STEM, "FLOAT", "value", marks[:, 3]),
-                                      (ATTR_LEAF, "FLOAT", "value", marks[:, 4])):
+                                      (ATTR_LEAF, "FLOAT", "value", marks[:, 4]),
+                                      (ATTR_CARRY, "FLOAT", "value", carriers(marks))):
         attribute = mesh.attributes.get(name)
         if attribute is None or attribute.data_type != kind:
             if attribute is not None:

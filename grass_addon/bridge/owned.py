@@ -171,10 +171,9 @@ def _is_slot(obj, role: str, coll, index: int | None = None) -> bool:
 
 
 def ground_object(item):
-    for obj in field_objects(item):
-        if obj.get("wg_role") == ROLE_GROUND:
-            return obj
-    return None
+    """The field's ground object (``recorded``'s: read alone, as every frame reads it), or None."""
+    obj = recorded(item, ROLE_GROUND)
+    return obj if isinstance(obj, bpy.types.Object) and obj.get("wg_role") == ROLE_GROUND else None
 
 
 def scene_fields(scene) -> tuple:

@@ -53,6 +53,36 @@ def test_add_grass_field_puts_daisies_and_buttercups_on_their_stems_tips_every_f
         assert np.percentile(moved, 90) > 0.002, name
 
 
+def test_every_flowering_stem_blender_draws_carries_one_head(runtime, parts):
+    """Add Grass Field's meadow at a frame of wind: Blender draws exactly one head for each stem it
+    draws that the field marks as in flower (its first vertex's ``wg_head``: a flower species and a
+    width), in every blade slot, none on a stem the LOD collapsed; the tree reads the flowering
+    stems from a list the field writes (``wg_carry``), never from a pass over every stem."""
+    assert bpy.ops.windgrass.field_add() == {"FINISHED"}
+    scene = bpy.context.scene
+    item = scene.windgrass.fields[0]
+    scene.frame_set(7)
+    n = item.blade.segments
+    per_stem = 2 * (n + 1)
+    flowers = [obj["wg_slot"] + 1.0 for obj in parts.objects(item, "head").values()]
+    assert len(flowers) == 2
+    marked = 0
+    for obj in (o for o in item.collection.objects if o.get("wg_role") == "blades"):
+        mesh = obj.data
+        if not len(mesh.vertices) or mesh.attributes.get("wg_head") is None:
+            continue
+        at = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.attributes["position"].data.foreach_get("vector", at)
+        head = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.attributes["wg_head"].data.foreach_get("vector", head)
+        joints = at.reshape(-1, n + 1, 2, 3).mean(axis=2)
+        grown = np.linalg.norm(joints[:, n] - joints[:, n - 1], axis=1) > 1e-6
+        first = head.reshape(-1, per_stem, 3)[:, 0]
+        marked += int(np.count_nonzero(np.isin(first[:, 0], flowers) & (first[:, 1] > 0.0) & grown))
+    drawn = sum(len(m) for m in parts.instances(item, "head").values())
+    assert marked > 50 and drawn == marked, (drawn, marked)
+
+
 def test_a_density_edit_keeps_the_heads_and_draws_them_on_the_new_stems(runtime, stems, nearest_in_plane, parts,
                                                                        settle):
     """Issue #58: a density edit makes the slot objects anew (a new topology) but not the flowers'

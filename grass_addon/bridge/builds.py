@@ -50,6 +50,10 @@ class Build:
     first_look: GrassField | None = None
     looks_first: bool = False
     shows_first_look: bool = False  # its first look is drawn now (the panel says so)
+    # the slot pools a new field's first look was written through, while nothing else has written
+    # the field's slots since: the engine takes them (``resolve._install``), so its first frame
+    # writes the positions, not again each block's colours and marks
+    look_pools: dict | None = None
     # its blocks are made and its first look worked out (or not wanted, or it failed first): what
     # the far grass's look, on its own thread, waits for (``look.hold``)
     looked: threading.Event = field(default_factory=threading.Event)
@@ -90,9 +94,11 @@ class Build:
             return
         self.first_look = look
 
-    def first_look_shown(self, written: bool = False) -> None:
-        """The first look was ``written`` (or is no longer wanted): let it go."""
+    def first_look_shown(self, written: bool = False, pools: dict | None = None) -> None:
+        """The first look was ``written`` (through a new field's ``pools``), or is no longer
+        wanted or shown: let it go."""
         self.first_look, self.looks_first, self.shows_first_look = None, False, written
+        self.look_pools = pools if written else None
 
     def report(self, done: int, total: int) -> None:
         self.progress = (done, total)

@@ -267,6 +267,8 @@ class LiveField:
         if self.engine is not None:
             for pool in self.engine.pools.values():
                 pool.state.forget()
+        if self.building is not None:  # (nor do its first look's)
+            self.building.look_pools = None
         self.frame = None
 
     def building_percent(self) -> int | None:

@@ -195,7 +195,7 @@ def _new_engine(live: LiveField, inputs: Inputs, name: str, wait: bool, views) -
         if job.done.is_set() and job.digest == inputs.digest:
             if job.failure is not None:
                 raise job.failure
-            _install(live, inputs, job.made, name)
+            _install(live, inputs, job.made, name, job.look_pools)
             return
         job = None
     if wait:
@@ -309,11 +309,15 @@ def _build(live: LiveField, inputs: Inputs, name: str) -> None:
     _install(live, inputs, _make(inputs, _seek_progress(name), _grown(live, inputs)), name)
 
 
-def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str) -> None:
-    """``field`` becomes the record's engine, with new slot pools."""
+def _install(live: LiveField, inputs: Inputs, field: GrassField, name: str, look_pools: dict | None = None) -> None:
+    """``field`` becomes the record's engine, with new slot pools, or those its first look was
+    written through (``look_pools``, ``builds.Build``) when they are of its shapes: they know
+    which blocks each slot shows, so its first frame writes positions, not colours again."""
     field.report_progress(_seek_progress(name))
+    kept = look_pools if look_pools is not None and set(look_pools) == set(field.shapes) and all(
+        look_pools[role].shape == shape for role, shape in field.shapes.items()) else new_pools(field)
     live.engine_made(Engine(field, inputs.params, inputs.digest, inputs.ground, inputs.wind_fingerprint,
-                            inputs.wind_keys, inputs.terrain_key, inputs.topology, new_pools(field)),
+                            inputs.wind_keys, inputs.terrain_key, inputs.topology, kept),
                      inputs.painted, inputs.track)
 
 

@@ -380,6 +380,67 @@ def test_a_field_added_from_the_menu_is_built_in_the_background(with_bridge, dra
     np.testing.assert_array_equal(drawn(item, "blades"), want)
 
 
+def _slot_data(item) -> list:
+    """Every slot mesh of a field as Blender holds it, in slot order: its positions and each of
+    its float attributes (the blades' colours and marks, the cards' opacity: UV maps and point
+    attributes), by name."""
+    out = []
+    for role in ("blades", "cards"):
+        objects = sorted((o for o in item.collection.objects if o.get("wg_role") == role and o.type == "MESH"),
+                         key=lambda o: int(o.get("wg_slot", -1)))
+        for obj in objects:
+            mesh, data = obj.data, {}
+            for attribute in mesh.attributes:
+                width = {"FLOAT": 1, "FLOAT2": 2, "FLOAT_VECTOR": 3}.get(attribute.data_type)
+                if width is None or attribute.name.startswith("."):
+                    continue
+                values = np.empty(len(attribute.data) * width, np.float32)
+                attribute.data.foreach_get("value" if width == 1 else "vector", values)
+                data[attribute.name] = values
+            out.append((role, int(obj.get("wg_slot", -1)), data))
+    return out
+
+
+def test_a_field_added_from_the_menu_keeps_what_its_first_look_wrote_of_each_block(with_bridge, drawn):
+    """Issue #58: the slot pools a new field's first look was written through go to its engine,
+    so its first frame writes the positions and not every block's colours again (the window's
+    thread held less); what each slot then holds, positions and every float attribute, is what a
+    field added by a script holds. A frame written over the first look before the engine is
+    done (the grass hidden meanwhile) hands nothing on, and the slots are again a script's."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    params = schema.defaults().replace({**SMALL, "field.blocks_x": 12, "field.blocks_y": 12, "wind.speed": 8.0,
+                                        "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    for frame_between in (False, True):
+        want_scene, want_item = _build(params)
+        if frame_between:
+            want_scene.frame_set(FRAME + 1)
+        want = _slot_data(want_item)
+        scene = _camera_scene()
+        scene.frame_set(FRAME)
+        item = properties.add_field(scene, params)
+        runtime.build_in_background(scene, item)
+        live = REGISTRY.live(key_of(scene, item))
+        job = live.building
+        _first_look_drawn(job, item, drawn, "the field")
+        pools = job.look_pools
+        assert pools is not None and set(pools) == {"blades", "cards"}
+        if frame_between:
+            scene.frame_set(FRAME + 1)  # (the build still running: the grass hidden, the first look gone)
+            assert live.building is not job or job.look_pools is None
+        runtime.shown_when_done(scene, item)
+        assert runtime.field_error(scene, item) is None
+        if not frame_between:
+            assert live.engine.pools is pools
+        got = _slot_data(item)
+        assert [(r, i, sorted(d)) for r, i, d in got] == [(r, i, sorted(d)) for r, i, d in want]
+        for (role, index, mine), (_, _, theirs) in zip(got, want):
+            for name in mine:
+                np.testing.assert_array_equal(mine[name], theirs[name], err_msg=f"{role} {index} {name}")
+
+
 def _look_drawn(item):
     """What a field's materials and ground show of its look: the evaluated ground mesh's vertices,
     the card atlas's pixels and the far canopy's curves (the sward's colours, depth and grain)."""

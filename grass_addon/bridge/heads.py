@@ -272,11 +272,12 @@ def fill_group(tree, sources: list, segments: int, leaves: list | None = None) -
 
 
 def _stem_points(t: _Tree, mesh, n: int, leafy: bool, seeded: bool = False):
-    """A point per stem of the slot object (a Points node: no pass over the strip's vertices) on
-    its root, with its mark read from the stem's first vertex (``wg_head``, ``wg_stem``), its tip
-    and last segment (``wg_tip``, ``wg_tip_dir``), where some species has ``leafy`` feet its
-    leaves' length and first segment (``wg_leaf``, ``wg_foot_dir``), and where some has its seed
-    heads as meshes (``seeded``) its joint n - 2 (``wg_seed_base``)."""
+    """A point per stem of the slot object that carries something (a Points node over the
+    field's list, ``wg_carry``: no pass over the strip's vertices) on its root, with its mark read
+    from the stem's first vertex (``wg_head``, ``wg_stem``), its tip and last segment (``wg_tip``,
+    ``wg_tip_dir``), where some species has ``leafy`` feet its leaves' length and first segment
+    (``wg_leaf``, ``wg_foot_dir``), and where some has its seed heads as meshes (``seeded``) its
+    joint n - 2 (``wg_seed_base``)."""
     carry = t.attribute(ATTR_CARRY, "FLOAT")  # (vertex 0: how many; vertex k + 1: the k-th one's first vertex)
     stem = t.node("GeometryNodePoints")  # only the stems that carry something (one in seven on the meadow)
     t.link(t.sample(mesh, carry, 0, "FLOAT"), stem.inputs["Count"])

@@ -429,6 +429,15 @@ class BlockCache:
         other._blocks = OrderedDict(self._blocks)
         return other
 
+    def adopt(self, other: BlockCache) -> None:
+        """Keep the blocks ``other`` holds that this cache lacks, within the budget: ``other`` is a
+        ``fork`` of this one (the same settings of the blocks), whose field made them first (a new
+        field's first look, ``bridge/builds.py``)."""
+        for block_id, block in other._blocks.items():
+            if block_id not in self._blocks and self.nbytes + block.nbytes <= self.budget:
+                self._blocks[block_id] = block
+                self.nbytes += block.nbytes
+
     def block_bytes(self) -> int:
         """Bytes one block takes (every block has the same shapes)."""
         f, n = self.params.field, int(self.params.blade.segments)

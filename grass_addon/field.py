@@ -57,6 +57,9 @@ RECENT_FRAMES = 4  # states kept by cells_at (frames N - 1 .. N + 1, and the one
 WHOLE_FIELD_CELLS = 1 << 18  # without a camera (or with LOD off) fields this small (51 m) are simulated whole
 WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the camera needs
 GLIMPSE_S = 0.75  # seconds of wind a first look simulates (``GrassField.first_look``)
+FIRST_LOOK_BLOCKS = 256  # a new field's first look draws its levels of detail only as far as the
+# nearest this many blocks the views see reach (``GrassField.most_blocks``; a 100 m field's window from
+# eye level: 920): it makes those first, the far canopy drawn from nearer, and shows in half the time
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 
@@ -223,15 +226,20 @@ class GrassField:
         twin._twin = True
         return twin
 
-    def first_look(self, seconds: float = GLIMPSE_S) -> GrassField:
+    most_blocks = 0  # the blocks its views see within its LOD distances, at most (``view``; 0: any number)
+
+    def first_look(self, seconds: float = GLIMPSE_S, most_blocks: int = 0) -> GrassField:
         """A first look of this field's run, to show while the run works out its first frame (an
         edit's new run or new field, ``bridge/builds.py``): a twin with its own wind and run whose
         trajectories each start from rest ``seconds`` before the frame first asked of them and step
         three frames at a time (``Simulation.glimpse``), so that frame costs a few steps, not the
         warm-up's and the epoch's frames. Its blades lean as far as this field's do (their mean bend
         within a few per cent) and sway in the same wind, but their phases are not its frames (a
-        third of their bend apart): it is shown, never made an engine."""
+        third of their bend apart): it is shown, never made an engine. ``most_blocks``: its LOD
+        distances shortened until its views see so many blocks within them (a new field's,
+        ``FIRST_LOOK_BLOCKS``: fewer blocks to make before it shows; 0: this field's)."""
         look = self.twin()
+        look.most_blocks = int(most_blocks)
         colliders = [] if self.interaction is None else self.interaction.colliders
         look.retune(self.params, wind_keys=self._wind_keys, colliders=colliders, effectors=self.effectors)
         look.sim.glimpse = max(1, self.clock.frames(seconds))
@@ -325,6 +333,8 @@ class GrassField:
             return False  # (the same views of the same window and run: a still camera's frames)
         self._viewed = True
         self._scale = self.lod_scale(camera)
+        if self.most_blocks:
+            self._scale = self._scale_for(views(camera), self.most_blocks, self._scale)
         moved = self._move_window(camera, frame)
         if self.sim.look(views(camera), self._scale, frame) and not moved:  # (far_sway: near blocks, band)
             self.cells = None
@@ -699,6 +709,15 @@ class GrassField:
             if far > 0.0 and len(distance) > positions and distance[positions] < far * scale:
                 scale = float(distance[positions]) / far  # (the nearest ``positions`` blocks: those nearer)
         return max(1.0, scale)
+
+    def _scale_for(self, cams, blocks: int, scale: float) -> float:
+        """``scale`` lowered until the views see at most ``blocks`` blocks within the card range
+        (the nearest ones: those nearer)."""
+        far = float(self.params.lod.card_far)
+        distance = self._seen_distances(cams, far * scale + block_reach(self.params)[0])
+        if far > 0.0 and len(distance) > blocks and distance[blocks] < far * scale:
+            return float(distance[blocks]) / far
+        return scale
 
     def _seen_distances(self, cams, radius: float) -> np.ndarray:
         """(m,) ascending: the distance from the nearest eye to each block some view sees within

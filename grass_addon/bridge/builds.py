@@ -28,7 +28,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 
-from ..field import GrassField
+from ..field import FIRST_LOOK_BLOCKS, GrassField
 
 
 @dataclass(eq=False)
@@ -66,8 +66,12 @@ class Build:
         def run() -> None:
             try:
                 engine = make(self.report)
+                early = first_look and self.base is None  # (a new field: nothing of it drawn yet)
+                if early:  # its look, its detail nearer (``FIRST_LOOK_BLOCKS``), makes the near blocks first
+                    self._look_first(engine, FIRST_LOOK_BLOCKS)
+                    self.looked.set()
                 engine.view(self.views, self.at_frame)  # (a new field's blocks are made here)
-                if first_look:
+                if first_look and not early:
                     self._look_first(engine)
                 self.looked.set()
                 engine.prepare_frame(self.at_frame, self.views)  # (the first write after it is quick)
@@ -81,10 +85,11 @@ class Build:
         threading.Thread(target=run, name=f"windgrass build {self.digest[:8]}", daemon=True).start()
         return self
 
-    def _look_first(self, engine: GrassField) -> None:
+    def _look_first(self, engine: GrassField, most_blocks: int = 0) -> None:
         try:
-            look = engine.first_look()
+            look = engine.first_look(most_blocks=most_blocks)
             look.view(self.views, self.at_frame)
+            engine.cache.adopt(look.cache)  # (the blocks it made: the engine's view makes the others)
             if self.base is None:  # (a new field's slots are all written: their colours worked out here)
                 look.prepare_frame(self.at_frame, self.views)
             else:  # (a run's slots keep their blocks and colours: the write works out the vertices)

@@ -175,15 +175,15 @@ def _show_first_look(scenes: dict, key, state, job) -> None:
     pools = _first_look_pools(scene, item, state, job)
     written: list = []  # (a write that failed hands its pools on to nothing)
     if pools is not None:
-        guarded(_written_first_look, scene, item, pools, job, written)
+        guarded(_written_first_look, scene, item, state, pools, job, written)
         if job.base is None:
             state.slots_changed()  # (the engine before, still shown at other frames, writes every slot again)
         _redraw()
     job.first_look_shown(written=pools is not None, pools=pools if written and job.base is None else None)
 
 
-def _written_first_look(scene, item, pools: dict, job, written: list) -> None:
-    write_first_look(scene, item, pools, job.first_look, job.views)
+def _written_first_look(scene, item, state, pools: dict, job, written: list) -> None:
+    write_first_look(scene, item, state, pools, job.first_look, job.views)
     written.append(True)
 
 

@@ -30,10 +30,7 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
     shown = _write_roles(scene, item, rt.pools, rt.field, views, blur=bool(scene.render.use_motion_blur))
     if not views and rt.field.notice:
         warn_once(f"field '{item.name}' has no camera to follow: {rt.field.notice}")
-    scale = float(getattr(shown.lod, "scale", 1.0))  # the screen's scale of the LOD distances (no LOD: 1)
-    if scale != 1.0 or rt.lod_scale != 1.0:
-        materials.set_lod_scale(rt.params, owned.recorded(item, owned.ROLE_CANOPY_MATERIAL), scale)
-        rt.lod_scaled(scale)
+    _write_lod_scale(item, rt, rt.field, shown)
     _write_trails(item, rt, shown.trail)
     if shown.subframe == 0.0:  # (Blender's hair and cloth step whole frames)
         wind_force.write(item, rt.field, shown.frame)
@@ -43,12 +40,22 @@ def write_frame(scene, item, rt: LiveField, depsgraph=None, views=None) -> None:
         job.first_look_shown(written=False)
 
 
-def write_first_look(scene, item, pools: dict, field, views) -> None:
+def write_first_look(scene, item, rt: LiveField, pools: dict, field, views) -> None:
     """A build's first look (``GrassField.first_look``, worked out on its thread) written into the
-    field's objects through ``pools`` while its first frame is worked out: the roles' slots and the
-    gust offset. The record keeps the frame it wrote: the next frame change, or the build when
-    done, writes over it."""
-    _write_roles(scene, item, pools, field, views)
+    field's objects through ``pools`` while its first frame is worked out: the roles' slots, the
+    gust offset and the far canopy's reach (a new field's look draws its detail nearer:
+    ``GrassField.reach``). The record keeps the frame it wrote: the next frame change, or the
+    build when done, writes over it."""
+    _write_lod_scale(item, rt, field, _write_roles(scene, item, pools, field, views))
+
+
+def _write_lod_scale(item, rt: LiveField, field, shown) -> None:
+    """The far canopy's LOD distances times the frame's scale (the screen's, a first look's reach),
+    written when it is another than the canopy shows (``rt.lod_scale``)."""
+    scale = float(getattr(shown.lod, "scale", 1.0))  # (no LOD: 1)
+    if scale != 1.0 or rt.lod_scale != 1.0:
+        materials.set_lod_scale(field.params, owned.recorded(item, owned.ROLE_CANOPY_MATERIAL), scale)
+        rt.lod_scaled(scale)
 
 
 def _write_roles(scene, item, pools: dict, field, views, blur: bool = False):

@@ -548,3 +548,61 @@ def test_a_stiffness_edit_in_a_script_lifts_the_far_canopy_as_a_fresh_build_does
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], want[1])
     assert got[2] == want[2]
+
+
+def _canopy_reach(item) -> float:
+    """Where the far canopy the field's material draws has fully taken over from the cards (m
+    from the eye: the Map Range of eq 10's d_s2 in its material)."""
+    from windgrass.grass_addon.bridge import materials, owned
+
+    kt = owned.recorded(item, owned.ROLE_CANOPY_MATERIAL).node_tree.nodes[materials.NODE_KT]
+    return float(next(s for s in kt.inputs if s.name == "From Max" and s.enabled).default_value)
+
+
+def _across(scene):
+    """``scene`` with its camera at eye level, looking across the field (it sees most blocks)."""
+    cam = scene.camera
+    cam.location = (0.0, -20.0, 1.2)
+    cam.rotation_euler = (Vector((0.0, 10.0, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    return scene
+
+
+def _farthest_card(item, drawn, eye) -> float:
+    cards = drawn(item, "cards")
+    cards = cards[np.linalg.norm(cards, axis=1) > 1e-6]  # (positions that show nothing: at the origin)
+    return float(np.linalg.norm(cards[:, :2] - np.asarray(eye)[:2], axis=1).max())
+
+
+def test_a_field_added_from_the_menu_shows_its_near_blocks_first_and_its_canopy_from_where_they_end(
+        with_bridge, drawn):
+    """Issue #58: a new field's first look draws its detail only as far as its nearest blocks
+    reach (``FIRST_LOOK_BLOCKS``: those it makes first, so it shows in half the time); the far
+    canopy then takes over where that look's cards end, not at the field's card range, so no bare
+    ground lies between; once the field is done its cards and canopy reach as far as a field
+    added by a script."""
+    from windgrass.grass_addon import schema
+    from windgrass.grass_addon.bridge import properties, runtime
+    from windgrass.grass_addon.bridge.registry import REGISTRY, key_of
+
+    params = schema.defaults().replace({**SMALL, "field.blocks_x": 60, "field.blocks_y": 60, "lod.card_far": 30.0,
+                                        "simulation.preroll": 20.0, "simulation.epoch": 20.0})
+    want_scene = _across(_camera_scene())
+    want_item = properties.add_field(want_scene, params)
+    runtime.build_field(want_scene, want_item)
+    want_scene.frame_set(FRAME)
+    eye = tuple(want_scene.camera.location)
+    want_reach, want_far = _canopy_reach(want_item), _farthest_card(want_item, drawn, eye)
+    want_cards = drawn(want_item, "cards")
+    scene = _across(_camera_scene())  # (a new file: the field above is gone)
+    scene.frame_set(FRAME)
+    item = properties.add_field(scene, params)
+    runtime.build_in_background(scene, item)
+    _first_look_drawn(REGISTRY.live(key_of(scene, item)).building, item, drawn, "the field")
+    look_reach, look_far = _canopy_reach(item), _farthest_card(item, drawn, eye)
+    assert look_reach < 0.7 * want_reach, (look_reach, want_reach)  # (its detail nearer)
+    assert look_far < 0.8 * want_far
+    assert look_far >= look_reach, (look_far, look_reach)  # its cards reach where the canopy has taken over
+    runtime.shown_when_done(scene, item)
+    assert runtime.field_error(scene, item) is None
+    assert _canopy_reach(item) == pytest.approx(want_reach, abs=1e-4)
+    np.testing.assert_array_equal(drawn(item, "cards"), want_cards)

@@ -59,7 +59,7 @@ WINDOW_MARGIN_BLOCKS = 1.0  # the window reaches this many blocks past what the 
 GLIMPSE_S = 0.75  # seconds of wind a first look simulates (``GrassField.first_look``)
 FIRST_LOOK_BLOCKS = 256  # a new field's first look draws its levels of detail only as far as the
 # nearest this many blocks the views see reach (``GrassField.most_blocks``; a 100 m field's window from
-# eye level: 920): it makes those first, the far canopy drawn from nearer, and shows in half the time
+# eye level at 1920 x 1080: 920): it makes those first, the far canopy drawn from nearer, and shows in half the time
 WINDOW_SLACK = 2.0  # a window is kept while it holds at most this many times the blocks needed
 
 

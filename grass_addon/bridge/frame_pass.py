@@ -44,7 +44,7 @@ def write_first_look(scene, item, rt: LiveField, pools: dict, field, views) -> N
     """A build's first look (``GrassField.first_look``, worked out on its thread) written into the
     field's objects through ``pools`` while its first frame is worked out: the roles' slots, the
     gust offset and the far canopy's reach (a new field's look draws its detail nearer:
-    ``GrassField.reach``). The record keeps the frame it wrote: the next frame change, or the
+    ``GrassField.most_blocks``). The record keeps the frame it wrote: the next frame change, or the
     build when done, writes over it."""
     _write_lod_scale(item, rt, field, _write_roles(scene, item, pools, field, views))
 

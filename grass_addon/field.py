@@ -706,18 +706,13 @@ class GrassField:
         room = self.cache.capacity() // 2  # (the window's margin and the blocks kept around it)
         for role in ROLES:  # (the cards' window is also bounded by the block cache: ``room``)
             far, positions = float(getattr(lod, role.far)), min(self.shapes[role.name].positions, room)
-            if far > 0.0 and len(distance) > positions and distance[positions] < far * scale:
-                scale = float(distance[positions]) / far  # (the nearest ``positions`` blocks: those nearer)
+            scale = _nearest(distance, positions, far, scale)
         return max(1.0, scale)
 
     def _scale_for(self, cams, blocks: int, scale: float) -> float:
-        """``scale`` lowered until the views see at most ``blocks`` blocks within the card range
-        (the nearest ones: those nearer)."""
+        """``scale`` lowered until the views see at most ``blocks`` blocks within the card range."""
         far = float(self.params.lod.card_far)
-        distance = self._seen_distances(cams, far * scale + block_reach(self.params)[0])
-        if far > 0.0 and len(distance) > blocks and distance[blocks] < far * scale:
-            return float(distance[blocks]) / far
-        return scale
+        return _nearest(self._seen_distances(cams, far * scale + block_reach(self.params)[0]), blocks, far, scale)
 
     def _seen_distances(self, cams, radius: float) -> np.ndarray:
         """(m,) ascending: the distance from the nearest eye to each block some view sees within
@@ -794,3 +789,11 @@ class GrassField:
         """Card vertices of ``blocks`` at the current frame (paper III.B, eq 34), bare cells collapsed."""
         frame, cells = self._current()
         return self._fill(ROLE_OF[CARDS], frame, cells, blocks, None, out)
+
+
+def _nearest(distance: np.ndarray, count: int, far: float, scale: float) -> float:
+    """``scale`` lowered, where needed, so that only the nearest ``count`` blocks (``distance``:
+    ascending) are within ``far`` times it (those nearer)."""
+    if far > 0.0 and len(distance) > count and distance[count] < far * scale:
+        return float(distance[count]) / far
+    return scale
